@@ -1,0 +1,277 @@
+//! Shared end-to-end harness: runs `xr-scene` through the mock runtime (and, later, the layer),
+//! collects what the runtime captured, and compares images with artifacts a person can look at.
+#![allow(dead_code)] // each test binary uses a different subset
+
+pub mod image;
+
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// `target/<profile>/`, found from the running test executable (`target/<profile>/deps/<test>`),
+/// so the harness works whatever `CARGO_TARGET_DIR` is.
+pub fn target_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    exe.parent().and_then(Path::parent).expect("target/<profile>/deps/<exe>").to_path_buf()
+}
+
+pub fn xr_scene_exe() -> PathBuf {
+    let p = target_dir().join("xr-scene");
+    assert!(p.exists(), "{} missing: run `cargo build --workspace` first (scripts/test does)", p.display());
+    p
+}
+
+/// A fresh directory under `target/test-output/` for one run; removed and recreated so stale
+/// captures from an earlier run can never make a test pass.
+pub fn output_dir(name: &str) -> PathBuf {
+    let dir = target_dir().join("test-output").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create test output dir");
+    dir
+}
+
+/// Writes a runtime manifest with the absolute path of the built mock runtime. The loader reads
+/// `library_path` relative to the manifest, so an absolute one keeps it independent of the cwd.
+pub fn runtime_manifest() -> PathBuf {
+    let lib = target_dir().join("libmock_runtime.so");
+    assert!(lib.exists(), "{} missing: run `cargo build --workspace` first", lib.display());
+    let dir = target_dir().join("test-output");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("mock-runtime.json");
+    let json = serde_json::json!({
+        "file_format_version": "1.0.0",
+        "runtime": { "name": "stereoshim mock runtime", "library_path": lib },
+    });
+    // Written to a unique temp name and renamed, so concurrent tests never read a partial file.
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let tmp = dir.join(format!(".mock-runtime.{}.{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
+    std::fs::write(&tmp, serde_json::to_vec_pretty(&json).unwrap()).unwrap();
+    std::fs::rename(&tmp, &path).unwrap();
+    path
+}
+
+/// One xr-scene invocation: app flags plus mock-runtime environment.
+#[derive(Clone, Debug)]
+pub struct Run {
+    pub name: String,
+    pub args: Vec<String>,
+    pub env: Vec<(String, String)>,
+    pub validation: bool,
+}
+
+impl Run {
+    /// Small images (tests run on a 2-core software rasterizer), two frames, frame 1 captured
+    /// (frame 0 is captured too: some tests compare frames), validation on.
+    pub fn new(name: &str) -> Run {
+        Run {
+            name: name.to_string(),
+            args: vec!["--scale".into(), "0.25".into()],
+            env: vec![("MOCK_XR_EXIT_AFTER".into(), "2".into())],
+            validation: true,
+        }
+    }
+    pub fn args<I: IntoIterator<Item = S>, S: Into<String>>(mut self, args: I) -> Run {
+        self.args.extend(args.into_iter().map(Into::into));
+        self
+    }
+    pub fn env(mut self, k: &str, v: &str) -> Run {
+        self.env.retain(|(key, _)| key != k);
+        self.env.push((k.into(), v.into()));
+        self
+    }
+
+    pub fn run(&self) -> RunOutput {
+        let dir = output_dir(&self.name);
+        let capture = dir.join("capture");
+        let stats = dir.join("stats.json");
+        let mut cmd = Command::new(xr_scene_exe());
+        cmd.args(&self.args).arg("--stats").arg(&stats);
+        if self.validation {
+            cmd.arg("--validation");
+        }
+        cmd.env("XR_RUNTIME_JSON", runtime_manifest())
+            .env("MOCK_XR_CAPTURE", &capture)
+            // Nothing from the developer's own setup may leak into a test.
+            .env_remove("XR_ENABLE_API_LAYERS")
+            .env_remove("VK_INSTANCE_LAYERS")
+            .env("XDG_CONFIG_HOME", dir.join("config"))
+            .env("XDG_STATE_HOME", dir.join("state"));
+        for (k, v) in &self.env {
+            cmd.env(k, v);
+        }
+        let started = std::time::Instant::now();
+        let out = cmd.output().expect("spawn xr-scene");
+        let elapsed = started.elapsed();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        std::fs::write(dir.join("stderr.txt"), &stderr).ok();
+        let frames = std::fs::read(capture.join("frames.json"))
+            .ok()
+            .map(|b| serde_json::from_slice::<Frames>(&b).expect("frames.json parses"));
+        let stats = std::fs::read(&stats)
+            .ok()
+            .map(|b| serde_json::from_slice::<Stats>(&b).expect("stats.json parses"));
+        RunOutput { name: self.name.clone(), code: out.status.code(), stderr, capture, frames, stats, elapsed }
+    }
+}
+
+#[derive(Debug)]
+pub struct RunOutput {
+    pub name: String,
+    pub code: Option<i32>,
+    pub stderr: String,
+    pub capture: PathBuf,
+    pub frames: Option<Frames>,
+    pub stats: Option<Stats>,
+    pub elapsed: std::time::Duration,
+}
+
+impl RunOutput {
+    /// Asserts a clean run: exit 0 (which under `--validation` also means no validation error).
+    pub fn assert_ok(&self) -> &Self {
+        assert_eq!(self.code, Some(0), "{}: xr-scene failed; stderr:\n{}", self.name, self.stderr);
+        self
+    }
+    pub fn frames(&self) -> &Frames {
+        self.frames.as_ref().unwrap_or_else(|| panic!("{}: no frames.json; stderr:\n{}", self.name, self.stderr))
+    }
+    pub fn frame(&self, n: u64) -> &Frame {
+        self.frames().frames.iter().find(|f| f.frame == n).unwrap_or_else(|| panic!("{}: frame {n} not captured", self.name))
+    }
+    /// The projection views of captured frame `n`, in view order.
+    pub fn views(&self, n: u64) -> Vec<&View> {
+        let frame = self.frame(n);
+        let layer = frame.layers.iter().find(|l| l.kind == "projection").expect("a projection layer");
+        layer.views.iter().collect()
+    }
+    pub fn image(&self, file: &str) -> image::Image {
+        image::Image::load(&self.capture.join(file))
+    }
+}
+
+#[derive(Debug, Deserialize)]
+pub struct Frames {
+    pub hmd: String,
+    pub frames: Vec<Frame>,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct Frame {
+    pub frame: u64,
+    pub layers: Vec<Layer>,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct Layer {
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub layer_flags: u64,
+    pub space: String,
+    pub views: Vec<View>,
+}
+
+#[derive(Debug, Deserialize, Clone)]
+pub struct View {
+    pub view: u32,
+    pub pose: Pose,
+    pub fov: Fov,
+    pub swapchain: u64,
+    pub format: i32,
+    pub image_rect: Rect,
+    pub image_array_index: u32,
+    pub file: String,
+    pub depth: Option<DepthInfo>,
+}
+
+#[derive(Debug, Deserialize, Clone, Copy)]
+pub struct Pose {
+    pub orientation: [f32; 4],
+    pub position: [f32; 3],
+}
+
+#[derive(Debug, Deserialize, Clone, Copy)]
+pub struct Fov {
+    pub angle_left: f32,
+    pub angle_right: f32,
+    pub angle_up: f32,
+    pub angle_down: f32,
+}
+
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+pub struct Rect {
+    pub x: i32,
+    pub y: i32,
+    pub width: u32,
+    pub height: u32,
+}
+
+#[derive(Debug, Deserialize, Clone)]
+pub struct DepthInfo {
+    pub swapchain: u64,
+    pub image_rect: Rect,
+    pub image_array_index: u32,
+    pub min_depth: f32,
+    pub max_depth: f32,
+    pub near_z: f32,
+    pub far_z: f32,
+    pub file: String,
+}
+
+#[derive(Debug, Deserialize, PartialEq)]
+pub struct Stats {
+    pub frames: Vec<StatsFrame>,
+}
+
+#[derive(Debug, Deserialize)]
+pub struct StatsFrame {
+    pub frame: u64,
+    pub gpu_time_ms: f64,
+    pub views: Vec<StatsView>,
+}
+
+// GPU time differs run to run; equality of stats means equal work.
+impl PartialEq for StatsFrame {
+    fn eq(&self, other: &Self) -> bool {
+        self.frame == other.frame && self.views == other.views
+    }
+}
+
+#[derive(Debug, Deserialize, PartialEq, Eq)]
+pub struct StatsView {
+    pub view: u32,
+    pub shaded_fragments: u64,
+}
+
+/// Where a point given in the captured view's space lands in its image, in pixels of the image
+/// rect (x right, y down), or None when it is behind the eye or outside the FOV.
+pub fn project(view: &View, p_stage: [f32; 3]) -> Option<(f32, f32)> {
+    let [qx, qy, qz, qw] = view.pose.orientation;
+    let d = [
+        p_stage[0] - view.pose.position[0],
+        p_stage[1] - view.pose.position[1],
+        p_stage[2] - view.pose.position[2],
+    ];
+    // Rotate by the inverse (conjugate) orientation: stage → view.
+    let v = rotate([-qx, -qy, -qz, qw], d);
+    if v[2] >= 0.0 {
+        return None;
+    }
+    let tx = v[0] / -v[2];
+    let ty = v[1] / -v[2];
+    let (l, r) = (view.fov.angle_left.tan(), view.fov.angle_right.tan());
+    let (u, dn) = (view.fov.angle_up.tan(), view.fov.angle_down.tan());
+    let fx = (tx - l) / (r - l);
+    let fy = (u - ty) / (u - dn);
+    if !(0.0..1.0).contains(&fx) || !(0.0..1.0).contains(&fy) {
+        return None;
+    }
+    Some((fx * view.image_rect.width as f32, fy * view.image_rect.height as f32))
+}
+
+fn rotate(q: [f32; 4], v: [f32; 3]) -> [f32; 3] {
+    let [x, y, z, w] = q;
+    // v' = v + 2w (q×v) + 2 q×(q×v)
+    let c1 = [y * v[2] - z * v[1], z * v[0] - x * v[2], x * v[1] - y * v[0]];
+    let c2 = [y * c1[2] - z * c1[1], z * c1[0] - x * c1[2], x * c1[1] - y * c1[0]];
+    [v[0] + 2.0 * (w * c1[0] + c2[0]), v[1] + 2.0 * (w * c1[1] + c2[1]), v[2] + 2.0 * (w * c1[2] + c2[2])]
+}

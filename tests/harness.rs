@@ -1,0 +1,237 @@
+//! End-to-end checks of the test ground itself: xr-scene through the mock runtime, no layer.
+//! Every later claim about stereoshim compares against captures like these, so they must be
+//! deterministic, show the expected scene, and be identical across equivalent app code paths.
+
+mod common;
+
+use common::image::{assert_identical, Image};
+use common::{project, Run, RunOutput};
+
+/// Centre of the red near cube (docs/testing.md).
+const NEAR_CUBE: [f32; 3] = [0.0, 1.45, -1.5];
+
+/// The captured frame the checks look at (frame 0 is captured too; 1 shows steady state).
+const FRAME: u64 = 1;
+
+fn is_red(c: &[f32]) -> bool {
+    c[0] > 2.0 * c[1] && c[0] > 2.0 * c[2] && c[0] > 80.0
+}
+
+/// The content every capture of xr-scene must show: two different eyes, sky above, ground below,
+/// the near cube where each eye's projection puts it, and no pixel left at the black clear colour.
+fn check_scene(out: &RunOutput) {
+    let views = out.views(FRAME);
+    assert_eq!(views.len(), 2, "{}: stereo needs two projection views", out.name);
+    let images: Vec<Image> = views.iter().map(|v| out.image(&v.file)).collect();
+    for (view, img) in views.iter().zip(&images) {
+        let name = format!("{} view {}", out.name, view.view);
+        assert_eq!((img.width, img.height), (view.image_rect.width, view.image_rect.height), "{name}: capture size");
+        let (w, h) = (img.width, img.height);
+        let sky = img.mean(w / 2, 2, 2);
+        assert!(sky[2] > sky[0] && sky[2] > sky[1], "{name}: top centre is not sky-blue: {sky:?}");
+        let ground = img.mean(w / 2, h - 3, 2);
+        assert!(ground[1] > ground[2] && ground[1] >= ground[0], "{name}: bottom centre is not ground: {ground:?}");
+        let (cx, cy) = project(view, NEAR_CUBE).unwrap_or_else(|| panic!("{name}: near cube outside the view"));
+        let cube = img.mean(cx as u32, cy as u32, 1);
+        assert!(is_red(&cube), "{name}: near cube not at its projection ({cx:.1},{cy:.1}): {cube:?}");
+        let black = img.data.chunks_exact(3).filter(|p| p.iter().all(|&c| c == 0)).count();
+        assert_eq!(black, 0, "{name}: {black} pixels left at the clear colour");
+    }
+    let differing = images[0].count_different(&images[1]);
+    let total = (images[0].width * images[0].height) as usize;
+    assert!(differing > total / 20, "{}: left and right eyes barely differ ({differing} of {total})", out.name);
+    let stats = out.stats.as_ref().unwrap_or_else(|| panic!("{}: no stats", out.name));
+    let frame = stats.frames.iter().find(|f| f.frame == FRAME).expect("stats for the checked frame");
+    for (v, img) in frame.views.iter().zip(&images) {
+        let pixels = (img.width * img.height) as u64;
+        assert!(
+            v.shaded_fragments >= pixels && v.shaded_fragments < 4 * pixels,
+            "{}: view {} shaded {} fragments for {pixels} pixels",
+            out.name,
+            v.view,
+            v.shaded_fragments
+        );
+    }
+}
+
+/// Asserts that every captured image of `a` equals the corresponding one of `b`.
+fn assert_same_captures(label: &str, a: &RunOutput, b: &RunOutput) {
+    for (va, vb) in a.views(FRAME).iter().zip(b.views(FRAME)) {
+        assert_identical(
+            &format!("{label}-view{}", va.view),
+            &a.image(&va.file),
+            &b.image(&vb.file),
+        );
+        if let (Some(da), Some(db)) = (&va.depth, &vb.depth) {
+            assert_identical(&format!("{label}-view{}-depth", va.view), &a.image(&da.file), &b.image(&db.file));
+        }
+    }
+}
+
+/// One layout × depth convention: all three ways of starting a pass must give the same pixels,
+/// and a repeated run must give the same pixels and the same shaded-fragment counts.
+fn layout_depth(layout: &str, depth: &str) {
+    let base = |rendering: &str, tag: &str| {
+        Run::new(&format!("{layout}-{depth}-{rendering}{tag}"))
+            .args(["--layout", layout, "--depth", depth, "--rendering", rendering])
+            .run()
+    };
+    let first = base("render-pass", "");
+    first.assert_ok();
+    check_scene(&first);
+    let again = base("render-pass", "-again");
+    again.assert_ok();
+    assert_same_captures(&format!("{layout}-{depth}-determinism"), &first, &again);
+    assert_eq!(first.stats, again.stats, "shaded fragments differ between identical runs");
+    for rendering in ["render-pass2", "dynamic"] {
+        let other = base(rendering, "");
+        other.assert_ok();
+        check_scene(&other);
+        assert_same_captures(&format!("{layout}-{depth}-{rendering}-vs-render-pass"), &other, &first);
+    }
+}
+
+macro_rules! layout_depth_tests {
+    ($($name:ident: $layout:literal, $depth:literal;)*) => {$(
+        #[test]
+        fn $name() {
+            layout_depth($layout, $depth);
+        }
+    )*};
+}
+
+layout_depth_tests! {
+    per_eye_standard: "per-eye", "standard";
+    per_eye_reverse: "per-eye", "reverse";
+    multiview_standard: "multiview", "standard";
+    multiview_reverse: "multiview", "reverse";
+    side_by_side_standard: "side-by-side", "standard";
+    side_by_side_reverse: "side-by-side", "reverse";
+}
+
+/// The three layouts are the same scene through different plumbing: identical pixels per eye.
+#[test]
+fn layouts_agree() {
+    let run = |layout: &str| Run::new(&format!("layouts-agree-{layout}")).args(["--layout", layout]).run();
+    let per_eye = run("per-eye");
+    per_eye.assert_ok();
+    for layout in ["multiview", "side-by-side"] {
+        let other = run(layout);
+        other.assert_ok();
+        assert_same_captures(&format!("layouts-agree-{layout}-vs-per-eye"), &other, &per_eye);
+    }
+}
+
+/// An offscreen target copied 1:1 gives the direct image; a multisampled one resolved still shows
+/// the scene (edges differ, by design).
+#[test]
+fn intermediate_targets() {
+    for layout in ["per-eye", "multiview", "side-by-side"] {
+        let direct = Run::new(&format!("intermediate-{layout}-direct")).args(["--layout", layout]).run();
+        direct.assert_ok();
+        let copied = Run::new(&format!("intermediate-{layout}-copy"))
+            .args(["--layout", layout, "--intermediate", "--samples", "1", "--rendering", "dynamic"])
+            .run();
+        copied.assert_ok();
+        check_scene(&copied);
+        assert_same_captures(&format!("intermediate-{layout}-copy-vs-direct"), &copied, &direct);
+        let resolved = Run::new(&format!("intermediate-{layout}-msaa"))
+            .args(["--layout", layout, "--intermediate", "--samples", "4"])
+            .run();
+        resolved.assert_ok();
+        check_scene(&resolved);
+    }
+}
+
+/// Submitted depth is captured, orders near before far in the app's convention, and submitting
+/// it leaves the colour image unchanged.
+#[test]
+fn submitted_depth() {
+    for (layout, depth) in [("per-eye", "standard"), ("multiview", "reverse"), ("side-by-side", "standard")] {
+        let plain = Run::new(&format!("depth-{layout}-{depth}-plain")).args(["--layout", layout, "--depth", depth]).run();
+        plain.assert_ok();
+        let with = Run::new(&format!("depth-{layout}-{depth}-submitted"))
+            .args(["--layout", layout, "--depth", depth, "--submit-depth"])
+            .run();
+        with.assert_ok();
+        check_scene(&with);
+        assert_same_captures(&format!("depth-{layout}-{depth}-colour"), &with, &plain);
+        for view in with.views(FRAME) {
+            let info = view.depth.as_ref().unwrap_or_else(|| panic!("{layout}: view {} has no depth", view.view));
+            let reversed = depth == "reverse";
+            assert_eq!(info.near_z > info.far_z, reversed, "{layout}: nearZ/farZ must tell reversed depth");
+            let img = with.image(&info.file);
+            assert_eq!((img.width, img.height), (info.image_rect.width, info.image_rect.height));
+            let (cx, cy) = project(view, NEAR_CUBE).expect("cube visible");
+            let cube = img.pixel(cx as u32, cy as u32)[0];
+            let sky = img.pixel(img.width / 2, 1)[0];
+            if reversed {
+                assert!(cube > sky, "{layout}: reversed depth must be larger near: cube {cube}, sky {sky}");
+            } else {
+                assert!(cube < sky, "{layout}: depth must be smaller near: cube {cube}, sky {sky}");
+            }
+        }
+    }
+}
+
+/// Both Vulkan bindings give the same frames.
+#[test]
+fn vulkan_enable_paths_agree() {
+    let enable2 = Run::new("vulkan-enable2").args(["--vulkan", "enable2", "--layout", "multiview"]).run();
+    enable2.assert_ok();
+    let enable = Run::new("vulkan-enable").args(["--vulkan", "enable", "--layout", "multiview"]).run();
+    enable.assert_ok();
+    check_scene(&enable);
+    assert_same_captures("vulkan-enable-vs-enable2", &enable, &enable2);
+}
+
+/// Every HMD profile, canted and asymmetric ones included, gives a correct stereo scene.
+#[test]
+fn hmd_profiles() {
+    for hmd in ["simple", "index", "vive", "quest3", "pimax"] {
+        let out = Run::new(&format!("hmd-{hmd}")).env("MOCK_XR_HMD", hmd).args(["--scale", "0.15"]).run();
+        out.assert_ok();
+        assert_eq!(out.frames().hmd, hmd);
+        check_scene(&out);
+    }
+}
+
+/// UNORM swapchains hold the same scene (values differ from sRGB by encoding, not content).
+#[test]
+fn unorm_swapchain() {
+    let out = Run::new("unorm").args(["--color-format", "unorm", "--layout", "side-by-side"]).run();
+    out.assert_ok();
+    check_scene(&out);
+}
+
+/// The app's own input works: the runtime's menu click makes xr-scene request exit, and the
+/// session ends long before the runtime would have stopped it.
+#[test]
+fn menu_click_quits_app() {
+    let out = Run::new("menu-click").env("MOCK_XR_EXIT_AFTER", "1000").env("MOCK_XR_MENU_CLICK_AT", "2").run();
+    out.assert_ok();
+    let last = out.frames().frames.last().expect("frames").frame;
+    assert!(last < 10, "app ran {last} frames after the menu click");
+}
+
+/// `--frames N` ends the session by the app's own request.
+#[test]
+fn app_requests_exit() {
+    let out = Run::new("frames-limit").env("MOCK_XR_EXIT_AFTER", "1000").args(["--frames", "3"]).run();
+    out.assert_ok();
+    let last = out.frames().frames.last().expect("frames").frame;
+    assert!(last < 6, "app ran {last} frames with --frames 3");
+}
+
+/// Animation is deterministic per frame: two runs agree, and consecutive frames differ.
+#[test]
+fn animation_is_deterministic() {
+    let a = Run::new("animate-a").args(["--animate"]).run();
+    a.assert_ok();
+    let b = Run::new("animate-b").args(["--animate"]).run();
+    b.assert_ok();
+    assert_same_captures("animate-determinism", &a, &b);
+    let f0 = a.image(&a.views(0)[0].file);
+    let f1 = a.image(&a.views(1)[0].file);
+    assert!(f0.count_different(&f1) > 0, "--animate: frames 0 and 1 are identical");
+}
