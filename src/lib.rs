@@ -1,3 +1,5 @@
 //! stereoshim: an OpenXR API layer and a Vulkan layer in one library, making unmodified Vulkan VR
-//! apps render less. The layer itself arrives with the layer-core issue; today the crate holds the
-//! workspace root that the test harness (`tests/mock-runtime`, `tests/xr-scene`) builds against.
+//! apps render less. The FFI shells (`xr`, `vk`) arrive with the layer core; the safe core modules
+//! below need no GPU and are unit-tested.
+
+pub mod config;
