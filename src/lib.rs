@@ -1,5 +1,9 @@
 //! stereoshim: an OpenXR API layer and a Vulkan layer in one library, making unmodified Vulkan VR
-//! apps render less. The FFI shells (`xr`, `vk`) arrive with the layer core; the safe core modules
-//! below need no GPU and are unit-tested.
+//! apps render less. `xr` and `vk` are the thin FFI shells; everything else is safe core logic
+//! that needs no GPU and is unit-tested.
 
 pub mod config;
+pub mod guard;
+pub mod log;
+pub mod registry;
+pub mod shared;

@@ -1,0 +1,70 @@
+//! Logging to a file under `$XDG_STATE_HOME/stereoshim/`: the layer lives in someone else's process
+//! and must never write to its stdout, and the log must outlive a crash of that process, so every
+//! line goes straight to the file (no buffering).
+
+use std::fs::{File, OpenOptions};
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, OnceLock};
+
+static LOG_PATH: OnceLock<Option<PathBuf>> = OnceLock::new();
+
+/// `$XDG_STATE_HOME/stereoshim/stereoshim.log`, else `~/.local/state/stereoshim/stereoshim.log`.
+pub fn default_path(env: &dyn Fn(&str) -> Option<String>) -> Option<PathBuf> {
+    let base = env("XDG_STATE_HOME")
+        .filter(|p| !p.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| env("HOME").map(|h| Path::new(&h).join(".local").join("state")))?;
+    Some(base.join("stereoshim").join("stereoshim.log"))
+}
+
+/// Installs the file logger once per process; later calls return the path chosen the first time.
+/// `level` is one of the `log.level` choices. Without a writable log file the layer stays silent.
+pub fn init(level: &str) -> Option<&'static Path> {
+    LOG_PATH
+        .get_or_init(|| {
+            let path = default_path(&|k| std::env::var(k).ok())?;
+            let file = open(&path)?;
+            let filter = match level {
+                "off" => tracing_subscriber::filter::LevelFilter::OFF,
+                "error" => tracing_subscriber::filter::LevelFilter::ERROR,
+                "warn" => tracing_subscriber::filter::LevelFilter::WARN,
+                "debug" => tracing_subscriber::filter::LevelFilter::DEBUG,
+                "trace" => tracing_subscriber::filter::LevelFilter::TRACE,
+                _ => tracing_subscriber::filter::LevelFilter::INFO,
+            };
+            // `File` is unbuffered: each event is one write(2), so lines survive the app's exit or
+            // crash. Several processes may append to the same file; O_APPEND keeps lines whole.
+            let installed = tracing_subscriber::fmt()
+                .with_writer(Mutex::new(file))
+                .with_ansi(false)
+                .with_max_level(filter)
+                .with_thread_ids(true)
+                .try_init()
+                .is_ok();
+            if installed {
+                let exe = std::env::current_exe().map(|p| p.display().to_string()).unwrap_or_default();
+                tracing::info!(pid = std::process::id(), exe, version = env!("CARGO_PKG_VERSION"), "stereoshim loaded");
+            }
+            Some(path)
+        })
+        .as_deref()
+}
+
+fn open(path: &Path) -> Option<File> {
+    std::fs::create_dir_all(path.parent()?).ok()?;
+    OpenOptions::new().create(true).append(true).open(path).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn path_from_xdg_state_home_or_home() {
+        let env = |k: &str| (k == "XDG_STATE_HOME").then(|| "/s".to_string());
+        assert_eq!(default_path(&env), Some(PathBuf::from("/s/stereoshim/stereoshim.log")));
+        let env = |k: &str| (k == "HOME").then(|| "/h".to_string());
+        assert_eq!(default_path(&env), Some(PathBuf::from("/h/.local/state/stereoshim/stereoshim.log")));
+        assert_eq!(default_path(&|_| None), None);
+    }
+}

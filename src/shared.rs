@@ -1,0 +1,137 @@
+//! State the two halves share. Both live in the same `libstereoshim.so`, loaded once per process,
+//! so plain statics are shared: the OpenXR half knows which `VkImage`s are swapchain images and,
+//! from `xrEndFrame`, which eye each one shows; the Vulkan half needs exactly that to find eye
+//! passes. Only the OpenXR half writes here.
+
+use crate::registry::HandleMap;
+use std::sync::{Arc, OnceLock, RwLock};
+
+/// The part of `XrSwapchainCreateInfo` eye-pass detection needs, immutable after creation.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SwapchainDesc {
+    pub usage_flags: u64,
+    /// `VkFormat` as the app asked for it.
+    pub format: i64,
+    pub sample_count: u32,
+    pub width: u32,
+    pub height: u32,
+    pub array_size: u32,
+}
+
+/// Rectangle of an image in pixels, as `XrRect2Di`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ImageRect {
+    pub x: i32,
+    pub y: i32,
+    pub width: i32,
+    pub height: i32,
+}
+
+/// One use of a swapchain by a projection view, learned from `xrEndFrame`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct EyeUse {
+    /// Index of the view in the view configuration (0 = left, 1 = right for stereo).
+    pub view: u32,
+    pub image_rect: ImageRect,
+    pub image_array_index: u32,
+    /// True when this swapchain was submitted as the view's depth (`XrCompositionLayerDepthInfoKHR`).
+    pub depth: bool,
+}
+
+#[derive(Debug)]
+pub struct Swapchain {
+    /// The `XrSwapchain` handle value.
+    pub handle: u64,
+    pub desc: SwapchainDesc,
+    /// `VkImage` handle values in `xrEnumerateSwapchainImages` order.
+    pub images: Vec<u64>,
+    /// How the app submitted the swapchain in the latest frame that used it.
+    uses: RwLock<Vec<EyeUse>>,
+}
+
+impl Swapchain {
+    pub fn new(handle: u64, desc: SwapchainDesc, images: Vec<u64>) -> Swapchain {
+        Swapchain { handle, desc, images, uses: RwLock::new(Vec::new()) }
+    }
+    pub fn uses(&self) -> Vec<EyeUse> {
+        self.uses.read().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+    /// Replaces the uses when they changed; returns whether they did (worth a log line).
+    pub fn set_uses(&self, uses: Vec<EyeUse>) -> bool {
+        let mut cur = self.uses.write().unwrap_or_else(|e| e.into_inner());
+        if *cur == uses {
+            return false;
+        }
+        *cur = uses;
+        true
+    }
+}
+
+/// A swapchain image as the Vulkan half sees it.
+#[derive(Debug, Clone)]
+pub struct SwapchainImage {
+    pub swapchain: Arc<Swapchain>,
+    pub index: u32,
+}
+
+#[derive(Debug, Default)]
+pub struct Shared {
+    /// The configuration the OpenXR half resolved for the app (it knows the app's name first); the
+    /// Vulkan half uses it for devices created after it, else resolves its own.
+    pub config: RwLock<Option<Arc<crate::config::Config>>>,
+    /// `XrSwapchain` → swapchain.
+    pub swapchains: HandleMap<u64, Swapchain>,
+    /// `VkImage` → the swapchain image it is.
+    pub images: HandleMap<u64, SwapchainImage>,
+}
+
+impl Shared {
+    pub fn config(&self) -> Option<Arc<crate::config::Config>> {
+        self.config.read().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+    pub fn set_config(&self, config: Arc<crate::config::Config>) {
+        *self.config.write().unwrap_or_else(|e| e.into_inner()) = Some(config);
+    }
+    pub fn add_swapchain(&self, swapchain: Arc<Swapchain>) {
+        for (index, &image) in swapchain.images.iter().enumerate() {
+            self.images.insert(image, Arc::new(SwapchainImage { swapchain: swapchain.clone(), index: index as u32 }));
+        }
+        self.swapchains.insert(swapchain.handle, swapchain);
+    }
+    pub fn remove_swapchain(&self, handle: u64) {
+        if let Some(sc) = self.swapchains.remove(handle) {
+            for image in &sc.images {
+                self.images.remove(*image);
+            }
+        }
+    }
+}
+
+pub fn shared() -> &'static Shared {
+    static SHARED: OnceLock<Shared> = OnceLock::new();
+    SHARED.get_or_init(Shared::default)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn swapchain_images_are_found_and_forgotten() {
+        let s = Shared::default();
+        let desc = SwapchainDesc { usage_flags: 1, format: 43, sample_count: 1, width: 8, height: 8, array_size: 2 };
+        s.add_swapchain(Arc::new(Swapchain::new(5, desc, vec![100, 101])));
+        let img = s.images.get(101).unwrap();
+        assert_eq!((img.index, img.swapchain.handle), (1, 5));
+        let rect = ImageRect { x: 0, y: 0, width: 8, height: 8 };
+        let uses = vec![
+            EyeUse { view: 0, image_rect: rect, image_array_index: 0, depth: false },
+            EyeUse { view: 1, image_rect: rect, image_array_index: 1, depth: false },
+        ];
+        assert!(img.swapchain.set_uses(uses.clone()));
+        assert!(!img.swapchain.set_uses(uses.clone()));
+        assert_eq!(s.images.get(100).unwrap().swapchain.uses(), uses);
+        s.remove_swapchain(5);
+        assert!(s.images.get(100).is_none() && s.swapchains.get(5).is_none());
+    }
+}
