@@ -1,0 +1,49 @@
+#version 450
+// The scene's vertex shader. Compiled twice: with MULTIVIEW the view comes from gl_ViewIndex
+// (one draw renders both eyes), otherwise from the push-constant eye index (one draw per eye).
+#ifdef MULTIVIEW
+#extension GL_EXT_multiview : require
+#endif
+
+layout(location = 0) in vec3 in_pos;
+layout(location = 1) in vec3 in_normal;
+layout(location = 2) in vec3 in_color;
+layout(location = 3) in uint in_flags;
+
+layout(set = 0, binding = 0) uniform Frame {
+    mat4 view_proj[2];
+    mat4 cube_model;
+    vec4 eye_pos[2];
+} frame;
+
+layout(push_constant) uniform Push {
+    uint eye;
+    uint shading_cost;
+    uint flags;
+} pc;
+
+layout(location = 0) out vec3 v_world;
+layout(location = 1) out vec3 v_normal;
+layout(location = 2) out vec3 v_color;
+layout(location = 3) flat out uint v_flags;
+
+const uint FLAG_ANIMATED = 2u;
+
+void main() {
+#ifdef MULTIVIEW
+    uint view = gl_ViewIndex;
+#else
+    uint view = pc.eye;
+#endif
+    vec4 world = vec4(in_pos, 1.0);
+    vec3 n = in_normal;
+    if ((in_flags & FLAG_ANIMATED) != 0u) {
+        world = frame.cube_model * world;
+        n = mat3(frame.cube_model) * n;
+    }
+    v_world = world.xyz;
+    v_normal = n;
+    v_color = in_color;
+    v_flags = in_flags;
+    gl_Position = frame.view_proj[view] * world;
+}

@@ -1,0 +1,259 @@
+//! Command-line parsing: the flag set is the test contract of docs/testing.md, small enough to parse by hand.
+
+use std::path::PathBuf;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layout {
+    PerEye,
+    Multiview,
+    SideBySide,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rendering {
+    RenderPass,
+    RenderPass2,
+    Dynamic,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DepthMode {
+    Standard,
+    Reverse,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VulkanPath {
+    Enable,
+    Enable2,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ColorFamily {
+    Srgb,
+    Unorm,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    pub layout: Layout,
+    pub rendering: Rendering,
+    pub depth: DepthMode,
+    pub intermediate: bool,
+    pub samples: u32,
+    pub submit_depth: bool,
+    pub vulkan: VulkanPath,
+    pub frames: Option<u64>,
+    pub scale: f32,
+    pub color_format: ColorFamily,
+    pub shading_cost: u32,
+    pub animate: bool,
+    pub stats: Option<PathBuf>,
+    pub validation: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            layout: Layout::PerEye,
+            rendering: Rendering::RenderPass,
+            depth: DepthMode::Standard,
+            intermediate: false,
+            samples: 4,
+            submit_depth: false,
+            vulkan: VulkanPath::Enable2,
+            frames: None,
+            scale: 1.0,
+            color_format: ColorFamily::Srgb,
+            shading_cost: 0,
+            animate: false,
+            stats: None,
+            validation: false,
+        }
+    }
+}
+
+pub const USAGE: &str = "\
+usage: xr-scene [options]
+  --layout per-eye|multiview|side-by-side   swapchain layout (default per-eye)
+  --rendering render-pass|render-pass2|dynamic  (default render-pass)
+  --depth standard|reverse                  depth convention (default standard)
+  --intermediate                            render offscreen, then resolve/copy to the swapchain
+  --samples N                               offscreen sample count with --intermediate (default 4)
+  --submit-depth                            submit depth swapchains (XR_KHR_composition_layer_depth)
+  --vulkan enable|enable2                   OpenXR Vulkan binding extension (default enable2)
+  --frames N                                request exit after N frames
+  --scale F                                 render at F x the recommended size (default 1)
+  --color-format srgb|unorm                 swapchain colour format family (default srgb)
+  --shading-cost K                          K-iteration per-pixel busy loop (default 0)
+  --animate                                 spin the near cube by frame number
+  --stats FILE                              write per-frame GPU time and shaded fragments as JSON
+  --validation                              enable VK_LAYER_KHRONOS_validation (exit 3 on errors)
+  --help                                    show this text";
+
+/// Parses the arguments after the program name. `Err` carries the message for a usage error;
+/// `Ok(None)` means `--help` was asked for.
+pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>, String> {
+    let mut o = Options::default();
+    let mut samples_given = false;
+    let mut it = args.into_iter();
+    while let Some(arg) = it.next() {
+        // Accept both `--flag value` and `--flag=value`.
+        let (flag, inline) = match arg.split_once('=') {
+            Some((f, v)) if f.starts_with("--") => (f.to_string(), Some(v.to_string())),
+            _ => (arg.clone(), None),
+        };
+        let mut value = |name: &str| -> Result<String, String> {
+            match inline.clone() {
+                Some(v) => Ok(v),
+                None => it.next().ok_or_else(|| format!("{name} needs a value")),
+            }
+        };
+        match flag.as_str() {
+            "--help" | "-h" => return Ok(None),
+            "--layout" => {
+                o.layout = match value("--layout")?.as_str() {
+                    "per-eye" => Layout::PerEye,
+                    "multiview" => Layout::Multiview,
+                    "side-by-side" => Layout::SideBySide,
+                    v => return Err(format!("unknown --layout {v:?}")),
+                }
+            }
+            "--rendering" => {
+                o.rendering = match value("--rendering")?.as_str() {
+                    "render-pass" => Rendering::RenderPass,
+                    "render-pass2" => Rendering::RenderPass2,
+                    "dynamic" => Rendering::Dynamic,
+                    v => return Err(format!("unknown --rendering {v:?}")),
+                }
+            }
+            "--depth" => {
+                o.depth = match value("--depth")?.as_str() {
+                    "standard" => DepthMode::Standard,
+                    "reverse" => DepthMode::Reverse,
+                    v => return Err(format!("unknown --depth {v:?}")),
+                }
+            }
+            "--vulkan" => {
+                o.vulkan = match value("--vulkan")?.as_str() {
+                    "enable" => VulkanPath::Enable,
+                    "enable2" => VulkanPath::Enable2,
+                    v => return Err(format!("unknown --vulkan {v:?}")),
+                }
+            }
+            "--color-format" => {
+                o.color_format = match value("--color-format")?.as_str() {
+                    "srgb" => ColorFamily::Srgb,
+                    "unorm" => ColorFamily::Unorm,
+                    v => return Err(format!("unknown --color-format {v:?}")),
+                }
+            }
+            "--samples" => {
+                let v = value("--samples")?;
+                o.samples = match v.parse::<u32>() {
+                    Ok(n @ (1 | 2 | 4 | 8 | 16 | 32 | 64)) => n,
+                    _ => return Err(format!("--samples must be a power of two 1..64, got {v:?}")),
+                };
+                samples_given = true;
+            }
+            "--frames" => {
+                let v = value("--frames")?;
+                o.frames = Some(
+                    v.parse::<u64>()
+                        .ok()
+                        .filter(|n| *n > 0)
+                        .ok_or_else(|| format!("--frames must be a positive integer, got {v:?}"))?,
+                );
+            }
+            "--scale" => {
+                let v = value("--scale")?;
+                o.scale = v
+                    .parse::<f32>()
+                    .ok()
+                    .filter(|f| f.is_finite() && *f > 0.0 && *f <= 4.0)
+                    .ok_or_else(|| format!("--scale must be a number in (0, 4], got {v:?}"))?;
+            }
+            "--shading-cost" => {
+                let v = value("--shading-cost")?;
+                o.shading_cost = v
+                    .parse::<u32>()
+                    .map_err(|_| format!("--shading-cost must be a non-negative integer, got {v:?}"))?;
+            }
+            "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
+            "--intermediate" | "--submit-depth" | "--animate" | "--validation" if inline.is_some() => {
+                return Err(format!("{flag} takes no value"))
+            }
+            "--intermediate" => o.intermediate = true,
+            "--submit-depth" => o.submit_depth = true,
+            "--animate" => o.animate = true,
+            "--validation" => o.validation = true,
+            _ => return Err(format!("unknown argument {arg:?}")),
+        }
+    }
+    if samples_given && !o.intermediate {
+        return Err("--samples only applies with --intermediate".into());
+    }
+    if !o.intermediate {
+        o.samples = 1;
+    }
+    // Depth rendered at N samples cannot simply be submitted: resolving it needs
+    // VK_KHR_depth_stencil_resolve and a choice of resolve mode, which this app does not make.
+    if o.submit_depth && o.samples > 1 {
+        return Err("--submit-depth needs single-sampled depth: use --samples 1 with --intermediate".into());
+    }
+    Ok(Some(o))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p(args: &[&str]) -> Result<Option<Options>, String> {
+        parse(args.iter().map(|s| s.to_string()))
+    }
+
+    #[test]
+    fn defaults() {
+        let o = p(&[]).unwrap().unwrap();
+        assert_eq!(o.layout, Layout::PerEye);
+        assert_eq!(o.vulkan, VulkanPath::Enable2);
+        assert_eq!(o.samples, 1, "no intermediate target means single-sampled");
+        assert_eq!(o.color_format, ColorFamily::Srgb);
+    }
+
+    #[test]
+    fn full_set() {
+        let o = p(&[
+            "--layout", "multiview", "--rendering=dynamic", "--depth", "reverse", "--intermediate",
+            "--vulkan", "enable", "--frames", "5", "--scale", "0.25", "--color-format", "unorm",
+            "--shading-cost", "10", "--animate", "--stats", "/tmp/s.json", "--validation",
+        ])
+        .unwrap()
+        .unwrap();
+        assert_eq!(o.layout, Layout::Multiview);
+        assert_eq!(o.rendering, Rendering::Dynamic);
+        assert_eq!(o.depth, DepthMode::Reverse);
+        assert!(o.intermediate && o.animate && o.validation);
+        assert_eq!(o.samples, 4);
+        assert_eq!(o.vulkan, VulkanPath::Enable);
+        assert_eq!(o.frames, Some(5));
+        assert_eq!(o.scale, 0.25);
+        assert_eq!(o.shading_cost, 10);
+        assert_eq!(o.stats.as_deref(), Some(std::path::Path::new("/tmp/s.json")));
+    }
+
+    #[test]
+    fn errors() {
+        assert!(p(&["--layout", "quad"]).is_err());
+        assert!(p(&["--layout"]).is_err());
+        assert!(p(&["--bogus"]).is_err());
+        assert!(p(&["--scale", "-1"]).is_err());
+        assert!(p(&["--frames", "0"]).is_err());
+        assert!(p(&["--samples", "3", "--intermediate"]).is_err());
+        assert!(p(&["--samples", "4"]).is_err());
+        assert!(p(&["--submit-depth", "--intermediate"]).is_err());
+        assert!(p(&["--submit-depth", "--intermediate", "--samples", "1"]).is_ok());
+        assert!(p(&["--submit-depth"]).is_ok());
+        assert_eq!(p(&["--help"]).unwrap(), None);
+    }
+}

@@ -1,0 +1,246 @@
+//! xr-scene: a plain OpenXR + Vulkan stereo app, the unmodified subject of stereoshim's end-to-end
+//! tests. `main` parses the command line and drives the session lifecycle; see docs/testing.md.
+
+mod camera;
+mod cli;
+mod error;
+mod gpu;
+mod passes;
+mod renderer;
+mod scene;
+mod stats;
+mod targets;
+mod xr;
+
+use ash::vk::Handle;
+use error::{Ctx, Result};
+use glam::{Mat4, Quat, Vec3, Vec4};
+use openxr as oxr;
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    let opts = match cli::parse(std::env::args().skip(1)) {
+        Ok(Some(o)) => o,
+        Ok(None) => {
+            println!("{}", cli::USAGE);
+            return ExitCode::SUCCESS;
+        }
+        Err(e) => {
+            eprintln!("xr-scene: {e}\n\n{}", cli::USAGE);
+            return ExitCode::from(2);
+        }
+    };
+    let result = run(&opts);
+    // Everything is destroyed by now, so validation messages about teardown are counted too.
+    let errors = gpu::validation_error_count();
+    match result {
+        Err(e) => {
+            eprintln!("xr-scene: error: {e}");
+            ExitCode::from(1)
+        }
+        Ok(frames) if errors > 0 => {
+            eprintln!("xr-scene: {frames} frames, {errors} Vulkan validation error(s)");
+            ExitCode::from(3)
+        }
+        Ok(frames) => {
+            eprintln!("xr-scene: {frames} frames, clean shutdown");
+            ExitCode::SUCCESS
+        }
+    }
+}
+
+/// Runs the session until the runtime ends it; returns the number of frames submitted.
+/// Locals drop in reverse order: GPU objects, swapchains, session, Vulkan device/instance, XR instance.
+fn run(opts: &cli::Options) -> Result<u64> {
+    let xri = xr::XrInstance::new(opts)?;
+    let gpu = gpu::Gpu::new(opts, &xri.instance, xri.system)?;
+    let binding = oxr::vulkan::SessionCreateInfo {
+        instance: gpu.instance.handle().as_raw() as _,
+        physical_device: gpu.physical.as_raw() as _,
+        device: gpu.device.handle().as_raw() as _,
+        queue_family_index: gpu.queue_family,
+        queue_index: 0,
+    };
+    // SAFETY: the handles come from the runtime's system and outlive the session (dropped later).
+    let mut xs = unsafe { xr::XrSession::new(&xri, binding) }?;
+    let mut targets = targets::Targets::new(opts, &gpu, &xri, &xs)?;
+    let mut renderer = renderer::Renderer::new(opts, &gpu, &targets)?;
+    let mut stats = opts.stats.clone().map(stats::StatsLog::new);
+    if let Some(s) = &stats {
+        s.write()?;
+    }
+    let reversed = opts.depth == cli::DepthMode::Reverse;
+    let mut frame: u64 = 0;
+
+    loop {
+        if xs.poll_events(&xri.instance)? == xr::Flow::Exit {
+            break;
+        }
+        if !xs.running {
+            // Idle/synchronized-but-not-ready: nothing to render, don't spin.
+            std::thread::sleep(std::time::Duration::from_millis(5));
+            continue;
+        }
+        let state = xs.waiter.wait().ctx("xrWaitFrame")?;
+        xs.stream.begin().ctx("xrBeginFrame")?;
+        xs.sync_input(state.predicted_display_time)?;
+
+        if !state.should_render {
+            end_frame(&xri, &xs, state.predicted_display_time, None)?;
+        } else {
+            let (_, views) = xs
+                .session
+                .locate_views(oxr::ViewConfigurationType::PRIMARY_STEREO, state.predicted_display_time, &xs.stage)
+                .ctx("xrLocateViews")?;
+            if views.len() != 2 {
+                return error::fail(format!("xrLocateViews returned {} views", views.len()));
+            }
+            let mut acquired = Vec::new();
+            for slot in &mut targets.slots {
+                let color = slot.color.swapchain.acquire_image().ctx("xrAcquireSwapchainImage")?;
+                slot.color.swapchain.wait_image(oxr::Duration::INFINITE).ctx("xrWaitSwapchainImage")?;
+                let depth = match &mut slot.depth {
+                    Some(d) => {
+                        let i = d.swapchain.acquire_image().ctx("xrAcquireSwapchainImage(depth)")?;
+                        d.swapchain.wait_image(oxr::Duration::INFINITE).ctx("xrWaitSwapchainImage(depth)")?;
+                        Some(i)
+                    }
+                    None => None,
+                };
+                acquired.push(renderer::Acquired { color, depth });
+            }
+            let uniforms = frame_uniforms(&views, reversed, opts.animate, frame);
+            let (gpu_ms, counts) = renderer.render(&gpu, &targets, &acquired, &uniforms)?;
+            for slot in &mut targets.slots {
+                slot.color.swapchain.release_image().ctx("xrReleaseSwapchainImage")?;
+                if let Some(d) = &mut slot.depth {
+                    d.swapchain.release_image().ctx("xrReleaseSwapchainImage(depth)")?;
+                }
+            }
+            end_frame(&xri, &xs, state.predicted_display_time, Some((&targets, &views, reversed)))?;
+            if let Some(s) = &mut stats {
+                s.push(stats::FrameStats {
+                    frame,
+                    gpu_time_ms: gpu_ms,
+                    views: (0..2).map(|v| stats::ViewStats { view: v, shaded_fragments: counts[v as usize] }).collect(),
+                })?;
+            }
+        }
+        frame += 1;
+        if opts.frames.is_some_and(|n| frame >= n) {
+            xs.request_exit()?;
+        }
+    }
+    drop(renderer);
+    drop(targets);
+    drop(xs);
+    drop(gpu);
+    drop(xri);
+    Ok(frame)
+}
+
+fn frame_uniforms(views: &[oxr::View], reversed: bool, animate: bool, frame: u64) -> renderer::FrameUniforms {
+    let vp = |v: &oxr::View| {
+        let f = v.fov;
+        let proj = camera::projection(
+            camera::Fov { left: f.angle_left, right: f.angle_right, up: f.angle_up, down: f.angle_down },
+            camera::NEAR,
+            camera::FAR,
+            reversed,
+        );
+        let o = v.pose.orientation;
+        let p = v.pose.position;
+        proj * camera::view_matrix(Quat::from_xyzw(o.x, o.y, o.z, o.w), Vec3::new(p.x, p.y, p.z))
+    };
+    let eye = |v: &oxr::View| Vec4::new(v.pose.position.x, v.pose.position.y, v.pose.position.z, 1.0);
+    let cube_model = if animate {
+        // Deterministic per frame number, independent of timing.
+        let angle = frame as f32 * 0.1;
+        let c = scene::CUBE_CENTRE;
+        Mat4::from_translation(c) * Mat4::from_rotation_y(angle) * Mat4::from_rotation_x(angle * 0.5) * Mat4::from_translation(-c)
+    } else {
+        Mat4::IDENTITY
+    };
+    renderer::FrameUniforms { view_proj: [vp(&views[0]), vp(&views[1])], cube_model, eye_pos: [eye(&views[0]), eye(&views[1])] }
+}
+
+/// xrEndFrame through the raw entry point: the `openxr` crate's safe layer types cannot chain
+/// `XrCompositionLayerDepthInfoKHR` onto projection views.
+fn end_frame(
+    xri: &xr::XrInstance,
+    xs: &xr::XrSession,
+    display_time: oxr::Time,
+    content: Option<(&targets::Targets, &[oxr::View], bool)>,
+) -> Result<()> {
+    use oxr::sys;
+    let mut depth_infos = Vec::new();
+    let mut proj_views = Vec::new();
+    if let Some((targets, views, reversed)) = content {
+        for (v, view) in views.iter().enumerate() {
+            let rect = targets.views[v];
+            let slot = &targets.slots[rect.slot];
+            let image_rect = sys::Rect2Di {
+                offset: sys::Offset2Di { x: rect.offset_x, y: 0 },
+                extent: sys::Extent2Di { width: rect.extent.width as i32, height: rect.extent.height as i32 },
+            };
+            if let Some(d) = &slot.depth {
+                // Reversed depth: near maps to 1, which OpenXR expresses as nearZ > farZ.
+                let (near_z, far_z) = if reversed { (camera::FAR, camera::NEAR) } else { (camera::NEAR, camera::FAR) };
+                depth_infos.push(sys::CompositionLayerDepthInfoKHR {
+                    ty: sys::CompositionLayerDepthInfoKHR::TYPE,
+                    next: std::ptr::null(),
+                    sub_image: sys::SwapchainSubImage {
+                        swapchain: d.swapchain.as_raw(),
+                        image_rect,
+                        image_array_index: rect.array_index,
+                    },
+                    min_depth: 0.0,
+                    max_depth: 1.0,
+                    near_z,
+                    far_z,
+                });
+            }
+            proj_views.push(sys::CompositionLayerProjectionView {
+                ty: sys::CompositionLayerProjectionView::TYPE,
+                next: std::ptr::null(),
+                pose: view.pose,
+                fov: view.fov,
+                sub_image: sys::SwapchainSubImage {
+                    swapchain: slot.color.swapchain.as_raw(),
+                    image_rect,
+                    image_array_index: rect.array_index,
+                },
+            });
+        }
+        // Pointers into depth_infos are taken only after it stops growing.
+        if depth_infos.len() == proj_views.len() {
+            for (pv, di) in proj_views.iter_mut().zip(&depth_infos) {
+                pv.next = di as *const _ as *const _;
+            }
+        }
+    }
+    let layer = sys::CompositionLayerProjection {
+        ty: sys::CompositionLayerProjection::TYPE,
+        next: std::ptr::null(),
+        layer_flags: sys::CompositionLayerFlags::EMPTY,
+        space: xs.stage.as_raw(),
+        view_count: proj_views.len() as u32,
+        views: proj_views.as_ptr(),
+    };
+    let layers = [&layer as *const sys::CompositionLayerProjection as *const sys::CompositionLayerBaseHeader];
+    let info = sys::FrameEndInfo {
+        ty: sys::FrameEndInfo::TYPE,
+        next: std::ptr::null(),
+        display_time,
+        environment_blend_mode: xri.blend_mode,
+        layer_count: if content.is_some() { 1 } else { 0 },
+        layers: layers.as_ptr(),
+    };
+    // SAFETY: every struct and array referenced by `info` lives until the call returns; the
+    // session's frame was begun with xrBeginFrame on this thread.
+    let r = unsafe { (xri.instance.fp().end_frame)(xs.session.as_raw(), &info) };
+    if r.into_raw() < 0 {
+        return error::fail(format!("xrEndFrame failed: {r:?}"));
+    }
+    Ok(())
+}

@@ -1,0 +1,336 @@
+//! The three ways the app opens a render pass instance (`--rendering`): a classic render pass,
+//! a render pass made with vkCreateRenderPass2, or dynamic rendering. Each shape matters to the
+//! layer under test, which has to find and modify the app's eye passes in all of them.
+
+use crate::cli::Rendering;
+use crate::error::{Ctx, Result};
+use crate::gpu::{DynamicRendering, Gpu, RenderPass2};
+use ash::vk;
+use std::collections::HashMap;
+
+/// Formats and sample count shared by every pass of the app.
+#[derive(Debug, Clone, Copy)]
+pub struct PassFormat {
+    pub color: vk::Format,
+    pub depth: vk::Format,
+    pub samples: vk::SampleCountFlags,
+    /// `Some(0b11)` for the multiview layout.
+    pub view_mask: Option<u32>,
+    /// Depth is submitted to the runtime, so it must be stored.
+    pub store_depth: bool,
+    pub has_stencil: bool,
+}
+
+pub struct Passes {
+    device: ash::Device,
+    mode: Rendering,
+    pub format: PassFormat,
+    /// Null for dynamic rendering.
+    pub render_pass: vk::RenderPass,
+    framebuffers: HashMap<(vk::ImageView, vk::ImageView), vk::Framebuffer>,
+}
+
+const COLOR_LAYOUT: vk::ImageLayout = vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL;
+const DEPTH_LAYOUT: vk::ImageLayout = vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
+
+impl Passes {
+    pub fn new(gpu: &Gpu, mode: Rendering, format: PassFormat) -> Result<Passes> {
+        let mut p = Passes {
+            device: gpu.device.clone(),
+            mode,
+            format,
+            render_pass: vk::RenderPass::null(),
+            framebuffers: HashMap::new(),
+        };
+        let depth_store = if format.store_depth { vk::AttachmentStoreOp::STORE } else { vk::AttachmentStoreOp::DONT_CARE };
+        // Images arrive in their attachment layouts (barriers outside the pass put them there),
+        // so the passes themselves do no layout transitions.
+        match mode {
+            Rendering::RenderPass => {
+                let attachments = [
+                    vk::AttachmentDescription::default()
+                        .format(format.color)
+                        .samples(format.samples)
+                        .load_op(vk::AttachmentLoadOp::CLEAR)
+                        .store_op(vk::AttachmentStoreOp::STORE)
+                        .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
+                        .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
+                        .initial_layout(COLOR_LAYOUT)
+                        .final_layout(COLOR_LAYOUT),
+                    vk::AttachmentDescription::default()
+                        .format(format.depth)
+                        .samples(format.samples)
+                        .load_op(vk::AttachmentLoadOp::CLEAR)
+                        .store_op(depth_store)
+                        .stencil_load_op(vk::AttachmentLoadOp::CLEAR)
+                        .stencil_store_op(depth_store)
+                        .initial_layout(DEPTH_LAYOUT)
+                        .final_layout(DEPTH_LAYOUT),
+                ];
+                let color_ref = [vk::AttachmentReference { attachment: 0, layout: COLOR_LAYOUT }];
+                let depth_ref = vk::AttachmentReference { attachment: 1, layout: DEPTH_LAYOUT };
+                let subpass = [vk::SubpassDescription::default()
+                    .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
+                    .color_attachments(&color_ref)
+                    .depth_stencil_attachment(&depth_ref)];
+                let masks = [format.view_mask.unwrap_or(0)];
+                let mut multiview = vk::RenderPassMultiviewCreateInfo::default()
+                    .view_masks(&masks)
+                    .correlation_masks(&masks);
+                let mut info = vk::RenderPassCreateInfo::default().attachments(&attachments).subpasses(&subpass);
+                if format.view_mask.is_some() {
+                    info = info.push_next(&mut multiview);
+                }
+                // SAFETY: valid create info.
+                p.render_pass = unsafe { gpu.device.create_render_pass(&info, None) }.ctx("vkCreateRenderPass")?;
+            }
+            Rendering::RenderPass2 => {
+                let attachments = [
+                    vk::AttachmentDescription2::default()
+                        .format(format.color)
+                        .samples(format.samples)
+                        .load_op(vk::AttachmentLoadOp::CLEAR)
+                        .store_op(vk::AttachmentStoreOp::STORE)
+                        .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
+                        .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
+                        .initial_layout(COLOR_LAYOUT)
+                        .final_layout(COLOR_LAYOUT),
+                    vk::AttachmentDescription2::default()
+                        .format(format.depth)
+                        .samples(format.samples)
+                        .load_op(vk::AttachmentLoadOp::CLEAR)
+                        .store_op(depth_store)
+                        .stencil_load_op(vk::AttachmentLoadOp::CLEAR)
+                        .stencil_store_op(depth_store)
+                        .initial_layout(DEPTH_LAYOUT)
+                        .final_layout(DEPTH_LAYOUT),
+                ];
+                let color_ref = [vk::AttachmentReference2::default()
+                    .attachment(0)
+                    .layout(COLOR_LAYOUT)
+                    .aspect_mask(vk::ImageAspectFlags::COLOR)];
+                let depth_ref = vk::AttachmentReference2::default()
+                    .attachment(1)
+                    .layout(DEPTH_LAYOUT)
+                    .aspect_mask(crate::targets::depth_aspect(format.depth));
+                let subpass = [vk::SubpassDescription2::default()
+                    .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
+                    .view_mask(format.view_mask.unwrap_or(0))
+                    .color_attachments(&color_ref)
+                    .depth_stencil_attachment(&depth_ref)];
+                let correlated = [format.view_mask.unwrap_or(0)];
+                let mut info = vk::RenderPassCreateInfo2::default().attachments(&attachments).subpasses(&subpass);
+                if format.view_mask.is_some() {
+                    info = info.correlated_view_masks(&correlated);
+                }
+                // SAFETY: valid create info; the 2-variant entry point matches the device version.
+                p.render_pass = unsafe {
+                    match gpu.render_pass2.as_ref().expect("render-pass2 loader") {
+                        RenderPass2::Core => gpu.device.create_render_pass2(&info, None),
+                        RenderPass2::Khr(k) => k.create_render_pass2(&info, None),
+                    }
+                }
+                .ctx("vkCreateRenderPass2")?;
+            }
+            Rendering::Dynamic => {}
+        }
+        Ok(p)
+    }
+
+    fn framebuffer(&mut self, color: vk::ImageView, depth: vk::ImageView, extent: vk::Extent2D) -> Result<vk::Framebuffer> {
+        if let Some(fb) = self.framebuffers.get(&(color, depth)) {
+            return Ok(*fb);
+        }
+        let attachments = [color, depth];
+        let info = vk::FramebufferCreateInfo::default()
+            .render_pass(self.render_pass)
+            .attachments(&attachments)
+            .width(extent.width)
+            .height(extent.height)
+            .layers(1);
+        // SAFETY: views of live images compatible with the render pass.
+        let fb = unsafe { self.device.create_framebuffer(&info, None) }.ctx("vkCreateFramebuffer")?;
+        self.framebuffers.insert((color, depth), fb);
+        Ok(fb)
+    }
+
+    /// Opens the pass on `color`/`depth` with both attachments cleared.
+    pub fn begin(
+        &mut self,
+        gpu: &Gpu,
+        cmd: vk::CommandBuffer,
+        color: vk::ImageView,
+        depth: vk::ImageView,
+        extent: vk::Extent2D,
+        clear_depth: f32,
+    ) -> Result<()> {
+        let area = vk::Rect2D { offset: vk::Offset2D::default(), extent };
+        let clears = [
+            vk::ClearValue { color: vk::ClearColorValue { float32: [0.0, 0.0, 0.0, 1.0] } },
+            vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: clear_depth, stencil: 0 } },
+        ];
+        match self.mode {
+            Rendering::RenderPass | Rendering::RenderPass2 => {
+                let fb = self.framebuffer(color, depth, extent)?;
+                let info = vk::RenderPassBeginInfo::default()
+                    .render_pass(self.render_pass)
+                    .framebuffer(fb)
+                    .render_area(area)
+                    .clear_values(&clears);
+                // SAFETY: recording state; the images are in the layouts the pass expects.
+                unsafe {
+                    if self.mode == Rendering::RenderPass {
+                        gpu.device.cmd_begin_render_pass(cmd, &info, vk::SubpassContents::INLINE);
+                    } else {
+                        let sb = vk::SubpassBeginInfo::default().contents(vk::SubpassContents::INLINE);
+                        match gpu.render_pass2.as_ref().expect("render-pass2 loader") {
+                            RenderPass2::Core => gpu.device.cmd_begin_render_pass2(cmd, &info, &sb),
+                            RenderPass2::Khr(k) => k.cmd_begin_render_pass2(cmd, &info, &sb),
+                        }
+                    }
+                }
+            }
+            Rendering::Dynamic => {
+                let color_att = [vk::RenderingAttachmentInfo::default()
+                    .image_view(color)
+                    .image_layout(COLOR_LAYOUT)
+                    .load_op(vk::AttachmentLoadOp::CLEAR)
+                    .store_op(vk::AttachmentStoreOp::STORE)
+                    .clear_value(clears[0])];
+                let depth_att = vk::RenderingAttachmentInfo::default()
+                    .image_view(depth)
+                    .image_layout(DEPTH_LAYOUT)
+                    .load_op(vk::AttachmentLoadOp::CLEAR)
+                    .store_op(if self.format.store_depth {
+                        vk::AttachmentStoreOp::STORE
+                    } else {
+                        vk::AttachmentStoreOp::DONT_CARE
+                    })
+                    .clear_value(clears[1]);
+                let info = vk::RenderingInfo::default()
+                    .render_area(area)
+                    .layer_count(1)
+                    .view_mask(self.format.view_mask.unwrap_or(0))
+                    .color_attachments(&color_att)
+                    .depth_attachment(&depth_att);
+                let info = if self.format.has_stencil { info.stencil_attachment(&depth_att) } else { info };
+                // SAFETY: recording state; images were transitioned by explicit barriers.
+                unsafe {
+                    match gpu.dynamic_rendering.as_ref().expect("dynamic rendering loader") {
+                        DynamicRendering::Core => gpu.device.cmd_begin_rendering(cmd, &info),
+                        DynamicRendering::Khr(k) => k.cmd_begin_rendering(cmd, &info),
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    pub fn end(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {
+        // SAFETY: a pass of the same kind is open on `cmd`.
+        unsafe {
+            match self.mode {
+                Rendering::RenderPass => gpu.device.cmd_end_render_pass(cmd),
+                Rendering::RenderPass2 => {
+                    let info = vk::SubpassEndInfo::default();
+                    match gpu.render_pass2.as_ref().expect("render-pass2 loader") {
+                        RenderPass2::Core => gpu.device.cmd_end_render_pass2(cmd, &info),
+                        RenderPass2::Khr(k) => k.cmd_end_render_pass2(cmd, &info),
+                    }
+                }
+                Rendering::Dynamic => match gpu.dynamic_rendering.as_ref().expect("dynamic rendering loader") {
+                    DynamicRendering::Core => gpu.device.cmd_end_rendering(cmd),
+                    DynamicRendering::Khr(k) => k.cmd_end_rendering(cmd),
+                },
+            }
+        }
+    }
+
+    /// Builds the scene pipeline for this pass shape.
+    pub fn create_pipeline(
+        &self,
+        layout: vk::PipelineLayout,
+        vert: vk::ShaderModule,
+        frag: vk::ShaderModule,
+        depth_compare: vk::CompareOp,
+    ) -> Result<vk::Pipeline> {
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vert).name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(frag).name(c"main"),
+        ];
+        let bindings = [vk::VertexInputBindingDescription {
+            binding: 0,
+            stride: std::mem::size_of::<crate::scene::Vertex>() as u32,
+            input_rate: vk::VertexInputRate::VERTEX,
+        }];
+        let attr = |location, format, offset| vk::VertexInputAttributeDescription { location, binding: 0, format, offset };
+        let attributes = [
+            attr(0, vk::Format::R32G32B32_SFLOAT, 0),
+            attr(1, vk::Format::R32G32B32_SFLOAT, 12),
+            attr(2, vk::Format::R32G32B32_SFLOAT, 24),
+            attr(3, vk::Format::R32_UINT, 36),
+        ];
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
+            .vertex_binding_descriptions(&bindings)
+            .vertex_attribute_descriptions(&attributes);
+        let input_assembly =
+            vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
+        // No culling: the sky is seen from inside and correctness of winding is not the point here.
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(vk::CullModeFlags::NONE)
+            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .line_width(1.0);
+        let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(self.format.samples);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(true)
+            .depth_write_enable(true)
+            .depth_compare_op(depth_compare);
+        let blend_att = [vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA)];
+        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_att);
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let color_formats = [self.format.color];
+        let mut rendering = vk::PipelineRenderingCreateInfo::default()
+            .view_mask(self.format.view_mask.unwrap_or(0))
+            .color_attachment_formats(&color_formats)
+            .depth_attachment_format(self.format.depth)
+            .stencil_attachment_format(if self.format.has_stencil { self.format.depth } else { vk::Format::UNDEFINED });
+        let mut info = vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&input_assembly)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .depth_stencil_state(&depth)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic)
+            .layout(layout);
+        if self.mode == Rendering::Dynamic {
+            info = info.push_next(&mut rendering);
+        } else {
+            info = info.render_pass(self.render_pass).subpass(0);
+        }
+        // SAFETY: valid create info; all referenced objects are alive.
+        let pipelines = unsafe { self.device.create_graphics_pipelines(vk::PipelineCache::null(), &[info], None) }
+            .map_err(|(_, e)| e)
+            .ctx("vkCreateGraphicsPipelines")?;
+        Ok(pipelines[0])
+    }
+}
+
+impl Drop for Passes {
+    fn drop(&mut self) {
+        // SAFETY: the owner waited for the device to go idle; these objects are ours.
+        unsafe {
+            for fb in self.framebuffers.values() {
+                self.device.destroy_framebuffer(*fb, None);
+            }
+            if self.render_pass != vk::RenderPass::null() {
+                self.device.destroy_render_pass(self.render_pass, None);
+            }
+        }
+    }
+}

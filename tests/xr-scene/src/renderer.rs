@@ -1,0 +1,607 @@
+//! Per-frame GPU work: scene buffers, descriptors, the pipeline, and recording one frame's
+//! command buffer with every barrier the frame needs (the tests run under synchronization validation).
+
+use crate::cli::{DepthMode, Layout, Options};
+use crate::error::{Ctx, Error, Result};
+use crate::gpu::Gpu;
+use crate::passes::{PassFormat, Passes};
+use crate::stats::{GpuCounters, BINDING_RANGE};
+use crate::targets::{depth_aspect, Targets};
+use ash::vk;
+use glam::{Mat4, Vec4};
+
+// SPIR-V from build.rs; read_spv copies into u32-aligned storage.
+const SCENE_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene.vert.spv"));
+const SCENE_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene.frag.spv"));
+const SCENE_MV_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_mv.vert.spv"));
+const SCENE_MV_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_mv.frag.spv"));
+
+/// Uniform block `Frame` of the shaders (std140: mat4s and vec4s only, no padding surprises).
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct FrameUniforms {
+    pub view_proj: [Mat4; 2],
+    pub cube_model: Mat4,
+    pub eye_pos: [Vec4; 2],
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+struct PushConstants {
+    eye: u32,
+    shading_cost: u32,
+    flags: u32,
+}
+
+const PC_MANUAL_SRGB: u32 = 1;
+
+struct Buffer {
+    buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+}
+
+impl Buffer {
+    fn new(gpu: &Gpu, size: u64, usage: vk::BufferUsageFlags, props: vk::MemoryPropertyFlags) -> Result<Buffer> {
+        let d = &gpu.device;
+        // SAFETY: valid create infos; on failure the partial object is destroyed.
+        unsafe {
+            let buffer = d
+                .create_buffer(&vk::BufferCreateInfo::default().size(size).usage(usage), None)
+                .ctx("vkCreateBuffer")?;
+            let mut b = Buffer { buffer, memory: vk::DeviceMemory::null() };
+            let req = d.get_buffer_memory_requirements(buffer);
+            let r = gpu.memory_type(req.memory_type_bits, props).and_then(|ty| {
+                d.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None)
+                    .ctx("vkAllocateMemory")
+            });
+            match r {
+                Ok(m) => b.memory = m,
+                Err(e) => {
+                    b.destroy(d);
+                    return Err(e);
+                }
+            }
+            if let Err(e) = d.bind_buffer_memory(buffer, b.memory, 0) {
+                b.destroy(d);
+                return Err(e).ctx("vkBindBufferMemory");
+            }
+            Ok(b)
+        }
+    }
+
+    fn destroy(&mut self, d: &ash::Device) {
+        // SAFETY: device idle; our handles (null is ignored).
+        unsafe {
+            d.destroy_buffer(self.buffer, None);
+            if self.memory != vk::DeviceMemory::null() {
+                d.free_memory(self.memory, None);
+            }
+        }
+        self.buffer = vk::Buffer::null();
+        self.memory = vk::DeviceMemory::null();
+    }
+}
+
+/// Indices of the swapchain images acquired for this frame, per slot.
+#[derive(Debug, Clone, Copy)]
+pub struct Acquired {
+    pub color: u32,
+    pub depth: Option<u32>,
+}
+
+pub struct Renderer {
+    device: ash::Device,
+    layout: Layout,
+    multiview: bool,
+    intermediate: bool,
+    samples: vk::SampleCountFlags,
+    clear_depth: f32,
+    push: PushConstants,
+    passes: Passes,
+    set_layout: vk::DescriptorSetLayout,
+    pipeline_layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+    descriptor_pool: vk::DescriptorPool,
+    descriptor_set: vk::DescriptorSet,
+    vertices: Buffer,
+    indices: Buffer,
+    index_count: u32,
+    uniforms: Buffer,
+    uniforms_mapped: *mut FrameUniforms,
+    pub counters: GpuCounters,
+    command_pool: vk::CommandPool,
+    cmd: vk::CommandBuffer,
+    fence: vk::Fence,
+}
+
+impl Renderer {
+    pub fn new(opts: &Options, gpu: &Gpu, targets: &Targets) -> Result<Renderer> {
+        let d = &gpu.device;
+        let multiview = opts.layout == Layout::Multiview;
+        let passes = Passes::new(
+            gpu,
+            opts.rendering,
+            PassFormat {
+                color: targets.color_format,
+                depth: targets.depth_format,
+                samples: targets.samples,
+                view_mask: multiview.then_some(0b11),
+                store_depth: opts.submit_depth,
+                has_stencil: depth_aspect(targets.depth_format).contains(vk::ImageAspectFlags::STENCIL),
+            },
+        )?;
+        let counters = GpuCounters::new(gpu)?;
+        let mut r = Renderer {
+            device: d.clone(),
+            layout: opts.layout,
+            multiview,
+            intermediate: opts.intermediate,
+            samples: targets.samples,
+            clear_depth: if opts.depth == DepthMode::Reverse { 0.0 } else { 1.0 },
+            push: PushConstants {
+                eye: 0,
+                shading_cost: opts.shading_cost,
+                flags: if opts.color_format == crate::cli::ColorFamily::Unorm { PC_MANUAL_SRGB } else { 0 },
+            },
+            passes,
+            set_layout: vk::DescriptorSetLayout::null(),
+            pipeline_layout: vk::PipelineLayout::null(),
+            pipeline: vk::Pipeline::null(),
+            descriptor_pool: vk::DescriptorPool::null(),
+            descriptor_set: vk::DescriptorSet::null(),
+            vertices: Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() },
+            indices: Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() },
+            index_count: 0,
+            uniforms: Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() },
+            uniforms_mapped: std::ptr::null_mut(),
+            counters,
+            command_pool: vk::CommandPool::null(),
+            cmd: vk::CommandBuffer::null(),
+            fence: vk::Fence::null(),
+        };
+        r.init(opts, gpu)?;
+        Ok(r)
+    }
+
+    fn init(&mut self, opts: &Options, gpu: &Gpu) -> Result<()> {
+        let d = &gpu.device;
+        // SAFETY: plain object creation on a live device; everything is destroyed in Drop.
+        unsafe {
+            self.command_pool = d
+                .create_command_pool(
+                    &vk::CommandPoolCreateInfo::default()
+                        .queue_family_index(gpu.queue_family)
+                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                    None,
+                )
+                .ctx("vkCreateCommandPool")?;
+            self.cmd = d
+                .allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(self.command_pool)
+                        .level(vk::CommandBufferLevel::PRIMARY)
+                        .command_buffer_count(1),
+                )
+                .ctx("vkAllocateCommandBuffers")?[0];
+            self.fence = d.create_fence(&vk::FenceCreateInfo::default(), None).ctx("vkCreateFence")?;
+
+            let bindings = [
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(0)
+                    .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT),
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(1)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER_DYNAMIC)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+            ];
+            self.set_layout = d
+                .create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None)
+                .ctx("vkCreateDescriptorSetLayout")?;
+            let ranges = [vk::PushConstantRange {
+                stage_flags: vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+                offset: 0,
+                size: std::mem::size_of::<PushConstants>() as u32,
+            }];
+            let set_layouts = [self.set_layout];
+            self.pipeline_layout = d
+                .create_pipeline_layout(
+                    &vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges),
+                    None,
+                )
+                .ctx("vkCreatePipelineLayout")?;
+
+            let (vs, fs) = if self.multiview { (SCENE_MV_VERT, SCENE_MV_FRAG) } else { (SCENE_VERT, SCENE_FRAG) };
+            let vert = shader_module(d, vs)?;
+            let frag = match shader_module(d, fs) {
+                Ok(f) => f,
+                Err(e) => {
+                    d.destroy_shader_module(vert, None);
+                    return Err(e);
+                }
+            };
+            let compare = if opts.depth == DepthMode::Reverse { vk::CompareOp::GREATER } else { vk::CompareOp::LESS };
+            let pipeline = self.passes.create_pipeline(self.pipeline_layout, vert, frag, compare);
+            d.destroy_shader_module(vert, None);
+            d.destroy_shader_module(frag, None);
+            self.pipeline = pipeline?;
+
+            let pool_sizes = [
+                vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: 1 },
+                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER_DYNAMIC, descriptor_count: 1 },
+            ];
+            self.descriptor_pool = d
+                .create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&pool_sizes), None)
+                .ctx("vkCreateDescriptorPool")?;
+            self.descriptor_set = d
+                .allocate_descriptor_sets(
+                    &vk::DescriptorSetAllocateInfo::default()
+                        .descriptor_pool(self.descriptor_pool)
+                        .set_layouts(&set_layouts),
+                )
+                .ctx("vkAllocateDescriptorSets")?[0];
+
+            let ubo_size = std::mem::size_of::<FrameUniforms>() as u64;
+            self.uniforms = Buffer::new(
+                gpu,
+                ubo_size,
+                vk::BufferUsageFlags::UNIFORM_BUFFER,
+                vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT,
+            )?;
+            self.uniforms_mapped = d
+                .map_memory(self.uniforms.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
+                .ctx("vkMapMemory(uniforms)")? as *mut FrameUniforms;
+
+            let ubo_info = [vk::DescriptorBufferInfo { buffer: self.uniforms.buffer, offset: 0, range: ubo_size }];
+            let ssbo_info = [vk::DescriptorBufferInfo { buffer: self.counters.buffer, offset: 0, range: BINDING_RANGE }];
+            let writes = [
+                vk::WriteDescriptorSet::default()
+                    .dst_set(self.descriptor_set)
+                    .dst_binding(0)
+                    .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                    .buffer_info(&ubo_info),
+                vk::WriteDescriptorSet::default()
+                    .dst_set(self.descriptor_set)
+                    .dst_binding(1)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER_DYNAMIC)
+                    .buffer_info(&ssbo_info),
+            ];
+            d.update_descriptor_sets(&writes, &[]);
+        }
+        self.upload_scene(gpu)
+    }
+
+    /// Puts the scene into device-local buffers through a staging buffer and a fenced copy.
+    fn upload_scene(&mut self, gpu: &Gpu) -> Result<()> {
+        let d = &gpu.device;
+        let mesh = crate::scene::build();
+        // SAFETY: Vertex is repr(C) plain data.
+        let vbytes = unsafe {
+            std::slice::from_raw_parts(mesh.vertices.as_ptr() as *const u8, std::mem::size_of_val(&mesh.vertices[..]))
+        };
+        // SAFETY: u32 slice viewed as bytes.
+        let ibytes = unsafe {
+            std::slice::from_raw_parts(mesh.indices.as_ptr() as *const u8, std::mem::size_of_val(&mesh.indices[..]))
+        };
+        self.index_count = mesh.indices.len() as u32;
+        let dst = vk::BufferUsageFlags::TRANSFER_DST;
+        self.vertices = Buffer::new(gpu, vbytes.len() as u64, dst | vk::BufferUsageFlags::VERTEX_BUFFER, vk::MemoryPropertyFlags::DEVICE_LOCAL)?;
+        self.indices = Buffer::new(gpu, ibytes.len() as u64, dst | vk::BufferUsageFlags::INDEX_BUFFER, vk::MemoryPropertyFlags::DEVICE_LOCAL)?;
+        let total = (vbytes.len() + ibytes.len()) as u64;
+        let mut staging = Buffer::new(
+            gpu,
+            total,
+            vk::BufferUsageFlags::TRANSFER_SRC,
+            vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT,
+        )?;
+        // SAFETY: the staging memory is host-visible and `total` bytes long; the copy is fenced
+        // and waited for before the staging buffer is destroyed.
+        let result = unsafe {
+            (|| -> Result<()> {
+                let p = d.map_memory(staging.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()).ctx("vkMapMemory")? as *mut u8;
+                std::ptr::copy_nonoverlapping(vbytes.as_ptr(), p, vbytes.len());
+                std::ptr::copy_nonoverlapping(ibytes.as_ptr(), p.add(vbytes.len()), ibytes.len());
+                d.unmap_memory(staging.memory);
+                d.begin_command_buffer(self.cmd, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
+                    .ctx("vkBeginCommandBuffer")?;
+                d.cmd_copy_buffer(self.cmd, staging.buffer, self.vertices.buffer, &[vk::BufferCopy { src_offset: 0, dst_offset: 0, size: vbytes.len() as u64 }]);
+                d.cmd_copy_buffer(self.cmd, staging.buffer, self.indices.buffer, &[vk::BufferCopy { src_offset: vbytes.len() as u64, dst_offset: 0, size: ibytes.len() as u64 }]);
+                let mb = [vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::VERTEX_ATTRIBUTE_READ | vk::AccessFlags::INDEX_READ)];
+                d.cmd_pipeline_barrier(self.cmd, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::VERTEX_INPUT, vk::DependencyFlags::empty(), &mb, &[], &[]);
+                d.end_command_buffer(self.cmd).ctx("vkEndCommandBuffer")?;
+                self.submit_and_wait(gpu)
+            })()
+        };
+        staging.destroy(d);
+        result
+    }
+
+    fn submit_and_wait(&self, gpu: &Gpu) -> Result<()> {
+        let d = &gpu.device;
+        let cmds = [self.cmd];
+        // SAFETY: the command buffer is fully recorded; the fence is unsignalled.
+        unsafe {
+            d.queue_submit(gpu.queue, &[vk::SubmitInfo::default().command_buffers(&cmds)], self.fence)
+                .ctx("vkQueueSubmit")?;
+            d.wait_for_fences(&[self.fence], true, u64::MAX).ctx("vkWaitForFences")?;
+            d.reset_fences(&[self.fence]).ctx("vkResetFences")?;
+        }
+        Ok(())
+    }
+
+    /// Records, submits and waits for one frame; returns (GPU ms, shaded fragments per view).
+    pub fn render(&mut self, gpu: &Gpu, targets: &Targets, acquired: &[Acquired], uniforms: &FrameUniforms) -> Result<(f64, [u64; 2])> {
+        let d = gpu.device.clone();
+        let cmd = self.cmd;
+        // SAFETY: one frame in flight: the previous submit was waited on, so the uniform buffer
+        // and the command buffer are free to reuse. All recorded handles are alive.
+        unsafe {
+            self.uniforms_mapped.write(*uniforms);
+            d.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty()).ctx("vkResetCommandBuffer")?;
+            d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
+                .ctx("vkBeginCommandBuffer")?;
+            self.counters.record_start(cmd);
+            self.pre_pass_barriers(targets, acquired);
+
+            for (slot_index, a) in acquired.iter().enumerate() {
+                let slot = &targets.slots[slot_index];
+                let color_view = match &slot.offscreen {
+                    Some(o) => o.view,
+                    None => slot.color.views[a.color as usize],
+                };
+                let depth_view = match (&slot.depth, a.depth, &slot.own_depth) {
+                    (Some(chain), Some(i), _) => chain.views[i as usize],
+                    (_, _, Some(own)) => own.view,
+                    _ => return Err(Error("internal: slot without depth".into())),
+                };
+                let extent = slot.extent;
+                self.passes.begin(gpu, cmd, color_view, depth_view, extent, self.clear_depth)?;
+                d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+                d.cmd_bind_vertex_buffers(cmd, 0, &[self.vertices.buffer], &[0]);
+                d.cmd_bind_index_buffer(cmd, self.indices.buffer, 0, vk::IndexType::UINT32);
+                // Which views this pass draws, one draw each (multiview: one draw for both).
+                let draws: Vec<u32> = match self.layout {
+                    Layout::PerEye => vec![slot_index as u32],
+                    Layout::SideBySide => vec![0, 1],
+                    Layout::Multiview => vec![0],
+                };
+                for eye in draws {
+                    let rect = targets.views[eye as usize];
+                    let (x, w) = if self.multiview { (0, extent.width) } else { (rect.offset_x, rect.extent.width) };
+                    let h = rect.extent.height;
+                    d.cmd_set_viewport(cmd, 0, &[vk::Viewport { x: x as f32, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
+                    d.cmd_set_scissor(cmd, 0, &[vk::Rect2D { offset: vk::Offset2D { x, y: 0 }, extent: vk::Extent2D { width: w, height: h } }]);
+                    d.cmd_bind_descriptor_sets(
+                        cmd,
+                        vk::PipelineBindPoint::GRAPHICS,
+                        self.pipeline_layout,
+                        0,
+                        &[self.descriptor_set],
+                        &[self.counters.dynamic_offset(eye, self.multiview)],
+                    );
+                    let pc = PushConstants { eye, ..self.push };
+                    let bytes = std::slice::from_raw_parts(&pc as *const PushConstants as *const u8, std::mem::size_of::<PushConstants>());
+                    d.cmd_push_constants(cmd, self.pipeline_layout, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT, 0, bytes);
+                    d.cmd_draw_indexed(cmd, self.index_count, 1, 0, 0, 0);
+                }
+                self.passes.end(gpu, cmd);
+            }
+
+            if self.intermediate {
+                self.resolve_to_swapchains(targets, acquired);
+            }
+            self.counters.record_end(cmd);
+            d.end_command_buffer(cmd).ctx("vkEndCommandBuffer")?;
+        }
+        self.submit_and_wait(gpu)?;
+        self.counters.read(self.multiview)
+    }
+
+    /// Everything the passes write, ordered after its previous use and put in attachment layout.
+    fn pre_pass_barriers(&self, targets: &Targets, acquired: &[Acquired]) {
+        let mut images = Vec::new();
+        for (i, a) in acquired.iter().enumerate() {
+            let slot = &targets.slots[i];
+            let color_range = range(vk::ImageAspectFlags::COLOR, slot.layers);
+            let depth_range = range(depth_aspect(targets.depth_format), slot.layers);
+            let color_rw = vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE;
+            let depth_rw = vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE;
+            match &slot.offscreen {
+                // Last frame's resolve/copy read it; its contents are cleared anyway.
+                Some(o) => images.push(image_barrier(
+                    o.image,
+                    color_range,
+                    vk::ImageLayout::UNDEFINED,
+                    vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                    vk::AccessFlags::empty(),
+                    color_rw,
+                )),
+                // The runtime hands swapchain images out in COLOR_ATTACHMENT_OPTIMAL.
+                None => images.push(image_barrier(
+                    slot.color.images[a.color as usize],
+                    color_range,
+                    vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                    vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                    vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+                    color_rw,
+                )),
+            }
+            match (&slot.depth, a.depth, &slot.own_depth) {
+                (Some(chain), Some(di), _) => images.push(image_barrier(
+                    chain.images[di as usize],
+                    depth_range,
+                    vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
+                    vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
+                    vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                    depth_rw,
+                )),
+                (_, _, Some(own)) => images.push(image_barrier(
+                    own.image,
+                    depth_range,
+                    vk::ImageLayout::UNDEFINED,
+                    vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
+                    vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                    depth_rw,
+                )),
+                _ => {}
+            }
+        }
+        let buffers = [self.counters.after_fill_barrier()];
+        let fragment_tests = vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
+        // SAFETY: recording state, outside any render pass.
+        unsafe {
+            self.device.cmd_pipeline_barrier(
+                self.cmd,
+                vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | fragment_tests,
+                vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | fragment_tests,
+                vk::DependencyFlags::empty(),
+                &[],
+                &buffers,
+                &images,
+            );
+        }
+    }
+
+    /// `--intermediate`: resolve (N > 1) or copy (N = 1) each offscreen target into its swapchain
+    /// image, then hand the swapchain image back in COLOR_ATTACHMENT_OPTIMAL as the binding requires.
+    fn resolve_to_swapchains(&self, targets: &Targets, acquired: &[Acquired]) {
+        let d = &self.device;
+        let cmd = self.cmd;
+        let mut to_transfer = Vec::new();
+        let mut back = Vec::new();
+        for (i, a) in acquired.iter().enumerate() {
+            let slot = &targets.slots[i];
+            let Some(off) = &slot.offscreen else { continue };
+            let r = range(vk::ImageAspectFlags::COLOR, slot.layers);
+            let sc = slot.color.images[a.color as usize];
+            to_transfer.push(image_barrier(
+                off.image,
+                r,
+                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+                vk::AccessFlags::TRANSFER_READ,
+            ));
+            to_transfer.push(image_barrier(
+                sc,
+                r,
+                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+                vk::AccessFlags::TRANSFER_WRITE,
+            ));
+            back.push(image_barrier(
+                sc,
+                r,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                vk::AccessFlags::TRANSFER_WRITE,
+                vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+            ));
+        }
+        // SAFETY: recording state, outside any render pass; images are in the layouts named.
+        unsafe {
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &[],
+                &[],
+                &to_transfer,
+            );
+            for (i, a) in acquired.iter().enumerate() {
+                let slot = &targets.slots[i];
+                let Some(off) = &slot.offscreen else { continue };
+                let layers = vk::ImageSubresourceLayers {
+                    aspect_mask: vk::ImageAspectFlags::COLOR,
+                    mip_level: 0,
+                    base_array_layer: 0,
+                    layer_count: slot.layers,
+                };
+                let extent = vk::Extent3D { width: slot.extent.width, height: slot.extent.height, depth: 1 };
+                let sc = slot.color.images[a.color as usize];
+                if self.samples == vk::SampleCountFlags::TYPE_1 {
+                    let region = vk::ImageCopy {
+                        src_subresource: layers,
+                        src_offset: vk::Offset3D::default(),
+                        dst_subresource: layers,
+                        dst_offset: vk::Offset3D::default(),
+                        extent,
+                    };
+                    d.cmd_copy_image(cmd, off.image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, sc, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &[region]);
+                } else {
+                    let region = vk::ImageResolve {
+                        src_subresource: layers,
+                        src_offset: vk::Offset3D::default(),
+                        dst_subresource: layers,
+                        dst_offset: vk::Offset3D::default(),
+                        extent,
+                    };
+                    d.cmd_resolve_image(cmd, off.image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, sc, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &[region]);
+                }
+            }
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+                vk::DependencyFlags::empty(),
+                &[],
+                &[],
+                &back,
+            );
+        }
+    }
+}
+
+fn range(aspect: vk::ImageAspectFlags, layers: u32) -> vk::ImageSubresourceRange {
+    vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: layers }
+}
+
+fn image_barrier(
+    image: vk::Image,
+    range: vk::ImageSubresourceRange,
+    old: vk::ImageLayout,
+    new: vk::ImageLayout,
+    src: vk::AccessFlags,
+    dst: vk::AccessFlags,
+) -> vk::ImageMemoryBarrier<'static> {
+    vk::ImageMemoryBarrier::default()
+        .image(image)
+        .subresource_range(range)
+        .old_layout(old)
+        .new_layout(new)
+        .src_access_mask(src)
+        .dst_access_mask(dst)
+        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+}
+
+fn shader_module(d: &ash::Device, bytes: &[u8]) -> Result<vk::ShaderModule> {
+    let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes)).ctx("reading SPIR-V")?;
+    // SAFETY: valid SPIR-V produced by glslangValidator at build time.
+    unsafe { d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }.ctx("vkCreateShaderModule")
+}
+
+impl Drop for Renderer {
+    fn drop(&mut self) {
+        let d = &self.device;
+        // SAFETY: wait for the GPU, then destroy our objects (null handles are ignored).
+        unsafe {
+            let _ = d.device_wait_idle();
+            d.destroy_pipeline(self.pipeline, None);
+            d.destroy_pipeline_layout(self.pipeline_layout, None);
+            d.destroy_descriptor_pool(self.descriptor_pool, None);
+            d.destroy_descriptor_set_layout(self.set_layout, None);
+            d.destroy_fence(self.fence, None);
+            d.destroy_command_pool(self.command_pool, None);
+        }
+        self.vertices.destroy(d);
+        self.indices.destroy(d);
+        self.uniforms.destroy(d);
+    }
+}

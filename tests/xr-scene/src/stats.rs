@@ -1,0 +1,259 @@
+//! `--stats`: the shaded-fragment counters the fragment shader increments, the frame's GPU time from
+//! timestamp queries, and the JSON file of docs/testing.md. These numbers are how tests tell whether
+//! the layer under test really made the app shade less.
+
+use crate::error::{Ctx, Error, Result};
+use crate::gpu::Gpu;
+use ash::vk;
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// Per-view counters and the frame's two timestamps.
+///
+/// Each view's counter sits in its own `minStorageBufferOffsetAlignment`-aligned block, bound with a
+/// dynamic offset per draw, so draws of different eyes inside one render pass (side-by-side) touch
+/// disjoint memory and need no barrier between them. The multiview draw binds offset 0 and indexes
+/// both counters of the first block with gl_ViewIndex.
+pub struct GpuCounters {
+    device: ash::Device,
+    pub buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+    mapped: *const u8,
+
+    pub block: u64,
+    query_pool: vk::QueryPool,
+    timestamp_period: f32,
+    valid_mask: u64,
+}
+
+/// Bytes the shader may see through one binding: `uint counts[2]`.
+pub const BINDING_RANGE: u64 = 8;
+
+impl GpuCounters {
+    pub fn new(gpu: &Gpu) -> Result<GpuCounters> {
+        let d = &gpu.device;
+        let block = gpu.props.limits.min_storage_buffer_offset_alignment.max(BINDING_RANGE);
+        let size = block + BINDING_RANGE;
+        let mut c = GpuCounters {
+            device: d.clone(),
+            buffer: vk::Buffer::null(),
+            memory: vk::DeviceMemory::null(),
+            mapped: std::ptr::null(),
+
+            block,
+            query_pool: vk::QueryPool::null(),
+            timestamp_period: gpu.props.limits.timestamp_period,
+            valid_mask: match gpu.timestamp_valid_bits {
+                0 => 0,
+                64.. => u64::MAX,
+                b => (1u64 << b) - 1,
+            },
+        };
+        let info = vk::BufferCreateInfo::default()
+            .size(size)
+            .usage(vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST);
+        // SAFETY: valid create infos; partial results are destroyed by Drop.
+        unsafe {
+            c.buffer = d.create_buffer(&info, None).ctx("vkCreateBuffer(counters)")?;
+            let req = d.get_buffer_memory_requirements(c.buffer);
+            // Cached memory reads back faster; invalidation below makes it correct either way.
+            let ty = gpu
+                .memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_CACHED)
+                .or_else(|_| gpu.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE))?;
+            c.memory = d
+                .allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None)
+                .ctx("vkAllocateMemory(counters)")?;
+            d.bind_buffer_memory(c.buffer, c.memory, 0).ctx("vkBindBufferMemory")?;
+            c.mapped = d
+                .map_memory(c.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
+                .ctx("vkMapMemory(counters)")? as *const u8;
+            if c.valid_mask != 0 {
+                c.query_pool = d
+                    .create_query_pool(
+                        &vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2),
+                        None,
+                    )
+                    .ctx("vkCreateQueryPool")?;
+            }
+        }
+        Ok(c)
+    }
+
+    /// The dynamic offset for the draw of `view` (0 for the multiview draw).
+    pub fn dynamic_offset(&self, view: u32, multiview: bool) -> u32 {
+        if multiview {
+            0
+        } else {
+            (self.block * view as u64) as u32
+        }
+    }
+
+    fn byte_offset(&self, view: u32, multiview: bool) -> u64 {
+        self.dynamic_offset(view, multiview) as u64 + 4 * view as u64
+    }
+
+    /// Start of the frame's command buffer: first timestamp, and counters zeroed and made
+    /// visible to the fragment shader.
+    pub fn record_start(&self, cmd: vk::CommandBuffer) {
+        let d = &self.device;
+        // SAFETY: recording state, outside any render pass.
+        unsafe {
+            if self.query_pool != vk::QueryPool::null() {
+                d.cmd_reset_query_pool(cmd, self.query_pool, 0, 2);
+                d.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, self.query_pool, 0);
+            }
+            // The previous frame's shader atomics must be done before the fill overwrites them.
+            let before = [self.barrier(vk::AccessFlags::SHADER_WRITE, vk::AccessFlags::TRANSFER_WRITE)];
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::FRAGMENT_SHADER,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &[],
+                &before,
+                &[],
+            );
+            d.cmd_fill_buffer(cmd, self.buffer, 0, vk::WHOLE_SIZE, 0);
+        }
+    }
+
+    /// The fill → fragment-shader dependency; merged into the frame's pre-pass barrier.
+    pub fn after_fill_barrier(&self) -> vk::BufferMemoryBarrier<'static> {
+        self.barrier(vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)
+    }
+
+    fn barrier(&self, src: vk::AccessFlags, dst: vk::AccessFlags) -> vk::BufferMemoryBarrier<'static> {
+        vk::BufferMemoryBarrier::default()
+            .src_access_mask(src)
+            .dst_access_mask(dst)
+            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .buffer(self.buffer)
+            .offset(0)
+            .size(vk::WHOLE_SIZE)
+    }
+
+    /// End of the frame's command buffer: counters made visible to the host, second timestamp.
+    pub fn record_end(&self, cmd: vk::CommandBuffer) {
+        let d = &self.device;
+        let b = [self.barrier(vk::AccessFlags::SHADER_WRITE, vk::AccessFlags::HOST_READ)];
+        // SAFETY: recording state, outside any render pass.
+        unsafe {
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::FRAGMENT_SHADER,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &[],
+                &b,
+                &[],
+            );
+            if self.query_pool != vk::QueryPool::null() {
+                d.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, self.query_pool, 1);
+            }
+        }
+    }
+
+    /// Reads the finished frame's numbers. Call only after its fence signalled.
+    pub fn read(&self, multiview: bool) -> Result<(f64, [u64; 2])> {
+        let d = &self.device;
+        // SAFETY: the fence of the frame that wrote these was waited on; the mapping is live.
+        unsafe {
+            d.invalidate_mapped_memory_ranges(&[vk::MappedMemoryRange::default()
+                .memory(self.memory)
+                .offset(0)
+                .size(vk::WHOLE_SIZE)])
+                .ctx("vkInvalidateMappedMemoryRanges")?;
+            let mut counts = [0u64; 2];
+            for (v, c) in counts.iter_mut().enumerate() {
+                let p = self.mapped.add(self.byte_offset(v as u32, multiview) as usize) as *const u32;
+                *c = p.read_volatile() as u64;
+            }
+            let mut ms = 0.0;
+            if self.query_pool != vk::QueryPool::null() {
+                let mut ts = [0u64; 2];
+                d.get_query_pool_results(self.query_pool, 0, &mut ts, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
+                    .ctx("vkGetQueryPoolResults")?;
+                let ticks = (ts[1] & self.valid_mask).wrapping_sub(ts[0] & self.valid_mask) & self.valid_mask;
+                ms = ticks as f64 * self.timestamp_period as f64 / 1.0e6;
+            }
+            Ok((ms, counts))
+        }
+    }
+}
+
+impl Drop for GpuCounters {
+    fn drop(&mut self) {
+        // SAFETY: the owner waited for idle; null handles are ignored by the destroy functions.
+        unsafe {
+            self.device.destroy_query_pool(self.query_pool, None);
+            self.device.destroy_buffer(self.buffer, None);
+            if self.memory != vk::DeviceMemory::null() {
+                self.device.free_memory(self.memory, None);
+            }
+        }
+    }
+}
+
+#[derive(Debug, Serialize)]
+pub struct ViewStats {
+    pub view: u32,
+    pub shaded_fragments: u64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct FrameStats {
+    pub frame: u64,
+    pub gpu_time_ms: f64,
+    pub views: Vec<ViewStats>,
+}
+
+#[derive(Debug, Serialize)]
+struct StatsFile<'a> {
+    frames: &'a [FrameStats],
+}
+
+/// The `--stats` file, rewritten after every frame so a run cut short still leaves valid JSON.
+pub struct StatsLog {
+    path: PathBuf,
+    frames: Vec<FrameStats>,
+}
+
+impl StatsLog {
+    pub fn new(path: PathBuf) -> StatsLog {
+        StatsLog { path, frames: Vec::new() }
+    }
+
+    pub fn push(&mut self, f: FrameStats) -> Result<()> {
+        self.frames.push(f);
+        self.write()
+    }
+
+    pub fn write(&self) -> Result<()> {
+        let json = to_json(&self.frames);
+        std::fs::write(&self.path, json).map_err(|e| Error(format!("writing {}: {e}", self.path.display())))
+    }
+}
+
+pub fn to_json(frames: &[FrameStats]) -> String {
+    serde_json::to_string_pretty(&StatsFile { frames }).expect("stats serialize")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_shape_matches_contract() {
+        let frames = [FrameStats {
+            frame: 0,
+            gpu_time_ms: 1.5,
+            views: vec![ViewStats { view: 0, shaded_fragments: 12345 }, ViewStats { view: 1, shaded_fragments: 12001 }],
+        }];
+        let v: serde_json::Value = serde_json::from_str(&to_json(&frames)).unwrap();
+        assert_eq!(v["frames"][0]["frame"], 0);
+        assert_eq!(v["frames"][0]["gpu_time_ms"], 1.5);
+        assert_eq!(v["frames"][0]["views"][1]["view"], 1);
+        assert_eq!(v["frames"][0]["views"][1]["shaded_fragments"], 12001);
+    }
+}

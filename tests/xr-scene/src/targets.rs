@@ -1,0 +1,382 @@
+//! Render targets: the colour (and depth) swapchains of the chosen layout, their image views, and
+//! the app-owned images (multisampled intermediate colour, private depth) the passes draw into.
+
+use crate::cli::{Layout, Options};
+use crate::error::{fail, Ctx, Result};
+use crate::gpu::Gpu;
+use crate::xr::{pick_color_format, XrInstance, XrSession, DEPTH_FORMATS};
+use ash::vk;
+use openxr as xr;
+
+/// An image the app allocates itself.
+pub struct OwnedImage {
+    pub image: vk::Image,
+    pub memory: vk::DeviceMemory,
+    pub view: vk::ImageView,
+}
+
+impl OwnedImage {
+    fn new(
+        gpu: &Gpu,
+        format: vk::Format,
+        extent: vk::Extent2D,
+        layers: u32,
+        samples: vk::SampleCountFlags,
+        usage: vk::ImageUsageFlags,
+        aspect: vk::ImageAspectFlags,
+    ) -> Result<OwnedImage> {
+        let d = &gpu.device;
+        let info = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(format)
+            .extent(vk::Extent3D { width: extent.width, height: extent.height, depth: 1 })
+            .mip_levels(1)
+            .array_layers(layers)
+            .samples(samples)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(usage)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        // SAFETY: valid create info on a live device; on failure nothing leaks beyond what's destroyed here.
+        unsafe {
+            let image = d.create_image(&info, None).ctx("vkCreateImage")?;
+            let req = d.get_image_memory_requirements(image);
+            let ty = match gpu.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL) {
+                Ok(t) => t,
+                Err(e) => {
+                    d.destroy_image(image, None);
+                    return Err(e);
+                }
+            };
+            let memory = match d.allocate_memory(
+                &vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty),
+                None,
+            ) {
+                Ok(m) => m,
+                Err(e) => {
+                    d.destroy_image(image, None);
+                    return Err(e).ctx("vkAllocateMemory");
+                }
+            };
+            let mut img = OwnedImage { image, memory, view: vk::ImageView::null() };
+            if let Err(e) = d.bind_image_memory(image, memory, 0) {
+                img.destroy(d);
+                return Err(e).ctx("vkBindImageMemory");
+            }
+            match create_view(d, image, format, layers, aspect) {
+                Ok(v) => img.view = v,
+                Err(e) => {
+                    img.destroy(d);
+                    return Err(e);
+                }
+            }
+            Ok(img)
+        }
+    }
+
+    fn destroy(&mut self, d: &ash::Device) {
+        // SAFETY: the device is idle (callers wait) and these handles are ours.
+        unsafe {
+            d.destroy_image_view(self.view, None);
+            d.destroy_image(self.image, None);
+            d.free_memory(self.memory, None);
+        }
+    }
+}
+
+fn create_view(
+    d: &ash::Device,
+    image: vk::Image,
+    format: vk::Format,
+    layers: u32,
+    aspect: vk::ImageAspectFlags,
+) -> Result<vk::ImageView> {
+    let info = vk::ImageViewCreateInfo::default()
+        .image(image)
+        .view_type(if layers > 1 { vk::ImageViewType::TYPE_2D_ARRAY } else { vk::ImageViewType::TYPE_2D })
+        .format(format)
+        .subresource_range(vk::ImageSubresourceRange {
+            aspect_mask: aspect,
+            base_mip_level: 0,
+            level_count: 1,
+            base_array_layer: 0,
+            layer_count: layers,
+        });
+    // SAFETY: valid image of this device.
+    unsafe { d.create_image_view(&info, None) }.ctx("vkCreateImageView")
+}
+
+pub fn depth_aspect(format: vk::Format) -> vk::ImageAspectFlags {
+    match format {
+        vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT | vk::Format::D16_UNORM_S8_UINT => {
+            vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL
+        }
+        _ => vk::ImageAspectFlags::DEPTH,
+    }
+}
+
+pub struct Chain {
+    pub swapchain: xr::Swapchain<xr::Vulkan>,
+    pub images: Vec<vk::Image>,
+    pub views: Vec<vk::ImageView>,
+}
+
+/// Everything one render pass instance draws into: one per eye for per-eye, one otherwise.
+pub struct Slot {
+    pub extent: vk::Extent2D,
+    /// 2 for the multiview array, else 1.
+    pub layers: u32,
+    pub color: Chain,
+    pub depth: Option<Chain>,
+    /// Multisampled (or single-sampled) offscreen colour with `--intermediate`.
+    pub offscreen: Option<OwnedImage>,
+    /// The app's own depth buffer when depth is not submitted.
+    pub own_depth: Option<OwnedImage>,
+}
+
+/// Where a view's pixels are: which slot, which array layer, which rectangle.
+#[derive(Debug, Clone, Copy)]
+pub struct ViewRect {
+    pub slot: usize,
+    pub array_index: u32,
+    pub offset_x: i32,
+    pub extent: vk::Extent2D,
+}
+
+pub struct Targets {
+    device: ash::Device,
+    pub slots: Vec<Slot>,
+    pub views: [ViewRect; 2],
+    pub color_format: vk::Format,
+    pub depth_format: vk::Format,
+    pub samples: vk::SampleCountFlags,
+}
+
+fn scaled(v: u32, scale: f32, max: u32) -> u32 {
+    ((v as f32 * scale).round() as u32).max(16).min(max.max(16))
+}
+
+impl Targets {
+    pub fn new(opts: &Options, gpu: &Gpu, xri: &XrInstance, xs: &XrSession) -> Result<Targets> {
+        let mut t = Targets {
+            device: gpu.device.clone(),
+            slots: Vec::new(),
+            views: [ViewRect { slot: 0, array_index: 0, offset_x: 0, extent: vk::Extent2D::default() }; 2],
+            color_format: vk::Format::UNDEFINED,
+            depth_format: vk::Format::UNDEFINED,
+            samples: vk::SampleCountFlags::from_raw(opts.samples),
+        };
+        t.build(opts, gpu, xri, xs)?;
+        Ok(t)
+    }
+
+    fn build(&mut self, opts: &Options, gpu: &Gpu, xri: &XrInstance, xs: &XrSession) -> Result<()> {
+        let offered = xs.session.enumerate_swapchain_formats().ctx("xrEnumerateSwapchainFormats")?;
+        let srgb = opts.color_format == crate::cli::ColorFamily::Srgb;
+        let color_raw = pick_color_format(&offered, srgb)
+            .ok_or_else(|| crate::error::Error(format!("the runtime offers no {:?} colour format in {offered:?}", opts.color_format)))?;
+        self.color_format = vk::Format::from_raw(color_raw as i32);
+
+        let attach = vk::FormatFeatureFlags::DEPTH_STENCIL_ATTACHMENT;
+        self.depth_format = if opts.submit_depth {
+            // D32_SFLOAT if the runtime offers it, else the runtime's first offered depth format.
+            let usable = |f: &vk::Format| offered.contains(&(f.as_raw() as u32)) && gpu.format_supports(*f, attach);
+            if usable(&vk::Format::D32_SFLOAT) {
+                vk::Format::D32_SFLOAT
+            } else {
+                offered
+                    .iter()
+                    .map(|f| vk::Format::from_raw(*f as i32))
+                    .find(|f| DEPTH_FORMATS.contains(f) && usable(f))
+                    .ok_or_else(|| crate::error::Error(format!("the runtime offers no usable depth format in {offered:?}")))?
+            }
+        } else {
+            *DEPTH_FORMATS
+                .iter()
+                .find(|f| gpu.format_supports(**f, attach))
+                .ok_or_else(|| crate::error::Error("no depth format is supported".into()))?
+        };
+
+        let limits = &gpu.props.limits;
+        if opts.intermediate
+            && !(limits.framebuffer_color_sample_counts.contains(self.samples)
+                && limits.framebuffer_depth_sample_counts.contains(self.samples))
+        {
+            return fail(format!("--samples {} is not supported by the device", opts.samples));
+        }
+
+        let vc = &xri.view_config;
+        let size = |v: usize| {
+            vk::Extent2D {
+                width: scaled(vc[v].recommended_image_rect_width, opts.scale, vc[v].max_image_rect_width),
+                height: scaled(vc[v].recommended_image_rect_height, opts.scale, vc[v].max_image_rect_height),
+            }
+        };
+        // Layouts that share one image need one size for both eyes.
+        let shared = vk::Extent2D {
+            width: size(0).width.max(size(1).width),
+            height: size(0).height.max(size(1).height),
+        };
+        match opts.layout {
+            Layout::PerEye => {
+                for v in 0..2 {
+                    let e = size(v);
+                    self.push_slot(opts, gpu, xs, e, e, 1)?;
+                    self.views[v] = ViewRect { slot: v, array_index: 0, offset_x: 0, extent: e };
+                }
+            }
+            Layout::Multiview => {
+                self.push_slot(opts, gpu, xs, shared, shared, 2)?;
+                for v in 0..2 {
+                    self.views[v] = ViewRect { slot: 0, array_index: v as u32, offset_x: 0, extent: shared };
+                }
+            }
+            Layout::SideBySide => {
+                let wide = vk::Extent2D { width: shared.width * 2, height: shared.height };
+                self.push_slot(opts, gpu, xs, wide, shared, 1)?;
+                for v in 0..2 {
+                    self.views[v] = ViewRect {
+                        slot: 0,
+                        array_index: 0,
+                        offset_x: (v as u32 * shared.width) as i32,
+                        extent: shared,
+                    };
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn push_slot(
+        &mut self,
+        opts: &Options,
+        gpu: &Gpu,
+        xs: &XrSession,
+        extent: vk::Extent2D,
+        _view_extent: vk::Extent2D,
+        layers: u32,
+    ) -> Result<()> {
+        let mut usage = xr::SwapchainUsageFlags::COLOR_ATTACHMENT;
+        if opts.intermediate {
+            usage |= xr::SwapchainUsageFlags::TRANSFER_DST;
+        }
+        let color = self.chain(xs, self.color_format, usage, extent, layers, vk::ImageAspectFlags::COLOR)?;
+        let mut slot = Slot { extent, layers, color, depth: None, offscreen: None, own_depth: None };
+        let push_and_err = |t: &mut Targets, slot: Slot, e| {
+            t.slots.push(slot);
+            Err(e)
+        };
+        if opts.submit_depth {
+            match self.chain(
+                xs,
+                self.depth_format,
+                xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+                extent,
+                layers,
+                depth_aspect(self.depth_format),
+            ) {
+                Ok(c) => slot.depth = Some(c),
+                Err(e) => return push_and_err(self, slot, e),
+            }
+        } else {
+            match OwnedImage::new(
+                gpu,
+                self.depth_format,
+                extent,
+                layers,
+                self.samples,
+                vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+                depth_aspect(self.depth_format),
+            ) {
+                Ok(i) => slot.own_depth = Some(i),
+                Err(e) => return push_and_err(self, slot, e),
+            }
+        }
+        if opts.intermediate {
+            match OwnedImage::new(
+                gpu,
+                self.color_format,
+                extent,
+                layers,
+                self.samples,
+                vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC,
+                vk::ImageAspectFlags::COLOR,
+            ) {
+                Ok(i) => slot.offscreen = Some(i),
+                Err(e) => return push_and_err(self, slot, e),
+            }
+        }
+        self.slots.push(slot);
+        Ok(())
+    }
+
+    fn chain(
+        &self,
+        xs: &XrSession,
+        format: vk::Format,
+        usage: xr::SwapchainUsageFlags,
+        extent: vk::Extent2D,
+        layers: u32,
+        aspect: vk::ImageAspectFlags,
+    ) -> Result<Chain> {
+        let swapchain = xs
+            .session
+            .create_swapchain(&xr::SwapchainCreateInfo {
+                create_flags: xr::SwapchainCreateFlags::EMPTY,
+                usage_flags: usage,
+                format: format.as_raw() as u32,
+                sample_count: 1,
+                width: extent.width,
+                height: extent.height,
+                face_count: 1,
+                array_size: layers,
+                mip_count: 1,
+            })
+            .ctx("xrCreateSwapchain")?;
+        let images: Vec<vk::Image> = swapchain
+            .enumerate_images()
+            .ctx("xrEnumerateSwapchainImages")?
+            .into_iter()
+            .map(ash::vk::Handle::from_raw)
+            .collect();
+        let mut chain = Chain { swapchain, images, views: Vec::new() };
+        for &img in &chain.images {
+            match create_view(&self.device, img, format, layers, aspect) {
+                Ok(v) => chain.views.push(v),
+                Err(e) => {
+                    destroy_views(&self.device, &chain.views);
+                    return Err(e);
+                }
+            }
+        }
+        Ok(chain)
+    }
+}
+
+fn destroy_views(d: &ash::Device, views: &[vk::ImageView]) {
+    for v in views {
+        // SAFETY: our views; the device is idle when targets are torn down.
+        unsafe { d.destroy_image_view(*v, None) };
+    }
+}
+
+impl Drop for Targets {
+    fn drop(&mut self) {
+        // SAFETY: wait for all GPU work before destroying what it may use.
+        unsafe {
+            let _ = self.device.device_wait_idle();
+        }
+        for s in &mut self.slots {
+            destroy_views(&self.device, &s.color.views);
+            if let Some(d) = &s.depth {
+                destroy_views(&self.device, &d.views);
+            }
+            if let Some(i) = &mut s.offscreen {
+                i.destroy(&self.device);
+            }
+            if let Some(i) = &mut s.own_depth {
+                i.destroy(&self.device);
+            }
+        }
+        // The XR swapchains are destroyed when `slots` drops, after their views.
+    }
+}
