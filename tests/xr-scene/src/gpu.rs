@@ -103,6 +103,15 @@ impl Gpu {
             }
             layers.push(VALIDATION_LAYER.as_ptr());
             push_unique(&mut instance_exts, ash::ext::debug_utils::NAME);
+            // VkValidationFeaturesEXT (to turn on synchronization validation) belongs to this
+            // extension, which the layer itself provides.
+            // SAFETY: plain enumeration call.
+            let layer_exts = unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
+                .ctx("vkEnumerateInstanceExtensionProperties(validation layer)")?;
+            if !layer_exts.iter().any(|e| e.extension_name_as_c_str() == Ok(ash::ext::validation_features::NAME)) {
+                return fail("--validation: the validation layer lacks VK_EXT_validation_features");
+            }
+            push_unique(&mut instance_exts, ash::ext::validation_features::NAME);
         }
         if opts.vulkan == VulkanPath::Enable {
             let list = xr
