@@ -7,3 +7,6 @@ pub mod guard;
 pub mod log;
 pub mod registry;
 pub mod shared;
+pub mod submission;
+pub mod vk_manifest;
+pub mod xr;

@@ -1,0 +1,104 @@
+//! Makes the Vulkan loader find stereoshim's Vulkan half without the user installing anything: the
+//! OpenXR half writes a layer manifest that points at the very library file it was loaded from
+//! (so both halves are one loaded image and share state) and adds its folder to
+//! `VK_ADD_LAYER_PATH`.
+
+use std::path::{Path, PathBuf};
+
+/// The Vulkan layer's name; the manifest, the OpenXR half and the tests all use this constant.
+pub const VK_LAYER_NAME: &str = "VK_LAYER_STEREOSHIM_stereoshim";
+
+/// The manifest text for a library at `library_path`.
+pub fn manifest_json(library_path: &Path) -> String {
+    let layer = serde_json::json!({
+        "file_format_version": "1.2.0",
+        "layer": {
+            "name": VK_LAYER_NAME,
+            "type": "GLOBAL",
+            "library_path": library_path,
+            "api_version": "1.3.0",
+            "implementation_version": env!("CARGO_PKG_VERSION_MAJOR").parse::<u32>().unwrap_or(0) * 100
+                + env!("CARGO_PKG_VERSION_MINOR").parse::<u32>().unwrap_or(0),
+            "description": "stereoshim: renders less in unmodified VR apps",
+        }
+    });
+    serde_json::to_string_pretty(&layer).unwrap_or_default()
+}
+
+/// The file a loaded code address belongs to, from `/proc/self/maps` text.
+pub fn library_containing(maps: &str, address: usize) -> Option<PathBuf> {
+    maps.lines().find_map(|line| {
+        let mut fields = line.split_whitespace();
+        let (start, end) = fields.next()?.split_once('-')?;
+        let (start, end) = (usize::from_str_radix(start, 16).ok()?, usize::from_str_radix(end, 16).ok()?);
+        let path = fields.nth(4)?;
+        ((start..end).contains(&address) && path.starts_with('/')).then(|| PathBuf::from(path))
+    })
+}
+
+/// `VK_ADD_LAYER_PATH` with `dir` added, unless it is already there.
+pub fn add_layer_path(current: Option<&str>, dir: &Path) -> Option<String> {
+    let dir = dir.to_str()?;
+    match current.filter(|c| !c.is_empty()) {
+        Some(c) if c.split(':').any(|p| p == dir) => None,
+        Some(c) => Some(format!("{dir}:{c}")),
+        None => Some(dir.to_string()),
+    }
+}
+
+/// `VK_INSTANCE_LAYERS` with the layer added, unless it is already there.
+pub fn add_instance_layer(current: Option<&str>) -> Option<String> {
+    match current.filter(|c| !c.is_empty()) {
+        Some(c) if c.split(':').any(|p| p == VK_LAYER_NAME) => None,
+        Some(c) => Some(format!("{c}:{VK_LAYER_NAME}")),
+        None => Some(VK_LAYER_NAME.to_string()),
+    }
+}
+
+/// Writes the manifest for `library` into a per-user folder and returns that folder. Written to a
+/// temporary name and renamed, so a concurrent process never reads half a file.
+pub fn write_manifest(library: &Path) -> std::io::Result<PathBuf> {
+    let base = std::env::var_os("XDG_RUNTIME_DIR").map(PathBuf::from).unwrap_or_else(std::env::temp_dir);
+    let user = std::env::var("USER").unwrap_or_else(|_| "user".into());
+    // One folder per library file, so two builds of stereoshim never point at each other.
+    let tag = library.to_string_lossy().bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
+    let dir = base.join(format!("stereoshim-{user}")).join(format!("vulkan-{tag:016x}"));
+    std::fs::create_dir_all(&dir)?;
+    let path = dir.join("stereoshim.json");
+    let tmp = dir.join(format!(".stereoshim.json.{}", std::process::id()));
+    std::fs::write(&tmp, manifest_json(library))?;
+    std::fs::rename(&tmp, &path)?;
+    Ok(dir)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finds_the_mapping_of_an_address() {
+        let maps = "7f0000000000-7f0000001000 r-xp 00000000 08:01 123 /usr/lib/libstereoshim.so\n\
+                    7f0000001000-7f0000002000 rw-p 00000000 00:00 0 \n\
+                    7f0000002000-7f0000003000 r-xp 00000000 00:00 0 [vdso]\n";
+        assert_eq!(library_containing(maps, 0x7f00_0000_0800), Some(PathBuf::from("/usr/lib/libstereoshim.so")));
+        assert_eq!(library_containing(maps, 0x7f00_0000_1800), None);
+        assert_eq!(library_containing(maps, 0x7f00_0000_2800), None);
+    }
+
+    #[test]
+    fn paths_are_added_once() {
+        let d = Path::new("/run/s");
+        assert_eq!(add_layer_path(None, d).as_deref(), Some("/run/s"));
+        assert_eq!(add_layer_path(Some("/a"), d).as_deref(), Some("/run/s:/a"));
+        assert_eq!(add_layer_path(Some("/a:/run/s"), d), None);
+        assert_eq!(add_instance_layer(Some("VK_LAYER_KHRONOS_validation")).as_deref(), Some("VK_LAYER_KHRONOS_validation:VK_LAYER_STEREOSHIM_stereoshim"));
+        assert_eq!(add_instance_layer(Some(VK_LAYER_NAME)), None);
+    }
+
+    #[test]
+    fn manifest_names_layer_and_library() {
+        let json: serde_json::Value = serde_json::from_str(&manifest_json(Path::new("/x/lib s.so"))).unwrap();
+        assert_eq!(json["layer"]["name"], VK_LAYER_NAME);
+        assert_eq!(json["layer"]["library_path"], "/x/lib s.so");
+    }
+}

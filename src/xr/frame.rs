@@ -1,0 +1,111 @@
+//! Frame entry points. `xrEndFrame` is where the layer learns which swapchain shows which eye: the
+//! submitted projection views are read here and published for the Vulkan half.
+
+use super::session;
+use crate::guard;
+use crate::shared::{self, ImageRect};
+use crate::submission::{self, SubImage, SubmittedView};
+use openxr_sys as xr;
+use openxr_sys::Handle as _;
+use std::sync::atomic::Ordering;
+
+pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_begin_info: *const xr::FrameBeginInfo) -> xr::Result {
+    let inst = match session::lookup(session) {
+        Ok(s) => s.instance.clone(),
+        Err(Some(inst)) => inst,
+        Err(None) => return xr::Result::ERROR_HANDLE_INVALID,
+    };
+    let Some(next) = inst.next.begin_frame else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(session, frame_begin_info) };
+    guard::run("xrBeginFrame", &inst.pass_through, |down| {
+        inst.check_fault("xrBeginFrame")?;
+        Ok(down.call(plain))
+    }, plain)
+}
+
+fn sub_image(s: &xr::SwapchainSubImage) -> SubImage {
+    SubImage {
+        swapchain: s.swapchain.into_raw(),
+        image_rect: ImageRect {
+            x: s.image_rect.offset.x,
+            y: s.image_rect.offset.y,
+            width: s.image_rect.extent.width,
+            height: s.image_rect.extent.height,
+        },
+        image_array_index: s.image_array_index,
+    }
+}
+
+/// Reads the projection layers of a frame. Anything malformed yields `None`: the runtime will
+/// reject the frame, and the layer must not learn from it.
+///
+/// # Safety
+/// `info` must be null or point to a frame end info whose pointers are valid as the app claims;
+/// null and dangling-by-count cases are the runtime's to reject, so only null is checked here.
+unsafe fn read_projection_layers(info: *const xr::FrameEndInfo) -> Option<Vec<Vec<SubmittedView>>> {
+    // SAFETY: per the caller's contract, every non-null pointer is valid for its count.
+    unsafe {
+        let info = info.as_ref()?;
+        if info.layer_count > 0 && info.layers.is_null() {
+            return None;
+        }
+        let mut layers = Vec::new();
+        for i in 0..info.layer_count as usize {
+            let base = (*info.layers.add(i)).as_ref()?;
+            if base.ty != xr::StructureType::COMPOSITION_LAYER_PROJECTION {
+                continue;
+            }
+            let proj = &*(base as *const xr::CompositionLayerBaseHeader as *const xr::CompositionLayerProjection);
+            if proj.view_count > 0 && proj.views.is_null() {
+                return None;
+            }
+            let mut views = Vec::with_capacity(proj.view_count as usize);
+            for v in std::slice::from_raw_parts(proj.views, proj.view_count as usize) {
+                let mut depth = None;
+                let mut next = v.next as *const xr::BaseInStructure;
+                while let Some(s) = next.as_ref() {
+                    if s.ty == xr::StructureType::COMPOSITION_LAYER_DEPTH_INFO_KHR {
+                        depth = Some(sub_image(&(*(next as *const xr::CompositionLayerDepthInfoKHR)).sub_image));
+                    }
+                    next = s.next;
+                }
+                views.push(SubmittedView { color: sub_image(&v.sub_image), depth });
+            }
+            layers.push(views);
+        }
+        Some(layers)
+    }
+}
+
+pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_info: *const xr::FrameEndInfo) -> xr::Result {
+    let (inst, known) = match session::lookup(session) {
+        Ok(s) => (s.instance.clone(), true),
+        Err(Some(inst)) => (inst, false),
+        Err(None) => return xr::Result::ERROR_HANDLE_INVALID,
+    };
+    let Some(next) = inst.next.end_frame else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(session, frame_end_info) };
+    guard::run("xrEndFrame", &inst.pass_through, |down| {
+        inst.check_fault("xrEndFrame")?;
+        // Read before calling down: the app's structs are only guaranteed valid during the call.
+        // SAFETY: the app's frame end info, valid for this call (null is handled).
+        let layers = if known { unsafe { read_projection_layers(frame_end_info) } } else { None };
+        let r = down.call(plain);
+        if r != xr::Result::SUCCESS {
+            return Ok(r);
+        }
+        inst.stats.frames_ended.fetch_add(1, Ordering::Relaxed);
+        let Some(layers) = layers else { return Ok(r) };
+        let shared = shared::shared();
+        for (swapchain, uses) in submission::eye_uses(&layers) {
+            let Some(sc) = shared.swapchains.get(swapchain) else { continue };
+            if sc.set_uses(uses.clone()) {
+                inst.stats.eye_use_changes.fetch_add(1, Ordering::Relaxed);
+                tracing::info!("swapchain {swapchain:#x} now shows {uses:?}");
+            }
+        }
+        Ok(r)
+    }, plain)
+}

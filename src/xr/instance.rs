@@ -1,0 +1,200 @@
+//! Instance-level entry points: creating the layer's instance state (configuration, logging, the
+//! next layer's dispatch), tearing it down, and the instance calls whose results later features use.
+
+use super::{state, Instance, Next};
+use crate::guard::{self, PassThrough};
+use openxr_sys as xr;
+use openxr_sys::Handle as _;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+/// Counters that show, in the log, that the layer really saw the app's traffic.
+#[derive(Debug, Default)]
+pub(crate) struct Stats {
+    pub frames_ended: AtomicU64,
+    pub swapchains_created: AtomicU64,
+    pub swapchain_images: AtomicU64,
+    pub eye_use_changes: AtomicU64,
+    pub visibility_mask_events: AtomicU64,
+}
+
+impl Stats {
+    fn line(&self) -> String {
+        format!(
+            "frames_ended={} swapchains_created={} swapchain_images={} eye_use_changes={} visibility_mask_events={}",
+            self.frames_ended.load(Ordering::Relaxed),
+            self.swapchains_created.load(Ordering::Relaxed),
+            self.swapchain_images.load(Ordering::Relaxed),
+            self.eye_use_changes.load(Ordering::Relaxed),
+            self.visibility_mask_events.load(Ordering::Relaxed),
+        )
+    }
+}
+
+fn exe_name() -> String {
+    std::env::current_exe()
+        .ok()
+        .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .unwrap_or_default()
+}
+
+/// `xrCreateApiLayerInstance`: resolve the app's configuration, call down the chain with the next
+/// layer's info, and record the instance with the next layer's dispatch.
+pub(super) unsafe extern "system" fn create_api_layer_instance(
+    info: *const xr::InstanceCreateInfo,
+    layer_info: *const xr::ApiLayerCreateInfo,
+    instance: *mut xr::Instance,
+) -> xr::Result {
+    // SAFETY: the loader passes a valid create info chain; null is rejected.
+    let Some(layer_info) = (unsafe { layer_info.as_ref() }) else { return xr::Result::ERROR_INITIALIZATION_FAILED };
+    // SAFETY: as above; `next_info` is the list of layers below us.
+    let Some(next_info) = (unsafe { layer_info.next_info.as_ref() }) else {
+        return xr::Result::ERROR_INITIALIZATION_FAILED;
+    };
+    let (Some(next_gipa), Some(next_create)) =
+        (next_info.next_get_instance_proc_addr, next_info.next_create_api_layer_instance)
+    else {
+        return xr::Result::ERROR_INITIALIZATION_FAILED;
+    };
+    // The layers below us see the chain advanced past us.
+    let mut down_info = *layer_info;
+    down_info.next_info = next_info.next;
+    let plain = || {
+        // SAFETY: forwarding the loader's arguments with the chain advanced, as the loader
+        // interface requires.
+        unsafe { next_create(info, &down_info, instance) }
+    };
+    // No instance exists yet whose pass-through could be engaged; a failure here only costs
+    // this call's layer logic.
+    let creating = PassThrough::default();
+    guard::run("xrCreateApiLayerInstance", &creating, |down| {
+        // SAFETY: `info` is the app's create info, valid for this call.
+        let app_name = unsafe { info.as_ref() }.map(|i| super::fixed_str(&i.application_info.application_name)).unwrap_or_default();
+        let exe = exe_name();
+        let (config, diagnostics) = crate::config::load(&[app_name.as_str(), exe.as_str()]);
+        crate::log::init(config.choice("log.level"));
+        for d in &diagnostics {
+            tracing::warn!("config: {d}");
+        }
+        let _span = tracing::info_span!("xrCreateApiLayerInstance", app = %app_name).entered();
+        let r = down.call(plain);
+        if r != xr::Result::SUCCESS {
+            tracing::info!(?r, "instance creation failed below the layer");
+            return Ok(r);
+        }
+        // SAFETY: the call down succeeded, so `*instance` holds the new handle.
+        let handle = unsafe { *instance };
+        // SAFETY: `next_gipa` belongs to the layer that created `handle`.
+        let next = unsafe { Next::load(next_gipa, handle) };
+        let config = Arc::new(config);
+        crate::shared::shared().set_config(config.clone());
+        tracing::info!(
+            enabled = config.enabled(),
+            exe,
+            "instance {:#x} for app {app_name:?}{}",
+            handle.into_raw(),
+            if config.enabled() { "" } else { ": layer disabled by config, pure pass-through" }
+        );
+        for (key, value, source) in config.entries() {
+            tracing::debug!("config {key} = {value} ({source})");
+        }
+        let inst = Instance {
+            handle,
+            next,
+            config,
+            pass_through: PassThrough::default(),
+            app_name,
+            stats: Stats::default(),
+        };
+        state().instances.insert(handle.into_raw(), Arc::new(inst));
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn destroy_instance(instance: xr::Instance) -> xr::Result {
+    let Some(inst) = state().instances.get(instance.into_raw()) else {
+        return match super::sole_instance().and_then(|i| i.next.destroy_instance) {
+            // SAFETY: forwarding an unknown handle so the runtime reports it.
+            Some(f) => unsafe { f(instance) },
+            None => xr::Result::ERROR_HANDLE_INVALID,
+        };
+    };
+    let Some(next) = inst.next.destroy_instance else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's valid handle.
+    let plain = || unsafe { next(instance) };
+    guard::run("xrDestroyInstance", &inst.pass_through, |down| {
+        let _span = tracing::debug_span!("xrDestroyInstance").entered();
+        let r = down.call(plain);
+        if r == xr::Result::SUCCESS {
+            // Children die with their instance (spec): drop their state too.
+            let st = state();
+            st.swapchains.retain(|_, s| s.session.instance.handle != instance);
+            st.sessions.retain(|_, s| s.instance.handle != instance);
+            st.instances.remove(instance.into_raw());
+            tracing::info!("openxr stats: {} (app {:?})", inst.stats.line(), inst.app_name);
+        }
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn enumerate_view_configuration_views(
+    instance: xr::Instance,
+    system_id: xr::SystemId,
+    view_configuration_type: xr::ViewConfigurationType,
+    view_capacity_input: u32,
+    view_count_output: *mut u32,
+    views: *mut xr::ViewConfigurationView,
+) -> xr::Result {
+    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+        return xr::Result::ERROR_HANDLE_INVALID;
+    };
+    let Some(next) = inst.next.enumerate_view_configuration_views else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(instance, system_id, view_configuration_type, view_capacity_input, view_count_output, views) };
+    guard::run("xrEnumerateViewConfigurationViews", &inst.pass_through, |down| {
+        inst.check_fault("xrEnumerateViewConfigurationViews")?;
+        let r = down.call(plain);
+        if r == xr::Result::SUCCESS && view_capacity_input > 0 && !views.is_null() && !view_count_output.is_null() {
+            // SAFETY: on success the runtime wrote `*view_count_output` (≤ capacity) entries.
+            let written = unsafe { std::slice::from_raw_parts(views, (*view_count_output).min(view_capacity_input) as usize) };
+            for (i, v) in written.iter().enumerate() {
+                tracing::info!(
+                    "view {i} of {view_configuration_type:?}: recommended {}x{}, max {}x{}",
+                    v.recommended_image_rect_width,
+                    v.recommended_image_rect_height,
+                    v.max_image_rect_width,
+                    v.max_image_rect_height
+                );
+            }
+        }
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn poll_event(instance: xr::Instance, event_data: *mut xr::EventDataBuffer) -> xr::Result {
+    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+        return xr::Result::ERROR_HANDLE_INVALID;
+    };
+    let Some(next) = inst.next.poll_event else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(instance, event_data) };
+    guard::run("xrPollEvent", &inst.pass_through, |down| {
+        inst.check_fault("xrPollEvent")?;
+        let r = down.call(plain);
+        if r == xr::Result::SUCCESS && !event_data.is_null() {
+            // SAFETY: on success the runtime filled the event buffer; its `ty` tells its layout.
+            let ty = unsafe { (*event_data).ty };
+            if ty == xr::StructureType::EVENT_DATA_VISIBILITY_MASK_CHANGED_KHR {
+                // SAFETY: `ty` says the buffer holds this struct (it fits in XrEventDataBuffer).
+                let e = unsafe { &*(event_data as *const xr::EventDataVisibilityMaskChangedKHR) };
+                inst.stats.visibility_mask_events.fetch_add(1, Ordering::Relaxed);
+                tracing::info!("visibility mask of view {} changed", e.view_index);
+            } else if ty == xr::StructureType::EVENT_DATA_SESSION_STATE_CHANGED {
+                // SAFETY: as above.
+                let e = unsafe { &*(event_data as *const xr::EventDataSessionStateChanged) };
+                tracing::debug!("session {:#x} state {:?}", e.session.into_raw(), e.state);
+            }
+        }
+        Ok(r)
+    }, plain)
+}

@@ -1,0 +1,191 @@
+//! Session-level entry points: which Vulkan device a session renders with, where its views are,
+//! and its lens masks — what later features need to decide where and how to inject.
+
+use super::{state, Instance};
+use crate::guard;
+use openxr_sys as xr;
+use openxr_sys::Handle as _;
+use std::sync::{Arc, Mutex};
+
+/// The Vulkan objects of `XrGraphicsBindingVulkanKHR`, as handle values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct VulkanBinding {
+    pub instance: u64,
+    pub physical_device: u64,
+    pub device: u64,
+    pub queue_family_index: u32,
+    pub queue_index: u32,
+}
+
+/// A view as last located by the app.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct LocatedView {
+    pub pose: xr::Posef,
+    pub fov: xr::Fovf,
+}
+
+pub(crate) struct Session {
+    pub handle: xr::Session,
+    pub instance: Arc<Instance>,
+    pub binding: Option<VulkanBinding>,
+    pub views: Mutex<Vec<LocatedView>>,
+}
+
+/// Finds the session's state, or the instance to forward an unknown handle through.
+pub(super) fn lookup(session: xr::Session) -> Result<Arc<Session>, Option<Arc<Instance>>> {
+    state().sessions.get(session.into_raw()).ok_or_else(super::sole_instance)
+}
+
+/// Finds `XrGraphicsBindingVulkanKHR` in a session create info's chain.
+///
+/// # Safety
+/// `next` must be a valid OpenXR structure chain.
+unsafe fn vulkan_binding(mut next: *const xr::BaseInStructure) -> Option<VulkanBinding> {
+    // SAFETY: walking a valid chain (caller's contract); each `ty` tells the struct's layout.
+    unsafe {
+        while let Some(s) = next.as_ref() {
+            if s.ty == xr::StructureType::GRAPHICS_BINDING_VULKAN_KHR {
+                let b = &*(next as *const xr::GraphicsBindingVulkanKHR);
+                return Some(VulkanBinding {
+                    instance: b.instance as u64,
+                    physical_device: b.physical_device as u64,
+                    device: b.device as u64,
+                    queue_family_index: b.queue_family_index,
+                    queue_index: b.queue_index,
+                });
+            }
+            next = s.next;
+        }
+    }
+    None
+}
+
+pub(super) unsafe extern "system" fn create_session(
+    instance: xr::Instance,
+    create_info: *const xr::SessionCreateInfo,
+    session: *mut xr::Session,
+) -> xr::Result {
+    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+        return xr::Result::ERROR_HANDLE_INVALID;
+    };
+    let Some(next) = inst.next.create_session else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(instance, create_info, session) };
+    guard::run("xrCreateSession", &inst.pass_through, |down| {
+        inst.check_fault("xrCreateSession")?;
+        let _span = tracing::debug_span!("xrCreateSession").entered();
+        // SAFETY: the app's create info is valid for this call (or null, which the runtime rejects).
+        let binding = unsafe { create_info.as_ref().and_then(|ci| vulkan_binding(ci.next.cast())) };
+        let r = down.call(plain);
+        if r != xr::Result::SUCCESS {
+            return Ok(r);
+        }
+        // SAFETY: success means the runtime wrote the new handle.
+        let handle = unsafe { *session };
+        match &binding {
+            Some(b) => tracing::info!(
+                "session {:#x} renders on VkDevice {:#x} (queue family {}, index {})",
+                handle.into_raw(),
+                b.device,
+                b.queue_family_index,
+                b.queue_index,
+            ),
+            None => tracing::warn!("session {:#x} has no Vulkan binding: nothing to do for it", handle.into_raw()),
+        }
+        let s = Session { handle, instance: inst.clone(), binding, views: Mutex::new(Vec::new()) };
+        state().sessions.insert(handle.into_raw(), Arc::new(s));
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr::Result {
+    let (inst, known) = match lookup(session) {
+        Ok(s) => (s.instance.clone(), true),
+        Err(Some(inst)) => (inst, false),
+        Err(None) => return xr::Result::ERROR_HANDLE_INVALID,
+    };
+    let Some(next) = inst.next.destroy_session else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's handle.
+    let plain = || unsafe { next(session) };
+    guard::run("xrDestroySession", &inst.pass_through, |down| {
+        let r = down.call(plain);
+        if r == xr::Result::SUCCESS && known {
+            let st = state();
+            if let Some(s) = st.sessions.get(session.into_raw()) {
+                tracing::info!("session {:#x} destroyed (binding {:?})", session.into_raw(), s.binding);
+            }
+            for (handle, _) in st.swapchains.values().into_iter().filter(|(_, s)| s.session.handle == session) {
+                crate::shared::shared().remove_swapchain(handle);
+            }
+            st.swapchains.retain(|_, s| s.session.handle != session);
+            st.sessions.remove(session.into_raw());
+        }
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn locate_views(
+    session: xr::Session,
+    view_locate_info: *const xr::ViewLocateInfo,
+    view_state: *mut xr::ViewState,
+    view_capacity_input: u32,
+    view_count_output: *mut u32,
+    views: *mut xr::View,
+) -> xr::Result {
+    let s = match lookup(session) {
+        Ok(s) => s,
+        Err(inst) => {
+            return match inst.and_then(|i| i.next.locate_views) {
+                // SAFETY: forwarding an unknown handle so the runtime reports it.
+                Some(f) => unsafe { f(session, view_locate_info, view_state, view_capacity_input, view_count_output, views) },
+                None => xr::Result::ERROR_HANDLE_INVALID,
+            }
+        }
+    };
+    let Some(next) = s.instance.next.locate_views else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(session, view_locate_info, view_state, view_capacity_input, view_count_output, views) };
+    guard::run("xrLocateViews", &s.instance.pass_through, |down| {
+        s.instance.check_fault("xrLocateViews")?;
+        let r = down.call(plain);
+        if r == xr::Result::SUCCESS && view_capacity_input > 0 && !views.is_null() && !view_count_output.is_null() {
+            // SAFETY: on success the runtime wrote `*view_count_output` (≤ capacity) views.
+            let located = unsafe { std::slice::from_raw_parts(views, (*view_count_output).min(view_capacity_input) as usize) };
+            let mut last = s.views.lock().unwrap_or_else(|e| e.into_inner());
+            last.clear();
+            last.extend(located.iter().map(|v| LocatedView { pose: v.pose, fov: v.fov }));
+        }
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn get_visibility_mask(
+    session: xr::Session,
+    view_configuration_type: xr::ViewConfigurationType,
+    view_index: u32,
+    visibility_mask_type: xr::VisibilityMaskTypeKHR,
+    visibility_mask: *mut xr::VisibilityMaskKHR,
+) -> xr::Result {
+    let inst = match lookup(session) {
+        Ok(s) => s.instance.clone(),
+        Err(Some(inst)) => inst,
+        Err(None) => return xr::Result::ERROR_HANDLE_INVALID,
+    };
+    let Some(next) = inst.next.get_visibility_mask else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(session, view_configuration_type, view_index, visibility_mask_type, visibility_mask) };
+    guard::run("xrGetVisibilityMaskKHR", &inst.pass_through, |down| {
+        inst.check_fault("xrGetVisibilityMaskKHR")?;
+        let r = down.call(plain);
+        // SAFETY: on return the runtime filled the counts of the app's struct.
+        if let Some(m) = unsafe { visibility_mask.as_ref() } {
+            tracing::debug!(
+                ?r,
+                "visibility mask view {view_index} {visibility_mask_type:?}: {} vertices, {} indices",
+                m.vertex_count_output,
+                m.index_count_output
+            );
+        }
+        Ok(r)
+    }, plain)
+}

@@ -1,0 +1,173 @@
+//! Swapchain entry points: which `VkImage`s are swapchain images (published for the Vulkan half)
+//! and which image the app is rendering into right now.
+
+use super::session::{self, Session};
+use super::{state, Instance};
+use crate::guard;
+use crate::shared::{self, SwapchainDesc};
+use openxr_sys as xr;
+use openxr_sys::Handle as _;
+use std::collections::VecDeque;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex};
+
+pub(crate) struct Swapchain {
+    pub session: Arc<Session>,
+    pub desc: SwapchainDesc,
+    /// Acquired, not yet released image indices, oldest first (the spec's acquire order).
+    pub acquired: Mutex<VecDeque<u32>>,
+}
+
+/// The swapchain's state, or the instance to forward an unknown handle through.
+fn lookup(swapchain: xr::Swapchain) -> Result<Arc<Swapchain>, Option<Arc<Instance>>> {
+    state().swapchains.get(swapchain.into_raw()).ok_or_else(super::sole_instance)
+}
+
+/// Resolves a swapchain handle to (instance, state if known), or returns the error for a handle
+/// no instance can take.
+macro_rules! swapchain_or_forward {
+    ($swapchain:expr) => {
+        match lookup($swapchain) {
+            Ok(sc) => (sc.session.instance.clone(), Some(sc)),
+            Err(Some(inst)) => (inst, None),
+            Err(None) => return xr::Result::ERROR_HANDLE_INVALID,
+        }
+    };
+}
+
+pub(super) unsafe extern "system" fn create_swapchain(
+    session: xr::Session,
+    create_info: *const xr::SwapchainCreateInfo,
+    swapchain: *mut xr::Swapchain,
+) -> xr::Result {
+    let (inst, sess) = match session::lookup(session) {
+        Ok(s) => (s.instance.clone(), Some(s)),
+        Err(Some(inst)) => (inst, None),
+        Err(None) => return xr::Result::ERROR_HANDLE_INVALID,
+    };
+    let Some(next) = inst.next.create_swapchain else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(session, create_info, swapchain) };
+    guard::run("xrCreateSwapchain", &inst.pass_through, |down| {
+        inst.check_fault("xrCreateSwapchain")?;
+        let r = down.call(plain);
+        let (Some(sess), true) = (sess.clone(), r == xr::Result::SUCCESS) else { return Ok(r) };
+        // SAFETY: success means the create info was valid and the handle was written.
+        let (ci, handle) = unsafe { (&*create_info, *swapchain) };
+        let desc = SwapchainDesc {
+            usage_flags: ci.usage_flags.into_raw(),
+            format: ci.format,
+            sample_count: ci.sample_count,
+            width: ci.width,
+            height: ci.height,
+            array_size: ci.array_size,
+        };
+        tracing::info!("swapchain {:#x}: {desc:?}", handle.into_raw());
+        inst.stats.swapchains_created.fetch_add(1, Ordering::Relaxed);
+        let sc = Swapchain { session: sess, desc, acquired: Mutex::new(VecDeque::new()) };
+        state().swapchains.insert(handle.into_raw(), Arc::new(sc));
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn destroy_swapchain(swapchain: xr::Swapchain) -> xr::Result {
+    let (inst, sc) = swapchain_or_forward!(swapchain);
+    let Some(next) = inst.next.destroy_swapchain else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's handle.
+    let plain = || unsafe { next(swapchain) };
+    guard::run("xrDestroySwapchain", &inst.pass_through, |down| {
+        let r = down.call(plain);
+        if r == xr::Result::SUCCESS && sc.is_some() {
+            shared::shared().remove_swapchain(swapchain.into_raw());
+            state().swapchains.remove(swapchain.into_raw());
+        }
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn enumerate_swapchain_images(
+    swapchain: xr::Swapchain,
+    image_capacity_input: u32,
+    image_count_output: *mut u32,
+    images: *mut xr::SwapchainImageBaseHeader,
+) -> xr::Result {
+    let (inst, sc) = swapchain_or_forward!(swapchain);
+    let Some(next) = inst.next.enumerate_swapchain_images else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(swapchain, image_capacity_input, image_count_output, images) };
+    guard::run("xrEnumerateSwapchainImages", &inst.pass_through, |down| {
+        inst.check_fault("xrEnumerateSwapchainImages")?;
+        let r = down.call(plain);
+        let Some(sc) = sc.as_ref() else { return Ok(r) };
+        if r != xr::Result::SUCCESS || image_capacity_input == 0 || images.is_null() || image_count_output.is_null() {
+            return Ok(r);
+        }
+        // SAFETY: success with capacity > 0 means `*image_count_output` structs were written.
+        let count = unsafe { *image_count_output }.min(image_capacity_input) as usize;
+        // SAFETY: the array's element type is given by its first element's `ty`.
+        if unsafe { (*images).ty } != xr::StructureType::SWAPCHAIN_IMAGE_VULKAN_KHR {
+            return Ok(r);
+        }
+        // SAFETY: the array holds `count` XrSwapchainImageVulkanKHR (checked `ty` above).
+        let vk = unsafe { std::slice::from_raw_parts(images as *const xr::SwapchainImageVulkanKHR, count) };
+        let handles: Vec<u64> = vk.iter().map(|i| i.image).collect();
+        tracing::info!("swapchain {:#x} images {handles:#x?}", swapchain.into_raw());
+        inst.stats.swapchain_images.fetch_add(count as u64, Ordering::Relaxed);
+        shared::shared().add_swapchain(Arc::new(shared::Swapchain::new(swapchain.into_raw(), sc.desc.clone(), handles)));
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn acquire_swapchain_image(
+    swapchain: xr::Swapchain,
+    acquire_info: *const xr::SwapchainImageAcquireInfo,
+    index: *mut u32,
+) -> xr::Result {
+    let (inst, sc) = swapchain_or_forward!(swapchain);
+    let Some(next) = inst.next.acquire_swapchain_image else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(swapchain, acquire_info, index) };
+    guard::run("xrAcquireSwapchainImage", &inst.pass_through, |down| {
+        inst.check_fault("xrAcquireSwapchainImage")?;
+        let r = down.call(plain);
+        if let (Some(sc), xr::Result::SUCCESS) = (sc.as_ref(), r) {
+            // SAFETY: success means the index was written.
+            let i = unsafe { *index };
+            sc.acquired.lock().unwrap_or_else(|e| e.into_inner()).push_back(i);
+        }
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn wait_swapchain_image(
+    swapchain: xr::Swapchain,
+    wait_info: *const xr::SwapchainImageWaitInfo,
+) -> xr::Result {
+    let (inst, _) = swapchain_or_forward!(swapchain);
+    let Some(next) = inst.next.wait_swapchain_image else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(swapchain, wait_info) };
+    guard::run("xrWaitSwapchainImage", &inst.pass_through, |down| {
+        inst.check_fault("xrWaitSwapchainImage")?;
+        Ok(down.call(plain))
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn release_swapchain_image(
+    swapchain: xr::Swapchain,
+    release_info: *const xr::SwapchainImageReleaseInfo,
+) -> xr::Result {
+    let (inst, sc) = swapchain_or_forward!(swapchain);
+    let Some(next) = inst.next.release_swapchain_image else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(swapchain, release_info) };
+    guard::run("xrReleaseSwapchainImage", &inst.pass_through, |down| {
+        inst.check_fault("xrReleaseSwapchainImage")?;
+        let r = down.call(plain);
+        if let (Some(sc), xr::Result::SUCCESS) = (sc.as_ref(), r) {
+            // Images are released in acquire order (spec), so the oldest acquired one went back.
+            sc.acquired.lock().unwrap_or_else(|e| e.into_inner()).pop_front();
+        }
+        Ok(r)
+    }, plain)
+}

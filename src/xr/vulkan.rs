@@ -1,0 +1,205 @@
+//! The Vulkan binding calls: how the Vulkan half gets into the app's process without the app
+//! changing. With `XR_KHR_vulkan_enable2` the app's `VkInstanceCreateInfo` passes through us and the
+//! layer is added to it; with `XR_KHR_vulkan_enable` the app creates its instance itself, after
+//! asking for the runtime's instance extensions, so that request is where the layer is put into
+//! `VK_INSTANCE_LAYERS`. Either way the loader finds the layer through `VK_ADD_LAYER_PATH`.
+
+use super::state;
+use crate::guard;
+use crate::vk_manifest::{self, VK_LAYER_NAME};
+use ash::vk;
+use openxr_sys as xr;
+use openxr_sys::Handle as _;
+use std::ffi::{c_char, CStr, CString};
+use std::sync::OnceLock;
+
+/// Writes the Vulkan manifest for this very library file and adds its folder to
+/// `VK_ADD_LAYER_PATH`, once per process. Returns false when that is impossible (logged once).
+fn prepare_layer_path() -> bool {
+    static READY: OnceLock<bool> = OnceLock::new();
+    *READY.get_or_init(|| {
+        let maps = std::fs::read_to_string("/proc/self/maps").unwrap_or_default();
+        let Some(library) = vk_manifest::library_containing(&maps, prepare_layer_path as *const () as usize) else {
+            tracing::error!("cannot find the file this layer was loaded from; the Vulkan half stays off");
+            return false;
+        };
+        match vk_manifest::write_manifest(&library) {
+            Ok(dir) => {
+                let current = std::env::var("VK_ADD_LAYER_PATH").ok();
+                if let Some(value) = vk_manifest::add_layer_path(current.as_deref(), &dir) {
+                    // The loader reads this when an instance is created. Setting the environment
+                    // is not thread-safe against concurrent getenv; it happens during the app's
+                    // XR setup, before it creates its Vulkan instance.
+                    std::env::set_var("VK_ADD_LAYER_PATH", value);
+                }
+                tracing::info!("vulkan layer manifest for {} in {}", library.display(), dir.display());
+                true
+            }
+            Err(e) => {
+                tracing::error!("cannot write the vulkan layer manifest: {e}; the Vulkan half stays off");
+                false
+            }
+        }
+    })
+}
+
+/// Whether the loader behind `gipa` lists our layer (a layer named in the create info but not
+/// found fails instance creation, which must never happen because of us).
+///
+/// # Safety
+/// `gipa` must be a valid `vkGetInstanceProcAddr`.
+unsafe fn layer_available(gipa: xr::platform::VkGetInstanceProcAddr) -> bool {
+    // SAFETY: global commands are queried with a null instance (Vulkan spec).
+    let Some(f) = (unsafe { gipa(std::ptr::null(), c"vkEnumerateInstanceLayerProperties".as_ptr()) }) else {
+        return false;
+    };
+    // SAFETY: the function for this name has this type.
+    let enumerate: vk::PFN_vkEnumerateInstanceLayerProperties = unsafe { std::mem::transmute(f) };
+    let mut count = 0u32;
+    // SAFETY: two-call idiom with valid pointers.
+    if unsafe { enumerate(&mut count, std::ptr::null_mut()) } != vk::Result::SUCCESS {
+        return false;
+    }
+    let mut props = vec![vk::LayerProperties::default(); count as usize];
+    // SAFETY: `props` holds `count` elements.
+    let r = unsafe { enumerate(&mut count, props.as_mut_ptr()) };
+    if r != vk::Result::SUCCESS && r != vk::Result::INCOMPLETE {
+        return false;
+    }
+    props.iter().take(count as usize).any(|p| p.layer_name_as_c_str().is_ok_and(|n| n.to_bytes() == VK_LAYER_NAME.as_bytes()))
+}
+
+pub(super) unsafe extern "system" fn create_vulkan_instance(
+    instance: xr::Instance,
+    create_info: *const xr::VulkanInstanceCreateInfoKHR,
+    vulkan_instance: *mut xr::platform::VkInstance,
+    vulkan_result: *mut xr::platform::VkResult,
+) -> xr::Result {
+    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+        return xr::Result::ERROR_HANDLE_INVALID;
+    };
+    let Some(next) = inst.next.create_vulkan_instance else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(instance, create_info, vulkan_instance, vulkan_result) };
+    guard::run("xrCreateVulkanInstanceKHR", &inst.pass_through, |down| {
+        inst.check_fault("xrCreateVulkanInstanceKHR")?;
+        let _span = tracing::debug_span!("xrCreateVulkanInstanceKHR").entered();
+        // SAFETY: the app's create info is valid for this call; null goes down for the runtime to reject.
+        let Some(ci) = (unsafe { create_info.as_ref() }) else { return Ok(down.call(plain)) };
+        // SAFETY: as above.
+        let Some(vk_ci) = (unsafe { (ci.vulkan_create_info as *const vk::InstanceCreateInfo).as_ref() }) else {
+            return Ok(down.call(plain));
+        };
+        let Some(gipa) = ci.pfn_get_instance_proc_addr else { return Ok(down.call(plain)) };
+        // SAFETY: `gipa` is the app's loader entry point.
+        if !prepare_layer_path() || !unsafe { layer_available(gipa) } {
+            tracing::warn!("vulkan layer {VK_LAYER_NAME} not found by the loader; Vulkan half off for this instance");
+            return Ok(down.call(plain));
+        }
+        // SAFETY: the app's layer names are valid for this call.
+        let app_layers: Vec<*const c_char> = unsafe {
+            if vk_ci.enabled_layer_count == 0 || vk_ci.pp_enabled_layer_names.is_null() {
+                Vec::new()
+            } else {
+                std::slice::from_raw_parts(vk_ci.pp_enabled_layer_names, vk_ci.enabled_layer_count as usize).to_vec()
+            }
+        };
+        let ours = CString::new(VK_LAYER_NAME)?;
+        // SAFETY: each name is a valid NUL-terminated string from the app.
+        let already = app_layers.iter().any(|&n| unsafe { CStr::from_ptr(n) }.to_bytes() == VK_LAYER_NAME.as_bytes());
+        // First in the list is closest to the app: the app's own layers (validation) then sit
+        // below us and see what we inject too.
+        let mut layers = Vec::with_capacity(app_layers.len() + 1);
+        if !already {
+            layers.push(ours.as_ptr());
+        }
+        layers.extend(app_layers);
+        let mut vk_ci2 = *vk_ci;
+        vk_ci2.enabled_layer_count = layers.len() as u32;
+        vk_ci2.pp_enabled_layer_names = layers.as_ptr();
+        let mut ci2 = *ci;
+        ci2.vulkan_create_info = &vk_ci2 as *const vk::InstanceCreateInfo as *const _;
+        // SAFETY: the modified copies live until the call returns; everything else is the app's.
+        let r = down.call(|| unsafe { next(instance, &ci2, vulkan_instance, vulkan_result) });
+        // SAFETY: the runtime writes the VkResult on return.
+        let vr = unsafe { vulkan_result.as_ref().copied() };
+        tracing::info!(?r, vk_result = ?vr, "created the app's VkInstance with {VK_LAYER_NAME}");
+        Ok(r)
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn create_vulkan_device(
+    instance: xr::Instance,
+    create_info: *const xr::VulkanDeviceCreateInfoKHR,
+    vulkan_device: *mut xr::platform::VkDevice,
+    vulkan_result: *mut xr::platform::VkResult,
+) -> xr::Result {
+    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+        return xr::Result::ERROR_HANDLE_INVALID;
+    };
+    let Some(next) = inst.next.create_vulkan_device else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(instance, create_info, vulkan_device, vulkan_result) };
+    guard::run("xrCreateVulkanDeviceKHR", &inst.pass_through, |down| {
+        inst.check_fault("xrCreateVulkanDeviceKHR")?;
+        let r = down.call(plain);
+        if r == xr::Result::SUCCESS {
+            // SAFETY: success means the device handle was written.
+            let device = unsafe { *vulkan_device } as u64;
+            tracing::info!("the runtime created the app's VkDevice {device:#x}");
+        }
+        Ok(r)
+    }, plain)
+}
+
+/// Puts the layer into `VK_INSTANCE_LAYERS` for an app that creates its own instance. Apps must
+/// ask for these extensions before creating their instance (they have to enable them), so the
+/// variable is set in time.
+pub(super) unsafe extern "system" fn get_vulkan_instance_extensions(
+    instance: xr::Instance,
+    system_id: xr::SystemId,
+    buffer_capacity_input: u32,
+    buffer_count_output: *mut u32,
+    buffer: *mut c_char,
+) -> xr::Result {
+    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+        return xr::Result::ERROR_HANDLE_INVALID;
+    };
+    let Some(next) = inst.next.get_vulkan_instance_extensions else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(instance, system_id, buffer_capacity_input, buffer_count_output, buffer) };
+    guard::run("xrGetVulkanInstanceExtensionsKHR", &inst.pass_through, |down| {
+        inst.check_fault("xrGetVulkanInstanceExtensionsKHR")?;
+        static ONCE: OnceLock<()> = OnceLock::new();
+        ONCE.get_or_init(|| {
+            if prepare_layer_path() {
+                let current = std::env::var("VK_INSTANCE_LAYERS").ok();
+                if let Some(value) = vk_manifest::add_instance_layer(current.as_deref()) {
+                    // See prepare_layer_path on setting the environment.
+                    std::env::set_var("VK_INSTANCE_LAYERS", value);
+                }
+                tracing::info!("app creates its own VkInstance (XR_KHR_vulkan_enable): {VK_LAYER_NAME} added to VK_INSTANCE_LAYERS");
+            }
+        });
+        Ok(down.call(plain))
+    }, plain)
+}
+
+pub(super) unsafe extern "system" fn get_vulkan_device_extensions(
+    instance: xr::Instance,
+    system_id: xr::SystemId,
+    buffer_capacity_input: u32,
+    buffer_count_output: *mut u32,
+    buffer: *mut c_char,
+) -> xr::Result {
+    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+        return xr::Result::ERROR_HANDLE_INVALID;
+    };
+    let Some(next) = inst.next.get_vulkan_device_extensions else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    // SAFETY: forwarding the app's arguments unchanged.
+    let plain = || unsafe { next(instance, system_id, buffer_capacity_input, buffer_count_output, buffer) };
+    guard::run("xrGetVulkanDeviceExtensionsKHR", &inst.pass_through, |down| {
+        inst.check_fault("xrGetVulkanDeviceExtensionsKHR")?;
+        Ok(down.call(plain))
+    }, plain)
+}
