@@ -10,3 +10,4 @@ pub mod shared;
 pub mod submission;
 pub mod vk_manifest;
 pub mod xr;
+pub mod install;

@@ -1,0 +1,171 @@
+//! The `stereoshim` command: install or remove the layer, show what is registered and how it is
+//! configured, or run one app with the layer (like `mangohud <app>`).
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use stereoshim::install::{self, Scope};
+
+const USAGE: &str = "usage:
+  stereoshim install [--user|--system] [--library PATH]   register the implicit OpenXR layer
+  stereoshim uninstall [--user|--system]                  remove it
+  stereoshim status [--app NAME]                          manifests, active runtime, effective config
+  stereoshim run [--library PATH] -- APP [ARGS...]        run one app with the layer";
+
+fn env(key: &str) -> Option<String> {
+    std::env::var(key).ok()
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("install") => install_cmd(&args[1..]),
+        Some("uninstall") => uninstall_cmd(&args[1..]),
+        Some("status") => status_cmd(&args[1..]),
+        Some("run") => run_cmd(&args[1..]),
+        Some("-h" | "--help") => {
+            println!("{USAGE}");
+            return ExitCode::SUCCESS;
+        }
+        _ => Err(USAGE.to_string()),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("stereoshim: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn scope(args: &[String]) -> Result<Scope, String> {
+    match (args.iter().any(|a| a == "--user"), args.iter().any(|a| a == "--system")) {
+        (true, true) => Err("--user and --system exclude each other".into()),
+        (_, true) => Ok(Scope::System),
+        _ => Ok(Scope::User),
+    }
+}
+
+fn option(args: &[String], name: &str) -> Option<String> {
+    args.iter().position(|a| a == name).and_then(|i| args.get(i + 1)).cloned()
+}
+
+/// The library to register or run: `--library`, else the one next to this executable (a build
+/// tree or an install), else the user's or the system's installed one.
+fn find_library(args: &[String]) -> Result<PathBuf, String> {
+    if let Some(p) = option(args, "--library") {
+        let p = PathBuf::from(p);
+        return if p.is_file() { Ok(p) } else { Err(format!("{}: no such library", p.display())) };
+    }
+    let beside = std::env::current_exe().ok().and_then(|e| e.parent().map(|d| d.join("libstereoshim.so")));
+    let installed = [Scope::User, Scope::System].into_iter().filter_map(|s| install::layout(s, &env).map(|l| l.library));
+    beside
+        .into_iter()
+        .chain(installed)
+        .find(|p| p.is_file())
+        .ok_or_else(|| "libstereoshim.so not found next to this program or installed; pass --library".into())
+}
+
+/// Writes through a temporary name and renames, so an app starting meanwhile never loads half a
+/// file (and a running app keeps the old library it mapped).
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    let dir = path.parent().ok_or("no parent folder")?;
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let tmp = dir.join(format!(".{}.tmp{}", path.file_name().unwrap_or_default().to_string_lossy(), std::process::id()));
+    std::fs::write(&tmp, bytes).map_err(|e| format!("{}: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+fn install_cmd(args: &[String]) -> Result<(), String> {
+    let layout = install::layout(scope(args)?, &env).ok_or("neither XDG_DATA_HOME nor HOME is set")?;
+    let library = find_library(args)?;
+    let bytes = std::fs::read(&library).map_err(|e| format!("{}: {e}", library.display()))?;
+    write_atomic(&layout.library, &bytes)?;
+    write_atomic(&layout.manifest, install::xr_manifest_json(&layout.library, true).as_bytes())?;
+    println!("installed {}", layout.library.display());
+    println!("registered implicit OpenXR layer {}", layout.manifest.display());
+    println!("every OpenXR app now loads stereoshim; set {}=1 to keep it out of one", install::DISABLE_ENV);
+    Ok(())
+}
+
+fn uninstall_cmd(args: &[String]) -> Result<(), String> {
+    let layout = install::layout(scope(args)?, &env).ok_or("neither XDG_DATA_HOME nor HOME is set")?;
+    for path in [&layout.manifest, &layout.library] {
+        match std::fs::remove_file(path) {
+            Ok(()) => println!("removed {}", path.display()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => println!("not installed: {}", path.display()),
+            Err(e) => return Err(format!("{}: {e}", path.display())),
+        }
+    }
+    Ok(())
+}
+
+fn status_cmd(args: &[String]) -> Result<(), String> {
+    println!("OpenXR layer manifests naming {}:", install::XR_LAYER_NAME);
+    let mut found = 0;
+    for (dir, implicit) in install::layer_search_dirs(&env) {
+        let Ok(entries) = std::fs::read_dir(&dir) else { continue };
+        for entry in entries.flatten() {
+            let path = entry.path();
+            let Ok(text) = std::fs::read_to_string(&path) else { continue };
+            let Ok(json) = serde_json::from_str::<serde_json::Value>(&text) else { continue };
+            if json["api_layer"]["name"] != install::XR_LAYER_NAME {
+                continue;
+            }
+            found += 1;
+            let lib = json["api_layer"]["library_path"].as_str().unwrap_or("?");
+            let lib_path = dir.join(lib);
+            println!(
+                "  {} ({}) -> {} {}",
+                path.display(),
+                if implicit { "implicit" } else { "explicit" },
+                lib,
+                if lib_path.is_file() { "" } else { "[library missing]" }
+            );
+        }
+    }
+    if found == 0 {
+        println!("  none (not installed; `stereoshim run -- APP` works without installing)");
+    }
+    if env(install::DISABLE_ENV).is_some() {
+        println!("  {} is set: the implicit layer is disabled in this environment", install::DISABLE_ENV);
+    }
+    match install::active_runtime(&env, &|p| p.is_file()) {
+        Some(p) => println!("active OpenXR runtime: {}", p.display()),
+        None => println!("active OpenXR runtime: none found"),
+    }
+    let app = option(args, "--app").unwrap_or_default();
+    let names: Vec<&str> = if app.is_empty() { vec![] } else { vec![app.as_str()] };
+    let (config, diagnostics) = stereoshim::config::load(&names);
+    let path = stereoshim::config::default_path(&env);
+    println!(
+        "effective config{} (file {}):",
+        if app.is_empty() { String::new() } else { format!(" for app {app:?}") },
+        path.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "none".into())
+    );
+    for (key, value, source) in config.entries() {
+        println!("  {key} = {value}    ({source})");
+    }
+    for d in diagnostics {
+        println!("  problem: {d}");
+    }
+    Ok(())
+}
+
+fn run_cmd(args: &[String]) -> Result<(), String> {
+    let split = args.iter().position(|a| a == "--").ok_or("run needs `-- APP [ARGS...]`")?;
+    let (ours, app) = (&args[..split], &args[split + 1..]);
+    let program = app.first().ok_or("run needs an app after `--`")?;
+    let library = std::fs::canonicalize(find_library(ours)?).map_err(|e| e.to_string())?;
+    // An explicit manifest of our own, so `run` needs no installation and always uses this library.
+    let base = std::env::var_os("XDG_RUNTIME_DIR").map(PathBuf::from).unwrap_or_else(std::env::temp_dir);
+    let dir = base.join(format!("stereoshim-{}", env("USER").unwrap_or_else(|| "user".into()))).join(format!("openxr-{}", std::process::id()));
+    write_atomic(&dir.join(install::MANIFEST_FILE), install::xr_manifest_json(&library, false).as_bytes())?;
+    let mut cmd = std::process::Command::new(program);
+    cmd.args(&app[1..]);
+    for (k, v) in install::run_environment(&env, &dir) {
+        cmd.env(k, v);
+    }
+    let status = cmd.status().map_err(|e| format!("{program}: {e}"))?;
+    let _ = std::fs::remove_dir_all(&dir);
+    std::process::exit(status.code().unwrap_or(1));
+}

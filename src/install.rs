@@ -1,0 +1,182 @@
+//! Where the OpenXR loader looks for layers and runtimes, and what stereoshim installs there. The
+//! `stereoshim` command uses it; kept pure (paths from an environment function) so every rule is
+//! unit-tested without touching the machine.
+
+use std::path::{Path, PathBuf};
+
+/// The OpenXR API layer's name, as in `manifest/openxr*/stereoshim.json`.
+pub const XR_LAYER_NAME: &str = "XR_APILAYER_STEREOSHIM_stereoshim";
+/// Setting this variable (to anything) keeps the implicit layer out of a process.
+pub const DISABLE_ENV: &str = "STEREOSHIM_DISABLE";
+pub const MANIFEST_FILE: &str = "stereoshim.json";
+
+pub type Env<'a> = &'a dyn Fn(&str) -> Option<String>;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scope {
+    User,
+    System,
+}
+
+/// The installed library and implicit-layer manifest of one scope.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Layout {
+    pub library: PathBuf,
+    pub manifest: PathBuf,
+}
+
+fn non_empty(env: Env<'_>, key: &str) -> Option<String> {
+    env(key).filter(|v| !v.is_empty())
+}
+
+fn data_home(env: Env<'_>) -> Option<PathBuf> {
+    non_empty(env, "XDG_DATA_HOME").map(PathBuf::from).or_else(|| non_empty(env, "HOME").map(|h| Path::new(&h).join(".local/share")))
+}
+
+fn config_home(env: Env<'_>) -> Option<PathBuf> {
+    non_empty(env, "XDG_CONFIG_HOME").map(PathBuf::from).or_else(|| non_empty(env, "HOME").map(|h| Path::new(&h).join(".config")))
+}
+
+pub fn layout(scope: Scope, env: Env<'_>) -> Option<Layout> {
+    match scope {
+        Scope::User => {
+            let data = data_home(env)?;
+            Some(Layout {
+                library: data.join("stereoshim").join("libstereoshim.so"),
+                manifest: data.join("openxr/1/api_layers/implicit.d").join(MANIFEST_FILE),
+            })
+        }
+        Scope::System => Some(Layout {
+            library: PathBuf::from("/usr/local/lib/stereoshim/libstereoshim.so"),
+            manifest: PathBuf::from("/usr/local/share/openxr/1/api_layers/implicit.d").join(MANIFEST_FILE),
+        }),
+    }
+}
+
+/// An OpenXR layer manifest for `library`. Implicit manifests must name a disable variable
+/// (loader rule), so a user can always get a misbehaving layer out of the way.
+pub fn xr_manifest_json(library: &Path, implicit: bool) -> String {
+    let mut layer = serde_json::json!({
+        "name": XR_LAYER_NAME,
+        "library_path": library,
+        "api_version": "1.0",
+        "implementation_version": "1",
+        "description": "stereoshim: makes unmodified Vulkan VR apps render less",
+    });
+    if implicit {
+        layer["disable_environment"] = DISABLE_ENV.into();
+    }
+    serde_json::to_string_pretty(&serde_json::json!({ "file_format_version": "1.0.0", "api_layer": layer })).unwrap_or_default()
+}
+
+/// Folders the OpenXR loader searches for layer manifests on Linux, in its order, each with
+/// whether it holds implicit layers. `XR_API_LAYER_PATH` replaces the explicit search.
+pub fn layer_search_dirs(env: Env<'_>) -> Vec<(PathBuf, bool)> {
+    let mut bases: Vec<PathBuf> = Vec::new();
+    bases.extend(config_home(env));
+    let config_dirs = non_empty(env, "XDG_CONFIG_DIRS").unwrap_or_else(|| "/etc/xdg".into());
+    bases.extend(config_dirs.split(':').filter(|d| !d.is_empty()).map(PathBuf::from));
+    bases.push(PathBuf::from("/etc"));
+    bases.extend(data_home(env));
+    let data_dirs = non_empty(env, "XDG_DATA_DIRS").unwrap_or_else(|| "/usr/local/share:/usr/share".into());
+    bases.extend(data_dirs.split(':').filter(|d| !d.is_empty()).map(PathBuf::from));
+    let mut dirs = Vec::new();
+    for base in &bases {
+        dirs.push((base.join("openxr/1/api_layers/implicit.d"), true));
+    }
+    match non_empty(env, "XR_API_LAYER_PATH") {
+        Some(p) => dirs.extend(p.split(':').filter(|d| !d.is_empty()).map(|d| (PathBuf::from(d), false))),
+        None => dirs.extend(bases.iter().map(|b| (b.join("openxr/1/api_layers/explicit.d"), false))),
+    }
+    dirs
+}
+
+/// The runtime manifest the loader will use: `XR_RUNTIME_JSON`, else the first
+/// `openxr/1/active_runtime.json` in the config folders.
+pub fn active_runtime(env: Env<'_>, exists: &dyn Fn(&Path) -> bool) -> Option<PathBuf> {
+    if let Some(p) = non_empty(env, "XR_RUNTIME_JSON") {
+        return Some(PathBuf::from(p));
+    }
+    let mut bases: Vec<PathBuf> = config_home(env).into_iter().collect();
+    let config_dirs = non_empty(env, "XDG_CONFIG_DIRS").unwrap_or_else(|| "/etc/xdg".into());
+    bases.extend(config_dirs.split(':').filter(|d| !d.is_empty()).map(PathBuf::from));
+    bases.push(PathBuf::from("/etc"));
+    bases.into_iter().map(|b| b.join("openxr/1/active_runtime.json")).find(|p| exists(p))
+}
+
+/// `NAME=value` for `run`: our layer prepended to `XR_ENABLE_API_LAYERS` (first = closest to the
+/// app), the manifest folder prepended to `XR_API_LAYER_PATH`.
+pub fn run_environment(env: Env<'_>, manifest_dir: &Path) -> Vec<(String, String)> {
+    let join = |first: &str, rest: Option<String>| match rest {
+        Some(r) if r.split(':').any(|p| p == first) => r,
+        Some(r) => format!("{first}:{r}"),
+        None => first.to_string(),
+    };
+    vec![
+        ("XR_API_LAYER_PATH".into(), join(&manifest_dir.to_string_lossy(), non_empty(env, "XR_API_LAYER_PATH"))),
+        ("XR_ENABLE_API_LAYERS".into(), join(XR_LAYER_NAME, non_empty(env, "XR_ENABLE_API_LAYERS"))),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn env(pairs: &'static [(&'static str, &'static str)]) -> impl Fn(&str) -> Option<String> {
+        move |k| pairs.iter().find(|(key, _)| *key == k).map(|(_, v)| v.to_string())
+    }
+
+    #[test]
+    fn user_layout_follows_xdg_data_home() {
+        let e = env(&[("HOME", "/home/u")]);
+        let l = layout(Scope::User, &e).unwrap();
+        assert_eq!(l.library, PathBuf::from("/home/u/.local/share/stereoshim/libstereoshim.so"));
+        assert_eq!(l.manifest, PathBuf::from("/home/u/.local/share/openxr/1/api_layers/implicit.d/stereoshim.json"));
+        let e = env(&[("XDG_DATA_HOME", "/d")]);
+        assert_eq!(layout(Scope::User, &e).unwrap().manifest, PathBuf::from("/d/openxr/1/api_layers/implicit.d/stereoshim.json"));
+        assert!(layout(Scope::User, &env(&[])).is_none());
+    }
+
+    #[test]
+    fn implicit_manifest_has_disable_variable() {
+        let v: serde_json::Value = serde_json::from_str(&xr_manifest_json(Path::new("/l/libstereoshim.so"), true)).unwrap();
+        assert_eq!(v["api_layer"]["name"], XR_LAYER_NAME);
+        assert_eq!(v["api_layer"]["disable_environment"], DISABLE_ENV);
+        let v: serde_json::Value = serde_json::from_str(&xr_manifest_json(Path::new("/l/x.so"), false)).unwrap();
+        assert!(v["api_layer"].get("disable_environment").is_none());
+    }
+
+    #[test]
+    fn search_dirs_cover_user_and_system() {
+        let e = env(&[("HOME", "/h")]);
+        let dirs = layer_search_dirs(&e);
+        assert!(dirs.contains(&(PathBuf::from("/h/.local/share/openxr/1/api_layers/implicit.d"), true)));
+        assert!(dirs.contains(&(PathBuf::from("/usr/local/share/openxr/1/api_layers/implicit.d"), true)));
+        assert!(dirs.contains(&(PathBuf::from("/etc/openxr/1/api_layers/explicit.d"), false)));
+        let e = env(&[("HOME", "/h"), ("XR_API_LAYER_PATH", "/a:/b")]);
+        let explicit: Vec<_> = layer_search_dirs(&e).into_iter().filter(|d| !d.1).map(|d| d.0).collect();
+        assert_eq!(explicit, vec![PathBuf::from("/a"), PathBuf::from("/b")]);
+    }
+
+    #[test]
+    fn active_runtime_precedence() {
+        let e = env(&[("XR_RUNTIME_JSON", "/r.json"), ("HOME", "/h")]);
+        assert_eq!(active_runtime(&e, &|_| false), Some(PathBuf::from("/r.json")));
+        let e = env(&[("HOME", "/h")]);
+        assert_eq!(
+            active_runtime(&e, &|p| p.starts_with("/etc/xdg")),
+            Some(PathBuf::from("/etc/xdg/openxr/1/active_runtime.json"))
+        );
+        assert_eq!(active_runtime(&e, &|_| false), None);
+    }
+
+    #[test]
+    fn run_environment_prepends_once() {
+        let e = env(&[("XR_ENABLE_API_LAYERS", "XR_APILAYER_other")]);
+        let vars = run_environment(&e, Path::new("/m"));
+        assert_eq!(vars[0], ("XR_API_LAYER_PATH".into(), "/m".into()));
+        assert_eq!(vars[1], ("XR_ENABLE_API_LAYERS".into(), format!("{XR_LAYER_NAME}:XR_APILAYER_other")));
+        let e = env(&[("XR_API_LAYER_PATH", "/m:/x")]);
+        assert_eq!(run_environment(&e, Path::new("/m"))[0].1, "/m:/x");
+    }
+}
