@@ -1,0 +1,207 @@
+//! The runtime's configuration comes only from `MOCK_XR_*` environment variables (docs/testing.md);
+//! they are read once per `xrCreateInstance` so a test can change them between instances.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::Mutex;
+
+use crate::hmd::{HmdProfile, HMD_NAMES};
+
+/// Which frames are captured: `0,3,10-12`; `None` in [`Config`] means all.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FrameList(pub Vec<(u64, u64)>);
+
+impl FrameList {
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let mut ranges = Vec::new();
+        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let (a, b) = match part.split_once('-') {
+                Some((a, b)) => (a.trim(), b.trim()),
+                None => (part, part),
+            };
+            let a: u64 = a.parse().map_err(|_| format!("bad frame number in {part:?}"))?;
+            let b: u64 = b.parse().map_err(|_| format!("bad frame number in {part:?}"))?;
+            if b < a {
+                return Err(format!("empty frame range {part:?}"));
+            }
+            ranges.push((a, b));
+        }
+        Ok(FrameList(ranges))
+    }
+
+    pub fn contains(&self, frame: u64) -> bool {
+        self.0.iter().any(|&(a, b)| (a..=b).contains(&frame))
+    }
+}
+
+/// `MOCK_XR_FAIL=xrFunc[@K],…`: which call of which function fails.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct FailSpec(pub HashMap<String, Vec<Option<u64>>>);
+
+impl FailSpec {
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let mut map: HashMap<String, Vec<Option<u64>>> = HashMap::new();
+        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let (name, k) = match part.split_once('@') {
+                Some((n, k)) => (
+                    n.trim(),
+                    Some(k.trim().parse::<u64>().map_err(|_| format!("bad call index in {part:?}"))?),
+                ),
+                None => (part, None),
+            };
+            if !name.starts_with("xr") || !name.chars().all(|c| c.is_ascii_alphanumeric()) {
+                return Err(format!("bad function name in {part:?}"));
+            }
+            map.entry(name.to_string()).or_default().push(k);
+        }
+        Ok(FailSpec(map))
+    }
+
+    /// Whether the `call`-th (0-based) call of `func` must fail.
+    pub fn should_fail(&self, func: &str, call: u64) -> bool {
+        self.0
+            .get(func)
+            .is_some_and(|v| v.iter().any(|k| k.is_none_or(|k| k == call)))
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct Config {
+    pub hmd: &'static HmdProfile,
+    pub capture_dir: Option<std::path::PathBuf>,
+    pub capture_frames: Option<FrameList>,
+    pub exit_after: Option<u64>,
+    /// (yaw, pitch) in degrees.
+    pub gaze: Option<(f32, f32)>,
+    pub eye_tracker: bool,
+    pub disabled_extensions: HashSet<String>,
+    pub mask_change_at: Option<u64>,
+    pub menu_click_at: Option<u64>,
+    pub fail: FailSpec,
+    pub log: bool,
+}
+
+fn var(name: &str) -> Option<String> {
+    std::env::var(name).ok().filter(|v| !v.trim().is_empty())
+}
+
+fn parse_u64(name: &str) -> Result<Option<u64>, String> {
+    var(name)
+        .map(|v| v.trim().parse::<u64>().map_err(|_| format!("{name}={v:?} is not a frame number")))
+        .transpose()
+}
+
+pub fn parse_gaze(s: &str) -> Result<(f32, f32), String> {
+    let (y, p) = s.split_once(',').ok_or_else(|| format!("MOCK_XR_GAZE={s:?}: want yaw,pitch"))?;
+    let y: f32 = y.trim().parse().map_err(|_| format!("MOCK_XR_GAZE={s:?}: bad yaw"))?;
+    let p: f32 = p.trim().parse().map_err(|_| format!("MOCK_XR_GAZE={s:?}: bad pitch"))?;
+    if !y.is_finite() || !p.is_finite() || p.abs() >= 90.0 {
+        return Err(format!("MOCK_XR_GAZE={s:?}: out of range"));
+    }
+    Ok((y, p))
+}
+
+impl Config {
+    /// Reads the environment. A malformed variable is an error (xrCreateInstance fails) rather
+    /// than a silently different test.
+    pub fn from_env() -> Result<Config, String> {
+        let hmd_name = var("MOCK_XR_HMD").unwrap_or_else(|| "simple".into());
+        let hmd = HmdProfile::by_name(hmd_name.trim()).ok_or_else(|| {
+            format!("MOCK_XR_HMD={hmd_name:?}: unknown profile (known: {})", HMD_NAMES.join(", "))
+        })?;
+        Ok(Config {
+            hmd,
+            capture_dir: var("MOCK_XR_CAPTURE").map(Into::into),
+            capture_frames: var("MOCK_XR_CAPTURE_FRAMES")
+                .map(|s| FrameList::parse(&s))
+                .transpose()?,
+            exit_after: parse_u64("MOCK_XR_EXIT_AFTER")?,
+            gaze: var("MOCK_XR_GAZE").map(|s| parse_gaze(&s)).transpose()?,
+            eye_tracker: var("MOCK_XR_EYE_TRACKER").is_none_or(|v| v.trim() != "0"),
+            disabled_extensions: var("MOCK_XR_DISABLE_EXTENSIONS")
+                .map(|s| s.split(',').map(|e| e.trim().to_string()).filter(|e| !e.is_empty()).collect())
+                .unwrap_or_default(),
+            mask_change_at: parse_u64("MOCK_XR_VISIBILITY_MASK_CHANGE_AT")?,
+            menu_click_at: parse_u64("MOCK_XR_MENU_CLICK_AT")?,
+            fail: var("MOCK_XR_FAIL").map(|s| FailSpec::parse(&s)).transpose()?.unwrap_or_default(),
+            log: log_enabled(),
+        })
+    }
+
+    pub fn captures(&self, frame: u64) -> bool {
+        self.capture_dir.is_some() && self.capture_frames.as_ref().is_none_or(|f| f.contains(frame))
+    }
+}
+
+pub fn log_enabled() -> bool {
+    var("MOCK_XR_LOG").is_some_and(|v| v.trim() != "0")
+}
+
+/// Diagnostics go to stderr only: stdout belongs to the app.
+#[macro_export]
+macro_rules! log {
+    ($($arg:tt)*) => {
+        if $crate::config::log_enabled() {
+            eprintln!("[mock-runtime] {}", format_args!($($arg)*));
+        }
+    };
+}
+
+/// Per-function call counters for `MOCK_XR_FAIL=xrFunc@K`.
+#[derive(Debug, Default)]
+pub struct FailCounters(Mutex<HashMap<&'static str, u64>>);
+
+impl FailCounters {
+    /// Counts this call of `func` and says whether it must fail.
+    pub fn hit(&self, spec: &FailSpec, func: &'static str) -> bool {
+        if spec.0.is_empty() {
+            return false;
+        }
+        let mut m = self.0.lock().unwrap();
+        let n = m.entry(func).or_insert(0);
+        let call = *n;
+        *n += 1;
+        spec.should_fail(func, call)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_list() {
+        let f = FrameList::parse("0,3, 10-12").unwrap();
+        assert!(f.contains(0) && f.contains(3) && f.contains(10) && f.contains(12));
+        assert!(!f.contains(1) && !f.contains(13));
+        assert!(FrameList::parse("3-1").is_err());
+        assert!(FrameList::parse("a").is_err());
+        assert_eq!(FrameList::parse("").unwrap().0, vec![]);
+    }
+
+    #[test]
+    fn fail_spec() {
+        let f = FailSpec::parse("xrEndFrame@2,xrWaitFrame, xrEndFrame@4").unwrap();
+        assert!(!f.should_fail("xrEndFrame", 0));
+        assert!(f.should_fail("xrEndFrame", 2) && f.should_fail("xrEndFrame", 4));
+        assert!(f.should_fail("xrWaitFrame", 0) && f.should_fail("xrWaitFrame", 7));
+        assert!(!f.should_fail("xrBeginFrame", 0));
+        assert!(FailSpec::parse("xrEndFrame@x").is_err());
+        assert!(FailSpec::parse("endframe").is_err());
+    }
+
+    #[test]
+    fn counters() {
+        let spec = FailSpec::parse("xrBeginFrame@1").unwrap();
+        let c = FailCounters::default();
+        assert!(!c.hit(&spec, "xrBeginFrame"));
+        assert!(c.hit(&spec, "xrBeginFrame"));
+        assert!(!c.hit(&spec, "xrBeginFrame"));
+    }
+
+    #[test]
+    fn gaze() {
+        assert_eq!(parse_gaze("10,-5").unwrap(), (10.0, -5.0));
+        assert!(parse_gaze("10").is_err());
+        assert!(parse_gaze("0,95").is_err());
+    }
+}
