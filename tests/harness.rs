@@ -4,8 +4,8 @@
 
 mod common;
 
-use common::image::{assert_identical, Image};
-use common::{project, Run, RunOutput};
+use common::image::Image;
+use common::{assert_same_captures, project, Run, RunOutput};
 
 /// Centre of the red near cube (docs/testing.md).
 const NEAR_CUBE: [f32; 3] = [0.0, 1.45, -1.5];
@@ -15,6 +15,21 @@ const FRAME: u64 = 1;
 
 fn is_red(c: &[f32]) -> bool {
     c[0] > 2.0 * c[1] && c[0] > 2.0 * c[2] && c[0] > 80.0
+}
+
+/// Mean x of the red (near cube) pixels.
+fn red_centroid_x(img: &Image) -> Option<f32> {
+    let (mut sum, mut n) = (0f64, 0u64);
+    for y in 0..img.height {
+        for x in 0..img.width {
+            let p = img.pixel(x, y);
+            if is_red(&[p[0] as f32, p[1] as f32, p[2] as f32]) {
+                sum += x as f64;
+                n += 1;
+            }
+        }
+    }
+    (n > 0).then(|| (sum / n as f64) as f32)
 }
 
 /// The content every capture of xr-scene must show: two different eyes, sky above, ground below,
@@ -37,9 +52,22 @@ fn check_scene(out: &RunOutput) {
         let black = img.data.chunks_exact(3).filter(|p| p.iter().all(|&c| c == 0)).count();
         assert_eq!(black, 0, "{name}: {black} pixels left at the clear colour");
     }
+    // Stereo: the eyes differ, and the near cube sits further right in the left eye than in the
+    // right one by the disparity the two projections predict (within a pixel and a half).
     let differing = images[0].count_different(&images[1]);
     let total = (images[0].width * images[0].height) as usize;
-    assert!(differing > total / 20, "{}: left and right eyes barely differ ({differing} of {total})", out.name);
+    assert!(differing > total / 200, "{}: left and right eyes barely differ ({differing} of {total})", out.name);
+    let centroids: Vec<f32> = images.iter().map(|img| red_centroid_x(img).expect("red cube pixels")).collect();
+    let predicted: Vec<f32> = views.iter().map(|v| project(v, NEAR_CUBE).unwrap().0).collect();
+    let (disparity, expected) = (centroids[0] - centroids[1], predicted[0] - predicted[1]);
+    assert!(expected > 1.0, "{}: the profile predicts no disparity ({expected})", out.name);
+    // The centroid of the visible faces is not the projected centre: allow a pixel and a half,
+    // plus 2 % for canted views that see the cube from the side.
+    assert!(
+        (disparity - expected).abs() < 1.5 + 0.02 * expected,
+        "{}: near cube disparity {disparity:.2} px, projections predict {expected:.2} px",
+        out.name
+    );
     let stats = out.stats.as_ref().unwrap_or_else(|| panic!("{}: no stats", out.name));
     let frame = stats.frames.iter().find(|f| f.frame == FRAME).expect("stats for the checked frame");
     for (v, img) in frame.views.iter().zip(&images) {
@@ -51,20 +79,6 @@ fn check_scene(out: &RunOutput) {
             v.view,
             v.shaded_fragments
         );
-    }
-}
-
-/// Asserts that every captured image of `a` equals the corresponding one of `b`.
-fn assert_same_captures(label: &str, a: &RunOutput, b: &RunOutput) {
-    for (va, vb) in a.views(FRAME).iter().zip(b.views(FRAME)) {
-        assert_identical(
-            &format!("{label}-view{}", va.view),
-            &a.image(&va.file),
-            &b.image(&vb.file),
-        );
-        if let (Some(da), Some(db)) = (&va.depth, &vb.depth) {
-            assert_identical(&format!("{label}-view{}-depth", va.view), &a.image(&da.file), &b.image(&db.file));
-        }
     }
 }
 

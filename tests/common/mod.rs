@@ -58,6 +58,12 @@ pub struct Run {
     pub args: Vec<String>,
     pub env: Vec<(String, String)>,
     pub validation: bool,
+    /// Text of `$XDG_CONFIG_HOME/stereoshim/config.toml` for this run.
+    pub config_toml: Option<String>,
+    /// Load stereoshim as an explicit OpenXR API layer.
+    pub layer: bool,
+    /// Run the app through this program (e.g. `stereoshim run --`), prepended to the command.
+    pub wrapper: Vec<std::ffi::OsString>,
 }
 
 impl Run {
@@ -69,6 +75,9 @@ impl Run {
             args: vec!["--scale".into(), "0.25".into()],
             env: vec![("MOCK_XR_EXIT_AFTER".into(), "2".into())],
             validation: true,
+            config_toml: None,
+            layer: false,
+            wrapper: Vec::new(),
         }
     }
     pub fn args<I: IntoIterator<Item = S>, S: Into<String>>(mut self, args: I) -> Run {
@@ -81,11 +90,32 @@ impl Run {
         self
     }
 
+    /// Enables stereoshim as an explicit API layer (the way `stereoshim run` does).
+    pub fn with_layer(mut self) -> Run {
+        self.layer = true;
+        self
+    }
+    pub fn config(mut self, toml: &str) -> Run {
+        self.config_toml = Some(toml.to_string());
+        self
+    }
+
     pub fn run(&self) -> RunOutput {
         let dir = output_dir(&self.name);
         let capture = dir.join("capture");
         let stats = dir.join("stats.json");
-        let mut cmd = Command::new(xr_scene_exe());
+        if let Some(text) = &self.config_toml {
+            std::fs::create_dir_all(dir.join("config/stereoshim")).unwrap();
+            std::fs::write(dir.join("config/stereoshim/config.toml"), text).unwrap();
+        }
+        let mut cmd = match self.wrapper.split_first() {
+            Some((program, rest)) => {
+                let mut c = Command::new(program);
+                c.args(rest).arg(xr_scene_exe());
+                c
+            }
+            None => Command::new(xr_scene_exe()),
+        };
         cmd.args(&self.args).arg("--stats").arg(&stats);
         if self.validation {
             cmd.arg("--validation");
@@ -94,9 +124,18 @@ impl Run {
             .env("MOCK_XR_CAPTURE", &capture)
             // Nothing from the developer's own setup may leak into a test.
             .env_remove("XR_ENABLE_API_LAYERS")
+            .env_remove("XR_API_LAYER_PATH")
             .env_remove("VK_INSTANCE_LAYERS")
+            .env_remove("VK_ADD_LAYER_PATH")
+            .env_remove("STEREOSHIM_CONFIG")
+            // Per-run folders: the generated Vulkan manifest goes to $XDG_RUNTIME_DIR.
+            .env("XDG_RUNTIME_DIR", dir.join("run"))
+            .env("XDG_DATA_HOME", dir.join("data"))
             .env("XDG_CONFIG_HOME", dir.join("config"))
             .env("XDG_STATE_HOME", dir.join("state"));
+        if self.layer {
+            cmd.env("XR_API_LAYER_PATH", layer_manifest_dir()).env("XR_ENABLE_API_LAYERS", XR_LAYER_NAME);
+        }
         for (k, v) in &self.env {
             cmd.env(k, v);
         }
@@ -111,8 +150,47 @@ impl Run {
         let stats = std::fs::read(&stats)
             .ok()
             .map(|b| serde_json::from_slice::<Stats>(&b).expect("stats.json parses"));
-        RunOutput { name: self.name.clone(), code: out.status.code(), stderr, capture, frames, stats, elapsed }
+        let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
+        RunOutput { name: self.name.clone(), code: out.status.code(), stderr, capture, frames, stats, elapsed, log }
     }
+}
+
+/// Asserts that every image captured in `a` (colour and depth, every frame) equals the one of the
+/// same frame and view in `b`.
+pub fn assert_same_captures(label: &str, a: &RunOutput, b: &RunOutput) {
+    let frames = &a.frames().frames;
+    assert!(!frames.is_empty(), "{label}: nothing captured");
+    for frame in frames {
+        for (va, vb) in a.views(frame.frame).iter().zip(b.views(frame.frame)) {
+            let name = format!("{label}-f{}-view{}", frame.frame, va.view);
+            image::assert_identical(&name, &a.image(&va.file), &b.image(&vb.file));
+            if let (Some(da), Some(db)) = (&va.depth, &vb.depth) {
+                image::assert_identical(&format!("{name}-depth"), &a.image(&da.file), &b.image(&db.file));
+            }
+        }
+    }
+}
+
+pub const XR_LAYER_NAME: &str = "XR_APILAYER_STEREOSHIM_stereoshim";
+
+/// A folder holding an explicit OpenXR layer manifest for the built `libstereoshim.so`.
+pub fn layer_manifest_dir() -> PathBuf {
+    let lib = target_dir().join("libstereoshim.so");
+    assert!(lib.exists(), "{} missing: run `cargo build --workspace` first", lib.display());
+    let dir = target_dir().join("test-output").join("openxr-layer");
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = serde_json::json!({
+        "file_format_version": "1.0.0",
+        "api_layer": {
+            "name": XR_LAYER_NAME, "library_path": lib, "api_version": "1.0",
+            "implementation_version": "1", "description": "stereoshim (tests)",
+        },
+    });
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let tmp = dir.join(format!(".m.{}.{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
+    std::fs::write(&tmp, serde_json::to_vec_pretty(&json).unwrap()).unwrap();
+    std::fs::rename(&tmp, dir.join("stereoshim.json")).unwrap();
+    dir
 }
 
 #[derive(Debug)]
@@ -124,6 +202,8 @@ pub struct RunOutput {
     pub frames: Option<Frames>,
     pub stats: Option<Stats>,
     pub elapsed: std::time::Duration,
+    /// The layer's log file of this run (empty without the layer).
+    pub log: String,
 }
 
 impl RunOutput {
@@ -143,6 +223,10 @@ impl RunOutput {
         let frame = self.frame(n);
         let layer = frame.layers.iter().find(|l| l.kind == "projection").expect("a projection layer");
         layer.views.iter().collect()
+    }
+    /// Log lines containing `needle`.
+    pub fn log_lines(&self, needle: &str) -> Vec<&str> {
+        self.log.lines().filter(|l| l.contains(needle)).collect()
     }
     pub fn image(&self, file: &str) -> image::Image {
         image::Image::load(&self.capture.join(file))
