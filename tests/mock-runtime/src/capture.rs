@@ -380,7 +380,7 @@ mod tests {
         assert_eq!((c, d), (png::ColorType::Grayscale, png::BitDepth::Sixteen));
         let v: Vec<u16> = px.chunks(2).map(|p| u16::from_be_bytes([p[0], p[1]])).collect();
         assert_eq!(v, vec![0, 32768, 65535, 65535]);
-        let d24 = [0xFFFF_FFu32 | 0xAB00_0000, 0x80_0000].iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<_>>();
+        let d24 = [0x00FF_FFFF_u32 | 0xAB00_0000, 0x0080_0000].iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<_>>();
         let px = decode(&encode_png(vk::Format::D24_UNORM_S8_UINT, 2, 1, &d24)).2;
         let v: Vec<u16> = px.chunks(2).map(|p| u16::from_be_bytes([p[0], p[1]])).collect();
         assert_eq!(v, vec![65535, 32768]);

@@ -249,3 +249,32 @@ fn request_exit_and_locate_views() {
     let st = x.states();
     assert_eq!(&st[st.len() - 3..], &[S::VISIBLE, S::SYNCHRONIZED, S::STOPPING]);
 }
+
+/// An app (or layer) that hands the image back in the wrong layout must be caught: the capture's
+/// barrier names the layout the spec promises, so the validation layer reports the mismatch.
+#[test]
+fn wrong_layout_on_release_is_reported_by_validation() {
+    let _g = serial();
+    let dir = scratch_dir("capture-bad-layout");
+    std::env::set_var("MOCK_XR_CAPTURE", &dir);
+    let fx = fixture(&["XR_KHR_vulkan_enable2"]);
+    if !fx.gfx.validation {
+        eprintln!("VK_LAYER_KHRONOS_validation not installed: skipping");
+        return;
+    }
+    let (x, s) = (fx.xr(), fx.session);
+    let stage = reference_space(x, s, xr::ReferenceSpaceType::STAGE);
+    let sc = try_create_swapchain(x, s, &swapchain_info(vk::Format::R8G8B8A8_UNORM, 16, 16, 1)).unwrap();
+    let images = swapchain_images(x, sc);
+    assert_eq!(begin_session(x, s), xr::Result::SUCCESS);
+    let (_, st) = wait_frame(x, s);
+    assert_eq!(begin_frame(x, s), xr::Result::SUCCESS);
+    let i = acquire_wait(x, sc);
+    let before = VALIDATION_ERRORS.load(std::sync::atomic::Ordering::SeqCst);
+    fx.gfx.clear_color_ex(images[i as usize], 0, [1.0, 1.0, 1.0, 1.0], false);
+    assert_eq!(release(x, sc), xr::Result::SUCCESS);
+    let views = [projection_view(sc, 0, 16, 16, 0), projection_view(sc, 0, 16, 16, 0)];
+    let layer = projection_layer(stage, &views);
+    assert_eq!(end_frame(x, s, st.predicted_display_time, &[&layer as *const _ as *const _]), xr::Result::SUCCESS);
+    assert!(VALIDATION_ERRORS.load(std::sync::atomic::Ordering::SeqCst) > before, "layout bug went unnoticed");
+}

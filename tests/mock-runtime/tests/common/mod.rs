@@ -228,13 +228,13 @@ pub fn create_gfx(x: &Xr, enable2: bool) -> Gfx {
     let validation = validation_available(&entry) && std::env::var("MOCK_TEST_NO_VALIDATION").is_err();
     let layers: Vec<*const c_char> = if validation { vec![c"VK_LAYER_KHRONOS_validation".as_ptr()] } else { vec![] };
     let mut exts: Vec<*const c_char> = if validation { vec![ash::ext::debug_utils::NAME.as_ptr()] } else { vec![] };
-    let xr_exts: String;
-    if !enable2 {
-        let f: pfn::GetVulkanInstanceExtensionsKHR = x.f("xrGetVulkanInstanceExtensionsKHR");
-        xr_exts = two_call_string(|c, n, b| unsafe { f(x.instance, x.system, c, n, b) });
+    let xr_exts = if enable2 {
+        String::new()
     } else {
-        xr_exts = String::new();
-    }
+        let f: pfn::GetVulkanInstanceExtensionsKHR = x.f("xrGetVulkanInstanceExtensionsKHR");
+        // SAFETY: valid instance/system; the helper passes matching buffers.
+        two_call_string(|c, n, b| unsafe { f(x.instance, x.system, c, n, b) })
+    };
     let (_k1, p1) = cstr_array(&xr_exts.split(' ').filter(|s| !s.is_empty()).collect::<Vec<_>>());
     exts.extend(p1);
     let app = vk::ApplicationInfo::default().api_version(vk::make_api_version(0, 1, 3, 0));
@@ -311,6 +311,7 @@ pub fn create_gfx(x: &Xr, enable2: bool) -> Gfx {
         String::new()
     } else {
         let f: pfn::GetVulkanDeviceExtensionsKHR = x.f("xrGetVulkanDeviceExtensionsKHR");
+        // SAFETY: valid instance/system; the helper passes matching buffers.
         two_call_string(|c, n, b| unsafe { f(x.instance, x.system, c, n, b) })
     };
     let (_k2, dev_exts) = cstr_array(&dev_ext_str.split(' ').filter(|s| !s.is_empty()).collect::<Vec<_>>());
@@ -380,6 +381,11 @@ impl Gfx {
     /// Fills layer `layer` of a colour image (in COLOR_ATTACHMENT_OPTIMAL) with `rgba` and
     /// returns it to that layout, as an app rendering into it would.
     pub fn clear_color(&self, image: vk::Image, layer: u32, rgba: [f32; 4]) {
+        self.clear_color_ex(image, layer, rgba, true)
+    }
+
+    /// `restore == false` leaves the image in TRANSFER_DST_OPTIMAL: a buggy app (or layer).
+    pub fn clear_color_ex(&self, image: vk::Image, layer: u32, rgba: [f32; 4], restore: bool) {
         let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: 1 };
         self.run(|cb| {
             let d = &self.device;
@@ -405,7 +411,9 @@ impl Gfx {
             unsafe {
                 d.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &[to]);
                 d.cmd_clear_color_image(cb, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &vk::ClearColorValue { float32: rgba }, &[range]);
-                d.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &[back]);
+                if restore {
+                    d.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &[back]);
+                }
             }
         });
     }
