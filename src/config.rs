@@ -2,7 +2,6 @@
 //! the app's section < environment, so that every key means the same wherever it is set and a bad
 //! value only ever costs that one key (reported with file and line), never the app.
 
-use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -332,7 +331,7 @@ fn flatten(
 fn flatten_one(
     text: &str,
     prefix: &str,
-    key: &Cow<'_, str>,
+    key: &str,
     value: &toml::Spanned<toml::de::DeValue<'_>>,
     line: usize,
     out: &mut Vec<Entry>,
@@ -530,5 +529,22 @@ mod tests {
         assert_eq!(default_path(&env2), Some(PathBuf::from("/home/u/.config/stereoshim/config.toml")));
         let env3 = |k: &str| if k == "STEREOSHIM_CONFIG" { Some("/etc/s.toml".to_string()) } else { None };
         assert_eq!(default_path(&env3), Some(PathBuf::from("/etc/s.toml")));
+    }
+}
+
+#[cfg(test)]
+mod docs_tests {
+    /// docs/configuration.md documents every key with its default; this keeps the two in step.
+    #[test]
+    fn every_key_is_documented() {
+        let doc = include_str!("../docs/configuration.md");
+        for spec in super::KEYS {
+            let row = doc
+                .lines()
+                .find(|l| l.starts_with(&format!("| `{}` |", spec.key)))
+                .unwrap_or_else(|| panic!("docs/configuration.md lacks a row for `{}`", spec.key));
+            let default = if spec.default.is_empty() { "\"\"".to_string() } else { spec.default.to_string() };
+            assert!(row.contains(&format!("| {default} |")), "docs/configuration.md: default of `{}` is not {default}", spec.key);
+        }
     }
 }
