@@ -8,6 +8,8 @@ pub mod log;
 pub mod registry;
 pub mod shared;
 pub mod submission;
+pub mod track;
+pub mod vk;
 pub mod vk_manifest;
 pub mod xr;
 pub mod install;

@@ -359,3 +359,28 @@ fn rotate(q: [f32; 4], v: [f32; 3]) -> [f32; 3] {
     let c2 = [y * c1[2] - z * c1[1], z * c1[0] - x * c1[2], x * c1[1] - y * c1[0]];
     [v[0] + 2.0 * (w * c1[0] + c2[0]), v[1] + 2.0 * (w * c1[1] + c2[1]), v[2] + 2.0 * (w * c1[2] + c2[2])]
 }
+
+/// Writes a Vulkan layer manifest for the built `libstereoshim.so` (absolute path) into its own
+/// folder and returns that folder, for `VK_LAYER_PATH`.
+pub fn vulkan_layer_dir(layer_name: &str) -> PathBuf {
+    let lib = target_dir().join("libstereoshim.so");
+    assert!(lib.exists(), "{} missing: run `cargo build --workspace` first", lib.display());
+    let dir = target_dir().join("test-output").join("vulkan-layer-manifest");
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = serde_json::json!({
+        "file_format_version": "1.2.0",
+        "layer": {
+            "name": layer_name,
+            "type": "GLOBAL",
+            "library_path": lib,
+            "api_version": "1.3.0",
+            "implementation_version": "1",
+            "description": "stereoshim Vulkan half (test manifest)",
+        },
+    });
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let tmp = dir.join(format!(".stereoshim.{}.{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
+    std::fs::write(&tmp, serde_json::to_vec_pretty(&json).unwrap()).unwrap();
+    std::fs::rename(&tmp, dir.join("stereoshim.json")).unwrap();
+    dir
+}

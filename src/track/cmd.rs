@@ -1,0 +1,603 @@
+//! Per-command-buffer graphics state: what the app has bound and set, and which render pass
+//! instance is open. An injected draw (hidden-area mask, later features) changes pipeline,
+//! viewports and dynamic state mid-pass; `restore_commands` says exactly what to record afterwards
+//! so the app's next draw sees the state it set, and the frame stays bit-identical.
+
+use super::resources::{Framebuffer, ImageView, RenderPass};
+use crate::shared::SwapchainImage;
+use ash::vk;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Viewport {
+    pub x: f32,
+    pub y: f32,
+    pub width: f32,
+    pub height: f32,
+    pub min_depth: f32,
+    pub max_depth: f32,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Rect {
+    pub x: i32,
+    pub y: i32,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// `VkClearValue` as its raw 16 bytes: which member the app meant is only known from the
+/// attachment's format, so both readings are offered.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ClearValue(pub [u32; 4]);
+
+impl ClearValue {
+    pub fn color_f32(&self) -> [f32; 4] {
+        self.0.map(f32::from_bits)
+    }
+    pub fn depth(&self) -> f32 {
+        f32::from_bits(self.0[0])
+    }
+    pub fn stencil(&self) -> u32 {
+        self.0[1]
+    }
+}
+
+/// One state-setting command, as recorded and as replayed. Stencil state is kept per face
+/// (`face` is FRONT or BACK, never both) because the app may set the faces separately.
+#[derive(Clone, Debug, PartialEq)]
+pub enum StateCmd {
+    BindPipeline(u64),
+    SetViewport { first: u32, viewports: Vec<Viewport> },
+    SetViewportWithCount(Vec<Viewport>),
+    SetScissor { first: u32, scissors: Vec<Rect> },
+    SetScissorWithCount(Vec<Rect>),
+    LineWidth(f32),
+    DepthBias { constant_factor: f32, clamp: f32, slope_factor: f32 },
+    BlendConstants([f32; 4]),
+    DepthBounds { min: f32, max: f32 },
+    StencilCompareMask { face: vk::StencilFaceFlags, mask: u32 },
+    StencilWriteMask { face: vk::StencilFaceFlags, mask: u32 },
+    StencilReference { face: vk::StencilFaceFlags, reference: u32 },
+    CullMode(vk::CullModeFlags),
+    FrontFace(vk::FrontFace),
+    PrimitiveTopology(vk::PrimitiveTopology),
+    DepthTestEnable(bool),
+    DepthWriteEnable(bool),
+    DepthCompareOp(vk::CompareOp),
+    DepthBoundsTestEnable(bool),
+    StencilTestEnable(bool),
+    StencilOp {
+        face: vk::StencilFaceFlags,
+        fail_op: vk::StencilOp,
+        pass_op: vk::StencilOp,
+        depth_fail_op: vk::StencilOp,
+        compare_op: vk::CompareOp,
+    },
+    RasterizerDiscardEnable(bool),
+    DepthBiasEnable(bool),
+    PrimitiveRestartEnable(bool),
+    LineStipple { factor: u32, pattern: u16 },
+    ColorWriteEnable(Vec<bool>),
+    LogicOp(vk::LogicOp),
+    PatchControlPoints(u32),
+    PushConstants { layout: u64, stages: vk::ShaderStageFlags, offset: u32, data: Vec<u8> },
+}
+
+impl StateCmd {
+    /// The `VkDynamicState` a pipeline must list for this command's value to survive binding it;
+    /// None for commands that are not dynamic state (pipeline, push constants).
+    pub fn dynamic_state(&self) -> Option<vk::DynamicState> {
+        use vk::DynamicState as D;
+        Some(match self {
+            StateCmd::BindPipeline(_) | StateCmd::PushConstants { .. } => return None,
+            StateCmd::SetViewport { .. } => D::VIEWPORT,
+            StateCmd::SetViewportWithCount(_) => D::VIEWPORT_WITH_COUNT,
+            StateCmd::SetScissor { .. } => D::SCISSOR,
+            StateCmd::SetScissorWithCount(_) => D::SCISSOR_WITH_COUNT,
+            StateCmd::LineWidth(_) => D::LINE_WIDTH,
+            StateCmd::DepthBias { .. } => D::DEPTH_BIAS,
+            StateCmd::BlendConstants(_) => D::BLEND_CONSTANTS,
+            StateCmd::DepthBounds { .. } => D::DEPTH_BOUNDS,
+            StateCmd::StencilCompareMask { .. } => D::STENCIL_COMPARE_MASK,
+            StateCmd::StencilWriteMask { .. } => D::STENCIL_WRITE_MASK,
+            StateCmd::StencilReference { .. } => D::STENCIL_REFERENCE,
+            StateCmd::CullMode(_) => D::CULL_MODE,
+            StateCmd::FrontFace(_) => D::FRONT_FACE,
+            StateCmd::PrimitiveTopology(_) => D::PRIMITIVE_TOPOLOGY,
+            StateCmd::DepthTestEnable(_) => D::DEPTH_TEST_ENABLE,
+            StateCmd::DepthWriteEnable(_) => D::DEPTH_WRITE_ENABLE,
+            StateCmd::DepthCompareOp(_) => D::DEPTH_COMPARE_OP,
+            StateCmd::DepthBoundsTestEnable(_) => D::DEPTH_BOUNDS_TEST_ENABLE,
+            StateCmd::StencilTestEnable(_) => D::STENCIL_TEST_ENABLE,
+            StateCmd::StencilOp { .. } => D::STENCIL_OP,
+            StateCmd::RasterizerDiscardEnable(_) => D::RASTERIZER_DISCARD_ENABLE,
+            StateCmd::DepthBiasEnable(_) => D::DEPTH_BIAS_ENABLE,
+            StateCmd::PrimitiveRestartEnable(_) => D::PRIMITIVE_RESTART_ENABLE,
+            StateCmd::LineStipple { .. } => D::LINE_STIPPLE_EXT,
+            StateCmd::ColorWriteEnable(_) => D::COLOR_WRITE_ENABLE_EXT,
+            StateCmd::LogicOp(_) => D::LOGIC_OP_EXT,
+            StateCmd::PatchControlPoints(_) => D::PATCH_CONTROL_POINTS_EXT,
+        })
+    }
+
+    fn face(&self) -> Option<vk::StencilFaceFlags> {
+        match self {
+            StateCmd::StencilCompareMask { face, .. }
+            | StateCmd::StencilWriteMask { face, .. }
+            | StateCmd::StencilReference { face, .. }
+            | StateCmd::StencilOp { face, .. } => Some(*face),
+            _ => None,
+        }
+    }
+
+    fn with_face(&self, face: vk::StencilFaceFlags) -> StateCmd {
+        let mut c = self.clone();
+        match &mut c {
+            StateCmd::StencilCompareMask { face: f, .. }
+            | StateCmd::StencilWriteMask { face: f, .. }
+            | StateCmd::StencilReference { face: f, .. }
+            | StateCmd::StencilOp { face: f, .. } => *f = face,
+            _ => {}
+        }
+        c
+    }
+}
+
+/// How a render pass instance was begun.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PassKind {
+    /// `vkCmdBeginRenderPass`
+    RenderPass,
+    /// `vkCmdBeginRenderPass2`
+    RenderPass2,
+    /// `vkCmdBeginRendering`
+    Dynamic,
+}
+
+/// An attachment of the open pass, resolved down to the image: what eye-pass detection and the
+/// mask need (which swapchain image and layer, which depth buffer is cleared to what).
+#[derive(Clone, Debug)]
+pub struct AttachmentUse {
+    pub view: u64,
+    /// Resolved from the tracked view; None if the view was never seen (created before the layer).
+    pub image_view: Option<Arc<ImageView>>,
+    /// Swapchain image behind the view, looked up when the pass began.
+    pub swapchain: Option<Arc<SwapchainImage>>,
+    pub layout: vk::ImageLayout,
+    pub load_op: vk::AttachmentLoadOp,
+    pub store_op: vk::AttachmentStoreOp,
+    pub clear: Option<ClearValue>,
+}
+
+impl PartialEq for AttachmentUse {
+    fn eq(&self, o: &Self) -> bool {
+        self.view == o.view && self.layout == o.layout && self.load_op == o.load_op && self.store_op == o.store_op && self.clear == o.clear
+    }
+}
+
+/// `VkRenderingAttachmentInfo` of `vkCmdBeginRendering`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderingAttachment {
+    pub attachment: AttachmentUse,
+    pub resolve_mode: vk::ResolveModeFlags,
+    pub resolve_view: u64,
+    pub resolve_layout: vk::ImageLayout,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct DynamicRendering {
+    pub flags: vk::RenderingFlags,
+    pub layer_count: u32,
+    pub view_mask: u32,
+    pub color: Vec<RenderingAttachment>,
+    pub depth: Option<RenderingAttachment>,
+    pub stencil: Option<RenderingAttachment>,
+}
+
+impl DynamicRendering {
+    pub fn suspending(&self) -> bool {
+        self.flags.contains(vk::RenderingFlags::SUSPENDING)
+    }
+    pub fn resuming(&self) -> bool {
+        self.flags.contains(vk::RenderingFlags::RESUMING)
+    }
+}
+
+/// The open render pass instance of a command buffer.
+#[derive(Clone, Debug)]
+pub struct PassInstance {
+    pub kind: PassKind,
+    pub render_area: Rect,
+    pub subpass: u32,
+    pub render_pass: Option<Arc<RenderPass>>,
+    pub framebuffer: Option<Arc<Framebuffer>>,
+    /// Render-pass attachments in attachment order (from the framebuffer or the
+    /// `VkRenderPassAttachmentBeginInfo` of an imageless one), with load ops and clear values.
+    pub attachments: Vec<AttachmentUse>,
+    pub clear_values: Vec<ClearValue>,
+    pub rendering: Option<DynamicRendering>,
+}
+
+impl PassInstance {
+    /// The view mask in effect for the current subpass / rendering.
+    pub fn view_mask(&self) -> u32 {
+        match (&self.rendering, &self.render_pass) {
+            (Some(r), _) => r.view_mask,
+            (None, Some(rp)) => rp.subpasses.get(self.subpass as usize).map_or(0, |s| s.view_mask),
+            _ => 0,
+        }
+    }
+    /// Attachments that are views of OpenXR swapchain images.
+    pub fn swapchain_attachments(&self) -> usize {
+        let rendering = self.rendering.iter().flat_map(|r| r.color.iter().chain(&r.depth).chain(&r.stencil));
+        self.attachments
+            .iter()
+            .chain(rendering.map(|r| &r.attachment))
+            .filter(|a| a.swapchain.is_some())
+            .count()
+    }
+}
+
+/// What a command buffer has recorded that a draw depends on.
+#[derive(Clone, Debug, Default)]
+pub struct CmdState {
+    pub recording: bool,
+    pub usage: vk::CommandBufferUsageFlags,
+    pub pipeline: Option<Arc<super::resources::GraphicsPipeline>>,
+    pub pipeline_handle: Option<u64>,
+    /// Viewport slots set by `vkCmdSetViewport` / `WithCount` (latest value per slot).
+    viewports: Vec<Option<Viewport>>,
+    viewport_count: Option<u32>,
+    scissors: Vec<Option<Rect>>,
+    scissor_count: Option<u32>,
+    /// Other dynamic state, keyed by (`VkDynamicState`, stencil face) so restoring is ordered and
+    /// deterministic.
+    dynamic: BTreeMap<(i32, u32), StateCmd>,
+    /// Push constant updates still in effect, oldest first; ones fully covered by a later update of
+    /// the same stages and layout are dropped.
+    push_constants: Vec<StateCmd>,
+    pub pass: Option<PassInstance>,
+}
+
+const MAX_PUSHES: usize = 64;
+
+fn put<T: Clone>(slots: &mut Vec<Option<T>>, first: u32, values: &[T]) {
+    let end = first as usize + values.len();
+    if slots.len() < end {
+        slots.resize(end, None);
+    }
+    for (i, v) in values.iter().enumerate() {
+        slots[first as usize + i] = Some(v.clone());
+    }
+}
+
+/// Contiguous runs of known slots at or after `from`: (first, values).
+fn runs<T: Clone>(slots: &[Option<T>], from: usize) -> Vec<(u32, Vec<T>)> {
+    let mut out: Vec<(u32, Vec<T>)> = Vec::new();
+    let mut cur: Option<(u32, Vec<T>)> = None;
+    for (i, s) in slots.iter().enumerate().skip(from) {
+        match (s, &mut cur) {
+            (Some(v), Some((_, vs))) => vs.push(v.clone()),
+            (Some(v), None) => cur = Some((i as u32, vec![v.clone()])),
+            (None, _) => out.extend(cur.take()),
+        }
+    }
+    out.extend(cur);
+    out
+}
+
+impl CmdState {
+    /// `vkBeginCommandBuffer`: implicit reset, then recording.
+    pub fn begin(&mut self, usage: vk::CommandBufferUsageFlags) {
+        *self = CmdState { recording: true, usage, ..CmdState::default() };
+    }
+    /// `vkResetCommandBuffer` / pool reset.
+    pub fn reset(&mut self) {
+        *self = CmdState::default();
+    }
+
+    /// Records a state-setting command the app recorded.
+    pub fn record(&mut self, cmd: StateCmd) {
+        match cmd {
+            StateCmd::BindPipeline(_) => unreachable_bind(),
+            StateCmd::SetViewport { first, viewports } => put(&mut self.viewports, first, &viewports),
+            StateCmd::SetViewportWithCount(v) => {
+                put(&mut self.viewports, 0, &v);
+                self.viewport_count = Some(v.len() as u32);
+            }
+            StateCmd::SetScissor { first, scissors } => put(&mut self.scissors, first, &scissors),
+            StateCmd::SetScissorWithCount(s) => {
+                put(&mut self.scissors, 0, &s);
+                self.scissor_count = Some(s.len() as u32);
+            }
+            StateCmd::PushConstants { layout, stages, offset, ref data } => {
+                let end = offset + data.len() as u32;
+                self.push_constants.retain(|p| match p {
+                    StateCmd::PushConstants { layout: l, stages: s, offset: o, data: d } => {
+                        !(*l == layout && *s == stages && *o >= offset && *o + d.len() as u32 <= end)
+                    }
+                    _ => true,
+                });
+                if self.push_constants.len() >= MAX_PUSHES {
+                    self.push_constants.remove(0);
+                }
+                self.push_constants.push(cmd);
+            }
+            other => {
+                let ds = other.dynamic_state().expect("dynamic state").as_raw();
+                match other.face() {
+                    Some(face) => {
+                        for f in [vk::StencilFaceFlags::FRONT, vk::StencilFaceFlags::BACK] {
+                            if face.contains(f) {
+                                self.dynamic.insert((ds, f.as_raw()), other.with_face(f));
+                            }
+                        }
+                    }
+                    None => {
+                        self.dynamic.insert((ds, 0), other);
+                    }
+                }
+            }
+        }
+    }
+
+    /// `vkCmdBindPipeline(GRAPHICS)`. Binding a pipeline overwrites every piece of state it does
+    /// not declare dynamic with its own static value, so that state no longer needs restoring
+    /// (rebinding the pipeline restores it). An untracked pipeline keeps everything: replaying
+    /// state the pipeline treats as static is harmless, forgetting state it needs is not.
+    pub fn bind_pipeline(&mut self, handle: u64, pipeline: Option<Arc<super::resources::GraphicsPipeline>>) {
+        if let Some(p) = &pipeline {
+            self.dynamic.retain(|(ds, _), _| p.is_dynamic(vk::DynamicState::from_raw(*ds)));
+            if !p.is_dynamic(vk::DynamicState::VIEWPORT) && !p.is_dynamic(vk::DynamicState::VIEWPORT_WITH_COUNT) {
+                self.viewports.clear();
+            }
+            if !p.is_dynamic(vk::DynamicState::VIEWPORT_WITH_COUNT) {
+                self.viewport_count = None;
+            }
+            if !p.is_dynamic(vk::DynamicState::SCISSOR) && !p.is_dynamic(vk::DynamicState::SCISSOR_WITH_COUNT) {
+                self.scissors.clear();
+            }
+            if !p.is_dynamic(vk::DynamicState::SCISSOR_WITH_COUNT) {
+                self.scissor_count = None;
+            }
+        }
+        self.pipeline_handle = Some(handle);
+        self.pipeline = pipeline;
+    }
+
+    /// `vkCmdExecuteCommands`: afterwards the primary's bound pipeline and dynamic state are
+    /// undefined, so nothing of it may be restored.
+    pub fn forget_graphics_state(&mut self) {
+        let (recording, usage, pass) = (self.recording, self.usage, self.pass.take());
+        *self = CmdState { recording, usage, pass, ..CmdState::default() };
+    }
+
+    /// Commands that re-establish this state after an injected draw changed it: the pipeline
+    /// first (it overwrites its static state), then every dynamic state still in effect, then push
+    /// constants in their original order.
+    pub fn restore_commands(&self) -> Vec<StateCmd> {
+        let mut out = Vec::new();
+        if let Some(p) = self.pipeline_handle {
+            out.push(StateCmd::BindPipeline(p));
+        }
+        restore_slots(&mut out, &self.viewports, self.viewport_count, StateCmd::SetViewportWithCount, |first, viewports| {
+            StateCmd::SetViewport { first, viewports }
+        });
+        restore_slots(&mut out, &self.scissors, self.scissor_count, StateCmd::SetScissorWithCount, |first, scissors| {
+            StateCmd::SetScissor { first, scissors }
+        });
+        let mut stencil_pending: Option<StateCmd> = None;
+        for ((_, face), cmd) in &self.dynamic {
+            if *face == vk::StencilFaceFlags::FRONT.as_raw() {
+                stencil_pending = Some(cmd.clone());
+                continue;
+            }
+            if *face == vk::StencilFaceFlags::BACK.as_raw() {
+                // Front and back with equal values replay as one FRONT_AND_BACK command.
+                match stencil_pending.take() {
+                    Some(front) if front.with_face(vk::StencilFaceFlags::BACK) == *cmd => {
+                        out.push(front.with_face(vk::StencilFaceFlags::FRONT_AND_BACK))
+                    }
+                    Some(front) => out.extend([front, cmd.clone()]),
+                    None => out.push(cmd.clone()),
+                }
+                continue;
+            }
+            out.extend(stencil_pending.take());
+            out.push(cmd.clone());
+        }
+        out.extend(stencil_pending);
+        out.extend(self.push_constants.iter().cloned());
+        out
+    }
+}
+
+fn restore_slots<T: Clone>(
+    out: &mut Vec<StateCmd>,
+    slots: &[Option<T>],
+    count: Option<u32>,
+    with_count: impl Fn(Vec<T>) -> StateCmd,
+    ranged: impl Fn(u32, Vec<T>) -> StateCmd,
+) {
+    let mut from = 0;
+    if let Some(n) = count {
+        let all: Option<Vec<T>> = slots.iter().take(n as usize).cloned().collect();
+        if let Some(all) = all.filter(|a| a.len() == n as usize) {
+            out.push(with_count(all));
+            from = n as usize;
+        }
+    }
+    for (first, values) in runs(slots, from) {
+        out.push(ranged(first, values));
+    }
+}
+
+#[cold]
+fn unreachable_bind() {
+    // Pipelines carry their description; `bind_pipeline` records them. Reaching this is a bug of
+    // the FFI shell, caught by the entry point's guard.
+    panic!("BindPipeline must be recorded with CmdState::bind_pipeline");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::resources::GraphicsPipeline;
+    use super::*;
+
+    fn vp(x: f32) -> Viewport {
+        Viewport { x, y: 0.0, width: 100.0, height: 50.0, min_depth: 0.0, max_depth: 1.0 }
+    }
+
+    fn pipeline(dynamic: &[vk::DynamicState]) -> Arc<GraphicsPipeline> {
+        Arc::new(GraphicsPipeline {
+            handle: 9,
+            render_pass: 1,
+            subpass: 0,
+            rendering: None,
+            depth_test_enable: true,
+            depth_write_enable: true,
+            depth_compare_op: vk::CompareOp::LESS,
+            dynamic_states: dynamic.to_vec(),
+        })
+    }
+
+    #[test]
+    fn restore_replays_pipeline_then_dynamic_state() {
+        let mut s = CmdState::default();
+        s.begin(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+        s.bind_pipeline(9, Some(pipeline(&[vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR, vk::DynamicState::DEPTH_COMPARE_OP])));
+        s.record(StateCmd::SetViewport { first: 0, viewports: vec![vp(0.0)] });
+        s.record(StateCmd::SetViewport { first: 1, viewports: vec![vp(100.0)] });
+        s.record(StateCmd::SetScissor { first: 0, scissors: vec![Rect { x: 0, y: 0, width: 200, height: 50 }] });
+        s.record(StateCmd::DepthCompareOp(vk::CompareOp::GREATER));
+        s.record(StateCmd::DepthCompareOp(vk::CompareOp::GREATER_OR_EQUAL));
+        assert_eq!(
+            s.restore_commands(),
+            vec![
+                StateCmd::BindPipeline(9),
+                StateCmd::SetViewport { first: 0, viewports: vec![vp(0.0), vp(100.0)] },
+                StateCmd::SetScissor { first: 0, scissors: vec![Rect { x: 0, y: 0, width: 200, height: 50 }] },
+                StateCmd::DepthCompareOp(vk::CompareOp::GREATER_OR_EQUAL),
+            ]
+        );
+    }
+
+    #[test]
+    fn binding_a_pipeline_drops_state_it_makes_static() {
+        let mut s = CmdState::default();
+        s.begin(vk::CommandBufferUsageFlags::empty());
+        s.record(StateCmd::SetViewport { first: 0, viewports: vec![vp(1.0)] });
+        s.record(StateCmd::LineWidth(2.0));
+        s.record(StateCmd::BlendConstants([1.0; 4]));
+        s.bind_pipeline(5, Some(pipeline(&[vk::DynamicState::BLEND_CONSTANTS])));
+        assert_eq!(s.restore_commands(), vec![StateCmd::BindPipeline(5), StateCmd::BlendConstants([1.0; 4])]);
+        // An untracked pipeline keeps everything set before it.
+        s.record(StateCmd::LineWidth(3.0));
+        s.bind_pipeline(6, None);
+        assert_eq!(s.restore_commands().len(), 3);
+    }
+
+    #[test]
+    fn stencil_faces_merge_when_equal() {
+        let mut s = CmdState::default();
+        s.record(StateCmd::StencilReference { face: vk::StencilFaceFlags::FRONT_AND_BACK, reference: 3 });
+        s.record(StateCmd::StencilWriteMask { face: vk::StencilFaceFlags::FRONT_AND_BACK, mask: 0xff });
+        s.record(StateCmd::StencilWriteMask { face: vk::StencilFaceFlags::BACK, mask: 0x0f });
+        let r = s.restore_commands();
+        assert!(r.contains(&StateCmd::StencilReference { face: vk::StencilFaceFlags::FRONT_AND_BACK, reference: 3 }), "{r:?}");
+        assert!(r.contains(&StateCmd::StencilWriteMask { face: vk::StencilFaceFlags::FRONT, mask: 0xff }), "{r:?}");
+        assert!(r.contains(&StateCmd::StencilWriteMask { face: vk::StencilFaceFlags::BACK, mask: 0x0f }), "{r:?}");
+        assert_eq!(r.len(), 3);
+    }
+
+    #[test]
+    fn with_count_and_gaps() {
+        let mut s = CmdState::default();
+        s.record(StateCmd::SetViewportWithCount(vec![vp(0.0), vp(1.0)]));
+        s.record(StateCmd::SetViewport { first: 1, viewports: vec![vp(5.0)] });
+        s.record(StateCmd::SetScissor { first: 0, scissors: vec![Rect::default()] });
+        s.record(StateCmd::SetScissor { first: 2, scissors: vec![Rect { x: 1, ..Rect::default() }] });
+        assert_eq!(
+            s.restore_commands(),
+            vec![
+                StateCmd::SetViewportWithCount(vec![vp(0.0), vp(5.0)]),
+                StateCmd::SetScissor { first: 0, scissors: vec![Rect::default()] },
+                StateCmd::SetScissor { first: 2, scissors: vec![Rect { x: 1, ..Rect::default() }] },
+            ]
+        );
+    }
+
+    #[test]
+    fn push_constants_replay_in_order_and_collapse() {
+        let mut s = CmdState::default();
+        let push = |offset: u32, data: Vec<u8>| StateCmd::PushConstants { layout: 1, stages: vk::ShaderStageFlags::VERTEX, offset, data };
+        s.record(push(0, vec![1; 4]));
+        s.record(push(4, vec![2; 4]));
+        s.record(push(0, vec![3; 16]));
+        s.record(push(8, vec![4; 4]));
+        assert_eq!(s.restore_commands(), vec![push(0, vec![3; 16]), push(8, vec![4; 4])]);
+    }
+
+    #[test]
+    fn begin_reset_and_execute_commands_clear_state() {
+        let mut s = CmdState::default();
+        s.record(StateCmd::CullMode(vk::CullModeFlags::BACK));
+        s.begin(vk::CommandBufferUsageFlags::empty());
+        assert!(s.restore_commands().is_empty() && s.recording);
+        s.record(StateCmd::CullMode(vk::CullModeFlags::BACK));
+        s.bind_pipeline(3, None);
+        s.forget_graphics_state();
+        assert!(s.restore_commands().is_empty() && s.recording);
+        s.reset();
+        assert!(!s.recording);
+    }
+
+    #[test]
+    fn every_dynamic_state_command_maps_to_its_enum() {
+        let f = vk::StencilFaceFlags::FRONT;
+        let all = [
+            StateCmd::LineWidth(1.0),
+            StateCmd::DepthBias { constant_factor: 1.0, clamp: 0.0, slope_factor: 1.0 },
+            StateCmd::DepthBounds { min: 0.0, max: 1.0 },
+            StateCmd::StencilCompareMask { face: f, mask: 1 },
+            StateCmd::FrontFace(vk::FrontFace::CLOCKWISE),
+            StateCmd::PrimitiveTopology(vk::PrimitiveTopology::TRIANGLE_LIST),
+            StateCmd::DepthTestEnable(true),
+            StateCmd::DepthWriteEnable(true),
+            StateCmd::DepthBoundsTestEnable(false),
+            StateCmd::StencilTestEnable(false),
+            StateCmd::StencilOp {
+                face: f,
+                fail_op: vk::StencilOp::KEEP,
+                pass_op: vk::StencilOp::KEEP,
+                depth_fail_op: vk::StencilOp::KEEP,
+                compare_op: vk::CompareOp::ALWAYS,
+            },
+            StateCmd::RasterizerDiscardEnable(false),
+            StateCmd::DepthBiasEnable(false),
+            StateCmd::PrimitiveRestartEnable(false),
+            StateCmd::LineStipple { factor: 1, pattern: 0xffff },
+            StateCmd::ColorWriteEnable(vec![true]),
+            StateCmd::LogicOp(vk::LogicOp::COPY),
+            StateCmd::PatchControlPoints(3),
+        ];
+        let mut s = CmdState::default();
+        for c in &all {
+            s.record(c.clone());
+        }
+        // Every one survives (no pipeline bound) and replays exactly once.
+        assert_eq!(s.restore_commands().len(), all.len());
+        let mut kinds: Vec<i32> = all.iter().map(|c| c.dynamic_state().unwrap().as_raw()).collect();
+        kinds.dedup();
+        assert_eq!(kinds.len(), all.len());
+    }
+
+    #[test]
+    fn clear_value_readings() {
+        let c = ClearValue([0.5f32.to_bits(), 7, 0, 0]);
+        assert_eq!((c.depth(), c.stencil()), (0.5, 7));
+        assert_eq!(c.color_f32()[0], 0.5);
+    }
+}

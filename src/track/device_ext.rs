@@ -1,0 +1,180 @@
+//! Which device extensions and features stereoshim adds to the app's `vkCreateDevice`. Adding
+//! anything to someone else's device can make that device fail to create, so the decision is a
+//! pure function of what the device offers, what the app asked for and the configuration, and it
+//! declines whenever a dependency or conflict is in doubt.
+
+pub const FRAGMENT_SHADING_RATE: &str = "VK_KHR_fragment_shading_rate";
+pub const CREATE_RENDERPASS_2: &str = "VK_KHR_create_renderpass2";
+/// Extensions whose features must not be enabled together with `pipelineFragmentShadingRate` /
+/// `attachmentFragmentShadingRate` (VUIDs of `VkDeviceCreateInfo`: shadingRateImage-04478..,
+/// fragmentDensityMap-04481..): if the app uses one, we never add shading rate.
+pub const CONFLICTING: &[&str] = &["VK_NV_shading_rate_image", "VK_EXT_fragment_density_map"];
+
+/// `VkPhysicalDeviceFragmentShadingRateFeaturesKHR` as the device reports it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FsrSupport {
+    pub pipeline: bool,
+    pub primitive: bool,
+    pub attachment: bool,
+}
+
+#[derive(Clone, Debug)]
+pub struct Inputs<'a> {
+    /// `vkEnumerateDeviceExtensionProperties` of the physical device.
+    pub available: &'a [String],
+    /// `ppEnabledExtensionNames` of the app's create info.
+    pub requested: &'a [String],
+    /// min(physical device apiVersion, instance apiVersion): the version the device can be used at.
+    pub api_version: u32,
+    /// The instance can query `vkGetPhysicalDeviceFeatures2` (1.1 or
+    /// VK_KHR_get_physical_device_properties2).
+    pub instance_has_properties2: bool,
+    /// `vulkan.fragment_shading_rate`: auto | on | off.
+    pub fsr_mode: &'a str,
+    /// Some enabled feature needs shading rate (none yet: auto behaves as off).
+    pub feature_wants_fsr: bool,
+    /// None when it could not be queried.
+    pub fsr_support: Option<FsrSupport>,
+}
+
+/// What to change in the app's `VkDeviceCreateInfo`.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Decision {
+    /// Extension names to append (never one the app already asked for).
+    pub add_extensions: Vec<&'static str>,
+    /// Enable these members of `VkPhysicalDeviceFragmentShadingRateFeaturesKHR` (in a copy of the
+    /// app's struct when it chained one).
+    pub enable_fsr: Option<FsrSupport>,
+    /// Why, for the log.
+    pub reason: String,
+}
+
+fn has(list: &[String], name: &str) -> bool {
+    list.iter().any(|e| e == name)
+}
+
+pub fn decide(i: &Inputs<'_>) -> Decision {
+    let no = |reason: String| Decision { reason, ..Decision::default() };
+    let wanted = match i.fsr_mode {
+        "off" => return no("fragment shading rate: off by configuration".into()),
+        "on" => true,
+        _ => i.feature_wants_fsr,
+    };
+    if !wanted {
+        return no("fragment shading rate: auto, no enabled feature uses it".into());
+    }
+    if !has(i.available, FRAGMENT_SHADING_RATE) {
+        return no(format!("fragment shading rate: device lacks {FRAGMENT_SHADING_RATE}"));
+    }
+    if let Some(c) = CONFLICTING.iter().find(|c| has(i.requested, c)) {
+        return no(format!("fragment shading rate: app enables {c}, which conflicts"));
+    }
+    let v12 = i.api_version >= ash::vk::API_VERSION_1_2;
+    if !v12 && !has(i.requested, CREATE_RENDERPASS_2) {
+        return no(format!("fragment shading rate: needs Vulkan 1.2 or the app's {CREATE_RENDERPASS_2}"));
+    }
+    if i.api_version < ash::vk::API_VERSION_1_1 && !i.instance_has_properties2 {
+        return no("fragment shading rate: instance lacks VK_KHR_get_physical_device_properties2".into());
+    }
+    let Some(support) = i.fsr_support else {
+        return no("fragment shading rate: features could not be queried".into());
+    };
+    if !support.attachment {
+        return no("fragment shading rate: device lacks attachmentFragmentShadingRate".into());
+    }
+    let enable = FsrSupport { pipeline: support.pipeline, primitive: false, attachment: true };
+    let already = has(i.requested, FRAGMENT_SHADING_RATE);
+    Decision {
+        add_extensions: if already { vec![] } else { vec![FRAGMENT_SHADING_RATE] },
+        enable_fsr: Some(enable),
+        reason: format!(
+            "fragment shading rate: {} {FRAGMENT_SHADING_RATE}, enabling attachment{} rates",
+            if already { "app already enables" } else { "adding" },
+            if enable.pipeline { " and pipeline" } else { "" }
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ash::vk;
+
+    fn strings(v: &[&str]) -> Vec<String> {
+        v.iter().map(|s| s.to_string()).collect()
+    }
+
+    fn inputs<'a>(available: &'a [String], requested: &'a [String], mode: &'a str) -> Inputs<'a> {
+        Inputs {
+            available,
+            requested,
+            api_version: vk::API_VERSION_1_3,
+            instance_has_properties2: true,
+            fsr_mode: mode,
+            feature_wants_fsr: false,
+            fsr_support: Some(FsrSupport { pipeline: true, primitive: true, attachment: true }),
+        }
+    }
+
+    #[test]
+    fn off_and_auto_add_nothing() {
+        let avail = strings(&[FRAGMENT_SHADING_RATE]);
+        let req = strings(&[]);
+        for mode in ["off", "auto"] {
+            let d = decide(&inputs(&avail, &req, mode));
+            assert!(d.add_extensions.is_empty() && d.enable_fsr.is_none(), "{mode}: {d:?}");
+        }
+        let d = decide(&Inputs { feature_wants_fsr: true, ..inputs(&avail, &req, "off") });
+        assert!(d.enable_fsr.is_none());
+    }
+
+    #[test]
+    fn on_adds_extension_and_features_when_available() {
+        let avail = strings(&[FRAGMENT_SHADING_RATE, CREATE_RENDERPASS_2]);
+        let req = strings(&["VK_KHR_multiview"]);
+        let d = decide(&inputs(&avail, &req, "on"));
+        assert_eq!(d.add_extensions, vec![FRAGMENT_SHADING_RATE]);
+        assert_eq!(d.enable_fsr, Some(FsrSupport { pipeline: true, primitive: false, attachment: true }));
+        // auto with a feature asking behaves like on.
+        let d = decide(&Inputs { feature_wants_fsr: true, ..inputs(&avail, &req, "auto") });
+        assert_eq!(d.add_extensions, vec![FRAGMENT_SHADING_RATE]);
+    }
+
+    #[test]
+    fn never_adds_twice_or_to_a_device_without_it() {
+        let avail = strings(&[FRAGMENT_SHADING_RATE]);
+        let req = strings(&[FRAGMENT_SHADING_RATE]);
+        let d = decide(&inputs(&avail, &req, "on"));
+        assert!(d.add_extensions.is_empty() && d.enable_fsr.is_some(), "{d:?}");
+        let none = strings(&["VK_KHR_swapchain"]);
+        let d = decide(&inputs(&none, &req, "on"));
+        assert!(d.add_extensions.is_empty() && d.enable_fsr.is_none(), "{d:?}");
+        assert!(d.reason.contains("lacks"), "{}", d.reason);
+    }
+
+    #[test]
+    fn dependencies_and_conflicts_decline() {
+        let avail = strings(&[FRAGMENT_SHADING_RATE, CREATE_RENDERPASS_2]);
+        let req = strings(&[]);
+        // 1.1 device without the app's create_renderpass2.
+        let d = decide(&Inputs { api_version: vk::API_VERSION_1_1, ..inputs(&avail, &req, "on") });
+        assert!(d.enable_fsr.is_none(), "{d:?}");
+        // ... with it, fine.
+        let req2 = strings(&[CREATE_RENDERPASS_2]);
+        let d = decide(&Inputs { api_version: vk::API_VERSION_1_1, ..inputs(&avail, &req2, "on") });
+        assert!(d.enable_fsr.is_some(), "{d:?}");
+        // 1.0 instance without properties2.
+        let d = decide(&Inputs {
+            api_version: vk::API_VERSION_1_0,
+            instance_has_properties2: false,
+            ..inputs(&avail, &req2, "on")
+        });
+        assert!(d.enable_fsr.is_none());
+        let req3 = strings(&["VK_EXT_fragment_density_map"]);
+        assert!(decide(&inputs(&avail, &req3, "on")).enable_fsr.is_none());
+        // Feature not supported / not queryable.
+        let d = decide(&Inputs { fsr_support: Some(FsrSupport::default()), ..inputs(&avail, &req, "on") });
+        assert!(d.enable_fsr.is_none());
+        assert!(decide(&Inputs { fsr_support: None, ..inputs(&avail, &req, "on") }).enable_fsr.is_none());
+    }
+}

@@ -1,0 +1,220 @@
+//! Owned, immutable descriptions of the Vulkan objects an injected pass must know about (images,
+//! views, render passes, framebuffers, pipelines): recorded once at creation by the FFI shell, so
+//! every later decision is a safe lookup that needs neither the app's pointers nor a GPU.
+
+use crate::shared::{Shared, SwapchainImage};
+use ash::vk;
+use std::sync::Arc;
+
+/// `VkImageCreateInfo`, the parts that matter for attaching to or reasoning about an image.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    pub handle: u64,
+    pub image_type: vk::ImageType,
+    pub format: vk::Format,
+    pub extent: vk::Extent3D,
+    pub mip_levels: u32,
+    pub array_layers: u32,
+    pub samples: vk::SampleCountFlags,
+    pub usage: vk::ImageUsageFlags,
+    pub flags: vk::ImageCreateFlags,
+}
+
+impl Image {
+    /// The OpenXR swapchain image this is, if any. Asked lazily: the runtime creates the image
+    /// before the OpenXR half learns (from `xrEnumerateSwapchainImages`) that it is one.
+    pub fn swapchain(&self, shared: &Shared) -> Option<Arc<SwapchainImage>> {
+        shared.images.get(self.handle)
+    }
+}
+
+/// `VkImageSubresourceRange`, with `VK_REMAINING_*` kept as written (resolve against the image).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SubresourceRange {
+    pub aspect_mask: vk::ImageAspectFlags,
+    pub base_mip_level: u32,
+    pub level_count: u32,
+    pub base_array_layer: u32,
+    pub layer_count: u32,
+}
+
+impl SubresourceRange {
+    /// Layer count with `VK_REMAINING_ARRAY_LAYERS` resolved against the image's layers.
+    pub fn layers_of(&self, image_layers: u32) -> u32 {
+        if self.layer_count == vk::REMAINING_ARRAY_LAYERS {
+            image_layers.saturating_sub(self.base_array_layer)
+        } else {
+            self.layer_count
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ImageView {
+    pub handle: u64,
+    pub image: u64,
+    pub view_type: vk::ImageViewType,
+    pub format: vk::Format,
+    pub range: SubresourceRange,
+}
+
+/// `VkAttachmentDescription(2)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AttachmentDesc {
+    pub format: vk::Format,
+    pub samples: vk::SampleCountFlags,
+    pub load_op: vk::AttachmentLoadOp,
+    pub store_op: vk::AttachmentStoreOp,
+    pub stencil_load_op: vk::AttachmentLoadOp,
+    pub stencil_store_op: vk::AttachmentStoreOp,
+    pub initial_layout: vk::ImageLayout,
+    pub final_layout: vk::ImageLayout,
+}
+
+/// `VkAttachmentReference(2)`; `attachment` may be `VK_ATTACHMENT_UNUSED`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AttachmentRef {
+    pub attachment: u32,
+    pub layout: vk::ImageLayout,
+}
+
+impl AttachmentRef {
+    pub fn used(&self) -> Option<u32> {
+        (self.attachment != vk::ATTACHMENT_UNUSED).then_some(self.attachment)
+    }
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Subpass {
+    pub color: Vec<AttachmentRef>,
+    /// Same length as `color` when present.
+    pub resolve: Vec<AttachmentRef>,
+    pub depth_stencil: Option<AttachmentRef>,
+    pub input: Vec<AttachmentRef>,
+    /// Multiview: bit i = view i rendered; 0 = no multiview.
+    pub view_mask: u32,
+}
+
+/// Which entry point created a render pass (the two have different chained structs and a later
+/// injection must create its own passes compatibly).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RenderPassVersion {
+    V1,
+    V2,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RenderPass {
+    pub handle: u64,
+    pub version: RenderPassVersion,
+    pub attachments: Vec<AttachmentDesc>,
+    pub subpasses: Vec<Subpass>,
+    /// `VkRenderPassMultiviewCreateInfo::pCorrelationMasks` or `VkRenderPassCreateInfo2`'s.
+    pub correlation_masks: Vec<u32>,
+}
+
+impl RenderPass {
+    /// Whether any subpass renders more than one view.
+    pub fn is_multiview(&self) -> bool {
+        self.subpasses.iter().any(|s| s.view_mask != 0)
+    }
+}
+
+/// `VkFramebufferAttachmentImageInfo` of an imageless framebuffer.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ImagelessAttachment {
+    pub usage: vk::ImageUsageFlags,
+    pub flags: vk::ImageCreateFlags,
+    pub width: u32,
+    pub height: u32,
+    pub layer_count: u32,
+    pub view_formats: Vec<vk::Format>,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FramebufferAttachments {
+    /// Image views given at creation.
+    Views(Vec<u64>),
+    /// `VK_FRAMEBUFFER_CREATE_IMAGELESS_BIT`: views come with each `vkCmdBeginRenderPass`.
+    Imageless(Vec<ImagelessAttachment>),
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Framebuffer {
+    pub handle: u64,
+    pub render_pass: u64,
+    pub attachments: FramebufferAttachments,
+    pub width: u32,
+    pub height: u32,
+    pub layers: u32,
+}
+
+/// `VkPipelineRenderingCreateInfo` of a pipeline made for dynamic rendering.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RenderingFormats {
+    pub view_mask: u32,
+    pub color: Vec<vk::Format>,
+    pub depth: vk::Format,
+    pub stencil: vk::Format,
+}
+
+/// The parts of `VkGraphicsPipelineCreateInfo` that say how the pipeline uses depth (to find eye
+/// passes and their depth convention) and which state it leaves dynamic (to restore after an
+/// injected draw).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GraphicsPipeline {
+    pub handle: u64,
+    pub render_pass: u64,
+    pub subpass: u32,
+    /// Present when `render_pass` is null (dynamic rendering).
+    pub rendering: Option<RenderingFormats>,
+    pub depth_test_enable: bool,
+    pub depth_write_enable: bool,
+    pub depth_compare_op: vk::CompareOp,
+    pub dynamic_states: Vec<vk::DynamicState>,
+}
+
+impl GraphicsPipeline {
+    pub fn is_dynamic(&self, state: vk::DynamicState) -> bool {
+        self.dynamic_states.contains(&state)
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CommandPool {
+    pub handle: u64,
+    pub flags: vk::CommandPoolCreateFlags,
+    pub queue_family_index: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn remaining_layers_resolve_against_the_image() {
+        let r = SubresourceRange {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            base_mip_level: 0,
+            level_count: 1,
+            base_array_layer: 1,
+            layer_count: vk::REMAINING_ARRAY_LAYERS,
+        };
+        assert_eq!(r.layers_of(2), 1);
+        assert_eq!(SubresourceRange { layer_count: 2, base_array_layer: 0, ..r }.layers_of(6), 2);
+    }
+
+    #[test]
+    fn multiview_and_unused_refs() {
+        let unused = AttachmentRef { attachment: vk::ATTACHMENT_UNUSED, layout: vk::ImageLayout::UNDEFINED };
+        assert_eq!(unused.used(), None);
+        let rp = RenderPass {
+            handle: 1,
+            version: RenderPassVersion::V2,
+            attachments: vec![],
+            subpasses: vec![Subpass { view_mask: 0b11, ..Subpass::default() }],
+            correlation_masks: vec![0b11],
+        };
+        assert!(rp.is_multiview());
+    }
+}

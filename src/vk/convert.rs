@@ -1,0 +1,354 @@
+//! Reads the app's create infos and begin infos (raw pointers, `pNext` chains) into the owned,
+//! safe descriptions of `crate::track`, while the call that passed them is still running. Every
+//! function here requires that the pointers it is given are valid as the Vulkan spec demands of
+//! the app for the call in progress.
+
+use crate::track::cmd::{ClearValue, Rect, RenderingAttachment, StateCmd, Viewport};
+use crate::track::resources::*;
+use crate::track::DeviceTracker;
+use ash::vk::{self, Handle};
+use std::ffi::c_void;
+
+/// A slice from an array pointer and count; empty for null or zero.
+///
+/// # Safety
+/// `p` must point to `n` valid `T`s when non-null.
+pub unsafe fn slice<'a, T>(p: *const T, n: u32) -> &'a [T] {
+    if p.is_null() || n == 0 {
+        &[]
+    } else {
+        // SAFETY: per the contract.
+        unsafe { std::slice::from_raw_parts(p, n as usize) }
+    }
+}
+
+/// The first struct of type `s_type` in a `pNext` chain.
+///
+/// # Safety
+/// `p_next` must be a valid Vulkan structure chain, and `T` the struct that `s_type` denotes.
+pub unsafe fn find_in_chain<T>(mut p_next: *const c_void, s_type: vk::StructureType) -> Option<*const T> {
+    while !p_next.is_null() {
+        let base = p_next as *const vk::BaseInStructure<'_>;
+        // SAFETY: every structure in a valid chain starts with sType and pNext.
+        let (ty, next) = unsafe { ((*base).s_type, (*base).p_next) };
+        if ty == s_type {
+            return Some(p_next as *const T);
+        }
+        p_next = next as *const c_void;
+    }
+    None
+}
+
+pub fn viewport(v: &vk::Viewport) -> Viewport {
+    Viewport { x: v.x, y: v.y, width: v.width, height: v.height, min_depth: v.min_depth, max_depth: v.max_depth }
+}
+
+pub fn rect(r: &vk::Rect2D) -> Rect {
+    Rect { x: r.offset.x, y: r.offset.y, width: r.extent.width, height: r.extent.height }
+}
+
+pub fn clear_value(c: &vk::ClearValue) -> ClearValue {
+    // SAFETY: all members of the union are 16 bytes of plain data; reading the uint32 view of
+    // either member is defined.
+    ClearValue(unsafe { c.color.uint32 })
+}
+
+pub fn image(handle: vk::Image, ci: &vk::ImageCreateInfo<'_>) -> Image {
+    Image {
+        handle: handle.as_raw(),
+        image_type: ci.image_type,
+        format: ci.format,
+        extent: ci.extent,
+        mip_levels: ci.mip_levels,
+        array_layers: ci.array_layers,
+        samples: ci.samples,
+        usage: ci.usage,
+        flags: ci.flags,
+    }
+}
+
+pub fn image_view(handle: vk::ImageView, ci: &vk::ImageViewCreateInfo<'_>) -> ImageView {
+    let r = ci.subresource_range;
+    ImageView {
+        handle: handle.as_raw(),
+        image: ci.image.as_raw(),
+        view_type: ci.view_type,
+        format: ci.format,
+        range: SubresourceRange {
+            aspect_mask: r.aspect_mask,
+            base_mip_level: r.base_mip_level,
+            level_count: r.level_count,
+            base_array_layer: r.base_array_layer,
+            layer_count: r.layer_count,
+        },
+    }
+}
+
+fn att_ref(r: &vk::AttachmentReference) -> AttachmentRef {
+    AttachmentRef { attachment: r.attachment, layout: r.layout }
+}
+
+fn att_ref2(r: &vk::AttachmentReference2<'_>) -> AttachmentRef {
+    AttachmentRef { attachment: r.attachment, layout: r.layout }
+}
+
+/// # Safety
+/// `ci` and everything it points to must be valid (`vkCreateRenderPass`).
+pub unsafe fn render_pass(handle: vk::RenderPass, ci: &vk::RenderPassCreateInfo<'_>) -> RenderPass {
+    // SAFETY: the arrays are valid with their counts (caller's contract).
+    let (atts, subs) = unsafe { (slice(ci.p_attachments, ci.attachment_count), slice(ci.p_subpasses, ci.subpass_count)) };
+    // SAFETY: a valid chain; the sType names this struct.
+    let multiview = unsafe {
+        find_in_chain::<vk::RenderPassMultiviewCreateInfo<'_>>(ci.p_next, vk::StructureType::RENDER_PASS_MULTIVIEW_CREATE_INFO)
+            .map(|m| &*m)
+    };
+    let (view_masks, correlation) = match multiview {
+        // SAFETY: arrays of the multiview struct, valid with their counts.
+        Some(m) => unsafe {
+            (slice(m.p_view_masks, m.subpass_count).to_vec(), slice(m.p_correlation_masks, m.correlation_mask_count).to_vec())
+        },
+        None => (vec![], vec![]),
+    };
+    let subpasses = subs
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            // SAFETY: the subpass's arrays are valid with its counts; resolve has color_count entries.
+            unsafe {
+                Subpass {
+                    color: slice(s.p_color_attachments, s.color_attachment_count).iter().map(att_ref).collect(),
+                    resolve: slice(s.p_resolve_attachments, s.color_attachment_count).iter().map(att_ref).collect(),
+                    depth_stencil: s.p_depth_stencil_attachment.as_ref().map(att_ref),
+                    input: slice(s.p_input_attachments, s.input_attachment_count).iter().map(att_ref).collect(),
+                    view_mask: view_masks.get(i).copied().unwrap_or(0),
+                }
+            }
+        })
+        .collect();
+    RenderPass {
+        handle: handle.as_raw(),
+        version: RenderPassVersion::V1,
+        attachments: atts
+            .iter()
+            .map(|a| AttachmentDesc {
+                format: a.format,
+                samples: a.samples,
+                load_op: a.load_op,
+                store_op: a.store_op,
+                stencil_load_op: a.stencil_load_op,
+                stencil_store_op: a.stencil_store_op,
+                initial_layout: a.initial_layout,
+                final_layout: a.final_layout,
+            })
+            .collect(),
+        subpasses,
+        correlation_masks: correlation,
+    }
+}
+
+/// # Safety
+/// `ci` and everything it points to must be valid (`vkCreateRenderPass2`).
+pub unsafe fn render_pass2(handle: vk::RenderPass, ci: &vk::RenderPassCreateInfo2<'_>) -> RenderPass {
+    // SAFETY: the arrays are valid with their counts (caller's contract).
+    let (atts, subs, corr) = unsafe {
+        (
+            slice(ci.p_attachments, ci.attachment_count),
+            slice(ci.p_subpasses, ci.subpass_count),
+            slice(ci.p_correlated_view_masks, ci.correlated_view_mask_count),
+        )
+    };
+    let subpasses = subs
+        .iter()
+        .map(|s| {
+            // SAFETY: the subpass's arrays are valid with its counts; resolve has color_count entries.
+            unsafe {
+                Subpass {
+                    color: slice(s.p_color_attachments, s.color_attachment_count).iter().map(att_ref2).collect(),
+                    resolve: slice(s.p_resolve_attachments, s.color_attachment_count).iter().map(att_ref2).collect(),
+                    depth_stencil: s.p_depth_stencil_attachment.as_ref().map(att_ref2),
+                    input: slice(s.p_input_attachments, s.input_attachment_count).iter().map(att_ref2).collect(),
+                    view_mask: s.view_mask,
+                }
+            }
+        })
+        .collect();
+    RenderPass {
+        handle: handle.as_raw(),
+        version: RenderPassVersion::V2,
+        attachments: atts
+            .iter()
+            .map(|a| AttachmentDesc {
+                format: a.format,
+                samples: a.samples,
+                load_op: a.load_op,
+                store_op: a.store_op,
+                stencil_load_op: a.stencil_load_op,
+                stencil_store_op: a.stencil_store_op,
+                initial_layout: a.initial_layout,
+                final_layout: a.final_layout,
+            })
+            .collect(),
+        subpasses,
+        correlation_masks: corr.to_vec(),
+    }
+}
+
+/// # Safety
+/// `ci` and everything it points to must be valid (`vkCreateFramebuffer`).
+pub unsafe fn framebuffer(handle: vk::Framebuffer, ci: &vk::FramebufferCreateInfo<'_>) -> Framebuffer {
+    let attachments = if ci.flags.contains(vk::FramebufferCreateFlags::IMAGELESS) {
+        // SAFETY: a valid chain; the sType names this struct; its arrays are valid.
+        let infos = unsafe {
+            find_in_chain::<vk::FramebufferAttachmentsCreateInfo<'_>>(ci.p_next, vk::StructureType::FRAMEBUFFER_ATTACHMENTS_CREATE_INFO)
+                .map(|a| slice((*a).p_attachment_image_infos, (*a).attachment_image_info_count))
+                .unwrap_or(&[])
+        };
+        FramebufferAttachments::Imageless(
+            infos
+                .iter()
+                .map(|i| ImagelessAttachment {
+                    usage: i.usage,
+                    flags: i.flags,
+                    width: i.width,
+                    height: i.height,
+                    layer_count: i.layer_count,
+                    // SAFETY: valid with its count.
+                    view_formats: unsafe { slice(i.p_view_formats, i.view_format_count) }.to_vec(),
+                })
+                .collect(),
+        )
+    } else {
+        // SAFETY: valid with its count.
+        FramebufferAttachments::Views(unsafe { slice(ci.p_attachments, ci.attachment_count) }.iter().map(|v| v.as_raw()).collect())
+    };
+    Framebuffer {
+        handle: handle.as_raw(),
+        render_pass: ci.render_pass.as_raw(),
+        attachments,
+        width: ci.width,
+        height: ci.height,
+        layers: ci.layers,
+    }
+}
+
+/// # Safety
+/// `ci` and everything it points to must be valid (`vkCreateGraphicsPipelines`).
+pub unsafe fn graphics_pipeline(handle: vk::Pipeline, ci: &vk::GraphicsPipelineCreateInfo<'_>) -> GraphicsPipeline {
+    // SAFETY: optional pointers are null or valid (caller's contract). pDepthStencilState is
+    // ignored by the spec when the pass has no depth attachment; reading it then is still fine
+    // when non-null, but it means "no depth test", which the eye-pass code resolves later.
+    let ds = unsafe { ci.p_depth_stencil_state.as_ref() };
+    // SAFETY: as above; the dynamic-state array is valid with its count.
+    let dynamic_states = unsafe {
+        ci.p_dynamic_state.as_ref().map(|d| slice(d.p_dynamic_states, d.dynamic_state_count).to_vec()).unwrap_or_default()
+    };
+    let rendering = if ci.render_pass == vk::RenderPass::null() {
+        // SAFETY: a valid chain; the sType names this struct; its array is valid.
+        unsafe {
+            find_in_chain::<vk::PipelineRenderingCreateInfo<'_>>(ci.p_next, vk::StructureType::PIPELINE_RENDERING_CREATE_INFO).map(|r| {
+                let r = &*r;
+                RenderingFormats {
+                    view_mask: r.view_mask,
+                    color: slice(r.p_color_attachment_formats, r.color_attachment_count).to_vec(),
+                    depth: r.depth_attachment_format,
+                    stencil: r.stencil_attachment_format,
+                }
+            })
+        }
+    } else {
+        None
+    };
+    GraphicsPipeline {
+        handle: handle.as_raw(),
+        render_pass: ci.render_pass.as_raw(),
+        subpass: ci.subpass,
+        rendering,
+        depth_test_enable: ds.is_some_and(|d| d.depth_test_enable != 0),
+        depth_write_enable: ds.is_some_and(|d| d.depth_write_enable != 0),
+        depth_compare_op: ds.map_or(vk::CompareOp::ALWAYS, |d| d.depth_compare_op),
+        dynamic_states,
+    }
+}
+
+/// # Safety
+/// `info` and everything it points to must be valid (`vkCmdBeginRenderPass(2)`).
+pub unsafe fn render_pass_begin(info: &vk::RenderPassBeginInfo<'_>) -> crate::track::RenderPassBegin {
+    // SAFETY: a valid chain; the sType names this struct; arrays valid with their counts.
+    let attachment_views = unsafe {
+        find_in_chain::<vk::RenderPassAttachmentBeginInfo<'_>>(info.p_next, vk::StructureType::RENDER_PASS_ATTACHMENT_BEGIN_INFO)
+            .map(|a| slice((*a).p_attachments, (*a).attachment_count).iter().map(|v| v.as_raw()).collect())
+    };
+    crate::track::RenderPassBegin {
+        render_pass: info.render_pass.as_raw(),
+        framebuffer: info.framebuffer.as_raw(),
+        render_area: rect(&info.render_area),
+        // SAFETY: valid with its count.
+        clear_values: unsafe { slice(info.p_clear_values, info.clear_value_count) }.iter().map(clear_value).collect(),
+        attachment_views,
+    }
+}
+
+/// # Safety
+/// `info` and everything it points to must be valid (`vkCmdBeginRendering`).
+pub unsafe fn rendering(
+    tracker: &DeviceTracker,
+    info: &vk::RenderingInfo<'_>,
+) -> (Rect, crate::track::cmd::DynamicRendering) {
+    let shared = crate::shared::shared();
+    let att = |a: &vk::RenderingAttachmentInfo<'_>| RenderingAttachment {
+        attachment: tracker.attachment(
+            shared,
+            a.image_view.as_raw(),
+            a.image_layout,
+            a.load_op,
+            a.store_op,
+            (a.load_op == vk::AttachmentLoadOp::CLEAR).then(|| clear_value(&a.clear_value)),
+        ),
+        resolve_mode: a.resolve_mode,
+        resolve_view: a.resolve_image_view.as_raw(),
+        resolve_layout: a.resolve_image_layout,
+    };
+    // SAFETY: arrays valid with their counts; optional pointers null or valid.
+    let (color, depth, stencil) = unsafe {
+        (
+            slice(info.p_color_attachments, info.color_attachment_count).iter().map(att).collect(),
+            info.p_depth_attachment.as_ref().map(att),
+            info.p_stencil_attachment.as_ref().map(att),
+        )
+    };
+    (
+        rect(&info.render_area),
+        crate::track::cmd::DynamicRendering {
+            flags: info.flags,
+            layer_count: info.layer_count,
+            view_mask: info.view_mask,
+            color,
+            depth,
+            stencil,
+        },
+    )
+}
+
+/// `vkCmdPushConstants`' bytes.
+///
+/// # Safety
+/// `values` must point to `size` bytes.
+pub unsafe fn push_constants(layout: vk::PipelineLayout, stages: vk::ShaderStageFlags, offset: u32, size: u32, values: *const c_void) -> StateCmd {
+    // SAFETY: per the contract.
+    let data = unsafe { slice(values as *const u8, size) }.to_vec();
+    StateCmd::PushConstants { layout: layout.as_raw(), stages, offset, data }
+}
+
+/// Extension names of a create info.
+///
+/// # Safety
+/// `names` must hold `n` NUL-terminated strings.
+pub unsafe fn names(names: *const *const std::ffi::c_char, n: u32) -> Vec<String> {
+    // SAFETY: per the contract.
+    unsafe { slice(names, n) }
+        .iter()
+        .filter(|p| !p.is_null())
+        // SAFETY: per the contract.
+        .map(|&p| unsafe { std::ffi::CStr::from_ptr(p) }.to_string_lossy().into_owned())
+        .collect()
+}

@@ -1,0 +1,357 @@
+//! The Vulkan layer half: the loader's entry points, the instance and device chains, and the hooks
+//! that track the app's objects and command buffers. The only place with `unsafe` for Vulkan; the
+//! hooks turn the app's pointers into owned descriptions at once and hand them to `crate::track`.
+//!
+//! State is keyed by the loader's dispatch key (the first pointer-sized word of a dispatchable
+//! handle, which the loader shares between an instance and its physical devices, and between a
+//! device and its queues and command buffers), so any handle finds its instance or device state.
+
+mod convert;
+mod hooks;
+pub mod loader;
+
+use crate::config::Config;
+use crate::guard::{self, PassThrough};
+use crate::registry::HandleMap;
+use crate::track::device_ext::Decision;
+use crate::track::DeviceTracker;
+use ash::vk::{self, Handle};
+use std::ffi::{c_char, c_void, CStr};
+use std::sync::{Arc, OnceLock};
+
+pub use crate::vk_manifest::VK_LAYER_NAME;
+
+/// What the layer keeps per `VkInstance`.
+pub(crate) struct InstanceState {
+    pub handle: vk::Instance,
+    pub next_gipa: vk::PFN_vkGetInstanceProcAddr,
+    /// The next layer's instance-level functions.
+    pub fns: ash::Instance,
+    /// `VkApplicationInfo::apiVersion` (1.0 when absent).
+    pub api_version: u32,
+    pub extensions: Vec<String>,
+    /// Shared with the instance's devices: a fault anywhere turns the whole instance to
+    /// pass-through.
+    pub pass_through: Arc<PassThrough>,
+    pub config: Arc<Config>,
+}
+
+/// Extension commands that are not core in any version, loaded by name (None when the device
+/// does not offer them; we then never hand out our hook for them either).
+#[derive(Default)]
+pub(crate) struct ExtFns {
+    pub cmd_set_line_stipple: Option<vk::PFN_vkCmdSetLineStippleKHR>,
+    pub cmd_set_color_write_enable: Option<vk::PFN_vkCmdSetColorWriteEnableEXT>,
+    pub cmd_set_logic_op: Option<vk::PFN_vkCmdSetLogicOpEXT>,
+    pub cmd_set_patch_control_points: Option<vk::PFN_vkCmdSetPatchControlPointsEXT>,
+}
+
+/// What the layer keeps per `VkDevice`.
+pub(crate) struct DeviceState {
+    pub handle: vk::Device,
+    pub next_gdpa: vk::PFN_vkGetDeviceProcAddr,
+    /// The next layer's device functions; core names fall back to their KHR/EXT aliases, so the
+    /// table works on devices that offer a command only as an extension.
+    pub fns: ash::Device,
+    pub ext: ExtFns,
+    pub pass_through: Arc<PassThrough>,
+    pub config: Arc<Config>,
+    pub track: DeviceTracker,
+    pub extension_decision: Decision,
+}
+
+impl DeviceState {
+    /// `debug.fail_in`: the layer logic of `call` fails on purpose (fault-injection tests).
+    pub fn check(&self, call: &'static str) -> Result<(), guard::Fault> {
+        check_fault(&self.config, call)
+    }
+}
+
+pub(crate) fn check_fault(config: &Config, call: &'static str) -> Result<(), guard::Fault> {
+    if config.fails_in(call) {
+        return Err(guard::Fault(format!("{call}: failing on purpose (debug.fail_in)")));
+    }
+    Ok(())
+}
+
+#[derive(Default)]
+pub(crate) struct Layer {
+    pub instances: HandleMap<usize, InstanceState>,
+    pub devices: HandleMap<usize, DeviceState>,
+}
+
+pub(crate) fn layer() -> &'static Layer {
+    static LAYER: OnceLock<Layer> = OnceLock::new();
+    LAYER.get_or_init(Layer::default)
+}
+
+/// The loader's dispatch key of a dispatchable handle; 0 for a null handle.
+pub(crate) fn dispatch_key<H: Handle>(handle: H) -> usize {
+    let raw = handle.as_raw();
+    if raw == 0 {
+        return 0;
+    }
+    // SAFETY: every dispatchable Vulkan handle the loader hands to a layer points to an object
+    // whose first word is the loader's dispatch table pointer (LoaderLayerInterface.md, "Dispatch
+    // table"); the app guarantees the handle is valid for the call it passed it to.
+    unsafe { *(raw as usize as *const usize) }
+}
+
+pub(crate) fn instance_of<H: Handle>(handle: H) -> Option<Arc<InstanceState>> {
+    layer().instances.get(dispatch_key(handle))
+}
+
+pub(crate) fn device_of<H: Handle>(handle: H) -> Option<Arc<DeviceState>> {
+    let state = layer().devices.get(dispatch_key(handle));
+    if state.is_none() {
+        report_unknown_handle();
+    }
+    state
+}
+
+/// A handle whose dispatch key we never saw means a broken chain; logged once, never per call.
+fn report_unknown_handle() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| tracing::error!("a device-level call arrived for a device this layer never saw created"));
+}
+
+/// Whether a hook belongs to the instance or the device dispatch chain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Level {
+    Instance,
+    Device,
+}
+
+/// Declares every intercepted command in one place: name → hook, checked against ash's `PFN_*`
+/// type so a wrong signature does not compile. Both proc-addr functions use this table.
+macro_rules! intercepts {
+    ($($level:ident $name:literal => $hook:path as $pfn:ty;)*) => {
+        /// Names of all intercepted commands (documentation and tests).
+        pub const INTERCEPTED: &[&str] = &[$($name),*];
+
+        pub(crate) fn intercept(name: &[u8]) -> Option<(Level, unsafe extern "system" fn())> {
+            match name {
+                $(n if n == $name.as_bytes() => {
+                    let hook: $pfn = $hook;
+                    // SAFETY: the loader and the app call a `PFN_vkVoidFunction` only after
+                    // casting it back to the command's own type, which `hook` has.
+                    Some((Level::$level, unsafe { std::mem::transmute::<$pfn, unsafe extern "system" fn()>(hook) }))
+                })*
+                _ => None,
+            }
+        }
+    };
+}
+
+intercepts! {
+    Instance "vkCreateInstance" => hooks::create_instance as vk::PFN_vkCreateInstance;
+    Instance "vkDestroyInstance" => hooks::destroy_instance as vk::PFN_vkDestroyInstance;
+    Instance "vkCreateDevice" => hooks::create_device as vk::PFN_vkCreateDevice;
+    Device "vkDestroyDevice" => hooks::destroy_device as vk::PFN_vkDestroyDevice;
+    Device "vkCreateImage" => hooks::create_image as vk::PFN_vkCreateImage;
+    Device "vkDestroyImage" => hooks::destroy_image as vk::PFN_vkDestroyImage;
+    Device "vkCreateImageView" => hooks::create_image_view as vk::PFN_vkCreateImageView;
+    Device "vkDestroyImageView" => hooks::destroy_image_view as vk::PFN_vkDestroyImageView;
+    Device "vkCreateRenderPass" => hooks::create_render_pass as vk::PFN_vkCreateRenderPass;
+    Device "vkCreateRenderPass2" => hooks::create_render_pass2 as vk::PFN_vkCreateRenderPass2;
+    Device "vkCreateRenderPass2KHR" => hooks::create_render_pass2 as vk::PFN_vkCreateRenderPass2;
+    Device "vkDestroyRenderPass" => hooks::destroy_render_pass as vk::PFN_vkDestroyRenderPass;
+    Device "vkCreateFramebuffer" => hooks::create_framebuffer as vk::PFN_vkCreateFramebuffer;
+    Device "vkDestroyFramebuffer" => hooks::destroy_framebuffer as vk::PFN_vkDestroyFramebuffer;
+    Device "vkCreateGraphicsPipelines" => hooks::create_graphics_pipelines as vk::PFN_vkCreateGraphicsPipelines;
+    Device "vkDestroyPipeline" => hooks::destroy_pipeline as vk::PFN_vkDestroyPipeline;
+    Device "vkCreateCommandPool" => hooks::create_command_pool as vk::PFN_vkCreateCommandPool;
+    Device "vkDestroyCommandPool" => hooks::destroy_command_pool as vk::PFN_vkDestroyCommandPool;
+    Device "vkResetCommandPool" => hooks::reset_command_pool as vk::PFN_vkResetCommandPool;
+    Device "vkAllocateCommandBuffers" => hooks::allocate_command_buffers as vk::PFN_vkAllocateCommandBuffers;
+    Device "vkFreeCommandBuffers" => hooks::free_command_buffers as vk::PFN_vkFreeCommandBuffers;
+    Device "vkBeginCommandBuffer" => hooks::begin_command_buffer as vk::PFN_vkBeginCommandBuffer;
+    Device "vkResetCommandBuffer" => hooks::reset_command_buffer as vk::PFN_vkResetCommandBuffer;
+    Device "vkCmdExecuteCommands" => hooks::cmd_execute_commands as vk::PFN_vkCmdExecuteCommands;
+    Device "vkCmdBindPipeline" => hooks::cmd_bind_pipeline as vk::PFN_vkCmdBindPipeline;
+    Device "vkCmdPushConstants" => hooks::cmd_push_constants as vk::PFN_vkCmdPushConstants;
+    Device "vkCmdSetViewport" => hooks::cmd_set_viewport as vk::PFN_vkCmdSetViewport;
+    Device "vkCmdSetScissor" => hooks::cmd_set_scissor as vk::PFN_vkCmdSetScissor;
+    Device "vkCmdSetViewportWithCount" => hooks::cmd_set_viewport_with_count as vk::PFN_vkCmdSetViewportWithCount;
+    Device "vkCmdSetViewportWithCountEXT" => hooks::cmd_set_viewport_with_count as vk::PFN_vkCmdSetViewportWithCount;
+    Device "vkCmdSetScissorWithCount" => hooks::cmd_set_scissor_with_count as vk::PFN_vkCmdSetScissorWithCount;
+    Device "vkCmdSetScissorWithCountEXT" => hooks::cmd_set_scissor_with_count as vk::PFN_vkCmdSetScissorWithCount;
+    Device "vkCmdSetLineWidth" => hooks::cmd_set_line_width as vk::PFN_vkCmdSetLineWidth;
+    Device "vkCmdSetDepthBias" => hooks::cmd_set_depth_bias as vk::PFN_vkCmdSetDepthBias;
+    Device "vkCmdSetBlendConstants" => hooks::cmd_set_blend_constants as vk::PFN_vkCmdSetBlendConstants;
+    Device "vkCmdSetDepthBounds" => hooks::cmd_set_depth_bounds as vk::PFN_vkCmdSetDepthBounds;
+    Device "vkCmdSetStencilCompareMask" => hooks::cmd_set_stencil_compare_mask as vk::PFN_vkCmdSetStencilCompareMask;
+    Device "vkCmdSetStencilWriteMask" => hooks::cmd_set_stencil_write_mask as vk::PFN_vkCmdSetStencilWriteMask;
+    Device "vkCmdSetStencilReference" => hooks::cmd_set_stencil_reference as vk::PFN_vkCmdSetStencilReference;
+    Device "vkCmdSetCullMode" => hooks::cmd_set_cull_mode as vk::PFN_vkCmdSetCullMode;
+    Device "vkCmdSetCullModeEXT" => hooks::cmd_set_cull_mode as vk::PFN_vkCmdSetCullMode;
+    Device "vkCmdSetFrontFace" => hooks::cmd_set_front_face as vk::PFN_vkCmdSetFrontFace;
+    Device "vkCmdSetFrontFaceEXT" => hooks::cmd_set_front_face as vk::PFN_vkCmdSetFrontFace;
+    Device "vkCmdSetPrimitiveTopology" => hooks::cmd_set_primitive_topology as vk::PFN_vkCmdSetPrimitiveTopology;
+    Device "vkCmdSetPrimitiveTopologyEXT" => hooks::cmd_set_primitive_topology as vk::PFN_vkCmdSetPrimitiveTopology;
+    Device "vkCmdSetDepthTestEnable" => hooks::cmd_set_depth_test_enable as vk::PFN_vkCmdSetDepthTestEnable;
+    Device "vkCmdSetDepthTestEnableEXT" => hooks::cmd_set_depth_test_enable as vk::PFN_vkCmdSetDepthTestEnable;
+    Device "vkCmdSetDepthWriteEnable" => hooks::cmd_set_depth_write_enable as vk::PFN_vkCmdSetDepthWriteEnable;
+    Device "vkCmdSetDepthWriteEnableEXT" => hooks::cmd_set_depth_write_enable as vk::PFN_vkCmdSetDepthWriteEnable;
+    Device "vkCmdSetDepthCompareOp" => hooks::cmd_set_depth_compare_op as vk::PFN_vkCmdSetDepthCompareOp;
+    Device "vkCmdSetDepthCompareOpEXT" => hooks::cmd_set_depth_compare_op as vk::PFN_vkCmdSetDepthCompareOp;
+    Device "vkCmdSetDepthBoundsTestEnable" => hooks::cmd_set_depth_bounds_test_enable as vk::PFN_vkCmdSetDepthBoundsTestEnable;
+    Device "vkCmdSetDepthBoundsTestEnableEXT" => hooks::cmd_set_depth_bounds_test_enable as vk::PFN_vkCmdSetDepthBoundsTestEnable;
+    Device "vkCmdSetStencilTestEnable" => hooks::cmd_set_stencil_test_enable as vk::PFN_vkCmdSetStencilTestEnable;
+    Device "vkCmdSetStencilTestEnableEXT" => hooks::cmd_set_stencil_test_enable as vk::PFN_vkCmdSetStencilTestEnable;
+    Device "vkCmdSetStencilOp" => hooks::cmd_set_stencil_op as vk::PFN_vkCmdSetStencilOp;
+    Device "vkCmdSetStencilOpEXT" => hooks::cmd_set_stencil_op as vk::PFN_vkCmdSetStencilOp;
+    Device "vkCmdSetRasterizerDiscardEnable" => hooks::cmd_set_rasterizer_discard_enable as vk::PFN_vkCmdSetRasterizerDiscardEnable;
+    Device "vkCmdSetRasterizerDiscardEnableEXT" => hooks::cmd_set_rasterizer_discard_enable as vk::PFN_vkCmdSetRasterizerDiscardEnable;
+    Device "vkCmdSetDepthBiasEnable" => hooks::cmd_set_depth_bias_enable as vk::PFN_vkCmdSetDepthBiasEnable;
+    Device "vkCmdSetDepthBiasEnableEXT" => hooks::cmd_set_depth_bias_enable as vk::PFN_vkCmdSetDepthBiasEnable;
+    Device "vkCmdSetPrimitiveRestartEnable" => hooks::cmd_set_primitive_restart_enable as vk::PFN_vkCmdSetPrimitiveRestartEnable;
+    Device "vkCmdSetPrimitiveRestartEnableEXT" => hooks::cmd_set_primitive_restart_enable as vk::PFN_vkCmdSetPrimitiveRestartEnable;
+    Device "vkCmdSetLineStippleEXT" => hooks::cmd_set_line_stipple as vk::PFN_vkCmdSetLineStippleKHR;
+    Device "vkCmdSetLineStippleKHR" => hooks::cmd_set_line_stipple as vk::PFN_vkCmdSetLineStippleKHR;
+    Device "vkCmdSetColorWriteEnableEXT" => hooks::cmd_set_color_write_enable as vk::PFN_vkCmdSetColorWriteEnableEXT;
+    Device "vkCmdSetLogicOpEXT" => hooks::cmd_set_logic_op as vk::PFN_vkCmdSetLogicOpEXT;
+    Device "vkCmdSetPatchControlPointsEXT" => hooks::cmd_set_patch_control_points as vk::PFN_vkCmdSetPatchControlPointsEXT;
+    Device "vkCmdBeginRenderPass" => hooks::cmd_begin_render_pass as vk::PFN_vkCmdBeginRenderPass;
+    Device "vkCmdNextSubpass" => hooks::cmd_next_subpass as vk::PFN_vkCmdNextSubpass;
+    Device "vkCmdEndRenderPass" => hooks::cmd_end_render_pass as vk::PFN_vkCmdEndRenderPass;
+    Device "vkCmdBeginRenderPass2" => hooks::cmd_begin_render_pass2 as vk::PFN_vkCmdBeginRenderPass2;
+    Device "vkCmdBeginRenderPass2KHR" => hooks::cmd_begin_render_pass2 as vk::PFN_vkCmdBeginRenderPass2;
+    Device "vkCmdNextSubpass2" => hooks::cmd_next_subpass2 as vk::PFN_vkCmdNextSubpass2;
+    Device "vkCmdNextSubpass2KHR" => hooks::cmd_next_subpass2 as vk::PFN_vkCmdNextSubpass2;
+    Device "vkCmdEndRenderPass2" => hooks::cmd_end_render_pass2 as vk::PFN_vkCmdEndRenderPass2;
+    Device "vkCmdEndRenderPass2KHR" => hooks::cmd_end_render_pass2 as vk::PFN_vkCmdEndRenderPass2;
+    Device "vkCmdBeginRendering" => hooks::cmd_begin_rendering as vk::PFN_vkCmdBeginRendering;
+    Device "vkCmdBeginRenderingKHR" => hooks::cmd_begin_rendering as vk::PFN_vkCmdBeginRendering;
+    Device "vkCmdEndRendering" => hooks::cmd_end_rendering as vk::PFN_vkCmdEndRendering;
+    Device "vkCmdEndRenderingKHR" => hooks::cmd_end_rendering as vk::PFN_vkCmdEndRendering;
+}
+
+fn void_fn<F: Copy>(f: F) -> unsafe extern "system" fn() {
+    assert_eq!(std::mem::size_of::<F>(), std::mem::size_of::<unsafe extern "system" fn()>());
+    // SAFETY: only called with the `extern "system"` fn pointers of the exported proc-addr
+    // functions (same size, checked); callers cast them back to their own types before calling.
+    unsafe { std::mem::transmute_copy::<F, unsafe extern "system" fn()>(&f) }
+}
+
+/// The loader's first call: agree on interface version 2 and hand over our proc-addr functions.
+///
+/// # Safety
+/// Called by the Vulkan loader with a valid `VkNegotiateLayerInterface`.
+#[no_mangle]
+pub unsafe extern "system" fn vkNegotiateLoaderLayerInterfaceVersion(
+    p_version: *mut loader::NegotiateLayerInterface,
+) -> vk::Result {
+    guard::catch("vkNegotiateLoaderLayerInterfaceVersion", vk::Result::ERROR_INITIALIZATION_FAILED, || {
+        // SAFETY: the loader passes a valid, writable struct or null (checked).
+        let Some(v) = (unsafe { p_version.as_mut() }) else {
+            return vk::Result::ERROR_INITIALIZATION_FAILED;
+        };
+        if v.s_type != loader::LAYER_NEGOTIATE_INTERFACE_STRUCT || v.loader_layer_interface_version < 2 {
+            return vk::Result::ERROR_INITIALIZATION_FAILED;
+        }
+        v.loader_layer_interface_version = loader::LAYER_INTERFACE_VERSION;
+        v.pfn_get_instance_proc_addr = Some(vkGetInstanceProcAddr);
+        v.pfn_get_device_proc_addr = Some(vkGetDeviceProcAddr);
+        v.pfn_get_physical_device_proc_addr = None;
+        vk::Result::SUCCESS
+    })
+}
+
+/// # Safety
+/// Called by the loader or the app with a valid (or null) instance and a NUL-terminated name.
+#[no_mangle]
+pub unsafe extern "system" fn vkGetInstanceProcAddr(instance: vk::Instance, p_name: *const c_char) -> vk::PFN_vkVoidFunction {
+    guard::catch("vkGetInstanceProcAddr", None, || {
+        if p_name.is_null() {
+            return None;
+        }
+        // SAFETY: the caller passes a NUL-terminated string (checked non-null).
+        let name = unsafe { CStr::from_ptr(p_name) }.to_bytes();
+        match name {
+            b"vkGetInstanceProcAddr" => return Some(void_fn(vkGetInstanceProcAddr as vk::PFN_vkGetInstanceProcAddr)),
+            b"vkGetDeviceProcAddr" => return Some(void_fn(vkGetDeviceProcAddr as vk::PFN_vkGetDeviceProcAddr)),
+            b"vkCreateInstance" => return intercept(name).map(|(_, f)| f),
+            _ => {}
+        }
+        let state = instance_of(instance)?;
+        // SAFETY: the next layer's vkGetInstanceProcAddr, called as the spec allows.
+        let next = unsafe { (state.next_gipa)(instance, p_name) }?;
+        // An intercepted command the next layer lacks stays absent: we never hand out a hook
+        // with nothing below it.
+        Some(intercept(name).map_or(next, |(_, hook)| hook))
+    })
+}
+
+/// # Safety
+/// Called by the loader or the app with a valid device and a NUL-terminated name.
+#[no_mangle]
+pub unsafe extern "system" fn vkGetDeviceProcAddr(device: vk::Device, p_name: *const c_char) -> vk::PFN_vkVoidFunction {
+    guard::catch("vkGetDeviceProcAddr", None, || {
+        if p_name.is_null() {
+            return None;
+        }
+        // SAFETY: the caller passes a NUL-terminated string (checked non-null).
+        let name = unsafe { CStr::from_ptr(p_name) }.to_bytes();
+        if name == b"vkGetDeviceProcAddr" {
+            return Some(void_fn(vkGetDeviceProcAddr as vk::PFN_vkGetDeviceProcAddr));
+        }
+        let state = device_of(device)?;
+        // SAFETY: the next layer's vkGetDeviceProcAddr for the device it created.
+        let next = unsafe { (state.next_gdpa)(device, p_name) }?;
+        match intercept(name) {
+            Some((Level::Device, hook)) => Some(hook),
+            _ => Some(next),
+        }
+    })
+}
+
+/// Looks a command up through `gdpa`, falling back to the KHR and EXT aliases of a core name, so
+/// ash's core-named tables resolve on devices that offer the command only as an extension.
+///
+/// # Safety
+/// `gdpa` must be a valid `vkGetDeviceProcAddr` for `device`.
+pub(crate) unsafe fn device_proc(gdpa: vk::PFN_vkGetDeviceProcAddr, device: vk::Device, name: &CStr) -> *const c_void {
+    let mut candidates = vec![name.to_owned()];
+    for suffix in ["KHR", "EXT"] {
+        let mut n = name.to_bytes().to_vec();
+        n.extend_from_slice(suffix.as_bytes());
+        candidates.extend(std::ffi::CString::new(n).ok());
+    }
+    for c in candidates {
+        // SAFETY: per this function's contract.
+        if let Some(f) = unsafe { gdpa(device, c.as_ptr()) } {
+            return f as *const c_void;
+        }
+    }
+    std::ptr::null()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_lookup() {
+        assert_eq!(intercept(b"vkCmdBeginRenderingKHR").map(|(l, _)| l), Some(Level::Device));
+        assert_eq!(intercept(b"vkCreateDevice").map(|(l, _)| l), Some(Level::Instance));
+        assert!(intercept(b"vkQueueSubmit").is_none());
+        // Aliases share one hook.
+        let a = intercept(b"vkCmdSetCullMode").unwrap().1 as usize;
+        let b = intercept(b"vkCmdSetCullModeEXT").unwrap().1 as usize;
+        assert_eq!(a, b);
+        let mut names = INTERCEPTED.to_vec();
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), INTERCEPTED.len(), "a command is listed twice");
+    }
+
+    #[test]
+    fn unknown_instance_gets_nothing_but_entry_points() {
+        let name = c"vkCreateDevice";
+        // SAFETY: a null instance and a valid name.
+        assert!(unsafe { vkGetInstanceProcAddr(vk::Instance::null(), name.as_ptr()) }.is_none());
+        // SAFETY: as above.
+        assert!(unsafe { vkGetInstanceProcAddr(vk::Instance::null(), c"vkCreateInstance".as_ptr()) }.is_some());
+    }
+}
