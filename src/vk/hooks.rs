@@ -823,3 +823,78 @@ pub(super) unsafe extern "system" fn cmd_end_rendering(cb: vk::CommandBuffer) {
     // SAFETY: forwarding the app's arguments unchanged.
     cmd("vkCmdEndRendering", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_end_rendering)(cb) }, |d, cb| d.track.end_pass(cb))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn decision() -> device_ext::Decision {
+        device_ext::Decision {
+            add_extensions: vec![device_ext::FRAGMENT_SHADING_RATE],
+            enable_fsr: Some(device_ext::FsrSupport { pipeline: true, primitive: false, attachment: true }),
+            reason: String::new(),
+        }
+    }
+
+    fn chain_types(mut p: *const c_void) -> Vec<(vk::StructureType, *const c_void)> {
+        let mut out = Vec::new();
+        while !p.is_null() {
+            // SAFETY: test chains are built from valid structs.
+            let base = unsafe { &*(p as *const vk::BaseInStructure<'_>) };
+            out.push((base.s_type, p));
+            p = base.p_next as *const c_void;
+        }
+        out
+    }
+
+    #[test]
+    fn our_features_go_first_when_the_app_has_none() {
+        let mut v12 = vk::PhysicalDeviceVulkan12Features::default();
+        let names = [c"VK_KHR_swapchain".as_ptr()];
+        let ci = vk::DeviceCreateInfo::default().push_next(&mut v12).enabled_extension_names(&names);
+        // SAFETY: a valid create info, alive while `m` is used.
+        let m = unsafe { modify_device_create_info(&ci, &decision()) }.unwrap();
+        let types = chain_types(m.ci.p_next);
+        assert_eq!(types[0].0, vk::StructureType::PHYSICAL_DEVICE_FRAGMENT_SHADING_RATE_FEATURES_KHR);
+        assert_eq!(types[1].1, ci.p_next, "the app's chain follows unchanged");
+        assert_eq!(m.ci.enabled_extension_count, 2);
+        // SAFETY: our own struct.
+        let fsr = unsafe { &*(types[0].1 as *const vk::PhysicalDeviceFragmentShadingRateFeaturesKHR<'_>) };
+        assert_eq!((fsr.attachment_fragment_shading_rate, fsr.pipeline_fragment_shading_rate, fsr.primitive_fragment_shading_rate), (1, 1, 0));
+        assert_eq!(ci.enabled_extension_count, 1, "the app's create info is untouched");
+    }
+
+    #[test]
+    fn the_apps_features_struct_is_replaced_by_a_copy() {
+        let mut app_fsr = vk::PhysicalDeviceFragmentShadingRateFeaturesKHR::default().primitive_fragment_shading_rate(true);
+        let mut v11 = vk::PhysicalDeviceVulkan11Features::default().multiview(true);
+        let mut v13 = vk::PhysicalDeviceVulkan13Features::default().dynamic_rendering(true);
+        // Chain: v13 → app_fsr → v11 (push_next prepends).
+        let ci = vk::DeviceCreateInfo::default().push_next(&mut v11).push_next(&mut app_fsr).push_next(&mut v13);
+        let original = chain_types(ci.p_next);
+        // SAFETY: a valid create info, alive while `m` is used.
+        let m = unsafe { modify_device_create_info(&ci, &decision()) }.unwrap();
+        let types = chain_types(m.ci.p_next);
+        let kinds: Vec<_> = types.iter().map(|t| t.0).collect();
+        assert_eq!(kinds, original.iter().map(|t| t.0).collect::<Vec<_>>(), "same structs, once each");
+        assert_ne!(types[0].1, original[0].1, "the prefix is a copy");
+        assert_ne!(types[1].1, original[1].1, "the shading-rate struct is a copy");
+        assert_eq!(types[2].1, original[2].1, "the rest is the app's own");
+        // SAFETY: our copies.
+        let (v13c, fsr) = unsafe {
+            (&*(types[0].1 as *const vk::PhysicalDeviceVulkan13Features<'_>), &*(types[1].1 as *const vk::PhysicalDeviceFragmentShadingRateFeaturesKHR<'_>))
+        };
+        assert_eq!(v13c.dynamic_rendering, 1);
+        assert_eq!((fsr.attachment_fragment_shading_rate, fsr.primitive_fragment_shading_rate), (1, 1), "app's choice kept");
+        assert_eq!(app_fsr.attachment_fragment_shading_rate, 0, "the app's struct is untouched");
+    }
+
+    #[test]
+    fn unknown_prefix_structs_decline() {
+        let mut app_fsr = vk::PhysicalDeviceFragmentShadingRateFeaturesKHR::default();
+        let mut odd = vk::PhysicalDeviceMeshShaderFeaturesEXT::default();
+        let ci = vk::DeviceCreateInfo::default().push_next(&mut app_fsr).push_next(&mut odd);
+        // SAFETY: a valid create info.
+        assert!(unsafe { modify_device_create_info(&ci, &decision()) }.is_err());
+    }
+}
