@@ -68,7 +68,7 @@ void main() {
     }
     if ((v_flags & FLAG_FOG) != 0u) {
         float d = distance(v_world, frame.eye_pos[view].xyz);
-        c = mix(c, HAZE, 0.8 * (1.0 - exp(-d / 600.0)));
+        c = mix(c, HAZE, 0.7 * (1.0 - exp(-d / 900.0)));
     }
 
     // Busy work that the compiler cannot remove (it depends on a push constant and a varying) but

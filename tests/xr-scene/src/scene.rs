@@ -138,16 +138,16 @@ pub fn build() -> Mesh {
         let width = 12.0 + (i * 7 % 15) as f32;
         let c = Vec3::new(angle.cos() * dist, height * 0.5, angle.sin() * dist);
         let shade = 0.55 + (i % 3) as f32 * 0.1;
-        m.add_box(c, Vec3::new(width, height, width), [shade, shade * 0.95, shade * 0.85], lit_fog);
+        m.add_box(c, Vec3::new(width, height, width), [shade * 0.8, shade * 0.8, shade * 0.75], lit_fog);
     }
 
     // Mountains, 300–900 m away, all around; their bases sink below the ground to hide seams.
     for i in 0..12u32 {
         let angle = i as f32 / 12.0 * TAU + 0.2;
         let dist = 300.0 + (i * 211 % 600) as f32;
-        let height = 80.0 + (i * 53 % 170) as f32;
+        let height = 60.0 + (i * 53 % 130) as f32;
         let base = Vec3::new(angle.cos() * dist, -5.0, angle.sin() * dist);
-        m.add_pyramid(base, height * 1.4, height + 5.0, 7, [0.42, 0.40, 0.37], lit_fog);
+        m.add_pyramid(base, height * 1.6, height + 5.0, 7, [0.40, 0.34, 0.27], lit_fog);
     }
 
     // The ground: a checkered disc reaching almost to the sky sphere (corners of a square would
