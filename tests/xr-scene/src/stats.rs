@@ -26,6 +26,8 @@ pub struct GpuCounters {
     valid_mask: u64,
 }
 
+const QUERY_COUNT: u32 = 4;
+
 /// Bytes the shader may see through one binding: `uint counts[2]`.
 pub const BINDING_RANGE: u64 = 8;
 
@@ -68,9 +70,12 @@ impl GpuCounters {
                 .map_memory(c.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
                 .ctx("vkMapMemory(counters)")? as *const u8;
             if c.valid_mask != 0 {
+                // Only queries 0 and 1 are used. The spare two absorb a lavapipe 25.0 defect:
+                // a timestamp written after a multiview pass ended is still written to
+                // "one query per view" (2), which overran a 2-query pool and crashed the driver.
                 c.query_pool = d
                     .create_query_pool(
-                        &vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2),
+                        &vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(QUERY_COUNT),
                         None,
                     )
                     .ctx("vkCreateQueryPool")?;
@@ -99,7 +104,7 @@ impl GpuCounters {
         // SAFETY: recording state, outside any render pass.
         unsafe {
             if self.query_pool != vk::QueryPool::null() {
-                d.cmd_reset_query_pool(cmd, self.query_pool, 0, 2);
+                d.cmd_reset_query_pool(cmd, self.query_pool, 0, QUERY_COUNT);
                 d.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, self.query_pool, 0);
             }
             // The previous frame's shader atomics must be done before the fill overwrites them.
