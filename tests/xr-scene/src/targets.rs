@@ -220,19 +220,19 @@ impl Targets {
             Layout::PerEye => {
                 for v in 0..2 {
                     let e = size(v);
-                    self.push_slot(opts, gpu, xs, e, e, 1)?;
+                    self.push_slot(opts, gpu, xs, e, 1)?;
                     self.views[v] = ViewRect { slot: v, array_index: 0, offset_x: 0, extent: e };
                 }
             }
             Layout::Multiview => {
-                self.push_slot(opts, gpu, xs, shared, shared, 2)?;
+                self.push_slot(opts, gpu, xs, shared, 2)?;
                 for v in 0..2 {
                     self.views[v] = ViewRect { slot: 0, array_index: v as u32, offset_x: 0, extent: shared };
                 }
             }
             Layout::SideBySide => {
                 let wide = vk::Extent2D { width: shared.width * 2, height: shared.height };
-                self.push_slot(opts, gpu, xs, wide, shared, 1)?;
+                self.push_slot(opts, gpu, xs, wide, 1)?;
                 for v in 0..2 {
                     self.views[v] = ViewRect {
                         slot: 0,
@@ -252,7 +252,6 @@ impl Targets {
         gpu: &Gpu,
         xs: &XrSession,
         extent: vk::Extent2D,
-        _view_extent: vk::Extent2D,
         layers: u32,
     ) -> Result<()> {
         let mut usage = xr::SwapchainUsageFlags::COLOR_ATTACHMENT;
