@@ -109,6 +109,12 @@ pub(crate) fn device_of<H: Handle>(handle: H) -> Option<Arc<DeviceState>> {
     state
 }
 
+/// Whether the Vulkan half created the state of this `VkDevice` (the OpenXR half asks, to log
+/// whether the session's device is one the layer can act on). The handle must be a live device.
+pub(crate) fn device_is_tracked(device: u64) -> bool {
+    layer().devices.get(dispatch_key(vk::Device::from_raw(device))).is_some()
+}
+
 /// A handle whose dispatch key we never saw means a broken chain; logged once, never per call.
 fn report_unknown_handle() {
     static ONCE: std::sync::Once = std::sync::Once::new();

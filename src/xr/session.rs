@@ -84,11 +84,13 @@ pub(super) unsafe extern "system" fn create_session(
         let handle = unsafe { *session };
         match &binding {
             Some(b) => tracing::info!(
-                "session {:#x} renders on VkDevice {:#x} (queue family {}, index {})",
+                "session {:#x} renders on VkDevice {:#x} (queue family {}, index {}); the Vulkan half {}",
                 handle.into_raw(),
                 b.device,
                 b.queue_family_index,
                 b.queue_index,
+                // The runtime validated the binding (the call succeeded), so the device is live.
+                if crate::vk::device_is_tracked(b.device) { "tracks this device" } else { "does NOT see this device" }
             ),
             None => tracing::warn!("session {:#x} has no Vulkan binding: nothing to do for it", handle.into_raw()),
         }
