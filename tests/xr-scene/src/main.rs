@@ -81,13 +81,18 @@ fn run(opts: &cli::Options) -> Result<u64> {
             std::thread::sleep(std::time::Duration::from_millis(5));
             continue;
         }
+        // CPU time inside OpenXR calls: what an API layer's overhead adds to.
+        let mut xr_time = std::time::Duration::ZERO;
+        let t = std::time::Instant::now();
         let state = xs.waiter.wait().ctx("xrWaitFrame")?;
         xs.stream.begin().ctx("xrBeginFrame")?;
         xs.sync_input(state.predicted_display_time)?;
+        xr_time += t.elapsed();
 
         if !state.should_render {
             end_frame(&xri, &xs, state.predicted_display_time, None)?;
         } else {
+            let t = std::time::Instant::now();
             let (_, views) = xs
                 .session
                 .locate_views(oxr::ViewConfigurationType::PRIMARY_STEREO, state.predicted_display_time, &xs.stage)
@@ -109,8 +114,10 @@ fn run(opts: &cli::Options) -> Result<u64> {
                 };
                 acquired.push(renderer::Acquired { color, depth });
             }
+            xr_time += t.elapsed();
             let uniforms = frame_uniforms(&views, reversed, opts.animate, frame);
-            let (gpu_ms, counts) = renderer.render(&gpu, &targets, &acquired, &uniforms)?;
+            let (gpu_ms, counts, record_us) = renderer.render(&gpu, &targets, &acquired, &uniforms)?;
+            let t = std::time::Instant::now();
             for slot in &mut targets.slots {
                 slot.color.swapchain.release_image().ctx("xrReleaseSwapchainImage")?;
                 if let Some(d) = &mut slot.depth {
@@ -118,10 +125,13 @@ fn run(opts: &cli::Options) -> Result<u64> {
                 }
             }
             end_frame(&xri, &xs, state.predicted_display_time, Some((&targets, &views, reversed)))?;
+            xr_time += t.elapsed();
             if let Some(s) = &mut stats {
                 s.push(stats::FrameStats {
                     frame,
                     gpu_time_ms: gpu_ms,
+                    cpu_xr_us: xr_time.as_secs_f64() * 1e6,
+                    cpu_record_us: record_us,
                     views: (0..2).map(|v| stats::ViewStats { view: v, shaded_fragments: counts[v as usize] }).collect(),
                 })?;
             }

@@ -334,9 +334,13 @@ impl Renderer {
     }
 
     /// Records, submits and waits for one frame; returns (GPU ms, shaded fragments per view).
-    pub fn render(&mut self, gpu: &Gpu, targets: &Targets, acquired: &[Acquired], uniforms: &FrameUniforms) -> Result<(f64, [u64; 2])> {
+    /// Records, submits and waits for one frame. Returns the GPU time in ms, the shaded fragments
+    /// per view, and the CPU time spent recording the command buffer in µs (what a Vulkan layer's
+    /// per-command overhead adds to).
+    pub fn render(&mut self, gpu: &Gpu, targets: &Targets, acquired: &[Acquired], uniforms: &FrameUniforms) -> Result<(f64, [u64; 2], f64)> {
         let d = gpu.device.clone();
         let cmd = self.cmd;
+        let record_start = std::time::Instant::now();
         // SAFETY: one frame in flight: the previous submit was waited on, so the uniform buffer
         // and the command buffer are free to reuse. All recorded handles are alive.
         unsafe {
@@ -397,8 +401,10 @@ impl Renderer {
             self.counters.record_end(cmd);
             d.end_command_buffer(cmd).ctx("vkEndCommandBuffer")?;
         }
+        let record_us = record_start.elapsed().as_secs_f64() * 1e6;
         self.submit_and_wait(gpu)?;
-        self.counters.read(self.multiview)
+        let (gpu_ms, counts) = self.counters.read(self.multiview)?;
+        Ok((gpu_ms, counts, record_us))
     }
 
     /// Everything the passes write, ordered after its previous use and put in attachment layout.

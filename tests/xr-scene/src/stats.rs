@@ -210,6 +210,11 @@ pub struct ViewStats {
 pub struct FrameStats {
     pub frame: u64,
     pub gpu_time_ms: f64,
+    /// CPU time inside the frame's OpenXR calls (wait, begin, input sync, locate views, swapchain
+    /// acquire/wait/release, end), in µs.
+    pub cpu_xr_us: f64,
+    /// CPU time recording the frame's command buffer, in µs.
+    pub cpu_record_us: f64,
     pub views: Vec<ViewStats>,
 }
 
@@ -253,6 +258,8 @@ mod tests {
         let frames = [FrameStats {
             frame: 0,
             gpu_time_ms: 1.5,
+            cpu_xr_us: 10.0,
+            cpu_record_us: 20.0,
             views: vec![ViewStats { view: 0, shaded_fragments: 12345 }, ViewStats { view: 1, shaded_fragments: 12001 }],
         }];
         let v: serde_json::Value = serde_json::from_str(&to_json(&frames)).unwrap();
