@@ -54,6 +54,42 @@ pub const KEYS: &[KeySpec] = &[
         doc: "enable VK_KHR_fragment_shading_rate on the app's device: auto = only when an enabled feature uses it and the device has it; on = whenever the device has it",
     },
     KeySpec {
+        key: "mask.enabled",
+        kind: Kind::Bool,
+        default: "false",
+        doc: "hidden-area mask: reject the pixels the lens never shows by early depth test in every eye pass",
+    },
+    KeySpec {
+        key: "mask.source",
+        kind: Kind::Choice(&["auto", "runtime", "synthesized"]),
+        default: "auto",
+        doc: "auto: the runtime's XR_KHR_visibility_mask when it has one, else synthesized; runtime: only the runtime's; synthesized: always the configured lens shape",
+    },
+    KeySpec {
+        key: "mask.synthesized.radius_deg",
+        kind: Kind::Float { min: 10.0, max: 89.0 },
+        default: "55",
+        doc: "synthesized lens: horizontal half-angle of the visible ellipse around the view's optical axis, degrees",
+    },
+    KeySpec {
+        key: "mask.synthesized.aspect",
+        kind: Kind::Float { min: 0.25, max: 4.0 },
+        default: "1",
+        doc: "synthesized lens: vertical / horizontal half-angle of the visible ellipse",
+    },
+    KeySpec {
+        key: "mask.debug",
+        kind: Kind::Bool,
+        default: "false",
+        doc: "paint the masked area in a tint instead of leaving it at the clear colour (to see it in the headset and in captures)",
+    },
+    KeySpec {
+        key: "stats.file",
+        kind: Kind::Text,
+        default: "",
+        doc: "append the layer's per-frame statistics (JSON lines) to this file",
+    },
+    KeySpec {
         key: "debug.fail_in",
         kind: Kind::Text,
         default: "",
@@ -202,6 +238,13 @@ impl Config {
         match self.value(key) {
             Value::Choice(c) => c,
             other => panic!("config key `{key}` is not a choice: {other:?}"),
+        }
+    }
+
+    pub fn float(&self, key: &str) -> f64 {
+        match self.value(key) {
+            Value::Float(x) => *x,
+            other => panic!("config key `{key}` is not a number: {other:?}"),
         }
     }
 

@@ -67,6 +67,45 @@ impl Swapchain {
     }
 }
 
+/// Where a hidden-area mask came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MaskSource {
+    /// The runtime's `XR_KHR_visibility_mask` hidden triangle mesh.
+    Runtime,
+    /// Synthesized from the configured lens shape (the runtime has no mask).
+    Synthesized,
+}
+
+/// One view's hidden area in that view's tangent plane (z = −1; x right, y up, i.e. tangents of
+/// the angles), as a triangle list. Independent of any image: the Vulkan half maps it into each eye
+/// pass with the view's FOV.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewMask {
+    pub view: u32,
+    pub source: MaskSource,
+    /// Three points per triangle.
+    pub triangles: Vec<[f32; 2]>,
+}
+
+/// A view's field of view as submitted (tangents of `XrFovf`'s angles: left < 0 < right,
+/// down < 0 < up), which maps tangent-plane points to the image rect.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViewFov {
+    pub tan_left: f32,
+    pub tan_right: f32,
+    pub tan_up: f32,
+    pub tan_down: f32,
+}
+
+/// The masks and FOVs of all views; replaced as a whole, with a generation that increases on every
+/// change so the Vulkan half can rebuild what it derived.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Views {
+    pub generation: u64,
+    pub masks: Vec<ViewMask>,
+    pub fovs: Vec<ViewFov>,
+}
+
 /// A swapchain image as the Vulkan half sees it.
 #[derive(Debug, Clone)]
 pub struct SwapchainImage {
@@ -79,6 +118,8 @@ pub struct Shared {
     /// The configuration the OpenXR half resolved for the app (it knows the app's name first); the
     /// Vulkan half uses it for devices created after it, else resolves its own.
     pub config: RwLock<Option<Arc<crate::config::Config>>>,
+    /// Hidden-area masks and FOVs per view (written by the OpenXR half).
+    pub views: RwLock<Arc<Views>>,
     /// `XrSwapchain` → swapchain.
     pub swapchains: HandleMap<u64, Swapchain>,
     /// `VkImage` → the swapchain image it is.
@@ -91,6 +132,26 @@ impl Shared {
     }
     pub fn set_config(&self, config: Arc<crate::config::Config>) {
         *self.config.write().unwrap_or_else(|e| e.into_inner()) = Some(config);
+    }
+    pub fn views(&self) -> Arc<Views> {
+        self.views.read().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+    /// Replaces masks and/or FOVs; bumps the generation only when something changed.
+    pub fn update_views(&self, masks: Option<Vec<ViewMask>>, fovs: Option<Vec<ViewFov>>) -> bool {
+        let mut cur = self.views.write().unwrap_or_else(|e| e.into_inner());
+        let mut next = (**cur).clone();
+        if let Some(m) = masks {
+            next.masks = m;
+        }
+        if let Some(f) = fovs {
+            next.fovs = f;
+        }
+        if next == **cur {
+            return false;
+        }
+        next.generation = cur.generation + 1;
+        *cur = Arc::new(next);
+        true
     }
     pub fn add_swapchain(&self, swapchain: Arc<Swapchain>) {
         for (index, &image) in swapchain.images.iter().enumerate() {
@@ -115,6 +176,19 @@ pub fn shared() -> &'static Shared {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn views_generation_moves_only_on_change() {
+        let s = Shared::default();
+        let fov = ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
+        assert!(s.update_views(None, Some(vec![fov, fov])));
+        assert_eq!(s.views().generation, 1);
+        assert!(!s.update_views(None, Some(vec![fov, fov])));
+        let mask = ViewMask { view: 0, source: MaskSource::Runtime, triangles: vec![[0.0, 0.0]; 3] };
+        assert!(s.update_views(Some(vec![mask]), None));
+        assert_eq!(s.views().generation, 2);
+        assert_eq!(s.views().fovs.len(), 2);
+    }
 
     #[test]
     fn swapchain_images_are_found_and_forgotten() {
