@@ -18,9 +18,15 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
     let Some(next) = inst.next.begin_frame else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
     // SAFETY: forwarding the app's arguments unchanged.
     let plain = || unsafe { next(session, frame_begin_info) };
+    let sess = session::lookup(session).ok();
     guard::run("xrBeginFrame", &inst.pass_through, |down| {
         inst.check_fault("xrBeginFrame")?;
-        Ok(down.call(plain))
+        let r = down.call(plain);
+        // The app records its eye passes after this; masks must be there by then.
+        if let (Some(s), true) = (&sess, r.into_raw() >= 0) {
+            session::refresh_masks(s);
+        }
+        Ok(r)
     }, plain)
 }
 
@@ -34,6 +40,29 @@ fn sub_image(s: &xr::SwapchainSubImage) -> SubImage {
             height: s.image_rect.extent.height,
         },
         image_array_index: s.image_array_index,
+    }
+}
+
+/// Reads the FOVs of the first projection layer's views (tangents).
+///
+/// # Safety
+/// As for `read_projection_layers`.
+unsafe fn read_fovs(info: *const xr::FrameEndInfo) -> Option<Vec<crate::shared::ViewFov>> {
+    // SAFETY: per the caller's contract.
+    unsafe {
+        let info = info.as_ref()?;
+        for i in 0..info.layer_count as usize {
+            let base = (*info.layers.add(i)).as_ref()?;
+            if base.ty == xr::StructureType::COMPOSITION_LAYER_PROJECTION {
+                let proj = &*(base as *const xr::CompositionLayerBaseHeader as *const xr::CompositionLayerProjection);
+                if proj.views.is_null() {
+                    return None;
+                }
+                let views = std::slice::from_raw_parts(proj.views, proj.view_count as usize);
+                return Some(views.iter().map(|v| session::fov_tangents(&v.fov)).collect());
+            }
+        }
+        None
     }
 }
 
@@ -92,13 +121,19 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
         // Read before calling down: the app's structs are only guaranteed valid during the call.
         // SAFETY: the app's frame end info, valid for this call (null is handled).
         let layers = if known { unsafe { read_projection_layers(frame_end_info) } } else { None };
+        // SAFETY: as above.
+        let fovs = if known { unsafe { read_fovs(frame_end_info) } } else { None };
         let r = down.call(plain);
         if r != xr::Result::SUCCESS {
             return Ok(r);
         }
         inst.stats.frames_ended.fetch_add(1, Ordering::Relaxed);
-        let Some(layers) = layers else { return Ok(r) };
         let shared = shared::shared();
+        if let (Some(fovs), Ok(s)) = (fovs, session::lookup(session)) {
+            s.fov_submitted.store(true, Ordering::Release);
+            shared.update_views(None, Some(fovs));
+        }
+        let Some(layers) = layers else { return Ok(r) };
         for (swapchain, uses) in submission::eye_uses(&layers) {
             let Some(sc) = shared.swapchains.get(swapchain) else { continue };
             if sc.set_uses(uses.clone()) {

@@ -5,6 +5,7 @@ use super::{state, Instance, Next};
 use crate::guard::{self, PassThrough};
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
+use std::ffi::{c_char, CStr, CString};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
@@ -29,6 +30,32 @@ impl Stats {
             self.visibility_mask_events.load(Ordering::Relaxed),
         )
     }
+}
+
+/// Instance extensions the enabled features use, if the runtime has them.
+fn wanted_extensions(config: &crate::config::Config) -> Vec<&'static str> {
+    let mut v = Vec::new();
+    if config.enabled() && config.bool("mask.enabled") {
+        v.push(super::VISIBILITY_MASK_EXT);
+    }
+    v
+}
+
+/// Reads an array of C strings.
+///
+/// # Safety
+/// `names` must point to `count` valid NUL-terminated strings (or be null with count 0).
+unsafe fn c_strings(names: *const *const c_char, count: u32) -> Vec<String> {
+    if names.is_null() {
+        return Vec::new();
+    }
+    // SAFETY: caller's contract.
+    unsafe { std::slice::from_raw_parts(names, count as usize) }
+        .iter()
+        .filter(|p| !p.is_null())
+        // SAFETY: caller's contract: each is NUL-terminated.
+        .map(|&p| unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned())
+        .collect()
 }
 
 fn exe_name() -> String {
@@ -77,7 +104,44 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             tracing::warn!("config: {d}");
         }
         let _span = tracing::info_span!("xrCreateApiLayerInstance", app = %app_name).entered();
-        let r = down.call(plain);
+        // SAFETY: the app's create info and its extension names are valid for this call.
+        let app_extensions = unsafe { info.as_ref().map(|i| c_strings(i.enabled_extension_names, i.enabled_extension_count)) }
+            .unwrap_or_default();
+        // Extensions the layer needs for itself; the app never sees them (hidden in
+        // xrGetInstanceProcAddr and xrPollEvent).
+        let wanted: Vec<&str> = wanted_extensions(&config).into_iter().filter(|e| !app_extensions.iter().any(|a| a == e)).collect();
+        let mut added = Vec::new();
+        let r = down.call(|| {
+            if wanted.is_empty() || info.is_null() {
+                return plain();
+            }
+            let names: Vec<CString> = wanted.iter().filter_map(|e| CString::new(*e).ok()).collect();
+            // SAFETY: `info` is non-null (checked above) and valid for this call.
+            let mut ext_ptrs: Vec<*const c_char> = unsafe {
+                let i = &*info;
+                if i.enabled_extension_count == 0 || i.enabled_extension_names.is_null() {
+                    Vec::new()
+                } else {
+                    std::slice::from_raw_parts(i.enabled_extension_names, i.enabled_extension_count as usize).to_vec()
+                }
+            };
+            ext_ptrs.extend(names.iter().map(|n| n.as_ptr()));
+            // SAFETY: as above; the copy and the names live until the call returns.
+            let mut with = unsafe { *info };
+            with.enabled_extension_count = ext_ptrs.len() as u32;
+            with.enabled_extension_names = ext_ptrs.as_ptr();
+            // SAFETY: forwarding the modified copy with the chain advanced.
+            let r = unsafe { next_create(&with, &down_info, instance) };
+            if r == xr::Result::ERROR_EXTENSION_NOT_PRESENT {
+                // The runtime lacks one of ours: go on exactly as the app asked.
+                tracing::info!("runtime lacks {wanted:?}; features needing them fall back");
+                return plain();
+            }
+            if r == xr::Result::SUCCESS {
+                added = wanted.iter().map(|e| e.to_string()).collect();
+            }
+            r
+        });
         if r != xr::Result::SUCCESS {
             tracing::info!(?r, "instance creation failed below the layer");
             return Ok(r);
@@ -98,6 +162,9 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
         for (key, value, source) in config.entries() {
             tracing::debug!("config {key} = {value} ({source})");
         }
+        if !added.is_empty() {
+            tracing::info!("enabled {added:?} for the layer's own use (hidden from the app)");
+        }
         let inst = Instance {
             handle,
             next,
@@ -105,6 +172,8 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             pass_through: PassThrough::default(),
             app_name,
             stats: Stats::default(),
+            app_extensions,
+            layer_extensions: added,
         };
         state().instances.insert(handle.into_raw(), Arc::new(inst));
         Ok(r)
@@ -180,8 +249,12 @@ pub(super) unsafe extern "system" fn poll_event(instance: xr::Instance, event_da
     let plain = || unsafe { next(instance, event_data) };
     guard::run("xrPollEvent", &inst.pass_through, |down| {
         inst.check_fault("xrPollEvent")?;
-        let r = down.call(plain);
-        if r == xr::Result::SUCCESS && !event_data.is_null() {
+        let app_sees_masks = inst.app_enabled(super::VISIBILITY_MASK_EXT);
+        loop {
+            let r = down.call(plain);
+            if r != xr::Result::SUCCESS || event_data.is_null() {
+                return Ok(r);
+            }
             // SAFETY: on success the runtime filled the event buffer; its `ty` tells its layout.
             let ty = unsafe { (*event_data).ty };
             if ty == xr::StructureType::EVENT_DATA_VISIBILITY_MASK_CHANGED_KHR {
@@ -189,12 +262,25 @@ pub(super) unsafe extern "system" fn poll_event(instance: xr::Instance, event_da
                 let e = unsafe { &*(event_data as *const xr::EventDataVisibilityMaskChangedKHR) };
                 inst.stats.visibility_mask_events.fetch_add(1, Ordering::Relaxed);
                 tracing::info!("visibility mask of view {} changed", e.view_index);
+                if let Some(s) = state().sessions.get(e.session.into_raw()) {
+                    s.masks_dirty.store(true, Ordering::Release);
+                }
+                // The event exists for the app only if it enabled the extension itself: poll
+                // again with the buffer restored to what the app passed in.
+                if !app_sees_masks {
+                    // SAFETY: the app's event buffer, valid for this call.
+                    unsafe {
+                        (*event_data).ty = xr::StructureType::EVENT_DATA_BUFFER;
+                        (*event_data).next = std::ptr::null();
+                    }
+                    continue;
+                }
             } else if ty == xr::StructureType::EVENT_DATA_SESSION_STATE_CHANGED {
                 // SAFETY: as above.
                 let e = unsafe { &*(event_data as *const xr::EventDataSessionStateChanged) };
                 tracing::debug!("session {:#x} state {:?}", e.session.into_raw(), e.state);
             }
+            return Ok(r);
         }
-        Ok(r)
     }, plain)
 }

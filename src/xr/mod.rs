@@ -99,9 +99,32 @@ pub(crate) struct Instance {
     pub pass_through: PassThrough,
     pub app_name: String,
     pub stats: instance::Stats,
+    /// Extensions the app enabled.
+    pub app_extensions: Vec<String>,
+    /// Extensions the layer enabled for itself; their functions and events stay hidden from the app.
+    pub layer_extensions: Vec<String>,
+}
+
+pub(crate) const VISIBILITY_MASK_EXT: &str = "XR_KHR_visibility_mask";
+
+/// The extension an extension function belongs to, for those the layer may enable for itself.
+fn extension_of(function: &str) -> Option<&'static str> {
+    match function {
+        "xrGetVisibilityMaskKHR" => Some(VISIBILITY_MASK_EXT),
+        _ => None,
+    }
 }
 
 impl Instance {
+    /// Whether the app (not only the layer) enabled `ext`.
+    pub fn app_enabled(&self, ext: &str) -> bool {
+        self.app_extensions.iter().any(|e| e == ext)
+    }
+    /// Whether the layer enabled `ext` for itself or the app did.
+    pub fn has_extension(&self, ext: &str) -> bool {
+        self.app_enabled(ext) || self.layer_extensions.iter().any(|e| e == ext)
+    }
+
     /// Layer logic of `call` fails on purpose when the config says so (`debug.fail_in`), to prove
     /// the fallback to pass-through end to end.
     fn check_fault(&self, call: &str) -> Result<(), crate::guard::Fault> {
@@ -194,6 +217,12 @@ unsafe extern "system" fn get_instance_proc_addr(
         let Some(inst) = state().instances.get(instance.into_raw()) else {
             return xr::Result::ERROR_HANDLE_INVALID;
         };
+        // Functions of extensions only the layer enabled do not exist for the app.
+        if extension_of(name_str).is_some_and(|ext| !inst.app_enabled(ext)) {
+            // SAFETY: `function` checked non-null above.
+            unsafe { *function = None };
+            return xr::Result::ERROR_FUNCTION_UNSUPPORTED;
+        }
         // SAFETY: forwarding the caller's valid arguments to the next layer.
         let r = unsafe { (inst.next.get_instance_proc_addr)(instance, name, function) };
         if r == xr::Result::SUCCESS && inst.config.enabled() {

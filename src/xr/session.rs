@@ -3,6 +3,9 @@
 
 use super::{state, Instance};
 use crate::guard;
+use crate::mask_source::{self, LensShape, SourcePolicy};
+use crate::shared::{ViewFov, ViewMask};
+use std::sync::atomic::{AtomicBool, Ordering};
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::sync::{Arc, Mutex};
@@ -29,6 +32,89 @@ pub(crate) struct Session {
     pub instance: Arc<Instance>,
     pub binding: Option<VulkanBinding>,
     pub views: Mutex<Vec<LocatedView>>,
+    /// The hidden-area masks must be (re)fetched: at the start, and after the runtime said they
+    /// changed.
+    pub masks_dirty: AtomicBool,
+    /// FOVs come from submitted frames once there are any (what the app really rendered with),
+    /// before that from located views.
+    pub fov_submitted: AtomicBool,
+}
+
+/// Views of `XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO`, the only configuration masks are kept for.
+const STEREO_VIEWS: u32 = 2;
+
+pub(crate) fn fov_tangents(fov: &xr::Fovf) -> ViewFov {
+    ViewFov {
+        tan_left: fov.angle_left.tan(),
+        tan_right: fov.angle_right.tan(),
+        tan_up: fov.angle_up.tan(),
+        tan_down: fov.angle_down.tan(),
+    }
+}
+
+/// Fetches one view's hidden triangle mesh from the runtime (two-call idiom). None when the runtime
+/// offers no visibility mask or the call fails (logged).
+fn runtime_mask(s: &Session, view: u32) -> Option<Vec<[f32; 2]>> {
+    if !s.instance.has_extension(super::VISIBILITY_MASK_EXT) {
+        return None;
+    }
+    let f = s.instance.next.get_visibility_mask?;
+    let ty = xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH;
+    let config = xr::ViewConfigurationType::PRIMARY_STEREO;
+    let mut mask = xr::VisibilityMaskKHR {
+        ty: xr::VisibilityMaskKHR::TYPE,
+        next: std::ptr::null_mut(),
+        vertex_capacity_input: 0,
+        vertex_count_output: 0,
+        vertices: std::ptr::null_mut(),
+        index_capacity_input: 0,
+        index_count_output: 0,
+        indices: std::ptr::null_mut(),
+    };
+    // SAFETY: the two-call idiom: counts first, then arrays of the reported sizes.
+    let r = unsafe { f(s.handle, config, view, ty, &mut mask) };
+    if r != xr::Result::SUCCESS {
+        tracing::warn!(?r, "xrGetVisibilityMaskKHR(view {view}) failed");
+        return None;
+    }
+    let mut vertices = vec![xr::Vector2f { x: 0.0, y: 0.0 }; mask.vertex_count_output as usize];
+    let mut indices = vec![0u32; mask.index_count_output as usize];
+    mask.vertex_capacity_input = vertices.len() as u32;
+    mask.index_capacity_input = indices.len() as u32;
+    mask.vertices = vertices.as_mut_ptr();
+    mask.indices = indices.as_mut_ptr();
+    // SAFETY: the arrays hold the capacities given.
+    let r = unsafe { f(s.handle, config, view, ty, &mut mask) };
+    if r != xr::Result::SUCCESS {
+        tracing::warn!(?r, "xrGetVisibilityMaskKHR(view {view}) failed");
+        return None;
+    }
+    vertices.truncate(mask.vertex_count_output as usize);
+    indices.truncate(mask.index_count_output as usize);
+    let v: Vec<[f32; 2]> = vertices.iter().map(|p| [p.x, p.y]).collect();
+    Some(crate::mask_source::expand(&v, &indices))
+}
+
+/// (Re)publishes the hidden-area masks of all views when they are due.
+pub(crate) fn refresh_masks(s: &Session) {
+    let config = &s.instance.config;
+    if !config.bool("mask.enabled") || !s.masks_dirty.swap(false, Ordering::AcqRel) {
+        return;
+    }
+    let policy = SourcePolicy::from_config(config.choice("mask.source"));
+    let radius = config.float("mask.synthesized.radius_deg");
+    let lens = LensShape { horizontal_deg: radius, vertical_deg: (radius * config.float("mask.synthesized.aspect")).min(89.0) };
+    let mut masks = Vec::new();
+    for view in 0..STEREO_VIEWS {
+        match mask_source::choose(policy, runtime_mask(s, view), &lens) {
+            Some((source, triangles)) => {
+                tracing::info!("view {view}: hidden-area mask from {source:?}, {} triangles", triangles.len() / 3);
+                masks.push(ViewMask { view, source, triangles });
+            }
+            None => tracing::info!("view {view}: no hidden-area mask (mask.source = runtime and the runtime has none)"),
+        }
+    }
+    crate::shared::shared().update_views(Some(masks), None);
 }
 
 /// Finds the session's state, or the instance to forward an unknown handle through.
@@ -94,7 +180,14 @@ pub(super) unsafe extern "system" fn create_session(
             ),
             None => tracing::warn!("session {:#x} has no Vulkan binding: nothing to do for it", handle.into_raw()),
         }
-        let s = Session { handle, instance: inst.clone(), binding, views: Mutex::new(Vec::new()) };
+        let s = Session {
+            handle,
+            instance: inst.clone(),
+            binding,
+            views: Mutex::new(Vec::new()),
+            masks_dirty: AtomicBool::new(true),
+            fov_submitted: AtomicBool::new(false),
+        };
         state().sessions.insert(handle.into_raw(), Arc::new(s));
         Ok(r)
     }, plain)
@@ -156,6 +249,9 @@ pub(super) unsafe extern "system" fn locate_views(
             let mut last = s.views.lock().unwrap_or_else(|e| e.into_inner());
             last.clear();
             last.extend(located.iter().map(|v| LocatedView { pose: v.pose, fov: v.fov }));
+            if !s.fov_submitted.load(Ordering::Acquire) {
+                crate::shared::shared().update_views(None, Some(located.iter().map(|v| fov_tangents(&v.fov)).collect()));
+            }
         }
         Ok(r)
     }, plain)

@@ -1,0 +1,168 @@
+//! Where each view's hidden-area mask comes from: the runtime's `XR_KHR_visibility_mask` mesh, or,
+//! when the runtime has none, a lens shape synthesized from configuration in angular terms (so one
+//! config means the same on every HMD). Pure; the OpenXR shell fetches and publishes.
+
+use crate::shared::MaskSource;
+use std::f64::consts::PI;
+
+/// The configured lens: visible where the direction's angle from the optical axis, split into its
+/// horizontal and vertical parts in an azimuthal-equidistant projection, lies inside the ellipse
+/// with these half-angles. A circle (equal half-angles) is exactly a cone around the axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LensShape {
+    pub horizontal_deg: f64,
+    pub vertical_deg: f64,
+}
+
+/// Polygon resolution of the synthesized outline.
+const SEGMENTS: usize = 64;
+/// The hidden region reaches this far out in the tangent plane (beyond any real FOV: tan 89.4°);
+/// the rasterizer clips it to the eye's viewport.
+const FAR: f64 = 100.0;
+
+impl LensShape {
+    /// Tangent-plane radius of the lens outline in direction `phi` (radians, from +x towards +y).
+    fn radius(&self, phi: f64) -> f64 {
+        let (a, b) = (self.horizontal_deg.to_radians(), self.vertical_deg.to_radians());
+        let alpha = 1.0 / ((phi.cos() / a).powi(2) + (phi.sin() / b).powi(2)).sqrt();
+        alpha.min(89.0f64.to_radians()).tan()
+    }
+
+    /// The hidden area as tangent-plane triangles (CCW, 3 points each): everything outside a
+    /// polygon that contains the lens outline. Conservative by construction: each polygon vertex
+    /// sits outside the outline by the circumscribing factor 1/cos(π/n) plus a margin for the
+    /// outline's curvature, so no triangle covers a direction the lens shows.
+    pub fn hidden_triangles(&self) -> Vec<[f32; 2]> {
+        let margin = 1.0 / (PI / SEGMENTS as f64).cos() * 1.01;
+        let dir = |i: usize| {
+            let phi = 2.0 * PI * (i % SEGMENTS) as f64 / SEGMENTS as f64;
+            (phi, [phi.cos(), phi.sin()])
+        };
+        let mut out = Vec::with_capacity(SEGMENTS * 6);
+        for i in 0..SEGMENTS {
+            let (p0, d0) = dir(i);
+            let (p1, d1) = dir(i + 1);
+            let (r0, r1) = (self.radius(p0) * margin, self.radius(p1) * margin);
+            let inner0 = [d0[0] * r0, d0[1] * r0];
+            let inner1 = [d1[0] * r1, d1[1] * r1];
+            let outer0 = [d0[0] * FAR, d0[1] * FAR];
+            let outer1 = [d1[0] * FAR, d1[1] * FAR];
+            // CCW in the tangent plane (y up): inner0 → outer0 → outer1, inner0 → outer1 → inner1.
+            for p in [inner0, outer0, outer1, inner0, outer1, inner1] {
+                out.push([p[0] as f32, p[1] as f32]);
+            }
+        }
+        out
+    }
+
+    /// Whether a tangent-plane point lies inside the lens outline (tests, diagnostics).
+    pub fn contains(&self, t: [f64; 2]) -> bool {
+        let rho = (t[0] * t[0] + t[1] * t[1]).sqrt();
+        rho <= self.radius(t[1].atan2(t[0]))
+    }
+}
+
+/// `mask.source`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SourcePolicy {
+    Auto,
+    Runtime,
+    Synthesized,
+}
+
+impl SourcePolicy {
+    pub fn from_config(choice: &str) -> SourcePolicy {
+        match choice {
+            "runtime" => SourcePolicy::Runtime,
+            "synthesized" => SourcePolicy::Synthesized,
+            _ => SourcePolicy::Auto,
+        }
+    }
+}
+
+/// Picks a view's mask. `runtime` is the runtime's hidden mesh (None: the runtime offers no
+/// visibility mask; an empty mesh means "no mask" per the spec).
+pub fn choose(policy: SourcePolicy, runtime: Option<Vec<[f32; 2]>>, lens: &LensShape) -> Option<(MaskSource, Vec<[f32; 2]>)> {
+    let runtime = runtime.filter(|t| t.len() >= 3);
+    match (policy, runtime) {
+        (SourcePolicy::Synthesized, _) => Some((MaskSource::Synthesized, lens.hidden_triangles())),
+        (_, Some(t)) => Some((MaskSource::Runtime, t)),
+        (SourcePolicy::Auto, None) => Some((MaskSource::Synthesized, lens.hidden_triangles())),
+        (SourcePolicy::Runtime, None) => None,
+    }
+}
+
+/// Expands an indexed mesh (as `xrGetVisibilityMaskKHR` returns it) into a triangle list; indices
+/// out of range drop their triangle (a malformed runtime mesh must not take the app down).
+pub fn expand(vertices: &[[f32; 2]], indices: &[u32]) -> Vec<[f32; 2]> {
+    indices
+        .chunks_exact(3)
+        .filter(|tri| tri.iter().all(|&i| (i as usize) < vertices.len()))
+        .flat_map(|tri| tri.iter().map(|&i| vertices[i as usize]))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn inside_triangle(p: [f64; 2], t: &[[f32; 2]]) -> bool {
+        let cross = |a: [f32; 2], b: [f32; 2]| {
+            (b[0] as f64 - a[0] as f64) * (p[1] - a[1] as f64) - (b[1] as f64 - a[1] as f64) * (p[0] - a[0] as f64)
+        };
+        let (c0, c1, c2) = (cross(t[0], t[1]), cross(t[1], t[2]), cross(t[2], t[0]));
+        c0 >= 0.0 && c1 >= 0.0 && c2 >= 0.0
+    }
+
+    #[test]
+    fn synthesized_mask_never_covers_the_lens_and_covers_what_is_far_outside() {
+        for lens in [LensShape { horizontal_deg: 55.0, vertical_deg: 55.0 }, LensShape { horizontal_deg: 50.0, vertical_deg: 40.0 }] {
+            let tris = lens.hidden_triangles();
+            assert_eq!(tris.len(), SEGMENTS * 6);
+            for tri in tris.chunks_exact(3) {
+                let area = (tri[1][0] - tri[0][0]) * (tri[2][1] - tri[0][1]) - (tri[2][0] - tri[0][0]) * (tri[1][1] - tri[0][1]);
+                assert!(area > 0.0, "triangle not CCW: {tri:?}");
+            }
+            // A dense grid of tangent-plane points: inside the lens → in no triangle; clearly
+            // outside (5 % further out than the outline) → in some triangle.
+            for iy in -60..=60 {
+                for ix in -60..=60 {
+                    let p = [ix as f64 * 0.05, iy as f64 * 0.05];
+                    let covered = tris.chunks_exact(3).any(|t| inside_triangle(p, t));
+                    if lens.contains(p) {
+                        assert!(!covered, "{lens:?}: visible point {p:?} is masked");
+                    }
+                    let rho = (p[0] * p[0] + p[1] * p[1]).sqrt();
+                    if rho > lens.radius(p[1].atan2(p[0])) * 1.05 {
+                        assert!(covered, "{lens:?}: hidden point {p:?} is not masked");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn circle_is_a_cone() {
+        let lens = LensShape { horizontal_deg: 45.0, vertical_deg: 45.0 };
+        assert!(lens.contains([0.70, 0.70]));
+        assert!(!lens.contains([0.72, 0.72]));
+        assert!((lens.radius(1.0) - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn source_choice() {
+        let lens = LensShape { horizontal_deg: 50.0, vertical_deg: 50.0 };
+        let mesh = vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        assert_eq!(choose(SourcePolicy::Auto, Some(mesh.clone()), &lens).unwrap().0, MaskSource::Runtime);
+        assert_eq!(choose(SourcePolicy::Auto, None, &lens).unwrap().0, MaskSource::Synthesized);
+        assert_eq!(choose(SourcePolicy::Auto, Some(vec![]), &lens).unwrap().0, MaskSource::Synthesized);
+        assert!(choose(SourcePolicy::Runtime, None, &lens).is_none());
+        assert_eq!(choose(SourcePolicy::Synthesized, Some(mesh), &lens).unwrap().0, MaskSource::Synthesized);
+    }
+
+    #[test]
+    fn expand_drops_bad_indices() {
+        let v = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        assert_eq!(expand(&v, &[0, 1, 2, 0, 1, 7, 2]), vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
+    }
+}
