@@ -5,6 +5,7 @@
 pub mod config;
 pub mod guard;
 pub mod log;
+pub mod mask;
 pub mod mask_source;
 pub mod registry;
 pub mod shared;

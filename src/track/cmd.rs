@@ -83,6 +83,22 @@ pub enum StateCmd {
     LogicOp(vk::LogicOp),
     PatchControlPoints(u32),
     PushConstants { layout: u64, stages: vk::ShaderStageFlags, offset: u32, data: Vec<u8> },
+    /// `vkCmdBindVertexBuffers` (sizes and strides None) or `vkCmdBindVertexBuffers2`. Not
+    /// dynamic state, but an injected draw binds its own vertex buffer, so it is restored too.
+    BindVertexBuffers { first: u32, bindings: Vec<VertexBinding> },
+}
+
+/// One vertex buffer binding slot as the app set it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct VertexBinding {
+    pub buffer: u64,
+    pub offset: u64,
+    /// `vkCmdBindVertexBuffers2` only (`pSizes`; None = whole size / not given).
+    pub size: Option<u64>,
+    /// `vkCmdBindVertexBuffers2` only (`pStrides`).
+    pub stride: Option<u64>,
+    /// Bound with `vkCmdBindVertexBuffers2` (replayed the same way).
+    pub v2: bool,
 }
 
 impl StateCmd {
@@ -91,7 +107,7 @@ impl StateCmd {
     pub fn dynamic_state(&self) -> Option<vk::DynamicState> {
         use vk::DynamicState as D;
         Some(match self {
-            StateCmd::BindPipeline(_) | StateCmd::PushConstants { .. } => return None,
+            StateCmd::BindPipeline(_) | StateCmd::PushConstants { .. } | StateCmd::BindVertexBuffers { .. } => return None,
             StateCmd::SetViewport { .. } => D::VIEWPORT,
             StateCmd::SetViewportWithCount(_) => D::VIEWPORT_WITH_COUNT,
             StateCmd::SetScissor { .. } => D::SCISSOR,
@@ -258,7 +274,13 @@ pub struct CmdState {
     /// Push constant updates still in effect, oldest first; ones fully covered by a later update of
     /// the same stages and layout are dropped.
     push_constants: Vec<StateCmd>,
+    /// Vertex buffer binding slots.
+    vertex_buffers: Vec<Option<VertexBinding>>,
     pub pass: Option<PassInstance>,
+    /// Depth values written by `vkCmdClearDepthStencilImage` since the image was last used as an
+    /// attachment in this command buffer: image → depth. A later pass that loads the image starts
+    /// from that clear.
+    pub depth_image_clears: Vec<(u64, f32)>,
 }
 
 const MAX_PUSHES: usize = 64;
@@ -308,6 +330,7 @@ impl CmdState {
                 self.viewport_count = Some(v.len() as u32);
             }
             StateCmd::SetScissor { first, scissors } => put(&mut self.scissors, first, &scissors),
+            StateCmd::BindVertexBuffers { first, bindings } => put(&mut self.vertex_buffers, first, &bindings),
             StateCmd::SetScissorWithCount(s) => {
                 put(&mut self.scissors, 0, &s);
                 self.scissor_count = Some(s.len() as u32);
@@ -371,7 +394,8 @@ impl CmdState {
     /// undefined, so nothing of it may be restored.
     pub fn forget_graphics_state(&mut self) {
         let (recording, usage, pass) = (self.recording, self.usage, self.pass.take());
-        *self = CmdState { recording, usage, pass, ..CmdState::default() };
+        let depth_image_clears = std::mem::take(&mut self.depth_image_clears);
+        *self = CmdState { recording, usage, pass, depth_image_clears, ..CmdState::default() };
     }
 
     /// Commands that re-establish this state after an injected draw changed it: the pipeline
@@ -410,7 +434,23 @@ impl CmdState {
         }
         out.extend(stencil_pending);
         out.extend(self.push_constants.iter().cloned());
+        // Vertex buffers: one command per run of consecutive slots bound the same way.
+        for (first, bindings) in runs(&self.vertex_buffers, 0) {
+            let mut start = 0;
+            for i in 1..=bindings.len() {
+                let same = |a: &VertexBinding, b: &VertexBinding| a.v2 == b.v2 && a.stride.is_some() == b.stride.is_some();
+                if i == bindings.len() || !same(&bindings[i], &bindings[start]) {
+                    out.push(StateCmd::BindVertexBuffers { first: first + start as u32, bindings: bindings[start..i].to_vec() });
+                    start = i;
+                }
+            }
+        }
         out
+    }
+
+    /// Whether the app bound any vertex buffer (the mask binds one at binding 0).
+    pub fn has_vertex_buffers(&self) -> bool {
+        self.vertex_buffers.iter().any(Option::is_some)
     }
 }
 
@@ -592,6 +632,28 @@ mod tests {
         let mut kinds: Vec<i32> = all.iter().map(|c| c.dynamic_state().unwrap().as_raw()).collect();
         kinds.dedup();
         assert_eq!(kinds.len(), all.len());
+    }
+
+    #[test]
+    fn vertex_buffers_replay_in_runs_and_survive_pipeline_binds() {
+        let mut s = CmdState::default();
+        let b = |buffer, v2, stride| VertexBinding { buffer, offset: 0, size: None, stride, v2 };
+        s.record(StateCmd::BindVertexBuffers { first: 0, bindings: vec![b(1, false, None), b(2, false, None)] });
+        s.record(StateCmd::BindVertexBuffers { first: 2, bindings: vec![b(3, true, Some(16))] });
+        s.record(StateCmd::BindVertexBuffers { first: 5, bindings: vec![b(4, false, None)] });
+        s.bind_pipeline(7, Some(pipeline(&[])));
+        assert!(s.has_vertex_buffers());
+        assert_eq!(
+            s.restore_commands(),
+            vec![
+                StateCmd::BindPipeline(7),
+                StateCmd::BindVertexBuffers { first: 0, bindings: vec![b(1, false, None), b(2, false, None)] },
+                StateCmd::BindVertexBuffers { first: 2, bindings: vec![b(3, true, Some(16))] },
+                StateCmd::BindVertexBuffers { first: 5, bindings: vec![b(4, false, None)] },
+            ]
+        );
+        s.forget_graphics_state();
+        assert!(!s.has_vertex_buffers());
     }
 
     #[test]

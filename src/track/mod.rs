@@ -4,6 +4,7 @@
 
 pub mod cmd;
 pub mod device_ext;
+pub mod eye_pass;
 pub mod resources;
 
 use crate::registry::HandleMap;
@@ -12,6 +13,7 @@ use ash::vk;
 use cmd::{AttachmentUse, ClearValue, CmdState, DynamicRendering, PassInstance, PassKind, Rect};
 use resources::{CommandPool, Framebuffer, FramebufferAttachments, GraphicsPipeline, Image, ImageView, RenderPass};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 
 /// A command buffer and its recorded state. The app synchronizes use of a command buffer
@@ -85,7 +87,21 @@ pub struct DeviceTracker {
     pub pools: HandleMap<u64, CommandPool>,
     pub command_buffers: HandleMap<u64, CommandBuffer>,
     pub stats: Stats,
+    /// Transfers (copy / resolve / blit) from other images into swapchain images, by source
+    /// image: how intermediate eye targets are found.
+    transfers: Mutex<HashMap<u64, Vec<Transfer>>>,
 }
+
+/// One recorded transfer region into a swapchain image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Transfer {
+    pub dst_image: u64,
+    pub region: eye_pass::TransferRegion,
+}
+
+/// Distinct regions kept per source image (the newest win); apps transfer each target a few ways
+/// at most.
+const MAX_TRANSFERS: usize = 8;
 
 impl DeviceTracker {
     /// Runs `f` on a tracked command buffer's state; None for one allocated before the layer saw it.
@@ -222,6 +238,48 @@ impl DeviceTracker {
                 p.subpass += 1;
             }
         });
+    }
+
+    /// Records transfers from `src` into `dst` when `dst` is a swapchain image (the only ones that
+    /// make `src` an intermediate eye target). The eye mapping is resolved at pass time against the
+    /// swapchain's current eye uses, so a transfer recorded before the first `xrEndFrame` counts.
+    pub fn record_transfer(&self, shared: &Shared, src: u64, dst: u64, regions: &[eye_pass::TransferRegion]) {
+        if src == dst || shared.images.get(dst).is_none() || regions.is_empty() {
+            return;
+        }
+        let mut t = self.transfers.lock().unwrap_or_else(|e| e.into_inner());
+        let list = t.entry(src).or_default();
+        for r in regions {
+            list.retain(|x| x.region != *r);
+            list.push(Transfer { dst_image: dst, region: *r });
+        }
+        let excess = list.len().saturating_sub(MAX_TRANSFERS);
+        list.drain(..excess);
+    }
+
+    /// Forgets what was learned about a destroyed image.
+    pub fn forget_image(&self, image: u64) {
+        self.images.remove(image);
+        self.transfers.lock().unwrap_or_else(|e| e.into_inner()).remove(&image);
+    }
+
+    /// What transfers say about the eyes `image` shows: None when it was never transferred into a
+    /// swapchain image.
+    pub fn intermediate_eyes(&self, shared: &Shared, image: u64) -> Option<eye_pass::Learned> {
+        let transfers = self.transfers.lock().unwrap_or_else(|e| e.into_inner()).get(&image).cloned()?;
+        let img = self.images.get(image)?;
+        let mut eyes = Vec::new();
+        let mut rejected = Vec::new();
+        for t in &transfers {
+            let Some(sc) = shared.images.get(t.dst_image) else { continue };
+            match eye_pass::learn_intermediate(&[t.region], &sc.swapchain.uses(), (img.extent.width, img.extent.height)) {
+                eye_pass::Learned::Eyes(e) => eyes.extend(e),
+                eye_pass::Learned::Rejected(w) => rejected.push(w),
+            }
+        }
+        eyes.sort_by_key(|s| (s.layer, s.rect.x, s.rect.y, s.view));
+        eyes.dedup();
+        Some(if eyes.is_empty() { eye_pass::Learned::Rejected(rejected.join("; ")) } else { eye_pass::Learned::Eyes(eyes) })
     }
 
     pub fn end_pass(&self, cb: u64) {

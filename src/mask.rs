@@ -1,0 +1,344 @@
+//! Hidden-area mask geometry, pure and GPU-free: where a view's hidden triangles land in an eye
+//! pass (tangent plane → NDC through the view's FOV) and how many pixels they cover in a viewport,
+//! counted the way the rasterizer does (fixed-point vertices, pixel centres, top-left rule), so the
+//! layer's "pixels masked" statistics and the tests' predicted savings match what the GPU rejects.
+
+use crate::shared::ViewFov;
+use std::collections::BTreeMap;
+
+/// Sub-pixel precision of vertex positions: lavapipe (llvmpipe) and most GPUs snap to 1/256 px.
+const SUBPIXEL_BITS: u32 = 8;
+const ONE: i64 = 1 << SUBPIXEL_BITS;
+
+/// Maps one tangent-plane point (x right, y up) into Vulkan NDC of an image covering `fov`
+/// (x right, y down).
+pub fn tangent_to_ndc(p: [f32; 2], fov: &ViewFov) -> [f32; 2] {
+    let (l, r, u, d) = (fov.tan_left, fov.tan_right, fov.tan_up, fov.tan_down);
+    let x = (2.0 * p[0] - (r + l)) / (r - l);
+    // Vulkan's y points down: the tangent plane's up is NDC −1.
+    let y = -(2.0 * p[1] - (u + d)) / (u - d);
+    [x, y]
+}
+
+/// A view's hidden triangles (3 points each) in NDC; points of a FOV without extent map nowhere
+/// (empty), so a broken FOV never produces a mask.
+pub fn triangles_to_ndc(triangles: &[[f32; 2]], fov: &ViewFov) -> Vec<[f32; 2]> {
+    if !(fov.tan_right > fov.tan_left && fov.tan_up > fov.tan_down) {
+        return Vec::new();
+    }
+    let whole = triangles.len() / 3 * 3;
+    triangles[..whole]
+        .iter()
+        .map(|&p| tangent_to_ndc(p, fov))
+        .filter(|p| p[0].is_finite() && p[1].is_finite())
+        .collect::<Vec<_>>()
+        .chunks_exact(3)
+        .flatten()
+        .copied()
+        .collect()
+}
+
+/// A viewport in framebuffer pixels (`VkViewport` without depth).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViewportRect {
+    pub x: f32,
+    pub y: f32,
+    pub width: f32,
+    pub height: f32,
+}
+
+/// A pixel rectangle (scissor, render area, image rect).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct PixelRect {
+    pub x: i32,
+    pub y: i32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl PixelRect {
+    pub fn intersect(&self, o: &PixelRect) -> PixelRect {
+        let x0 = self.x.max(o.x);
+        let y0 = self.y.max(o.y);
+        let x1 = (self.x as i64 + self.width as i64).min(o.x as i64 + o.width as i64);
+        let y1 = (self.y as i64 + self.height as i64).min(o.y as i64 + o.height as i64);
+        PixelRect { x: x0, y: y0, width: (x1 - x0 as i64).max(0) as u32, height: (y1 - y0 as i64).max(0) as u32 }
+    }
+    pub fn contains(&self, o: &PixelRect) -> bool {
+        self.intersect(o) == *o
+    }
+    pub fn area(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+    pub fn viewport(&self) -> ViewportRect {
+        ViewportRect { x: self.x as f32, y: self.y as f32, width: self.width as f32, height: self.height as f32 }
+    }
+}
+
+/// Which pixels of `clip` (viewport ∩ scissor, framebuffer pixels) NDC triangles cover: a
+/// row-major bitmap of `clip`, a pixel set when its centre is inside a triangle by the top-left
+/// rule. Overlapping triangles count a pixel once.
+pub fn coverage_bitmap(ndc: &[[f32; 2]], viewport: ViewportRect, scissor: PixelRect) -> (PixelRect, Vec<bool>) {
+    // Pixels whose centres lie inside the viewport (primitives are clipped to it).
+    let vx0 = (viewport.x - 0.5).ceil() as i64;
+    let vy0 = (viewport.y - 0.5).ceil() as i64;
+    let vx1 = (viewport.x + viewport.width - 0.5).ceil() as i64;
+    let vy1 = (viewport.y + viewport.height - 0.5).ceil() as i64;
+    let vp = PixelRect {
+        x: vx0 as i32,
+        y: vy0 as i32,
+        width: (vx1 - vx0).max(0) as u32,
+        height: (vy1 - vy0).max(0) as u32,
+    };
+    let clip = vp.intersect(&scissor);
+    let mut bits = vec![false; clip.area() as usize];
+    let to_fixed = |p: [f32; 2]| -> (i64, i64) {
+        let fx = viewport.x + (p[0] + 1.0) * 0.5 * viewport.width;
+        let fy = viewport.y + (p[1] + 1.0) * 0.5 * viewport.height;
+        ((fx as f64 * ONE as f64).round() as i64, (fy as f64 * ONE as f64).round() as i64)
+    };
+    for tri in ndc.chunks_exact(3) {
+        let mut v = [to_fixed(tri[0]), to_fixed(tri[1]), to_fixed(tri[2])];
+        let area = (v[1].0 - v[0].0) * (v[2].1 - v[0].1) - (v[1].1 - v[0].1) * (v[2].0 - v[0].0);
+        if area == 0 {
+            continue;
+        }
+        if area < 0 {
+            v.swap(1, 2);
+        }
+        // Edge a→b; the interior is where E(p) = dx·(py−ay) − dy·(px−ax) > 0. In y-down pixel
+        // space a top edge is horizontal with the interior below (dx > 0), a left edge has the
+        // interior to its right (dy < 0); pixel centres exactly on those edges are inside.
+        let edges: Vec<(i64, i64, i64, i64, bool)> = (0..3)
+            .map(|i| {
+                let (a, b) = (v[i], v[(i + 1) % 3]);
+                let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+                let top_left = (dy == 0 && dx > 0) || dy < 0;
+                (a.0, a.1, dx, dy, top_left)
+            })
+            .collect();
+        let min_x = v.iter().map(|p| p.0).min().unwrap_or(0);
+        let max_x = v.iter().map(|p| p.0).max().unwrap_or(0);
+        let min_y = v.iter().map(|p| p.1).min().unwrap_or(0);
+        let max_y = v.iter().map(|p| p.1).max().unwrap_or(0);
+        let px0 = (min_x.div_euclid(ONE) - 1).max(clip.x as i64);
+        let px1 = (max_x.div_euclid(ONE) + 1).min(clip.x as i64 + clip.width as i64 - 1);
+        let py0 = (min_y.div_euclid(ONE) - 1).max(clip.y as i64);
+        let py1 = (max_y.div_euclid(ONE) + 1).min(clip.y as i64 + clip.height as i64 - 1);
+        for py in py0..=py1 {
+            let cy = py * ONE + ONE / 2;
+            for px in px0..=px1 {
+                let cx = px * ONE + ONE / 2;
+                let inside = edges.iter().all(|&(ax, ay, dx, dy, tl)| {
+                    let e = dx * (cy - ay) - dy * (cx - ax);
+                    e > 0 || (e == 0 && tl)
+                });
+                if inside {
+                    bits[((py - clip.y as i64) as u64 * clip.width as u64 + (px - clip.x as i64) as u64) as usize] = true;
+                }
+            }
+        }
+    }
+    (clip, bits)
+}
+
+/// How many pixels NDC triangles cover in a viewport, within a scissor.
+pub fn coverage(ndc: &[[f32; 2]], viewport: ViewportRect, scissor: PixelRect) -> u64 {
+    coverage_bitmap(ndc, viewport, scissor).1.iter().filter(|&&b| b).count() as u64
+}
+
+/// How many pixels of an eye's image rect a view's hidden triangles (tangent plane) cover when the
+/// image rect shows `fov`: the prediction of what the mask saves per pass.
+pub fn masked_pixels(triangles: &[[f32; 2]], fov: &ViewFov, rect: PixelRect) -> u64 {
+    coverage(&triangles_to_ndc(triangles, fov), rect.viewport(), rect)
+}
+
+/// Why a render pass instance got no mask. Stable names: they appear in statistics and logs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum NotMasked {
+    /// Nothing of the pass renders into a swapchain image or a known intermediate target.
+    NotEyePass,
+    /// It renders into a swapchain image whose eye use the OpenXR half has not seen yet, or into a
+    /// target not (yet) known to be copied into one.
+    EyeUnknown,
+    NoDepthAttachment,
+    /// The depth attachment is loaded, not cleared, at the start of the pass (and no clear of it
+    /// was seen).
+    DepthNotCleared,
+    /// Cleared to something other than 0 or 1: which value fails the app's test is unknown.
+    DepthClearNot01,
+    /// `SECONDARY_COMMAND_BUFFERS` contents or a secondary command buffer: draws cannot be
+    /// recorded there by the layer.
+    Secondary,
+    /// The OpenXR half has no mask or FOV for the eye's view.
+    NoMask,
+    /// A shape the layer does not handle (e.g. multiview layers not in view order, rects that
+    /// differ between views of one multiview pass).
+    Unsupported,
+    /// `mask.intermediate = off` and the pass renders into an intermediate target.
+    IntermediateOff,
+    /// The layer could not create its pipeline or vertex buffer.
+    LayerError,
+}
+
+impl NotMasked {
+    pub const ALL: [NotMasked; 10] = [
+        NotMasked::NotEyePass,
+        NotMasked::EyeUnknown,
+        NotMasked::NoDepthAttachment,
+        NotMasked::DepthNotCleared,
+        NotMasked::DepthClearNot01,
+        NotMasked::Secondary,
+        NotMasked::NoMask,
+        NotMasked::Unsupported,
+        NotMasked::IntermediateOff,
+        NotMasked::LayerError,
+    ];
+    pub fn name(&self) -> &'static str {
+        match self {
+            NotMasked::NotEyePass => "not_eye_pass",
+            NotMasked::EyeUnknown => "eye_unknown",
+            NotMasked::NoDepthAttachment => "no_depth_attachment",
+            NotMasked::DepthNotCleared => "depth_not_cleared",
+            NotMasked::DepthClearNot01 => "depth_clear_not_0_1",
+            NotMasked::Secondary => "secondary",
+            NotMasked::NoMask => "no_mask",
+            NotMasked::Unsupported => "unsupported",
+            NotMasked::IntermediateOff => "intermediate_off",
+            NotMasked::LayerError => "layer_error",
+        }
+    }
+}
+
+/// What the mask did in one frame (between two `xrEndFrame`s), summed over devices. Plain fields:
+/// the OpenXR half writes them to `stats.file`.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct MaskFrameStats {
+    /// Eye passes (render pass instances or explicit depth clears) that got a mask.
+    pub passes_masked: u64,
+    /// Render pass instances with a depth or swapchain attachment that got none, by reason
+    /// (`NotMasked::name`).
+    pub not_masked: BTreeMap<&'static str, u64>,
+    /// Pixels covered by the drawn mask, per OpenXR view index.
+    pub pixels_masked: BTreeMap<u32, u64>,
+}
+
+impl MaskFrameStats {
+    pub fn add(&mut self, o: &MaskFrameStats) {
+        self.passes_masked += o.passes_masked;
+        for (k, v) in &o.not_masked {
+            *self.not_masked.entry(k).or_insert(0) += v;
+        }
+        for (k, v) in &o.pixels_masked {
+            *self.pixels_masked.entry(*k).or_insert(0) += v;
+        }
+    }
+    pub fn count_not_masked(&mut self, why: NotMasked) {
+        *self.not_masked.entry(why.name()).or_insert(0) += 1;
+    }
+    pub fn pixels_total(&self) -> u64 {
+        self.pixels_masked.values().sum()
+    }
+    /// `key=value` pairs for the `vulkan device stats:` line.
+    pub fn summary(&self) -> String {
+        let mut s = format!("masked_passes={} masked_pixels={}", self.passes_masked, self.pixels_total());
+        for (k, v) in &self.not_masked {
+            s.push_str(&format!(" not_masked.{k}={v}"));
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const FOV: ViewFov = ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
+
+    #[test]
+    fn tangent_plane_maps_to_vulkan_ndc() {
+        assert_eq!(tangent_to_ndc([-1.0, 1.0], &FOV), [-1.0, -1.0], "top left");
+        assert_eq!(tangent_to_ndc([1.0, -1.0], &FOV), [1.0, 1.0], "bottom right");
+        let asym = ViewFov { tan_left: -2.0, tan_right: 1.0, tan_up: 0.5, tan_down: -1.5 };
+        assert_eq!(tangent_to_ndc([-2.0, 0.5], &asym), [-1.0, -1.0]);
+        assert_eq!(tangent_to_ndc([1.0, -1.5], &asym), [1.0, 1.0]);
+        let c = tangent_to_ndc([-0.5, -0.5], &asym);
+        assert!((c[0] - 0.0).abs() < 1e-6 && (c[1] - 0.0).abs() < 1e-6, "{c:?}");
+        assert!(triangles_to_ndc(&[[0.0, 0.0]; 3], &ViewFov { tan_left: 1.0, ..FOV }).is_empty());
+        assert_eq!(triangles_to_ndc(&[[0.0, 0.0]; 5], &FOV).len(), 3, "a partial triangle is dropped");
+    }
+
+    fn full_quad() -> Vec<[f32; 2]> {
+        vec![[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
+    }
+
+    #[test]
+    fn a_full_screen_quad_covers_every_pixel_once() {
+        let r = PixelRect { x: 0, y: 0, width: 37, height: 23 };
+        assert_eq!(coverage(&full_quad(), r.viewport(), r), 37 * 23);
+        // The shared diagonal is counted once (top-left rule and the bitmap).
+        let scissor = PixelRect { x: 5, y: 5, width: 10, height: 100 };
+        assert_eq!(coverage(&full_quad(), r.viewport(), scissor), 10 * 18);
+    }
+
+    #[test]
+    fn top_left_rule_on_pixel_centres() {
+        // A triangle whose left edge runs through pixel centres x = 2.5 and whose top edge runs
+        // through y = 1.5: those centres are inside; the right/bottom ones on edges are not.
+        let vp = ViewportRect { x: 0.0, y: 0.0, width: 10.0, height: 10.0 };
+        let to_ndc = |x: f32, y: f32| [x / 5.0 - 1.0, y / 5.0 - 1.0];
+        // Rectangle [2.5, 6.5] × [1.5, 4.5] as two triangles, both windings.
+        let rect = vec![
+            to_ndc(2.5, 1.5),
+            to_ndc(6.5, 1.5),
+            to_ndc(6.5, 4.5),
+            to_ndc(2.5, 1.5),
+            to_ndc(2.5, 4.5),
+            to_ndc(6.5, 4.5),
+        ];
+        let (clip, bits) = coverage_bitmap(&rect, vp, PixelRect { x: 0, y: 0, width: 10, height: 10 });
+        let at = |x: usize, y: usize| bits[y * clip.width as usize + x];
+        // Columns 2..=5 (centres 2.5..5.5; 6.5 is on the right edge), rows 1..=3.
+        for y in 0..10 {
+            for x in 0..10 {
+                assert_eq!(at(x, y), (2..=5).contains(&x) && (1..=3).contains(&y), "pixel {x},{y}");
+            }
+        }
+    }
+
+    #[test]
+    fn masked_pixels_of_a_corner_triangle() {
+        // The top-left half of the image above the anti-diagonal: (0,0), (w,0), (0,h).
+        let tris = vec![[-1.0, 1.0], [1.0, 1.0], [-1.0, -1.0]];
+        let rect = PixelRect { x: 100, y: 0, width: 100, height: 100 };
+        let n = masked_pixels(&tris, &FOV, rect);
+        // Pixel centres with x + y < 100 (exclusive diagonal) plus the diagonal by the rule.
+        assert!((4950..=5050).contains(&n), "{n}");
+    }
+
+    #[test]
+    fn stats_add_and_summarise() {
+        let mut a = MaskFrameStats::default();
+        a.passes_masked = 2;
+        a.pixels_masked.insert(0, 10);
+        a.count_not_masked(NotMasked::NoDepthAttachment);
+        let mut b = MaskFrameStats::default();
+        b.add(&a);
+        b.add(&a);
+        assert_eq!(b.passes_masked, 4);
+        assert_eq!(b.pixels_masked[&0], 20);
+        assert_eq!(b.summary(), "masked_passes=4 masked_pixels=20 not_masked.no_depth_attachment=2");
+        let names: std::collections::BTreeSet<_> = NotMasked::ALL.iter().map(|n| n.name()).collect();
+        assert_eq!(names.len(), NotMasked::ALL.len());
+    }
+
+    #[test]
+    fn rect_ops() {
+        let a = PixelRect { x: 0, y: 0, width: 10, height: 10 };
+        let b = PixelRect { x: 5, y: -5, width: 10, height: 10 };
+        assert_eq!(a.intersect(&b), PixelRect { x: 5, y: 0, width: 5, height: 5 });
+        assert!(a.contains(&PixelRect { x: 1, y: 1, width: 2, height: 2 }));
+        assert!(!a.contains(&b));
+        assert_eq!(a.intersect(&PixelRect { x: 20, y: 0, width: 1, height: 1 }).area(), 0);
+    }
+}
