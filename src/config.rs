@@ -286,11 +286,15 @@ pub fn default_path(env: &dyn Fn(&str) -> Option<String>) -> Option<PathBuf> {
 
 /// Loads and resolves the configuration from the process environment and the default file.
 pub fn load(app_names: &[&str]) -> (Config, Vec<String>) {
+    load_from(default_path(&|k| std::env::var(k).ok()).as_deref(), app_names)
+}
+
+/// Resolves the configuration from the process environment and the file at `path`.
+pub fn load_from(path: Option<&Path>, app_names: &[&str]) -> (Config, Vec<String>) {
     let env = |k: &str| std::env::var(k).ok();
-    let path = default_path(&env);
-    let text = path.as_ref().and_then(|p| std::fs::read_to_string(p).ok());
-    let file = match (&path, &text) {
-        (Some(p), Some(t)) => Some((p.as_path(), t.as_str())),
+    let text = path.and_then(|p| std::fs::read_to_string(p).ok());
+    let file = match (path, &text) {
+        (Some(p), Some(t)) => Some((p, t.as_str())),
         _ => None,
     };
     Config::resolve(&Inputs { file, app_names, env: &env })
@@ -576,6 +580,40 @@ mod tests {
 }
 
 #[cfg(test)]
+mod watch_tests {
+    use super::*;
+
+    #[test]
+    fn reload_sees_a_changed_file_once() {
+        let dir = std::env::temp_dir().join(format!("stereoshim-watch-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("config.toml");
+        std::fs::write(&path, "mask.enabled = false\n").unwrap();
+        let watch = Watch {
+            path: Some(path.clone()),
+            app_names: vec![],
+            interval: std::time::Duration::ZERO,
+            state: std::sync::Mutex::new(WatchState {
+                modified: std::fs::metadata(&path).and_then(|m| m.modified()).ok(),
+                checked: std::time::Instant::now(),
+            }),
+        };
+        assert!(watch.poll().is_none());
+        // A different modification time, as a later write has (coarse clocks can repeat one).
+        let later = std::fs::metadata(&path).unwrap().modified().unwrap() + std::time::Duration::from_secs(2);
+        std::fs::write(&path, "mask.enabled = true\n").unwrap();
+        std::fs::File::options().write(true).open(&path).unwrap().set_modified(later).unwrap();
+        let (reloaded, diagnostics) = watch.poll().expect("a changed file is reloaded");
+        assert!(diagnostics.is_empty(), "{diagnostics:?}");
+        assert!(reloaded.bool("mask.enabled"));
+        assert!(watch.poll().is_none());
+        let (a, _) = Config::resolve(&Inputs { file: Some((&path, "mask.enabled = true")), app_names: &[], env: &|_| None });
+        assert_eq!(changed_keys(&Config::defaults(), &a), vec!["mask.enabled"]);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
+
+#[cfg(test)]
 mod docs_tests {
     /// docs/configuration.md documents every key with its default; this keeps the two in step.
     #[test]
@@ -590,4 +628,57 @@ mod docs_tests {
             assert!(row.contains(&format!("| {default} |")), "docs/configuration.md: default of `{}` is not {default}", spec.key);
         }
     }
+}
+
+/// Watches the config file so feature settings apply while the app runs (tuning in the headset,
+/// A/B benchmarks). Checks the file's modification time at most every `interval`; cheap enough to
+/// ask once per frame.
+#[derive(Debug)]
+pub struct Watch {
+    path: Option<PathBuf>,
+    app_names: Vec<String>,
+    interval: std::time::Duration,
+    state: std::sync::Mutex<WatchState>,
+}
+
+#[derive(Debug)]
+struct WatchState {
+    modified: Option<std::time::SystemTime>,
+    checked: std::time::Instant,
+}
+
+impl Watch {
+    pub fn new(app_names: &[&str], interval: std::time::Duration) -> Watch {
+        let path = default_path(&|k| std::env::var(k).ok());
+        let modified = path.as_ref().and_then(|p| std::fs::metadata(p).and_then(|m| m.modified()).ok());
+        Watch {
+            path,
+            app_names: app_names.iter().map(|s| s.to_string()).collect(),
+            interval,
+            state: std::sync::Mutex::new(WatchState { modified, checked: std::time::Instant::now() }),
+        }
+    }
+
+    /// The newly resolved configuration when the file changed since the last look.
+    pub fn poll(&self) -> Option<(Config, Vec<String>)> {
+        let path = self.path.as_ref()?;
+        let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        if st.checked.elapsed() < self.interval {
+            return None;
+        }
+        st.checked = std::time::Instant::now();
+        let modified = std::fs::metadata(path).and_then(|m| m.modified()).ok();
+        if modified == st.modified {
+            return None;
+        }
+        st.modified = modified;
+        drop(st);
+        let names: Vec<&str> = self.app_names.iter().map(String::as_str).collect();
+        Some(load_from(Some(path), &names))
+    }
+}
+
+/// Keys whose values differ between two configurations (for the reload log line).
+pub fn changed_keys(a: &Config, b: &Config) -> Vec<&'static str> {
+    KEYS.iter().map(|k| k.key).filter(|k| a.value(k) != b.value(k)).collect()
 }

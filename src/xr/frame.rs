@@ -30,6 +30,28 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
     }, plain)
 }
 
+/// Applies a changed config file from the next frame on (frame boundaries keep every frame's
+/// work under one configuration).
+fn reload_config(inst: &super::Instance) {
+    let Some((config, diagnostics)) = inst.watch.poll() else { return };
+    for d in &diagnostics {
+        tracing::warn!("config: {d}");
+    }
+    let shared = shared::shared();
+    let old = shared.config().unwrap_or_else(|| inst.config.clone());
+    let changed = crate::config::changed_keys(&old, &config);
+    if changed.is_empty() {
+        return;
+    }
+    tracing::info!("config reloaded, changed: {changed:?} (features apply from the next frame; `enabled` and `log.level` only at start)");
+    if changed.iter().any(|k| k.starts_with("mask.")) {
+        for (_, s) in super::state().sessions.values() {
+            s.masks_dirty.store(true, Ordering::Release);
+        }
+    }
+    shared.set_config(std::sync::Arc::new(config));
+}
+
 fn sub_image(s: &xr::SwapchainSubImage) -> SubImage {
     SubImage {
         swapchain: s.swapchain.into_raw(),
@@ -128,6 +150,7 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
             return Ok(r);
         }
         inst.stats.frames_ended.fetch_add(1, Ordering::Relaxed);
+        reload_config(&inst);
         let shared = shared::shared();
         if let (Some(fovs), Ok(s)) = (fovs, session::lookup(session)) {
             s.fov_submitted.store(true, Ordering::Release);

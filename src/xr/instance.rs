@@ -34,8 +34,10 @@ impl Stats {
 
 /// Instance extensions the enabled features use, if the runtime has them.
 fn wanted_extensions(config: &crate::config::Config) -> Vec<&'static str> {
+    // Enabled whenever the layer is, not only when the mask is on now: the mask can be switched
+    // on while the app runs (live config), and the extension cannot be enabled later.
     let mut v = Vec::new();
-    if config.enabled() && config.bool("mask.enabled") {
+    if config.enabled() {
         v.push(super::VISIBILITY_MASK_EXT);
     }
     v
@@ -151,6 +153,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
         // SAFETY: `next_gipa` belongs to the layer that created `handle`.
         let next = unsafe { Next::load(next_gipa, handle) };
         let config = Arc::new(config);
+        let app_name_for_watch = app_name.clone();
         crate::shared::shared().set_config(config.clone());
         tracing::info!(
             enabled = config.enabled(),
@@ -174,6 +177,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             stats: Stats::default(),
             app_extensions,
             layer_extensions: added,
+            watch: crate::config::Watch::new(&[app_name_for_watch.as_str(), exe.as_str()], std::time::Duration::from_millis(100)),
         };
         state().instances.insert(handle.into_raw(), Arc::new(inst));
         Ok(r)

@@ -95,6 +95,9 @@ intercepts! {
 pub(crate) struct Instance {
     pub handle: xr::Instance,
     pub next: Next,
+    /// The configuration at instance creation: decides what cannot change later (the master
+    /// switch: hooks are handed out once; extensions). Features read the live one,
+    /// `shared().config()`.
     pub config: Arc<Config>,
     pub pass_through: PassThrough,
     pub app_name: String,
@@ -103,6 +106,8 @@ pub(crate) struct Instance {
     pub app_extensions: Vec<String>,
     /// Extensions the layer enabled for itself; their functions and events stay hidden from the app.
     pub layer_extensions: Vec<String>,
+    /// The config file, re-read when it changes; feature settings then apply from the next frame.
+    pub watch: crate::config::Watch,
 }
 
 pub(crate) const VISIBILITY_MASK_EXT: &str = "XR_KHR_visibility_mask";

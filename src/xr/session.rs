@@ -97,7 +97,7 @@ fn runtime_mask(s: &Session, view: u32) -> Option<Vec<[f32; 2]>> {
 
 /// (Re)publishes the hidden-area masks of all views when they are due.
 pub(crate) fn refresh_masks(s: &Session) {
-    let config = &s.instance.config;
+    let config = crate::shared::shared().config().unwrap_or_else(|| s.instance.config.clone());
     if !config.bool("mask.enabled") || !s.masks_dirty.swap(false, Ordering::AcqRel) {
         return;
     }
