@@ -78,6 +78,12 @@ pub const KEYS: &[KeySpec] = &[
         doc: "synthesized lens: vertical / horizontal half-angle of the visible ellipse",
     },
     KeySpec {
+        key: "mask.intermediate",
+        kind: Kind::Choice(&["auto", "off"]),
+        default: "auto",
+        doc: "auto: also mask passes that render into an intermediate image the app later copies / resolves / blits 1:1 into a swapchain image; off: only passes rendering into swapchain images",
+    },
+    KeySpec {
         key: "mask.debug",
         kind: Kind::Bool,
         default: "false",

@@ -47,6 +47,67 @@ pub fn rect(r: &vk::Rect2D) -> Rect {
     Rect { x: r.offset.x, y: r.offset.y, width: r.extent.width, height: r.extent.height }
 }
 
+/// Vertex buffer bindings of `vkCmdBindVertexBuffers(2)`.
+///
+/// # Safety
+/// `buffers` and `offsets` must hold `n` values; `sizes` and `strides` null or `n` values.
+pub unsafe fn vertex_bindings(
+    n: u32,
+    buffers: *const vk::Buffer,
+    offsets: *const vk::DeviceSize,
+    sizes: *const vk::DeviceSize,
+    strides: *const vk::DeviceSize,
+    v2: bool,
+) -> Vec<crate::track::cmd::VertexBinding> {
+    // SAFETY: per the contract (slice returns empty for null).
+    let (b, o, s, t) = unsafe { (slice(buffers, n), slice(offsets, n), slice(sizes, n), slice(strides, n)) };
+    (0..n as usize)
+        .map(|i| crate::track::cmd::VertexBinding {
+            buffer: b.get(i).map_or(0, |x| x.as_raw()),
+            offset: o.get(i).copied().unwrap_or(0),
+            size: s.get(i).copied().filter(|&x| x != vk::WHOLE_SIZE),
+            stride: t.get(i).copied(),
+            v2,
+        })
+        .collect()
+}
+
+/// A copy / resolve region (same extent on both sides) as a transfer region.
+pub fn copy_region(r: &vk::ImageCopy) -> crate::track::eye_pass::TransferRegion {
+    let rect = |o: vk::Offset3D| crate::mask::PixelRect { x: o.x, y: o.y, width: r.extent.width, height: r.extent.height };
+    crate::track::eye_pass::TransferRegion {
+        src_layer: r.src_subresource.base_array_layer,
+        dst_layer: r.dst_subresource.base_array_layer,
+        layer_count: r.src_subresource.layer_count.min(r.dst_subresource.layer_count),
+        src: rect(r.src_offset),
+        dst: rect(r.dst_offset),
+    }
+}
+
+/// A blit region; None when it mirrors (a flip never maps an eye 1:1).
+pub fn blit_region(
+    src_sub: vk::ImageSubresourceLayers,
+    src: [vk::Offset3D; 2],
+    dst_sub: vk::ImageSubresourceLayers,
+    dst: [vk::Offset3D; 2],
+) -> Option<crate::track::eye_pass::TransferRegion> {
+    let rect = |o: [vk::Offset3D; 2]| {
+        (o[1].x >= o[0].x && o[1].y >= o[0].y).then(|| crate::mask::PixelRect {
+            x: o[0].x,
+            y: o[0].y,
+            width: (o[1].x - o[0].x) as u32,
+            height: (o[1].y - o[0].y) as u32,
+        })
+    };
+    Some(crate::track::eye_pass::TransferRegion {
+        src_layer: src_sub.base_array_layer,
+        dst_layer: dst_sub.base_array_layer,
+        layer_count: src_sub.layer_count.min(dst_sub.layer_count),
+        src: rect(src)?,
+        dst: rect(dst)?,
+    })
+}
+
 pub fn clear_value(c: &vk::ClearValue) -> ClearValue {
     // SAFETY: all members of the union are 16 bytes of plain data; reading the uint32 view of
     // either member is defined.

@@ -4,6 +4,7 @@
 //! With all features off (this stage) no hook changes what reaches the driver, except
 //! `vkCreateDevice`, whose additions are decided by `track::device_ext`.
 
+use super::mask::{self, Trigger};
 use super::{check_fault, convert, device_of, dispatch_key, instance_of, layer, loader, DeviceState, ExtFns, InstanceState};
 use crate::guard::{self, Fault, PassThrough};
 use crate::track::cmd::{PassKind, StateCmd};
@@ -388,6 +389,8 @@ pub(super) unsafe extern "system" fn create_device(
         // SAFETY: the next layer's gdpa for the device it just created.
         let fns = unsafe { ash::Device::load_with(|n| super::device_proc(next_gdpa, device, n), device) };
         let ext = load_ext(next_gdpa, device);
+        // SAFETY: a physical device of this instance; the next layer's instance functions.
+        let memory = unsafe { inst.fns.get_physical_device_memory_properties(pd) };
         tracing::info!(decision = %decision.reason, pass_through = inst.pass_through.is_on(), "vulkan device created");
         let state = DeviceState {
             handle: device,
@@ -398,6 +401,7 @@ pub(super) unsafe extern "system" fn create_device(
             config: inst.config.clone(),
             track: Default::default(),
             extension_decision: decision,
+            mask: super::mask::MaskDevice::new(&inst.config, memory),
         };
         layer().devices.insert(dispatch_key(device), Arc::new(state));
         r
@@ -429,7 +433,13 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
     guard::catch("vkDestroyDevice", (), || {
         let key = dispatch_key(device);
         let Some(dev) = layer().devices.get(key) else { return };
-        tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {}", dev.track.stats.summary());
+        if dev.mask.enabled {
+            tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {} {}", dev.track.stats.summary(), dev.mask.summary());
+            // The app waited for the device to go idle before destroying it.
+            super::mask::destroy(&dev);
+        } else {
+            tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {}", dev.track.stats.summary());
+        }
         // SAFETY: forwarding the app's arguments.
         unsafe { (dev.fns.fp_v1_0().destroy_device)(device, allocator) };
         layer().devices.remove(key);
@@ -488,7 +498,7 @@ macro_rules! destroy_hook {
 }
 
 create_hook!(create_image, "vkCreateImage", vk::ImageCreateInfo<'_>, vk::Image, fp_v1_0.create_image, images, |h, ci| convert::image(h, ci));
-destroy_hook!(destroy_image, "vkDestroyImage", vk::Image, fp_v1_0.destroy_image, |d, h| d.track.images.remove(h));
+destroy_hook!(destroy_image, "vkDestroyImage", vk::Image, fp_v1_0.destroy_image, |d, h| d.track.forget_image(h));
 create_hook!(create_image_view, "vkCreateImageView", vk::ImageViewCreateInfo<'_>, vk::ImageView, fp_v1_0.create_image_view, views, |h, ci| convert::image_view(h, ci));
 destroy_hook!(destroy_image_view, "vkDestroyImageView", vk::ImageView, fp_v1_0.destroy_image_view, |d, h| d.track.views.remove(h));
 create_hook!(create_render_pass, "vkCreateRenderPass", vk::RenderPassCreateInfo<'_>, vk::RenderPass, fp_v1_0.create_render_pass, render_passes, |h, ci| {
@@ -499,7 +509,10 @@ create_hook!(create_render_pass2, "vkCreateRenderPass2", vk::RenderPassCreateInf
     // SAFETY: the create info is valid during the app's call.
     unsafe { convert::render_pass2(h, ci) }
 });
-destroy_hook!(destroy_render_pass, "vkDestroyRenderPass", vk::RenderPass, fp_v1_0.destroy_render_pass, |d, h| d.track.render_passes.remove(h));
+destroy_hook!(destroy_render_pass, "vkDestroyRenderPass", vk::RenderPass, fp_v1_0.destroy_render_pass, |d, h| {
+    d.track.render_passes.remove(h);
+    super::mask::forget_render_pass(d, h)
+});
 create_hook!(create_framebuffer, "vkCreateFramebuffer", vk::FramebufferCreateInfo<'_>, vk::Framebuffer, fp_v1_0.create_framebuffer, framebuffers, |h, ci| {
     // SAFETY: the create info is valid during the app's call.
     unsafe { convert::framebuffer(h, ci) }
@@ -774,14 +787,18 @@ fn begin_pass(d: &DeviceState, cb: u64, kind: PassKind, info: *const vk::RenderP
 
 pub(super) unsafe extern "system" fn cmd_begin_render_pass(cb: vk::CommandBuffer, info: *const vk::RenderPassBeginInfo<'_>, contents: vk::SubpassContents) {
     // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdBeginRenderPass", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_begin_render_pass)(cb, info, contents) }, |d, cb| {
-        begin_pass(d, cb, PassKind::RenderPass, info)
+    cmd("vkCmdBeginRenderPass", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_begin_render_pass)(cb, info, contents) }, |d, raw| {
+        begin_pass(d, raw, PassKind::RenderPass, info);
+        mask::on_trigger(d, cb, Trigger::Begin { secondary: contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS });
     })
 }
 
 pub(super) unsafe extern "system" fn cmd_next_subpass(cb: vk::CommandBuffer, contents: vk::SubpassContents) {
     // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdNextSubpass", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_next_subpass)(cb, contents) }, |d, cb| d.track.next_subpass(cb))
+    cmd("vkCmdNextSubpass", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_next_subpass)(cb, contents) }, |d, raw| {
+        d.track.next_subpass(raw);
+        mask::on_trigger(d, cb, Trigger::NextSubpass { secondary: contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS });
+    })
 }
 
 pub(super) unsafe extern "system" fn cmd_end_render_pass(cb: vk::CommandBuffer) {
@@ -795,14 +812,18 @@ pub(super) unsafe extern "system" fn cmd_begin_render_pass2(
     subpass_info: *const vk::SubpassBeginInfo<'_>,
 ) {
     // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdBeginRenderPass2", cb, (), |d| unsafe { (d.fns.fp_v1_2().cmd_begin_render_pass2)(cb, info, subpass_info) }, |d, cb| {
-        begin_pass(d, cb, PassKind::RenderPass2, info)
+    cmd("vkCmdBeginRenderPass2", cb, (), |d| unsafe { (d.fns.fp_v1_2().cmd_begin_render_pass2)(cb, info, subpass_info) }, |d, raw| {
+        begin_pass(d, raw, PassKind::RenderPass2, info);
+        mask::on_trigger(d, cb, Trigger::Begin { secondary: secondary_contents(subpass_info) });
     })
 }
 
 pub(super) unsafe extern "system" fn cmd_next_subpass2(cb: vk::CommandBuffer, begin: *const vk::SubpassBeginInfo<'_>, end: *const vk::SubpassEndInfo<'_>) {
     // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdNextSubpass2", cb, (), |d| unsafe { (d.fns.fp_v1_2().cmd_next_subpass2)(cb, begin, end) }, |d, cb| d.track.next_subpass(cb))
+    cmd("vkCmdNextSubpass2", cb, (), |d| unsafe { (d.fns.fp_v1_2().cmd_next_subpass2)(cb, begin, end) }, |d, raw| {
+        d.track.next_subpass(raw);
+        mask::on_trigger(d, cb, Trigger::NextSubpass { secondary: secondary_contents(begin) });
+    })
 }
 
 pub(super) unsafe extern "system" fn cmd_end_render_pass2(cb: vk::CommandBuffer, end: *const vk::SubpassEndInfo<'_>) {
@@ -812,16 +833,239 @@ pub(super) unsafe extern "system" fn cmd_end_render_pass2(cb: vk::CommandBuffer,
 
 pub(super) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandBuffer, info: *const vk::RenderingInfo<'_>) {
     // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdBeginRendering", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_begin_rendering)(cb, info) }, |d, cb| {
+    cmd("vkCmdBeginRendering", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_begin_rendering)(cb, info) }, |d, raw| {
         // SAFETY: a valid rendering info during the app's call.
         let (area, rendering) = unsafe { convert::rendering(&d.track, &*info) };
-        d.track.begin_rendering(cb, area, rendering);
+        let secondary = rendering.flags.contains(vk::RenderingFlags::CONTENTS_SECONDARY_COMMAND_BUFFERS);
+        d.track.begin_rendering(raw, area, rendering);
+        mask::on_trigger(d, cb, Trigger::Begin { secondary });
     })
 }
 
 pub(super) unsafe extern "system" fn cmd_end_rendering(cb: vk::CommandBuffer) {
     // SAFETY: forwarding the app's arguments unchanged.
     cmd("vkCmdEndRendering", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_end_rendering)(cb) }, |d, cb| d.track.end_pass(cb))
+}
+
+fn secondary_contents(info: *const vk::SubpassBeginInfo<'_>) -> bool {
+    // SAFETY: null or a valid struct during the app's call.
+    unsafe { info.as_ref() }.is_some_and(|i| i.contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Vertex buffers (restored after a mask draw), transfers (intermediate eye targets), clears
+
+pub(super) unsafe extern "system" fn cmd_bind_vertex_buffers(cb: vk::CommandBuffer, first: u32, n: u32, buffers: *const vk::Buffer, offsets: *const vk::DeviceSize) {
+    // SAFETY: forwarding the app's arguments unchanged.
+    cmd("vkCmdBindVertexBuffers", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_bind_vertex_buffers)(cb, first, n, buffers, offsets) }, |d, cb| {
+        // SAFETY: arrays valid with their counts during the app's call.
+        let bindings = unsafe { convert::vertex_bindings(n, buffers, offsets, std::ptr::null(), std::ptr::null(), false) };
+        state(d, cb, StateCmd::BindVertexBuffers { first, bindings })
+    })
+}
+
+pub(super) unsafe extern "system" fn cmd_bind_vertex_buffers2(
+    cb: vk::CommandBuffer,
+    first: u32,
+    n: u32,
+    buffers: *const vk::Buffer,
+    offsets: *const vk::DeviceSize,
+    sizes: *const vk::DeviceSize,
+    strides: *const vk::DeviceSize,
+) {
+    cmd(
+        "vkCmdBindVertexBuffers2",
+        cb,
+        (),
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d| unsafe { (d.fns.fp_v1_3().cmd_bind_vertex_buffers2)(cb, first, n, buffers, offsets, sizes, strides) },
+        |d, cb| {
+            // SAFETY: arrays valid with their counts (optional ones null) during the app's call.
+            let bindings = unsafe { convert::vertex_bindings(n, buffers, offsets, sizes, strides, true) };
+            state(d, cb, StateCmd::BindVertexBuffers { first, bindings })
+        },
+    )
+}
+
+fn transfer(d: &DeviceState, src: vk::Image, dst: vk::Image, regions: Vec<crate::track::eye_pass::TransferRegion>) {
+    if d.mask.enabled {
+        d.track.record_transfer(crate::shared::shared(), src.as_raw(), dst.as_raw(), &regions);
+    }
+}
+
+pub(super) unsafe extern "system" fn cmd_copy_image(
+    cb: vk::CommandBuffer,
+    src: vk::Image,
+    src_layout: vk::ImageLayout,
+    dst: vk::Image,
+    dst_layout: vk::ImageLayout,
+    n: u32,
+    regions: *const vk::ImageCopy,
+) {
+    cmd(
+        "vkCmdCopyImage",
+        cb,
+        (),
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d| unsafe { (d.fns.fp_v1_0().cmd_copy_image)(cb, src, src_layout, dst, dst_layout, n, regions) },
+        // SAFETY: the region array is valid with its count.
+        |d, _| transfer(d, src, dst, unsafe { convert::slice(regions, n) }.iter().map(convert::copy_region).collect()),
+    )
+}
+
+pub(super) unsafe extern "system" fn cmd_copy_image2(cb: vk::CommandBuffer, info: *const vk::CopyImageInfo2<'_>) {
+    // SAFETY: forwarding the app's arguments unchanged.
+    cmd("vkCmdCopyImage2", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_copy_image2)(cb, info) }, |d, _| {
+        // SAFETY: a valid info with a valid region array.
+        let (i, regions) = unsafe { (&*info, convert::slice((*info).p_regions, (*info).region_count)) };
+        let regions = regions
+            .iter()
+            .map(|r| convert::copy_region(&vk::ImageCopy { src_subresource: r.src_subresource, src_offset: r.src_offset, dst_subresource: r.dst_subresource, dst_offset: r.dst_offset, extent: r.extent }))
+            .collect();
+        transfer(d, i.src_image, i.dst_image, regions)
+    })
+}
+
+pub(super) unsafe extern "system" fn cmd_resolve_image(
+    cb: vk::CommandBuffer,
+    src: vk::Image,
+    src_layout: vk::ImageLayout,
+    dst: vk::Image,
+    dst_layout: vk::ImageLayout,
+    n: u32,
+    regions: *const vk::ImageResolve,
+) {
+    cmd(
+        "vkCmdResolveImage",
+        cb,
+        (),
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d| unsafe { (d.fns.fp_v1_0().cmd_resolve_image)(cb, src, src_layout, dst, dst_layout, n, regions) },
+        |d, _| {
+            // SAFETY: the region array is valid with its count.
+            let regions = unsafe { convert::slice(regions, n) }
+                .iter()
+                .map(|r| convert::copy_region(&vk::ImageCopy { src_subresource: r.src_subresource, src_offset: r.src_offset, dst_subresource: r.dst_subresource, dst_offset: r.dst_offset, extent: r.extent }))
+                .collect();
+            transfer(d, src, dst, regions)
+        },
+    )
+}
+
+pub(super) unsafe extern "system" fn cmd_resolve_image2(cb: vk::CommandBuffer, info: *const vk::ResolveImageInfo2<'_>) {
+    // SAFETY: forwarding the app's arguments unchanged.
+    cmd("vkCmdResolveImage2", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_resolve_image2)(cb, info) }, |d, _| {
+        // SAFETY: a valid info with a valid region array.
+        let (i, regions) = unsafe { (&*info, convert::slice((*info).p_regions, (*info).region_count)) };
+        let regions = regions
+            .iter()
+            .map(|r| convert::copy_region(&vk::ImageCopy { src_subresource: r.src_subresource, src_offset: r.src_offset, dst_subresource: r.dst_subresource, dst_offset: r.dst_offset, extent: r.extent }))
+            .collect();
+        transfer(d, i.src_image, i.dst_image, regions)
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe extern "system" fn cmd_blit_image(
+    cb: vk::CommandBuffer,
+    src: vk::Image,
+    src_layout: vk::ImageLayout,
+    dst: vk::Image,
+    dst_layout: vk::ImageLayout,
+    n: u32,
+    regions: *const vk::ImageBlit,
+    filter: vk::Filter,
+) {
+    cmd(
+        "vkCmdBlitImage",
+        cb,
+        (),
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d| unsafe { (d.fns.fp_v1_0().cmd_blit_image)(cb, src, src_layout, dst, dst_layout, n, regions, filter) },
+        |d, _| {
+            // SAFETY: the region array is valid with its count.
+            let regions = unsafe { convert::slice(regions, n) }
+                .iter()
+                .filter_map(|r| convert::blit_region(r.src_subresource, r.src_offsets, r.dst_subresource, r.dst_offsets))
+                .collect();
+            transfer(d, src, dst, regions)
+        },
+    )
+}
+
+pub(super) unsafe extern "system" fn cmd_blit_image2(cb: vk::CommandBuffer, info: *const vk::BlitImageInfo2<'_>) {
+    // SAFETY: forwarding the app's arguments unchanged.
+    cmd("vkCmdBlitImage2", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_blit_image2)(cb, info) }, |d, _| {
+        // SAFETY: a valid info with a valid region array.
+        let (i, regions) = unsafe { (&*info, convert::slice((*info).p_regions, (*info).region_count)) };
+        let regions = regions
+            .iter()
+            .filter_map(|r| convert::blit_region(r.src_subresource, r.src_offsets, r.dst_subresource, r.dst_offsets))
+            .collect();
+        transfer(d, i.src_image, i.dst_image, regions)
+    })
+}
+
+pub(super) unsafe extern "system" fn cmd_clear_attachments(
+    cb: vk::CommandBuffer,
+    n: u32,
+    attachments: *const vk::ClearAttachment,
+    rect_count: u32,
+    rects: *const vk::ClearRect,
+) {
+    cmd(
+        "vkCmdClearAttachments",
+        cb,
+        (),
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d| unsafe { (d.fns.fp_v1_0().cmd_clear_attachments)(cb, n, attachments, rect_count, rects) },
+        |d, _| {
+            if !d.mask.enabled {
+                return;
+            }
+            // SAFETY: arrays valid with their counts during the app's call.
+            let (atts, rects) = unsafe { (convert::slice(attachments, n), convert::slice(rects, rect_count)) };
+            let depth = atts.iter().find(|a| a.aspect_mask.contains(vk::ImageAspectFlags::DEPTH));
+            if let Some(a) = depth {
+                // SAFETY: a depth clear's value is the depthStencil member.
+                let value = unsafe { a.clear_value.depth_stencil.depth };
+                let rects = rects.iter().map(|r| crate::mask::PixelRect { x: r.rect.offset.x, y: r.rect.offset.y, width: r.rect.extent.width, height: r.rect.extent.height }).collect();
+                mask::on_trigger(d, cb, Trigger::Clear { depth: value, rects });
+            }
+        },
+    )
+}
+
+pub(super) unsafe extern "system" fn cmd_clear_depth_stencil_image(
+    cb: vk::CommandBuffer,
+    image: vk::Image,
+    layout: vk::ImageLayout,
+    value: *const vk::ClearDepthStencilValue,
+    n: u32,
+    ranges: *const vk::ImageSubresourceRange,
+) {
+    cmd(
+        "vkCmdClearDepthStencilImage",
+        cb,
+        (),
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d| unsafe { (d.fns.fp_v1_0().cmd_clear_depth_stencil_image)(cb, image, layout, value, n, ranges) },
+        |d, raw| {
+            if !d.mask.enabled {
+                return;
+            }
+            // SAFETY: valid pointers during the app's call.
+            let (value, ranges) = unsafe { ((*value).depth, convert::slice(ranges, n)) };
+            if ranges.iter().any(|r| r.aspect_mask.contains(vk::ImageAspectFlags::DEPTH)) {
+                d.track.with_cb(raw, |s| {
+                    s.depth_image_clears.retain(|(i, _)| *i != image.as_raw());
+                    if s.depth_image_clears.len() < 64 {
+                        s.depth_image_clears.push((image.as_raw(), value));
+                    }
+                });
+            }
+        },
+    )
 }
 
 #[cfg(test)]

@@ -9,6 +9,7 @@
 mod convert;
 mod hooks;
 pub mod loader;
+mod mask;
 
 use crate::config::Config;
 use crate::guard::{self, PassThrough};
@@ -58,6 +59,8 @@ pub(crate) struct DeviceState {
     pub config: Arc<Config>,
     pub track: DeviceTracker,
     pub extension_decision: Decision,
+    /// The hidden-area mask's objects and statistics.
+    pub mask: mask::MaskDevice,
 }
 
 impl DeviceState {
@@ -113,6 +116,12 @@ pub(crate) fn device_of<H: Handle>(handle: H) -> Option<Arc<DeviceState>> {
 /// whether the session's device is one the layer can act on). The handle must be a live device.
 pub(crate) fn device_is_tracked(device: u64) -> bool {
     layer().devices.get(dispatch_key(vk::Device::from_raw(device))).is_some()
+}
+
+/// The hidden-area mask statistics of the frame that just ended, summed over devices, and the
+/// start of the next frame. The OpenXR half calls this once per `xrEndFrame`.
+pub fn take_frame_stats() -> crate::mask::MaskFrameStats {
+    mask::take_frame_stats()
 }
 
 /// A handle whose dispatch key we never saw means a broken chain; logged once, never per call.
@@ -231,6 +240,20 @@ intercepts! {
     Device "vkCmdBeginRenderingKHR" => hooks::cmd_begin_rendering as vk::PFN_vkCmdBeginRendering;
     Device "vkCmdEndRendering" => hooks::cmd_end_rendering as vk::PFN_vkCmdEndRendering;
     Device "vkCmdEndRenderingKHR" => hooks::cmd_end_rendering as vk::PFN_vkCmdEndRendering;
+    Device "vkCmdBindVertexBuffers" => hooks::cmd_bind_vertex_buffers as vk::PFN_vkCmdBindVertexBuffers;
+    Device "vkCmdBindVertexBuffers2" => hooks::cmd_bind_vertex_buffers2 as vk::PFN_vkCmdBindVertexBuffers2;
+    Device "vkCmdBindVertexBuffers2EXT" => hooks::cmd_bind_vertex_buffers2 as vk::PFN_vkCmdBindVertexBuffers2;
+    Device "vkCmdCopyImage" => hooks::cmd_copy_image as vk::PFN_vkCmdCopyImage;
+    Device "vkCmdCopyImage2" => hooks::cmd_copy_image2 as vk::PFN_vkCmdCopyImage2;
+    Device "vkCmdCopyImage2KHR" => hooks::cmd_copy_image2 as vk::PFN_vkCmdCopyImage2;
+    Device "vkCmdResolveImage" => hooks::cmd_resolve_image as vk::PFN_vkCmdResolveImage;
+    Device "vkCmdResolveImage2" => hooks::cmd_resolve_image2 as vk::PFN_vkCmdResolveImage2;
+    Device "vkCmdResolveImage2KHR" => hooks::cmd_resolve_image2 as vk::PFN_vkCmdResolveImage2;
+    Device "vkCmdBlitImage" => hooks::cmd_blit_image as vk::PFN_vkCmdBlitImage;
+    Device "vkCmdBlitImage2" => hooks::cmd_blit_image2 as vk::PFN_vkCmdBlitImage2;
+    Device "vkCmdBlitImage2KHR" => hooks::cmd_blit_image2 as vk::PFN_vkCmdBlitImage2;
+    Device "vkCmdClearAttachments" => hooks::cmd_clear_attachments as vk::PFN_vkCmdClearAttachments;
+    Device "vkCmdClearDepthStencilImage" => hooks::cmd_clear_depth_stencil_image as vk::PFN_vkCmdClearDepthStencilImage;
 }
 
 fn void_fn<F: Copy>(f: F) -> unsafe extern "system" fn() {

@@ -1,0 +1,49 @@
+//! Compiles the layer's GLSL shaders (`shaders/`) to SPIR-V at build time with glslangValidator, so
+//! no generated binaries live in the repository; `src/vk/mask.rs` embeds them.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// (source file, output name, extra glslang arguments).
+const SHADERS: &[(&str, &str, &[&str])] = &[
+    ("mask.vert", "mask.vert.spv", &[]),
+    ("mask.vert", "mask_mv.vert.spv", &["-DMULTIVIEW"]),
+    ("mask.frag", "mask.frag.spv", &[]),
+];
+
+fn main() {
+    let manifest = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("CARGO_MANIFEST_DIR"));
+    let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("OUT_DIR"));
+    let shader_dir = manifest.join("shaders");
+    println!("cargo:rerun-if-changed=build.rs");
+    println!("cargo:rerun-if-changed={}", shader_dir.display());
+    for (src, dst, extra) in SHADERS {
+        let src_path = shader_dir.join(src);
+        println!("cargo:rerun-if-changed={}", src_path.display());
+        compile(&src_path, &out.join(dst), extra);
+    }
+}
+
+fn compile(src: &Path, dst: &Path, extra: &[&str]) {
+    let result = Command::new("glslangValidator")
+        .args(["-V", "--target-env", "vulkan1.1"])
+        .args(extra)
+        .arg("-o")
+        .arg(dst)
+        .arg(src)
+        .output();
+    match result {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => panic!(
+            "glslangValidator not found in PATH: it is needed to compile stereoshim's shaders \
+             (Debian: apt-get install glslang-tools)"
+        ),
+        Err(e) => panic!("could not run glslangValidator: {e}"),
+        Ok(o) if !o.status.success() => panic!(
+            "glslangValidator failed on {} ({extra:?}):\n{}{}",
+            src.display(),
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        ),
+        Ok(_) => {}
+    }
+}

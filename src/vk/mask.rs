@@ -1,0 +1,778 @@
+//! The hidden-area mask on the Vulkan side: right where an eye pass's depth buffer starts out
+//! cleared, draw the view's hidden triangles at the depth that fails the app's test, so early-Z
+//! rejects the app's own fragments there. Owns the layer's Vulkan objects for it (pipelines per
+//! compatibility key, a vertex buffer per mask generation) and records the draw plus everything it
+//! disturbed (`CmdState::restore_commands`). Decisions come from `track::eye_pass` and geometry from
+//! `crate::mask`; this module only turns them into commands.
+
+use super::DeviceState;
+use crate::config::Config;
+use crate::mask::{self, MaskFrameStats, NotMasked, PixelRect};
+use crate::shared::{shared, Views};
+use crate::track::cmd::{AttachmentUse, PassInstance, StateCmd};
+use crate::track::eye_pass::{self, EyeLayout, EyeSource, Eyes, Learned, MaskPlan};
+use ash::vk::{self, Handle};
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/mask.vert.spv"));
+static VERT_MV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/mask_mv.vert.spv"));
+static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/mask.frag.spv"));
+
+/// Frames ended (`take_frame_stats` calls): a retired vertex buffer is destroyed only this many
+/// frames after it stopped being used for new draws. OpenXR apps keep at most a few frames in
+/// flight (xrWaitFrame throttles them), so command buffers recorded with it have completed by then.
+const RETIRE_AFTER_FRAMES: u64 = 16;
+static FRAMES_ENDED: AtomicU64 = AtomicU64::new(0);
+
+/// One vertex: NDC position and the view it belongs to.
+#[repr(C)]
+#[derive(Clone, Copy)]
+struct Vertex {
+    pos: [f32; 2],
+    view: u32,
+}
+
+/// What makes a layer pipeline usable inside an app's pass.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+enum PipelineKey {
+    /// Compatible with the app's render pass + subpass (the subpass carries its view mask).
+    RenderPass { render_pass: u64, subpass: u32, samples: u32, colors: u32, multiview: bool },
+    /// `VkPipelineRenderingCreateInfo` for dynamic rendering.
+    Dynamic { colors: Vec<vk::Format>, depth: vk::Format, stencil: vk::Format, samples: u32, view_mask: u32 },
+}
+
+/// The vertex buffer of one mask generation.
+struct MaskBuffer {
+    generation: u64,
+    buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+    /// view → (first vertex, vertex count).
+    ranges: BTreeMap<u32, (u32, u32)>,
+    /// view → NDC triangles (pixel statistics).
+    ndc: BTreeMap<u32, Vec<[f32; 2]>>,
+    total: u32,
+    /// Frame count at which a newer generation replaced it.
+    retired_at: Option<u64>,
+}
+
+#[derive(Default)]
+struct Objects {
+    layout: vk::PipelineLayout,
+    vert: vk::ShaderModule,
+    vert_mv: vk::ShaderModule,
+    frag: vk::ShaderModule,
+    pipelines: HashMap<PipelineKey, vk::Pipeline>,
+    buffers: Vec<MaskBuffer>,
+}
+
+#[derive(Default)]
+struct Books {
+    frame: MaskFrameStats,
+    total: MaskFrameStats,
+    /// (generation, view, viewport, scissor) → pixels covered.
+    coverage: HashMap<(u64, u32, PixelRect, PixelRect), u64>,
+    logged_kinds: HashSet<(EyeLayout, bool)>,
+    logged_targets: HashSet<u64>,
+    logged_reasons: HashSet<NotMasked>,
+}
+
+/// Per-device mask state. Locks are held only around bookkeeping, never while calling down.
+pub(crate) struct MaskDevice {
+    pub enabled: bool,
+    debug: bool,
+    intermediate: bool,
+    memory: vk::PhysicalDeviceMemoryProperties,
+    objects: Mutex<Objects>,
+    books: Mutex<Books>,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Why a mask draw is recorded.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum Trigger {
+    /// A render pass instance / rendering just began (`secondary`: its contents are recorded in
+    /// secondary command buffers).
+    Begin { secondary: bool },
+    /// vkCmdNextSubpass: a later subpass may be the first to use (and clear) the depth attachment.
+    NextSubpass { secondary: bool },
+    /// vkCmdClearAttachments cleared the depth attachment to this value over these rects.
+    Clear { depth: f32, rects: Vec<PixelRect> },
+}
+
+impl MaskDevice {
+    pub fn new(config: &Config, memory: vk::PhysicalDeviceMemoryProperties) -> MaskDevice {
+        MaskDevice {
+            enabled: config.enabled() && config.bool("mask.enabled"),
+            debug: config.bool("mask.debug"),
+            intermediate: config.choice("mask.intermediate") != "off",
+            memory,
+            objects: Mutex::new(Objects::default()),
+            books: Mutex::new(Books::default()),
+        }
+    }
+
+    pub fn take_frame(&self) -> MaskFrameStats {
+        std::mem::take(&mut lock(&self.books).frame)
+    }
+
+    pub fn summary(&self) -> String {
+        lock(&self.books).total.summary()
+    }
+
+    fn count(&self, f: impl Fn(&mut MaskFrameStats)) {
+        let mut b = lock(&self.books);
+        f(&mut b.frame);
+        f(&mut b.total);
+    }
+}
+
+/// Sums and resets every device's statistics of the frame that just ended.
+pub(crate) fn take_frame_stats() -> MaskFrameStats {
+    FRAMES_ENDED.fetch_add(1, Ordering::Relaxed);
+    let mut all = MaskFrameStats::default();
+    for (_, d) in super::layer().devices.values() {
+        all.add(&d.mask.take_frame());
+    }
+    all
+}
+
+/// What the pass looked like when the trigger fired, copied out of the command buffer's lock.
+struct Snapshot {
+    pass: PassInstance,
+    restore: Vec<StateCmd>,
+    secondary_level: bool,
+    explicit_clear: Option<f32>,
+}
+
+/// Entry from the hooks, after the triggering command went down successfully.
+pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigger) {
+    if !d.mask.enabled {
+        return;
+    }
+    let key = cb.as_raw();
+    let secondary_level = d.track.command_buffers.get(key).is_some_and(|c| c.level == vk::CommandBufferLevel::SECONDARY);
+    let snap = d.track.with_cb(key, |s| {
+        let pass = s.pass.clone()?;
+        // A pass that loads an image cleared by vkCmdClearDepthStencilImage starts from that clear.
+        let mut explicit_clear = None;
+        if matches!(trigger, Trigger::Begin { .. }) {
+            let images: Vec<u64> = attachments(&pass).iter().filter_map(|a| a.image_view.as_ref().map(|v| v.image)).collect();
+            if let Some(depth_image) = depth_image(&pass) {
+                explicit_clear = s.depth_image_clears.iter().rev().find(|(i, _)| *i == depth_image).map(|(_, v)| *v);
+            }
+            s.depth_image_clears.retain(|(i, _)| !images.contains(i));
+        }
+        if let Trigger::Clear { depth, .. } = &trigger {
+            explicit_clear = Some(*depth);
+        }
+        Some(Snapshot { pass, restore: s.restore_commands(), secondary_level, explicit_clear })
+    });
+    let Some(Some(snap)) = snap else { return };
+    let resuming = snap.pass.rendering.as_ref().is_some_and(|r| r.resuming());
+    let secondary = match &trigger {
+        Trigger::Begin { secondary } | Trigger::NextSubpass { secondary } => *secondary,
+        Trigger::Clear { .. } => false,
+    } || snap.secondary_level;
+    let eyes = |a: &AttachmentUse| eyes_of(d, a);
+    let facts = eye_pass::Facts { secondary_contents: secondary, intermediate_enabled: d.mask.intermediate, eyes: &eyes, explicit_clear: snap.explicit_clear };
+    let plan = eye_pass::classify(&snap.pass, &facts);
+    // Only a pass's beginning counts as a pass; later subpasses and clears count when they mask.
+    let counts = matches!(trigger, Trigger::Begin { .. }) && !resuming;
+    let mut plan = match plan {
+        Ok(p) => p,
+        Err(why) => {
+            if counts {
+                d.mask.count(|s| s.count_not_masked(why));
+                log_reason_once(d, why, &snap.pass);
+            }
+            return;
+        }
+    };
+    if let Trigger::Clear { rects, .. } = &trigger {
+        // A clear of part of the attachment: mask only eyes it fully re-cleared.
+        plan.draws.retain(|dr| rects.iter().any(|r| r.contains(&dr.scissor)));
+        if plan.draws.is_empty() {
+            return;
+        }
+    }
+    match record(d, cb, &snap, &plan) {
+        Ok(pixels) => {
+            d.mask.count(|s| {
+                s.passes_masked += 1;
+                for (view, px) in &pixels {
+                    *s.pixels_masked.entry(*view).or_insert(0) += px;
+                }
+            });
+            log_kind_once(d, &plan, &pixels);
+        }
+        Err(why) => {
+            if counts {
+                d.mask.count(|s| s.count_not_masked(why));
+                log_reason_once(d, why, &snap.pass);
+            }
+        }
+    }
+}
+
+fn attachments(pass: &PassInstance) -> Vec<&AttachmentUse> {
+    match &pass.rendering {
+        Some(r) => r.color.iter().chain(&r.depth).chain(&r.stencil).map(|a| &a.attachment).collect(),
+        None => pass.attachments.iter().collect(),
+    }
+}
+
+fn depth_image(pass: &PassInstance) -> Option<u64> {
+    let att = match &pass.rendering {
+        Some(r) => r.depth.as_ref().map(|d| &d.attachment),
+        None => {
+            let rp = pass.render_pass.as_ref()?;
+            let i = rp.subpasses.get(pass.subpass as usize)?.depth_stencil?.used()?;
+            pass.attachments.get(i as usize)
+        }
+    }?;
+    att.image_view.as_ref().map(|v| v.image)
+}
+
+fn eyes_of(d: &DeviceState, a: &AttachmentUse) -> Eyes {
+    if let Some(sc) = &a.swapchain {
+        return Eyes::Swapchain(sc.swapchain.uses().iter().map(EyeSource::from_use).collect());
+    }
+    let Some(image) = a.image_view.as_ref().map(|v| v.image) else { return Eyes::Unknown };
+    match d.track.intermediate_eyes(shared(), image) {
+        None => Eyes::Unknown,
+        Some(learned) => {
+            let first = lock(&d.mask.books).logged_targets.insert(image);
+            match learned {
+                Learned::Eyes(e) => {
+                    if first {
+                        tracing::info!(
+                            image = format_args!("{image:#x}"),
+                            "intermediate eye target: image is transferred 1:1 into a swapchain image; eyes {:?}{}",
+                            e,
+                            if d.mask.intermediate { "" } else { " (mask.intermediate = off: not masked)" }
+                        );
+                    }
+                    Eyes::Intermediate(e)
+                }
+                Learned::Rejected(why) => {
+                    if first {
+                        tracing::info!(image = format_args!("{image:#x}"), "not an intermediate eye target: {why}");
+                    }
+                    Eyes::Unknown
+                }
+            }
+        }
+    }
+}
+
+fn log_reason_once(d: &DeviceState, why: NotMasked, pass: &PassInstance) {
+    if why == NotMasked::NotEyePass {
+        return;
+    }
+    if lock(&d.mask.books).logged_reasons.insert(why) {
+        tracing::info!(kind = ?pass.kind, "pass not masked: {} (logged once per reason)", why.name());
+    }
+}
+
+fn log_kind_once(d: &DeviceState, plan: &MaskPlan, pixels: &[(u32, u64)]) {
+    if !lock(&d.mask.books).logged_kinds.insert((plan.layout, plan.intermediate)) {
+        return;
+    }
+    let target = if plan.intermediate { "intermediate image" } else { "swapchain image" };
+    let eyes: Vec<String> = plan
+        .draws
+        .iter()
+        .map(|dr| {
+            let r = dr.viewport;
+            let px = pixels.iter().find(|p| p.0 == dr.view).map_or(0, |p| p.1);
+            format!("view {}, rect {}x{}+{}+{} ({px} pixels masked)", dr.view, r.width, r.height, r.x, r.y)
+        })
+        .collect();
+    tracing::info!(
+        "masking {} pass on {target} {:#x}: {}; mask depth {}",
+        plan.layout.name(),
+        plan.image,
+        eyes.join("; "),
+        plan.fail_depth
+    );
+}
+
+/// Records the mask draw(s) and the app's state after them; returns pixels masked per view.
+fn record(d: &DeviceState, cb: vk::CommandBuffer, snap: &Snapshot, plan: &MaskPlan) -> Result<Vec<(u32, u64)>, NotMasked> {
+    let views = shared().views();
+    let buffer = vertex_buffer(d, &views).map_err(|e| {
+        tracing::warn!("mask vertex buffer: {e}");
+        NotMasked::LayerError
+    })?;
+    let Some(buffer) = buffer else { return Err(NotMasked::NoMask) };
+    let (vk_buffer, generation, ranges, total) = buffer;
+    if plan.draws.iter().any(|dr| !ranges.contains_key(&dr.view)) {
+        return Err(NotMasked::NoMask);
+    }
+    let key = pipeline_key(d, &snap.pass, plan).ok_or(NotMasked::Unsupported)?;
+    let pipeline = pipeline(d, &key).map_err(|e| {
+        tracing::warn!(?key, "mask pipeline: {e}");
+        NotMasked::LayerError
+    })?;
+    let fns = d.fns.fp_v1_0();
+    let viewport = |r: PixelRect| vk::Viewport {
+        x: r.x as f32,
+        y: r.y as f32,
+        width: r.width as f32,
+        height: r.height as f32,
+        min_depth: plan.fail_depth,
+        max_depth: plan.fail_depth,
+    };
+    let scissor = |r: PixelRect| vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } };
+    // SAFETY: `cb` is recording inside the pass the plan was made for (the hook just recorded its
+    // begin / clear); the pipeline is compatible with it; the buffer lives until retired frames
+    // after this command buffer completed; all arrays outlive the calls.
+    unsafe {
+        (fns.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+        (fns.cmd_bind_vertex_buffers)(cb, 0, 1, &vk_buffer, &0);
+        if plan.layout == EyeLayout::Multiview {
+            let dr = plan.draws[0];
+            (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
+            (fns.cmd_set_scissor)(cb, 0, 1, &scissor(dr.scissor));
+            (fns.cmd_draw)(cb, total, 1, 0, 0);
+        } else {
+            for dr in plan.draws.iter().filter(|dr| dr.scissor.area() > 0) {
+                let (first, count) = ranges[&dr.view];
+                (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
+                (fns.cmd_set_scissor)(cb, 0, 1, &scissor(dr.scissor));
+                (fns.cmd_draw)(cb, count, 1, first, 0);
+            }
+        }
+        for c in &snap.restore {
+            replay(d, cb, c);
+        }
+    }
+    let mut pixels = Vec::new();
+    for dr in &plan.draws {
+        pixels.push((dr.view, coverage(d, generation, dr.view, dr.viewport, dr.scissor)));
+    }
+    Ok(pixels)
+}
+
+fn coverage(d: &DeviceState, generation: u64, view: u32, viewport: PixelRect, scissor: PixelRect) -> u64 {
+    let k = (generation, view, viewport, scissor);
+    if let Some(n) = lock(&d.mask.books).coverage.get(&k) {
+        return *n;
+    }
+    let ndc = lock(&d.mask.objects).buffers.iter().find(|b| b.generation == generation).and_then(|b| b.ndc.get(&view).cloned());
+    let n = ndc.map_or(0, |t| mask::coverage(&t, viewport.viewport(), scissor));
+    let mut books = lock(&d.mask.books);
+    if books.coverage.len() > 256 {
+        books.coverage.clear();
+    }
+    books.coverage.insert(k, n);
+    n
+}
+
+fn pipeline_key(d: &DeviceState, pass: &PassInstance, plan: &MaskPlan) -> Option<PipelineKey> {
+    let samples_of_view = |a: &AttachmentUse| {
+        let v = a.image_view.as_ref()?;
+        d.track.images.get(v.image).map(|i| i.samples.as_raw())
+    };
+    if let Some(r) = &pass.rendering {
+        let fmt = |a: &AttachmentUse| a.image_view.as_ref().map_or(vk::Format::UNDEFINED, |v| v.format);
+        let depth = r.depth.as_ref()?;
+        let colors = r.color.iter().map(|c| if c.attachment.view == 0 { vk::Format::UNDEFINED } else { fmt(&c.attachment) }).collect();
+        let stencil = r.stencil.as_ref().filter(|s| s.attachment.view != 0).map_or(vk::Format::UNDEFINED, |s| fmt(&s.attachment));
+        return Some(PipelineKey::Dynamic {
+            colors,
+            depth: fmt(&depth.attachment),
+            stencil,
+            samples: samples_of_view(&depth.attachment)?,
+            view_mask: r.view_mask,
+        });
+    }
+    let rp = pass.render_pass.as_ref()?;
+    let sub = rp.subpasses.get(pass.subpass as usize)?;
+    let depth = rp.attachments.get(sub.depth_stencil?.used()? as usize)?;
+    let multiview = sub.view_mask != 0;
+    if multiview != (plan.layout == EyeLayout::Multiview) {
+        return None;
+    }
+    Some(PipelineKey::RenderPass {
+        render_pass: rp.handle,
+        subpass: pass.subpass,
+        samples: depth.samples.as_raw(),
+        colors: sub.color.len() as u32,
+        multiview,
+    })
+}
+
+/// Layout and shader modules, made once per device.
+fn common(d: &DeviceState) -> Result<(vk::PipelineLayout, vk::ShaderModule, vk::ShaderModule, vk::ShaderModule), String> {
+    {
+        let o = lock(&d.mask.objects);
+        if o.layout != vk::PipelineLayout::null() {
+            return Ok((o.layout, o.vert, o.vert_mv, o.frag));
+        }
+    }
+    let module = |bytes: &[u8]| -> Result<vk::ShaderModule, String> {
+        let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes)).map_err(|e| e.to_string())?;
+        // SAFETY: valid SPIR-V compiled at build time; a valid create info.
+        unsafe { d.fns.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }.map_err(|e| e.to_string())
+    };
+    // No descriptor sets, no push constants: the mask needs nothing but its vertices.
+    // SAFETY: a valid, empty create info.
+    let layout = unsafe { d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default(), None) }.map_err(|e| e.to_string())?;
+    let (vert, vert_mv, frag) = (module(VERT)?, module(VERT_MV)?, module(FRAG)?);
+    let mut o = lock(&d.mask.objects);
+    if o.layout != vk::PipelineLayout::null() {
+        drop(o);
+        // Another thread won the race: ours are unused.
+        // SAFETY: objects this function just created, never used.
+        unsafe {
+            d.fns.destroy_pipeline_layout(layout, None);
+            for m in [vert, vert_mv, frag] {
+                d.fns.destroy_shader_module(m, None);
+            }
+        }
+        return common(d);
+    }
+    (o.layout, o.vert, o.vert_mv, o.frag) = (layout, vert, vert_mv, frag);
+    Ok((layout, vert, vert_mv, frag))
+}
+
+/// The cached pipeline for `key`, created on first use (never per draw).
+fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, String> {
+    if let Some(p) = lock(&d.mask.objects).pipelines.get(key) {
+        return Ok(*p);
+    }
+    let (layout, vert, vert_mv, frag) = common(d)?;
+    let (multiview, samples, colors) = match key {
+        PipelineKey::RenderPass { samples, colors, multiview, .. } => (*multiview, *samples, *colors as usize),
+        PipelineKey::Dynamic { colors, samples, view_mask, .. } => (*view_mask != 0, *samples, colors.len()),
+    };
+    let stages = [
+        vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::VERTEX)
+            .module(if multiview { vert_mv } else { vert })
+            .name(c"main"),
+        vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(frag).name(c"main"),
+    ];
+    let bindings = [vk::VertexInputBindingDescription { binding: 0, stride: std::mem::size_of::<Vertex>() as u32, input_rate: vk::VertexInputRate::VERTEX }];
+    let attributes = [
+        vk::VertexInputAttributeDescription { location: 0, binding: 0, format: vk::Format::R32G32_SFLOAT, offset: 0 },
+        vk::VertexInputAttributeDescription { location: 1, binding: 0, format: vk::Format::R32_UINT, offset: 8 },
+    ];
+    let vertex_input = vk::PipelineVertexInputStateCreateInfo::default().vertex_binding_descriptions(&bindings).vertex_attribute_descriptions(&attributes);
+    let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+    let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
+    let raster = vk::PipelineRasterizationStateCreateInfo::default()
+        .polygon_mode(vk::PolygonMode::FILL)
+        .cull_mode(vk::CullModeFlags::NONE)
+        .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+        .line_width(1.0);
+    let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::from_raw(samples));
+    // ALWAYS + write: the mask replaces the cleared depth with the failing value, whatever the
+    // app's compare op is.
+    let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+        .depth_test_enable(true)
+        .depth_write_enable(true)
+        .depth_compare_op(vk::CompareOp::ALWAYS);
+    let blend_atts: Vec<vk::PipelineColorBlendAttachmentState> = (0..colors)
+        .map(|i| {
+            let mask = if d.mask.debug && i == 0 { vk::ColorComponentFlags::RGBA } else { vk::ColorComponentFlags::empty() };
+            vk::PipelineColorBlendAttachmentState::default().color_write_mask(mask)
+        })
+        .collect();
+    let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_atts);
+    let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+    let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+    let mut info = vk::GraphicsPipelineCreateInfo::default()
+        .stages(&stages)
+        .vertex_input_state(&vertex_input)
+        .input_assembly_state(&input_assembly)
+        .viewport_state(&viewport)
+        .rasterization_state(&raster)
+        .multisample_state(&multisample)
+        .depth_stencil_state(&depth)
+        .color_blend_state(&blend)
+        .dynamic_state(&dynamic)
+        .layout(layout);
+    let color_formats: Vec<vk::Format>;
+    let mut rendering;
+    match key {
+        PipelineKey::RenderPass { render_pass, subpass, .. } => {
+            info = info.render_pass(vk::RenderPass::from_raw(*render_pass)).subpass(*subpass);
+        }
+        PipelineKey::Dynamic { colors, depth, stencil, view_mask, .. } => {
+            color_formats = colors.clone();
+            rendering = vk::PipelineRenderingCreateInfo::default()
+                .view_mask(*view_mask)
+                .color_attachment_formats(&color_formats)
+                .depth_attachment_format(*depth)
+                .stencil_attachment_format(*stencil);
+            info = info.push_next(&mut rendering);
+        }
+    }
+    // SAFETY: a valid create info; every object it names is alive (the app's render pass is in use
+    // by the pass being recorded).
+    let created = unsafe { d.fns.create_graphics_pipelines(vk::PipelineCache::null(), &[info], None) }.map_err(|(_, e)| e.to_string())?;
+    let p = created[0];
+    let mut o = lock(&d.mask.objects);
+    if let Some(existing) = o.pipelines.get(key) {
+        let existing = *existing;
+        drop(o);
+        // SAFETY: ours was just created and never used.
+        unsafe { d.fns.destroy_pipeline(p, None) };
+        return Ok(existing);
+    }
+    o.pipelines.insert(key.clone(), p);
+    drop(o);
+    tracing::debug!(?key, "mask pipeline created");
+    Ok(p)
+}
+
+/// The app destroyed a render pass: pipelines made against it go too (its handle may be reused).
+/// Every command buffer that used them also used the render pass, and the app must have waited
+/// for those before destroying it.
+pub(crate) fn forget_render_pass(d: &DeviceState, render_pass: u64) {
+    let gone: Vec<vk::Pipeline> = {
+        let mut o = lock(&d.mask.objects);
+        let keys: Vec<PipelineKey> = o.pipelines.keys().filter(|k| matches!(k, PipelineKey::RenderPass { render_pass: r, .. } if *r == render_pass)).cloned().collect();
+        keys.iter().filter_map(|k| o.pipelines.remove(k)).collect()
+    };
+    for p in gone {
+        // SAFETY: our pipeline; its command buffers completed (see above).
+        unsafe { d.fns.destroy_pipeline(p, None) };
+    }
+}
+
+type BufferInfo = (vk::Buffer, u64, BTreeMap<u32, (u32, u32)>, u32);
+
+/// The vertex buffer of the current mask generation, built when the generation first appears;
+/// None when no view has a mask.
+fn vertex_buffer(d: &DeviceState, views: &Arc<Views>) -> Result<Option<BufferInfo>, String> {
+    let now = FRAMES_ENDED.load(Ordering::Relaxed);
+    let mut retired = Vec::new();
+    {
+        let mut o = lock(&d.mask.objects);
+        if let Some(b) = o.buffers.iter().find(|b| b.generation == views.generation && b.retired_at.is_none()) {
+            return Ok((b.total > 0).then(|| (b.buffer, b.generation, b.ranges.clone(), b.total)));
+        }
+        for b in o.buffers.iter_mut() {
+            b.retired_at.get_or_insert(now);
+        }
+        o.buffers.retain(|b| {
+            let old = b.retired_at.is_some_and(|r| now >= r + RETIRE_AFTER_FRAMES);
+            if old {
+                retired.push((b.buffer, b.memory));
+            }
+            !old
+        });
+    }
+    for (buffer, memory) in retired {
+        // SAFETY: retired RETIRE_AFTER_FRAMES frames ago; no command buffer still uses it.
+        unsafe {
+            d.fns.destroy_buffer(buffer, None);
+            d.fns.free_memory(memory, None);
+        }
+    }
+    let mut vertices = Vec::new();
+    let mut ranges = BTreeMap::new();
+    let mut ndc_of = BTreeMap::new();
+    for m in &views.masks {
+        let Some(fov) = views.fovs.get(m.view as usize) else { continue };
+        let ndc = mask::triangles_to_ndc(&m.triangles, fov);
+        if ndc.is_empty() {
+            continue;
+        }
+        ranges.insert(m.view, (vertices.len() as u32, ndc.len() as u32));
+        vertices.extend(ndc.iter().map(|&pos| Vertex { pos, view: m.view }));
+        ndc_of.insert(m.view, ndc);
+    }
+    let total = vertices.len() as u32;
+    let (buffer, memory) = if vertices.is_empty() { (vk::Buffer::null(), vk::DeviceMemory::null()) } else { create_buffer(d, &vertices)? };
+    let mut o = lock(&d.mask.objects);
+    o.buffers.push(MaskBuffer { generation: views.generation, buffer, memory, ranges: ranges.clone(), ndc: ndc_of, total, retired_at: None });
+    drop(o);
+    tracing::info!(generation = views.generation, views = ranges.len(), vertices = total, "mask vertex buffer built");
+    Ok((total > 0).then_some((buffer, views.generation, ranges, total)))
+}
+
+fn create_buffer(d: &DeviceState, vertices: &[Vertex]) -> Result<(vk::Buffer, vk::DeviceMemory), String> {
+    let size = std::mem::size_of_val(vertices) as u64;
+    let info = vk::BufferCreateInfo::default().size(size).usage(vk::BufferUsageFlags::VERTEX_BUFFER).sharing_mode(vk::SharingMode::EXCLUSIVE);
+    // SAFETY: a valid create info.
+    let buffer = unsafe { d.fns.create_buffer(&info, None) }.map_err(|e| e.to_string())?;
+    // SAFETY: our buffer.
+    let req = unsafe { d.fns.get_buffer_memory_requirements(buffer) };
+    let wanted = vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
+    let mem = &d.mask.memory;
+    let Some(type_index) = (0..mem.memory_type_count).find(|&i| req.memory_type_bits & (1 << i) != 0 && mem.memory_types[i as usize].property_flags.contains(wanted)) else {
+        // SAFETY: our unused buffer.
+        unsafe { d.fns.destroy_buffer(buffer, None) };
+        return Err("no host-visible coherent memory type".into());
+    };
+    let alloc = vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(type_index);
+    // SAFETY: a valid allocate info; on failure our buffer is destroyed.
+    let memory = match unsafe { d.fns.allocate_memory(&alloc, None) } {
+        Ok(m) => m,
+        Err(e) => {
+            // SAFETY: our unused buffer.
+            unsafe { d.fns.destroy_buffer(buffer, None) };
+            return Err(e.to_string());
+        }
+    };
+    // SAFETY: fresh memory of the right type and size, mapped once, written, unmapped; coherent,
+    // so the writes are visible to the queue submissions that follow.
+    let r = unsafe {
+        d.fns.bind_buffer_memory(buffer, memory, 0).and_then(|_| {
+            let p = d.fns.map_memory(memory, 0, size, vk::MemoryMapFlags::empty())? as *mut Vertex;
+            std::ptr::copy_nonoverlapping(vertices.as_ptr(), p, vertices.len());
+            d.fns.unmap_memory(memory);
+            Ok(())
+        })
+    };
+    if let Err(e) = r {
+        // SAFETY: ours, never used by the GPU.
+        unsafe {
+            d.fns.destroy_buffer(buffer, None);
+            d.fns.free_memory(memory, None);
+        }
+        return Err(e.to_string());
+    }
+    Ok((buffer, memory))
+}
+
+/// Destroys every layer object of the device (at vkDestroyDevice, before calling down; the app has
+/// waited for the device to go idle).
+pub(crate) fn destroy(d: &DeviceState) {
+    let o = std::mem::take(&mut *lock(&d.mask.objects));
+    // SAFETY: our objects; the device is idle.
+    unsafe {
+        for p in o.pipelines.values() {
+            d.fns.destroy_pipeline(*p, None);
+        }
+        for b in &o.buffers {
+            d.fns.destroy_buffer(b.buffer, None);
+            d.fns.free_memory(b.memory, None);
+        }
+        d.fns.destroy_pipeline_layout(o.layout, None);
+        for m in [o.vert, o.vert_mv, o.frag] {
+            d.fns.destroy_shader_module(m, None);
+        }
+    }
+}
+
+/// Records one state command the app had in effect.
+///
+/// # Safety
+/// `cb` must be recording; the command's handles are the app's, still valid.
+unsafe fn replay(d: &DeviceState, cb: vk::CommandBuffer, c: &StateCmd) {
+    let v0 = d.fns.fp_v1_0();
+    let v3 = d.fns.fp_v1_3();
+    let vp = |v: &crate::track::cmd::Viewport| vk::Viewport { x: v.x, y: v.y, width: v.width, height: v.height, min_depth: v.min_depth, max_depth: v.max_depth };
+    let rc = |r: &crate::track::cmd::Rect| vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } };
+    // SAFETY: per this function's contract; arrays live across each call.
+    unsafe {
+        match c {
+            StateCmd::BindPipeline(p) => (v0.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::GRAPHICS, vk::Pipeline::from_raw(*p)),
+            StateCmd::SetViewport { first, viewports } => {
+                let v: Vec<_> = viewports.iter().map(vp).collect();
+                (v0.cmd_set_viewport)(cb, *first, v.len() as u32, v.as_ptr())
+            }
+            StateCmd::SetViewportWithCount(viewports) => {
+                let v: Vec<_> = viewports.iter().map(vp).collect();
+                (v3.cmd_set_viewport_with_count)(cb, v.len() as u32, v.as_ptr())
+            }
+            StateCmd::SetScissor { first, scissors } => {
+                let s: Vec<_> = scissors.iter().map(rc).collect();
+                (v0.cmd_set_scissor)(cb, *first, s.len() as u32, s.as_ptr())
+            }
+            StateCmd::SetScissorWithCount(scissors) => {
+                let s: Vec<_> = scissors.iter().map(rc).collect();
+                (v3.cmd_set_scissor_with_count)(cb, s.len() as u32, s.as_ptr())
+            }
+            StateCmd::LineWidth(w) => (v0.cmd_set_line_width)(cb, *w),
+            StateCmd::DepthBias { constant_factor, clamp, slope_factor } => (v0.cmd_set_depth_bias)(cb, *constant_factor, *clamp, *slope_factor),
+            StateCmd::BlendConstants(c) => (v0.cmd_set_blend_constants)(cb, c),
+            StateCmd::DepthBounds { min, max } => (v0.cmd_set_depth_bounds)(cb, *min, *max),
+            StateCmd::StencilCompareMask { face, mask } => (v0.cmd_set_stencil_compare_mask)(cb, *face, *mask),
+            StateCmd::StencilWriteMask { face, mask } => (v0.cmd_set_stencil_write_mask)(cb, *face, *mask),
+            StateCmd::StencilReference { face, reference } => (v0.cmd_set_stencil_reference)(cb, *face, *reference),
+            StateCmd::CullMode(m) => (v3.cmd_set_cull_mode)(cb, *m),
+            StateCmd::FrontFace(f) => (v3.cmd_set_front_face)(cb, *f),
+            StateCmd::PrimitiveTopology(t) => (v3.cmd_set_primitive_topology)(cb, *t),
+            StateCmd::DepthTestEnable(e) => (v3.cmd_set_depth_test_enable)(cb, (*e).into()),
+            StateCmd::DepthWriteEnable(e) => (v3.cmd_set_depth_write_enable)(cb, (*e).into()),
+            StateCmd::DepthCompareOp(op) => (v3.cmd_set_depth_compare_op)(cb, *op),
+            StateCmd::DepthBoundsTestEnable(e) => (v3.cmd_set_depth_bounds_test_enable)(cb, (*e).into()),
+            StateCmd::StencilTestEnable(e) => (v3.cmd_set_stencil_test_enable)(cb, (*e).into()),
+            StateCmd::StencilOp { face, fail_op, pass_op, depth_fail_op, compare_op } => {
+                (v3.cmd_set_stencil_op)(cb, *face, *fail_op, *pass_op, *depth_fail_op, *compare_op)
+            }
+            StateCmd::RasterizerDiscardEnable(e) => (v3.cmd_set_rasterizer_discard_enable)(cb, (*e).into()),
+            StateCmd::DepthBiasEnable(e) => (v3.cmd_set_depth_bias_enable)(cb, (*e).into()),
+            StateCmd::PrimitiveRestartEnable(e) => (v3.cmd_set_primitive_restart_enable)(cb, (*e).into()),
+            StateCmd::LineStipple { factor, pattern } => {
+                if let Some(f) = d.ext.cmd_set_line_stipple {
+                    f(cb, *factor, *pattern)
+                }
+            }
+            StateCmd::ColorWriteEnable(v) => {
+                if let Some(f) = d.ext.cmd_set_color_write_enable {
+                    let b: Vec<vk::Bool32> = v.iter().map(|&x| x.into()).collect();
+                    f(cb, b.len() as u32, b.as_ptr())
+                }
+            }
+            StateCmd::LogicOp(op) => {
+                if let Some(f) = d.ext.cmd_set_logic_op {
+                    f(cb, *op)
+                }
+            }
+            StateCmd::PatchControlPoints(n) => {
+                if let Some(f) = d.ext.cmd_set_patch_control_points {
+                    f(cb, *n)
+                }
+            }
+            StateCmd::PushConstants { layout, stages, offset, data } => {
+                (v0.cmd_push_constants)(cb, vk::PipelineLayout::from_raw(*layout), *stages, *offset, data.len() as u32, data.as_ptr().cast())
+            }
+            StateCmd::BindVertexBuffers { first, bindings } => {
+                let buffers: Vec<vk::Buffer> = bindings.iter().map(|b| vk::Buffer::from_raw(b.buffer)).collect();
+                let offsets: Vec<u64> = bindings.iter().map(|b| b.offset).collect();
+                let n = buffers.len() as u32;
+                if bindings.iter().any(|b| b.v2) {
+                    let sizes: Vec<u64> = bindings.iter().map(|b| b.size.unwrap_or(vk::WHOLE_SIZE)).collect();
+                    let strides: Option<Vec<u64>> = bindings.iter().map(|b| b.stride).collect();
+                    let has_sizes = bindings.iter().any(|b| b.size.is_some());
+                    (v3.cmd_bind_vertex_buffers2)(
+                        cb,
+                        *first,
+                        n,
+                        buffers.as_ptr(),
+                        offsets.as_ptr(),
+                        if has_sizes { sizes.as_ptr() } else { std::ptr::null() },
+                        strides.as_ref().map_or(std::ptr::null(), |s| s.as_ptr()),
+                    )
+                } else {
+                    (v0.cmd_bind_vertex_buffers)(cb, *first, n, buffers.as_ptr(), offsets.as_ptr())
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shaders_are_embedded_spirv() {
+        for s in [VERT, VERT_MV, FRAG] {
+            assert_eq!(&s[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
+        }
+        assert_eq!(std::mem::size_of::<Vertex>(), 12);
+    }
+}
