@@ -48,6 +48,9 @@ pub struct Options {
     pub color_format: ColorFamily,
     pub shading_cost: u32,
     pub animate: bool,
+    /// Bind pipeline, buffers, descriptor set, push constants and (one draw per pass) viewport and
+    /// scissor before beginning each pass, not inside it.
+    pub bind_before_pass: bool,
     pub stats: Option<PathBuf>,
     pub validation: bool,
 }
@@ -67,6 +70,7 @@ impl Default for Options {
             color_format: ColorFamily::Srgb,
             shading_cost: 0,
             animate: false,
+            bind_before_pass: false,
             stats: None,
             validation: false,
         }
@@ -87,6 +91,7 @@ usage: xr-scene [options]
   --color-format srgb|unorm                 swapchain colour format family (default srgb)
   --shading-cost K                          K-iteration per-pixel busy loop (default 0)
   --animate                                 spin the near cube by frame number
+  --bind-before-pass                        set draw state before vkCmdBegin*, not inside the pass
   --stats FILE                              write per-frame GPU time and shaded fragments as JSON
   --validation                              enable VK_LAYER_KHRONOS_validation (exit 3 on errors)
   --help                                    show this text";
@@ -180,12 +185,13 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                     .map_err(|_| format!("--shading-cost must be a non-negative integer, got {v:?}"))?;
             }
             "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
-            "--intermediate" | "--submit-depth" | "--animate" | "--validation" if inline.is_some() => {
+            "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--validation" if inline.is_some() => {
                 return Err(format!("{flag} takes no value"))
             }
             "--intermediate" => o.intermediate = true,
             "--submit-depth" => o.submit_depth = true,
             "--animate" => o.animate = true,
+            "--bind-before-pass" => o.bind_before_pass = true,
             "--validation" => o.validation = true,
             _ => return Err(format!("unknown argument {arg:?}")),
         }

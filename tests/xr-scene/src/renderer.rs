@@ -94,6 +94,7 @@ pub struct Renderer {
     layout: Layout,
     multiview: bool,
     intermediate: bool,
+    bind_before_pass: bool,
     samples: vk::SampleCountFlags,
     clear_depth: f32,
     push: PushConstants,
@@ -136,6 +137,7 @@ impl Renderer {
             layout: opts.layout,
             multiview,
             intermediate: opts.intermediate,
+            bind_before_pass: opts.bind_before_pass,
             samples: targets.samples,
             clear_depth: if opts.depth == DepthMode::Reverse { 0.0 } else { 1.0 },
             push: PushConstants {
@@ -363,22 +365,20 @@ impl Renderer {
                     _ => return Err(Error("internal: slot without depth".into())),
                 };
                 let extent = slot.extent;
-                self.passes.begin(gpu, cmd, color_view, depth_view, extent, self.clear_depth)?;
-                d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
-                d.cmd_bind_vertex_buffers(cmd, 0, &[self.vertices.buffer], &[0]);
-                d.cmd_bind_index_buffer(cmd, self.indices.buffer, 0, vk::IndexType::UINT32);
                 // Which views this pass draws, one draw each (multiview: one draw for both).
                 let draws: Vec<u32> = match self.layout {
                     Layout::PerEye => vec![slot_index as u32],
                     Layout::SideBySide => vec![0, 1],
                     Layout::Multiview => vec![0],
                 };
-                for eye in draws {
+                let bind = |eye: u32, viewport: bool| {
                     let rect = targets.views[eye as usize];
                     let (x, w) = if self.multiview { (0, extent.width) } else { (rect.offset_x, rect.extent.width) };
                     let h = rect.extent.height;
-                    d.cmd_set_viewport(cmd, 0, &[vk::Viewport { x: x as f32, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
-                    d.cmd_set_scissor(cmd, 0, &[vk::Rect2D { offset: vk::Offset2D { x, y: 0 }, extent: vk::Extent2D { width: w, height: h } }]);
+                    if viewport {
+                        d.cmd_set_viewport(cmd, 0, &[vk::Viewport { x: x as f32, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
+                        d.cmd_set_scissor(cmd, 0, &[vk::Rect2D { offset: vk::Offset2D { x, y: 0 }, extent: vk::Extent2D { width: w, height: h } }]);
+                    }
                     d.cmd_bind_descriptor_sets(
                         cmd,
                         vk::PipelineBindPoint::GRAPHICS,
@@ -390,6 +390,31 @@ impl Renderer {
                     let pc = PushConstants { eye, ..self.push };
                     let bytes = std::slice::from_raw_parts(&pc as *const PushConstants as *const u8, std::mem::size_of::<PushConstants>());
                     d.cmd_push_constants(cmd, self.pipeline_layout, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT, 0, bytes);
+                };
+                let bind_buffers = || {
+                    d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+                    d.cmd_bind_vertex_buffers(cmd, 0, &[self.vertices.buffer], &[0]);
+                    d.cmd_bind_index_buffer(cmd, self.indices.buffer, 0, vk::IndexType::UINT32);
+                };
+                // `--bind-before-pass`: all draw state of a one-draw pass (pipeline and buffers of
+                // any pass) is set before the pass begins — legal, and what a layer that injects
+                // draws into the pass must preserve.
+                let early = self.bind_before_pass;
+                let one_draw = draws.len() == 1;
+                if early {
+                    bind_buffers();
+                    if one_draw {
+                        bind(draws[0], true);
+                    }
+                }
+                self.passes.begin(gpu, cmd, color_view, depth_view, extent, self.clear_depth)?;
+                if !early {
+                    bind_buffers();
+                }
+                for eye in draws.iter().copied() {
+                    if !(early && one_draw) {
+                        bind(eye, true);
+                    }
                     d.cmd_draw_indexed(cmd, self.index_count, 1, 0, 0, 0);
                 }
                 self.passes.end(gpu, cmd);
