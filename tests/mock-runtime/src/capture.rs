@@ -13,6 +13,7 @@ use serde_json::{json, Value};
 use crate::session::Session;
 use crate::swapchain::{attachment_layout, full_aspect, is_depth, Swapchain};
 use crate::util::XrResult;
+use crate::visibility_mask;
 use crate::vulkan::vk_err;
 
 pub struct SubmittedDepth {
@@ -266,6 +267,26 @@ fn read_back(s: &Session, jobs: &[Job], size: u64) -> XrResult<Vec<u8>> {
     result
 }
 
+/// The runtime's hidden-area mask of each view for this frame: the HIDDEN_TRIANGLE_MESH exactly as
+/// xrGetVisibilityMaskKHR returns it now (tangent plane, CCW), expanded to 3 points per triangle;
+/// `[]` for every view when XR_KHR_visibility_mask is not offered (MOCK_XR_DISABLE_EXTENSIONS).
+fn visibility_masks_json(s: &Session) -> Value {
+    let cfg = &s.instance.cfg;
+    let offered = !cfg.disabled_extensions.contains(crate::EXT_VISIBILITY_MASK);
+    let scale = visibility_mask::current_scale(s);
+    let masks: Vec<Value> = (0..2)
+        .map(|view| {
+            let points: Vec<Value> = if offered {
+                visibility_mask::hidden_triangle_points(cfg.hmd, view, scale).iter().map(|p| json!([num(p[0]), num(p[1])])).collect()
+            } else {
+                Vec::new()
+            };
+            json!({ "view": view, "hidden_triangles": points })
+        })
+        .collect();
+    Value::Array(masks)
+}
+
 pub fn capture_frame(s: &Session, frame: u64, display_time: i64, blend: i32, layers: &[SubmittedLayer]) -> XrResult<()> {
     let cfg = &s.instance.cfg;
     let dir = cfg.capture_dir.as_ref().expect("capture only when configured");
@@ -332,9 +353,11 @@ pub fn capture_frame(s: &Session, frame: u64, display_time: i64, blend: i32, lay
             json!({ "type": l.kind, "layer_flags": l.flags, "space": l.space, "views": views })
         })
         .collect();
+    let masks = visibility_masks_json(s);
     let mut st = s.capture.lock().unwrap();
     st.frames.push(json!({
         "frame": frame, "display_time": display_time, "environment_blend_mode": blend, "layers": layers_json,
+        "visibility_masks": masks,
     }));
     let doc = json!({ "hmd": cfg.hmd.name, "frames": st.frames });
     let text = serde_json::to_vec_pretty(&doc).expect("json");

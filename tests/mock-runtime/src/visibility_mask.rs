@@ -147,6 +147,22 @@ pub fn mesh_area(m: &Mesh) -> f32 {
 /// Outline scale after MOCK_XR_VISIBILITY_MASK_CHANGE_AT.
 pub const CHANGED_SCALE: f32 = 0.9;
 
+/// Outline scale of the session's masks now (before or after MOCK_XR_VISIBILITY_MASK_CHANGE_AT).
+pub fn current_scale(s: &session::Session) -> f32 {
+    if s.core.lock().unwrap().mask_changed {
+        CHANGED_SCALE
+    } else {
+        1.0
+    }
+}
+
+/// The HIDDEN_TRIANGLE_MESH of `view` expanded to 3 points per triangle (in index order, so each
+/// triple is CCW), as capture's frames.json lists it.
+pub fn hidden_triangle_points(hmd: &HmdProfile, view: usize, scale: f32) -> Vec<V2> {
+    let (hid, _, _) = build(hmd, view, scale);
+    hid.indices.iter().map(|&i| hid.vertices[i as usize]).collect()
+}
+
 pub unsafe extern "system" fn xr_get_visibility_mask_khr(
     session: xr::Session,
     view_config: xr::ViewConfigurationType,
@@ -163,8 +179,7 @@ pub unsafe extern "system" fn xr_get_visibility_mask_khr(
         }
         // SAFETY: app output struct.
         let m = unsafe { output(mask) }?;
-        let scale = if s.core.lock().unwrap().mask_changed { CHANGED_SCALE } else { 1.0 };
-        let (hid, vis, line) = build(s.instance.cfg.hmd, view_index as usize, scale);
+        let (hid, vis, line) = build(s.instance.cfg.hmd, view_index as usize, current_scale(&s));
         let mesh = match mask_type {
             xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH => hid,
             xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH => vis,
@@ -238,6 +253,21 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn expanded_points_are_the_indexed_triangles() {
+        let hmd = HmdProfile::by_name("index").unwrap();
+        for view in 0..2 {
+            let (hid, _, _) = build(hmd, view, CHANGED_SCALE);
+            let pts = hidden_triangle_points(hmd, view, CHANGED_SCALE);
+            assert_eq!(pts.len(), hid.indices.len());
+            assert_eq!(pts.len() % 3, 0);
+            for (p, &i) in pts.iter().zip(&hid.indices) {
+                assert_eq!(*p, hid.vertices[i as usize]);
+            }
+            assert!(pts.chunks(3).all(|t| tri_area(t[0], t[1], t[2]) > 0.0));
         }
     }
 

@@ -446,3 +446,102 @@ fn actions_menu_click_and_gaze() {
     assert!((fwd.x.atan2(-fwd.z).to_degrees() - 10.0).abs() < 0.01, "yaw {fwd}");
     assert!((fwd.y.asin().to_degrees() - 5.0).abs() < 0.01, "pitch {fwd}");
 }
+
+/// frames.json's `visibility_masks` of each captured frame, per view: the hidden triangles' points.
+fn captured_masks(dir: &std::path::Path) -> Vec<Vec<Vec<[f32; 2]>>> {
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("frames.json")).unwrap()).unwrap();
+    json["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| {
+            let masks = f["visibility_masks"].as_array().expect("visibility_masks");
+            assert_eq!(masks.len(), 2);
+            masks
+                .iter()
+                .enumerate()
+                .map(|(v, m)| {
+                    assert_eq!(m["view"].as_u64(), Some(v as u64));
+                    m["hidden_triangles"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|p| [p[0].as_f64().unwrap() as f32, p[1].as_f64().unwrap() as f32])
+                        .collect()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Runs `frames` captured frames of a 2-view projection layer; before each xrEndFrame, `during`
+/// sees the session (to ask for what the runtime reports during that frame).
+fn capture_frames(fx: &Fixture, frames: u32, mut during: impl FnMut(&Xr, xr::Session)) {
+    let (x, s) = (fx.xr(), fx.session);
+    let stage = reference_space(x, s, xr::ReferenceSpaceType::STAGE);
+    let sc = try_create_swapchain(x, s, &swapchain_info(vk::Format::R8G8B8A8_SRGB, 64, 32, 1)).unwrap();
+    let images = swapchain_images(x, sc);
+    assert_eq!(begin_session(x, s), xr::Result::SUCCESS);
+    for _ in 0..frames {
+        let (r, st) = wait_frame(x, s);
+        assert_eq!(r, xr::Result::SUCCESS);
+        assert_eq!(begin_frame(x, s), xr::Result::SUCCESS);
+        let i = acquire_wait(x, sc);
+        fx.gfx.clear_color(images[i as usize], 0, [1.0, 0.0, 0.0, 1.0]);
+        assert_eq!(release(x, sc), xr::Result::SUCCESS);
+        during(x, s);
+        let views = [projection_view(sc, 0, 32, 32, 0), projection_view(sc, 32, 32, 32, 0)];
+        let layer = projection_layer(stage, &views);
+        assert_eq!(end_frame(x, s, st.predicted_display_time, &[&layer as *const _ as *const _]), xr::Result::SUCCESS);
+        x.events();
+    }
+}
+
+#[test]
+fn capture_lists_the_hidden_masks_of_each_frame() {
+    let _g = serial();
+    let dir = scratch_dir("capture-masks");
+    std::env::set_var("MOCK_XR_HMD", "index");
+    std::env::set_var("MOCK_XR_CAPTURE", &dir);
+    std::env::set_var("MOCK_XR_VISIBILITY_MASK_CHANGE_AT", "1");
+    let fx = fixture(&["XR_KHR_vulkan_enable2", "XR_KHR_visibility_mask"]);
+    // What xrGetVisibilityMaskKHR returns during each frame, expanded to 3 points per triangle.
+    let mut expected: Vec<Vec<Vec<[f32; 2]>>> = Vec::new();
+    capture_frames(&fx, 3, |x, s| {
+        expected.push(
+            (0..2)
+                .map(|view| {
+                    let (v, i) = mask(x, s, view, xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH);
+                    i.iter().map(|&k| v[k as usize]).collect()
+                })
+                .collect(),
+        );
+    });
+    let captured = captured_masks(&dir);
+    assert_eq!(captured.len(), 3);
+    // Bit-exact: the f32 values survive the shortest-decimal round trip.
+    assert_eq!(captured, expected);
+    for frame in &captured {
+        for view in frame {
+            assert!(!view.is_empty() && view.len() % 3 == 0);
+        }
+    }
+    // The change at frame 1 shows in frames.json: frame 0 has the original masks, 1 and 2 the shrunk ones.
+    assert_ne!(captured[0], captured[1]);
+    assert_eq!(captured[1], captured[2]);
+    // Views differ (mirror images).
+    assert_ne!(captured[0][0], captured[0][1]);
+}
+
+#[test]
+fn capture_lists_no_masks_without_the_extension() {
+    let _g = serial();
+    let dir = scratch_dir("capture-no-masks");
+    std::env::set_var("MOCK_XR_CAPTURE", &dir);
+    std::env::set_var("MOCK_XR_DISABLE_EXTENSIONS", "XR_KHR_visibility_mask");
+    std::env::set_var("MOCK_XR_VISIBILITY_MASK_CHANGE_AT", "1");
+    let fx = fixture(&["XR_KHR_vulkan_enable2"]);
+    capture_frames(&fx, 2, |_, _| {});
+    let captured = captured_masks(&dir);
+    assert_eq!(captured, vec![vec![Vec::<[f32; 2]>::new(); 2]; 2]);
+}

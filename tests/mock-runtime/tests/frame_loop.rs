@@ -71,6 +71,16 @@ fn state_sequence_with_exit_after_and_capture() {
     assert_eq!(v["file"], "frame-00000-view-1.png");
     assert_eq!(v["swapchain"].as_u64().unwrap(), sc.into_raw());
     assert!(v["depth"].is_null());
+    // XR_KHR_visibility_mask is offered (the app did not enable it): the runtime's masks are listed.
+    for f in frames {
+        let masks = f["visibility_masks"].as_array().unwrap();
+        assert_eq!(masks.len(), 2);
+        for (i, m) in masks.iter().enumerate() {
+            assert_eq!(m["view"], i);
+            let n = m["hidden_triangles"].as_array().unwrap().len();
+            assert!(n > 0 && n % 3 == 0, "{n}");
+        }
+    }
     for (file, rgb) in [("frame-00000-view-0.png", [255, 0, 0]), ("frame-00002-view-1.png", [0, 0, 255])] {
         let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(dir.join(file)).unwrap()));
         let mut r = dec.read_info().unwrap();
