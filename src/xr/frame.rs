@@ -30,6 +30,19 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
     }, plain)
 }
 
+/// Closes the frame's statistics: what the Vulkan half did since the last `xrEndFrame`, under the
+/// configuration that was live while the frame was recorded (reloads apply after this).
+fn write_frame_stats(inst: &super::Instance, frame: u64) {
+    static WRITER: std::sync::OnceLock<crate::frame_stats::Writer> = std::sync::OnceLock::new();
+    let mask = crate::vk::take_frame_stats();
+    let live = shared::shared().config().unwrap_or_else(|| inst.config.clone());
+    let record = crate::frame_stats::FrameRecord { frame, mask_enabled: live.bool("mask.enabled"), mask };
+    if frame == 0 || record.mask.passes_masked > 0 || !record.mask.not_masked.is_empty() {
+        tracing::debug!("frame stats: {}", record.to_json());
+    }
+    WRITER.get_or_init(Default::default).write(live.text("stats.file"), &record);
+}
+
 /// Applies a changed config file from the next frame on (frame boundaries keep every frame's
 /// work under one configuration).
 fn reload_config(inst: &super::Instance) {
@@ -149,7 +162,8 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
         if r != xr::Result::SUCCESS {
             return Ok(r);
         }
-        inst.stats.frames_ended.fetch_add(1, Ordering::Relaxed);
+        let frame = inst.stats.frames_ended.fetch_add(1, Ordering::Relaxed);
+        write_frame_stats(&inst, frame);
         reload_config(&inst);
         let shared = shared::shared();
         if let (Some(fovs), Ok(s)) = (fovs, session::lookup(session)) {

@@ -1,0 +1,169 @@
+//! The feature benchmark: xr-scene, fragment-bound (`--shading-cost`), through the mock runtime
+//! and stereoshim, with the layer's config switched live between "features off" (A) and "features
+//! on" (B) every `--period` frames within ONE run, so both halves see the same machine state. Per
+//! frame, the layer's `stats.file` says which mode the frame ran in and what it masked; xr-scene's
+//! `--stats` gives the GPU time and the exactly counted shaded fragments of the same frame.
+//!
+//! cargo build --release --workspace && cargo build --release --examples &&
+//!   target/release/examples/bench [--hmd index] [--layout per-eye] [--scale 0.5]
+//!   [--shading-cost 64] [--frames 400] [--period 40] [--feature mask]
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+struct Args {
+    hmd: String,
+    layout: String,
+    scale: String,
+    shading_cost: String,
+    frames: u64,
+    period: u64,
+    feature: String,
+}
+
+fn parse_args() -> Args {
+    let mut a = Args {
+        hmd: "index".into(),
+        layout: "per-eye".into(),
+        scale: "0.5".into(),
+        shading_cost: "64".into(),
+        frames: 400,
+        period: 40,
+        feature: "mask".into(),
+    };
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    for pair in argv.chunks(2) {
+        let v = pair.get(1).cloned().unwrap_or_default();
+        match pair[0].as_str() {
+            "--hmd" => a.hmd = v,
+            "--layout" => a.layout = v,
+            "--scale" => a.scale = v,
+            "--shading-cost" => a.shading_cost = v,
+            "--frames" => a.frames = v.parse().expect("--frames N"),
+            "--period" => a.period = v.parse().expect("--period N"),
+            "--feature" => a.feature = v,
+            other => panic!("unknown argument {other}"),
+        }
+    }
+    a
+}
+
+/// The config text for mode B (features on) or A (off).
+fn config_text(feature: &str, on: bool, stats: &Path) -> String {
+    format!("stats.file = {:?}\n{feature}.enabled = {on}\n", stats.to_string_lossy())
+}
+
+/// Rewrites the config through a rename, so the layer never reads half a file and sees a new
+/// modification time.
+fn write_config(path: &Path, text: &str) {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, text).unwrap();
+    std::fs::rename(&tmp, path).unwrap();
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v[v.len() / 2]
+    }
+}
+
+fn main() {
+    let a = parse_args();
+    let name = format!("bench-{}-{}-{}", a.feature, a.hmd, a.layout);
+    let dir = common::output_dir(&name);
+    let (layer_stats, app_stats, capture) = (dir.join("layer-stats.jsonl"), dir.join("app-stats.json"), dir.join("capture"));
+    let config = dir.join("config/stereoshim/config.toml");
+    std::fs::create_dir_all(config.parent().unwrap()).unwrap();
+    write_config(&config, &config_text(&a.feature, false, &layer_stats));
+
+    let mut child = Command::new(common::xr_scene_exe())
+        .args(["--layout", &a.layout, "--scale", &a.scale, "--shading-cost", &a.shading_cost])
+        .arg("--stats")
+        .arg(&app_stats)
+        .env("XR_RUNTIME_JSON", common::runtime_manifest())
+        .env("XR_API_LAYER_PATH", common::layer_manifest_dir())
+        .env("XR_ENABLE_API_LAYERS", common::XR_LAYER_NAME)
+        .env("XDG_CONFIG_HOME", dir.join("config"))
+        .env("XDG_STATE_HOME", dir.join("state"))
+        .env("XDG_RUNTIME_DIR", dir.join("run"))
+        .env("MOCK_XR_HMD", &a.hmd)
+        .env("MOCK_XR_EXIT_AFTER", a.frames.to_string())
+        .env("MOCK_XR_CAPTURE", &capture)
+        .env("MOCK_XR_CAPTURE_FRAMES", "0")
+        .env_remove("STEREOSHIM_CONFIG")
+        .spawn()
+        .expect("spawn xr-scene");
+
+    // Switch modes by the layer's own frame count: every `period` frames, flip the config.
+    let (mut on, mut next_switch) = (false, a.period);
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            assert!(status.success(), "xr-scene failed: {status}");
+            break;
+        }
+        let done = std::fs::read_to_string(&layer_stats).map(|t| t.lines().count() as u64).unwrap_or(0);
+        if done >= next_switch {
+            on = !on;
+            write_config(&config, &config_text(&a.feature, on, &layer_stats));
+            next_switch += a.period;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+
+    // Join the layer's per-frame record with the app's by frame number.
+    let mut mode: BTreeMap<u64, (bool, u64)> = BTreeMap::new();
+    for line in std::fs::read_to_string(&layer_stats).unwrap().lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let pixels: u64 = v["pixels_masked"].as_object().map(|m| m.values().filter_map(|x| x.as_u64()).sum()).unwrap_or(0);
+        mode.insert(v["frame"].as_u64().unwrap(), (v[format!("{}_enabled", a.feature)].as_bool().unwrap_or(false), pixels));
+    }
+    let app: serde_json::Value = serde_json::from_slice(&std::fs::read(&app_stats).unwrap()).unwrap();
+    let frames_json: serde_json::Value = serde_json::from_slice(&std::fs::read(capture.join("frames.json")).unwrap()).unwrap();
+    let pixels_total: u64 = frames_json["frames"][0]["layers"][0]["views"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v["image_rect"]["width"].as_u64().unwrap() * v["image_rect"]["height"].as_u64().unwrap())
+        .sum();
+    let (mut gpu, mut shaded, mut masked) = ([vec![], vec![]], [vec![], vec![]], vec![]);
+    for f in app["frames"].as_array().unwrap() {
+        let n = f["frame"].as_u64().unwrap();
+        let Some(&(is_on, pixels)) = mode.get(&n) else { continue };
+        // Warm-up, and the first frame of each mode (pipelines and buffers are made lazily).
+        if n < 10 || mode.get(&(n - 1)).is_none_or(|p| p.0 != is_on) {
+            continue;
+        }
+        let i = is_on as usize;
+        gpu[i].push(f["gpu_time_ms"].as_f64().unwrap());
+        shaded[i].push(f["views"].as_array().unwrap().iter().map(|v| v["shaded_fragments"].as_u64().unwrap()).sum::<u64>() as f64);
+        if is_on {
+            masked.push(pixels as f64);
+        }
+    }
+    let (g_off, g_on) = (median(gpu[0].clone()), median(gpu[1].clone()));
+    let (s_off, s_on) = (median(shaded[0].clone()), median(shaded[1].clone()));
+    let masked_fraction = median(masked) / pixels_total as f64;
+    let time_saved = 1.0 - g_on / g_off;
+    let shaded_saved = 1.0 - s_on / s_off;
+    println!("| hmd | layout | frames off/on | GPU ms off | GPU ms on | saved | shaded off | shaded on | saved | masked fraction | time saved / masked |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| {} | {} | {}/{} | {g_off:.3} | {g_on:.3} | {:.1} % | {s_off:.0} | {s_on:.0} | {:.1} % | {:.1} % | {:.2} |",
+        a.hmd,
+        a.layout,
+        gpu[0].len(),
+        gpu[1].len(),
+        time_saved * 100.0,
+        shaded_saved * 100.0,
+        masked_fraction * 100.0,
+        time_saved / masked_fraction
+    );
+}

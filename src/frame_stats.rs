@@ -1,0 +1,96 @@
+//! The layer's own per-frame statistics (`stats.file`): one JSON line per `xrEndFrame`, so that a
+//! benchmark or a test can check what the layer did in each frame against what the app measured
+//! (shaded fragments, GPU time) for the same frame number.
+
+use crate::mask::MaskFrameStats;
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// One frame as written to the file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameRecord {
+    /// 0-based number of the frame (count of successful `xrEndFrame`s before it).
+    pub frame: u64,
+    /// The live `mask.enabled` the frame was recorded under.
+    pub mask_enabled: bool,
+    pub mask: MaskFrameStats,
+}
+
+impl FrameRecord {
+    pub fn to_json(&self) -> String {
+        let not_masked: serde_json::Map<String, serde_json::Value> =
+            self.mask.not_masked.iter().map(|(k, v)| (k.to_string(), (*v).into())).collect();
+        let pixels: serde_json::Map<String, serde_json::Value> =
+            self.mask.pixels_masked.iter().map(|(k, v)| (k.to_string(), (*v).into())).collect();
+        serde_json::json!({
+            "frame": self.frame,
+            "mask_enabled": self.mask_enabled,
+            "passes_masked": self.mask.passes_masked,
+            "not_masked": not_masked,
+            "pixels_masked": pixels,
+        })
+        .to_string()
+    }
+}
+
+/// Appends records to the configured file; the file is (re)opened when the configured path
+/// changes, and a file that cannot be written is reported once and then left alone.
+#[derive(Debug, Default)]
+pub struct Writer {
+    open: Mutex<Option<(PathBuf, Option<File>)>>,
+}
+
+impl Writer {
+    pub fn write(&self, path: &str, record: &FrameRecord) {
+        if path.is_empty() {
+            return;
+        }
+        let mut open = self.open.lock().unwrap_or_else(|e| e.into_inner());
+        if open.as_ref().is_none_or(|(p, _)| p != Path::new(path)) {
+            let file = std::fs::OpenOptions::new().create(true).append(true).open(path);
+            if let Err(e) = &file {
+                tracing::warn!("stats.file {path}: {e}; no statistics written");
+            }
+            *open = Some((PathBuf::from(path), file.ok()));
+        }
+        if let Some((_, Some(file))) = open.as_mut() {
+            // One write per line: readers tailing the file never see half a record.
+            let line = record.to_json() + "\n";
+            if let Err(e) = file.write_all(line.as_bytes()) {
+                tracing::warn!("stats.file {path}: {e}; no further statistics written");
+                *open = Some((PathBuf::from(path), None));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn records_are_json_lines() {
+        let mut mask = MaskFrameStats::default();
+        mask.passes_masked = 2;
+        mask.not_masked.insert("no_depth_attachment", 1);
+        mask.pixels_masked.insert(0, 1234);
+        let r = FrameRecord { frame: 7, mask_enabled: true, mask };
+        let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
+        assert_eq!(v["frame"], 7);
+        assert_eq!(v["passes_masked"], 2);
+        assert_eq!(v["not_masked"]["no_depth_attachment"], 1);
+        assert_eq!(v["pixels_masked"]["0"], 1234);
+
+        let dir = std::env::temp_dir().join(format!("stereoshim-stats-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("s.jsonl");
+        let w = Writer::default();
+        w.write(path.to_str().unwrap(), &r);
+        w.write(path.to_str().unwrap(), &FrameRecord { frame: 8, ..r });
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(text.lines().count(), 2);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
