@@ -318,8 +318,7 @@ mod tests {
 
     #[test]
     fn stats_add_and_summarise() {
-        let mut a = MaskFrameStats::default();
-        a.passes_masked = 2;
+        let mut a = MaskFrameStats { passes_masked: 2, ..Default::default() };
         a.pixels_masked.insert(0, 10);
         a.count_not_masked(NotMasked::NoDepthAttachment);
         let mut b = MaskFrameStats::default();

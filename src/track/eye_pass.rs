@@ -168,11 +168,7 @@ pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotM
                 found = Some((att, s, false));
                 break;
             }
-            Eyes::Intermediate(s) if !s.is_empty() => {
-                if found.is_none() {
-                    found = Some((att, s, true));
-                }
-            }
+            Eyes::Intermediate(s) if !s.is_empty() && found.is_none() => found = Some((att, s, true)),
             _ => {}
         }
     }

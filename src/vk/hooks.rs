@@ -433,7 +433,7 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
     guard::catch("vkDestroyDevice", (), || {
         let key = dispatch_key(device);
         let Some(dev) = layer().devices.get(key) else { return };
-        if dev.mask.enabled {
+        if dev.mask.used() {
             tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {} {}", dev.track.stats.summary(), dev.mask.summary());
             // The app waited for the device to go idle before destroying it.
             super::mask::destroy(&dev);
@@ -888,7 +888,7 @@ pub(super) unsafe extern "system" fn cmd_bind_vertex_buffers2(
 }
 
 fn transfer(d: &DeviceState, src: vk::Image, dst: vk::Image, regions: Vec<crate::track::eye_pass::TransferRegion>) {
-    if d.mask.enabled {
+    if d.mask.settings(&d.config).enabled {
         d.track.record_transfer(crate::shared::shared(), src.as_raw(), dst.as_raw(), &regions);
     }
 }
@@ -1020,7 +1020,7 @@ pub(super) unsafe extern "system" fn cmd_clear_attachments(
         // SAFETY: forwarding the app's arguments unchanged.
         |d| unsafe { (d.fns.fp_v1_0().cmd_clear_attachments)(cb, n, attachments, rect_count, rects) },
         |d, _| {
-            if !d.mask.enabled {
+            if !d.mask.settings(&d.config).enabled {
                 return;
             }
             // SAFETY: arrays valid with their counts during the app's call.
@@ -1051,7 +1051,7 @@ pub(super) unsafe extern "system" fn cmd_clear_depth_stencil_image(
         // SAFETY: forwarding the app's arguments unchanged.
         |d| unsafe { (d.fns.fp_v1_0().cmd_clear_depth_stencil_image)(cb, image, layout, value, n, ranges) },
         |d, raw| {
-            if !d.mask.enabled {
+            if !d.mask.settings(&d.config).enabled {
                 return;
             }
             // SAFETY: valid pointers during the app's call.

@@ -38,9 +38,9 @@ struct Vertex {
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 enum PipelineKey {
     /// Compatible with the app's render pass + subpass (the subpass carries its view mask).
-    RenderPass { render_pass: u64, subpass: u32, samples: u32, colors: u32, multiview: bool },
+    RenderPass { render_pass: u64, subpass: u32, samples: u32, colors: u32, multiview: bool, debug: bool },
     /// `VkPipelineRenderingCreateInfo` for dynamic rendering.
-    Dynamic { colors: Vec<vk::Format>, depth: vk::Format, stencil: vk::Format, samples: u32, view_mask: u32 },
+    Dynamic { colors: Vec<vk::Format>, depth: vk::Format, stencil: vk::Format, samples: u32, view_mask: u32, debug: bool },
 }
 
 /// The vertex buffer of one mask generation.
@@ -80,9 +80,10 @@ struct Books {
 
 /// Per-device mask state. Locks are held only around bookkeeping, never while calling down.
 pub(crate) struct MaskDevice {
-    pub enabled: bool,
-    debug: bool,
-    intermediate: bool,
+    /// The master switch (`enabled`) at device creation; `mask.*` keys are read live.
+    layer_enabled: bool,
+    /// Whether the mask ever did anything on this device (adds its counters to the stats line).
+    used: std::sync::atomic::AtomicBool,
     memory: vk::PhysicalDeviceMemoryProperties,
     objects: Mutex<Objects>,
     books: Mutex<Books>,
@@ -90,6 +91,13 @@ pub(crate) struct MaskDevice {
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Settings {
+    pub enabled: bool,
+    pub debug: bool,
+    pub intermediate: bool,
 }
 
 /// Why a mask draw is recorded.
@@ -107,13 +115,27 @@ pub(crate) enum Trigger {
 impl MaskDevice {
     pub fn new(config: &Config, memory: vk::PhysicalDeviceMemoryProperties) -> MaskDevice {
         MaskDevice {
-            enabled: config.enabled() && config.bool("mask.enabled"),
-            debug: config.bool("mask.debug"),
-            intermediate: config.choice("mask.intermediate") != "off",
+            layer_enabled: config.enabled(),
+            used: std::sync::atomic::AtomicBool::new(false),
             memory,
             objects: Mutex::new(Objects::default()),
             books: Mutex::new(Books::default()),
         }
+    }
+
+    /// The `mask.*` settings in effect now: the OpenXR half re-reads a changed config file between
+    /// frames (`shared().config`), falling back to the device's own configuration.
+    pub fn settings(&self, device_config: &Arc<Config>) -> Settings {
+        let c = shared().config().unwrap_or_else(|| device_config.clone());
+        let enabled = self.layer_enabled && c.bool("mask.enabled");
+        if enabled {
+            self.used.store(true, Ordering::Relaxed);
+        }
+        Settings { enabled, debug: c.bool("mask.debug"), intermediate: c.choice("mask.intermediate") != "off" }
+    }
+
+    pub fn used(&self) -> bool {
+        self.used.load(Ordering::Relaxed)
     }
 
     pub fn take_frame(&self) -> MaskFrameStats {
@@ -151,7 +173,8 @@ struct Snapshot {
 
 /// Entry from the hooks, after the triggering command went down successfully.
 pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigger) {
-    if !d.mask.enabled {
+    let settings = d.mask.settings(&d.config);
+    if !settings.enabled {
         return;
     }
     let key = cb.as_raw();
@@ -178,8 +201,8 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
         Trigger::Begin { secondary } | Trigger::NextSubpass { secondary } => *secondary,
         Trigger::Clear { .. } => false,
     } || snap.secondary_level;
-    let eyes = |a: &AttachmentUse| eyes_of(d, a);
-    let facts = eye_pass::Facts { secondary_contents: secondary, intermediate_enabled: d.mask.intermediate, eyes: &eyes, explicit_clear: snap.explicit_clear };
+    let eyes = |a: &AttachmentUse| eyes_of(d, a, settings.intermediate);
+    let facts = eye_pass::Facts { secondary_contents: secondary, intermediate_enabled: settings.intermediate, eyes: &eyes, explicit_clear: snap.explicit_clear };
     let plan = eye_pass::classify(&snap.pass, &facts);
     // Only a pass's beginning counts as a pass; later subpasses and clears count when they mask.
     let counts = matches!(trigger, Trigger::Begin { .. }) && !resuming;
@@ -200,7 +223,7 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
             return;
         }
     }
-    match record(d, cb, &snap, &plan) {
+    match record(d, cb, &snap, &plan, settings.debug) {
         Ok(pixels) => {
             d.mask.count(|s| {
                 s.passes_masked += 1;
@@ -238,7 +261,7 @@ fn depth_image(pass: &PassInstance) -> Option<u64> {
     att.image_view.as_ref().map(|v| v.image)
 }
 
-fn eyes_of(d: &DeviceState, a: &AttachmentUse) -> Eyes {
+fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) -> Eyes {
     if let Some(sc) = &a.swapchain {
         return Eyes::Swapchain(sc.swapchain.uses().iter().map(EyeSource::from_use).collect());
     }
@@ -254,7 +277,7 @@ fn eyes_of(d: &DeviceState, a: &AttachmentUse) -> Eyes {
                             image = format_args!("{image:#x}"),
                             "intermediate eye target: image is transferred 1:1 into a swapchain image; eyes {:?}{}",
                             e,
-                            if d.mask.intermediate { "" } else { " (mask.intermediate = off: not masked)" }
+                            if intermediate { "" } else { " (mask.intermediate = off: not masked)" }
                         );
                     }
                     Eyes::Intermediate(e)
@@ -303,7 +326,7 @@ fn log_kind_once(d: &DeviceState, plan: &MaskPlan, pixels: &[(u32, u64)]) {
 }
 
 /// Records the mask draw(s) and the app's state after them; returns pixels masked per view.
-fn record(d: &DeviceState, cb: vk::CommandBuffer, snap: &Snapshot, plan: &MaskPlan) -> Result<Vec<(u32, u64)>, NotMasked> {
+fn record(d: &DeviceState, cb: vk::CommandBuffer, snap: &Snapshot, plan: &MaskPlan, debug: bool) -> Result<Vec<(u32, u64)>, NotMasked> {
     let views = shared().views();
     let buffer = vertex_buffer(d, &views).map_err(|e| {
         tracing::warn!("mask vertex buffer: {e}");
@@ -314,7 +337,7 @@ fn record(d: &DeviceState, cb: vk::CommandBuffer, snap: &Snapshot, plan: &MaskPl
     if plan.draws.iter().any(|dr| !ranges.contains_key(&dr.view)) {
         return Err(NotMasked::NoMask);
     }
-    let key = pipeline_key(d, &snap.pass, plan).ok_or(NotMasked::Unsupported)?;
+    let key = pipeline_key(d, &snap.pass, plan, debug).ok_or(NotMasked::Unsupported)?;
     let pipeline = pipeline(d, &key).map_err(|e| {
         tracing::warn!(?key, "mask pipeline: {e}");
         NotMasked::LayerError
@@ -374,7 +397,7 @@ fn coverage(d: &DeviceState, generation: u64, view: u32, viewport: PixelRect, sc
     n
 }
 
-fn pipeline_key(d: &DeviceState, pass: &PassInstance, plan: &MaskPlan) -> Option<PipelineKey> {
+fn pipeline_key(d: &DeviceState, pass: &PassInstance, plan: &MaskPlan, debug: bool) -> Option<PipelineKey> {
     let samples_of_view = |a: &AttachmentUse| {
         let v = a.image_view.as_ref()?;
         d.track.images.get(v.image).map(|i| i.samples.as_raw())
@@ -390,6 +413,7 @@ fn pipeline_key(d: &DeviceState, pass: &PassInstance, plan: &MaskPlan) -> Option
             stencil,
             samples: samples_of_view(&depth.attachment)?,
             view_mask: r.view_mask,
+            debug,
         });
     }
     let rp = pass.render_pass.as_ref()?;
@@ -405,6 +429,7 @@ fn pipeline_key(d: &DeviceState, pass: &PassInstance, plan: &MaskPlan) -> Option
         samples: depth.samples.as_raw(),
         colors: sub.color.len() as u32,
         multiview,
+        debug,
     })
 }
 
@@ -448,9 +473,9 @@ fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, String> 
         return Ok(*p);
     }
     let (layout, vert, vert_mv, frag) = common(d)?;
-    let (multiview, samples, colors) = match key {
-        PipelineKey::RenderPass { samples, colors, multiview, .. } => (*multiview, *samples, *colors as usize),
-        PipelineKey::Dynamic { colors, samples, view_mask, .. } => (*view_mask != 0, *samples, colors.len()),
+    let (multiview, samples, colors, debug) = match key {
+        PipelineKey::RenderPass { samples, colors, multiview, debug, .. } => (*multiview, *samples, *colors as usize, *debug),
+        PipelineKey::Dynamic { colors, samples, view_mask, debug, .. } => (*view_mask != 0, *samples, colors.len(), *debug),
     };
     let stages = [
         vk::PipelineShaderStageCreateInfo::default()
@@ -481,7 +506,7 @@ fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, String> 
         .depth_compare_op(vk::CompareOp::ALWAYS);
     let blend_atts: Vec<vk::PipelineColorBlendAttachmentState> = (0..colors)
         .map(|i| {
-            let mask = if d.mask.debug && i == 0 { vk::ColorComponentFlags::RGBA } else { vk::ColorComponentFlags::empty() };
+            let mask = if debug && i == 0 { vk::ColorComponentFlags::RGBA } else { vk::ColorComponentFlags::empty() };
             vk::PipelineColorBlendAttachmentState::default().color_write_mask(mask)
         })
         .collect();

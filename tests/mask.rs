@@ -1,0 +1,186 @@
+//! End-to-end checks of the hidden-area mask's Vulkan side: xr-scene runs through the layer with
+//! `mask.enabled`, and every captured frame is compared pixel by pixel with a run without the
+//! layer. Outside the runtime's hidden mesh (frames.json `visibility_masks`, rasterized by the
+//! harness itself) pixels must be bit-identical; inside they must be the clear colour (black) or,
+//! with `mask.debug`, the tint; shaded fragments must drop by at least 98 % of the masked pixels;
+//! validation (with synchronization validation) must stay silent.
+
+mod common;
+
+use common::image::{self, Image};
+use common::{hidden_pixels, mask_edge_pixels, Run, RunOutput};
+
+/// The tint `mask.debug` paints (magenta, shaders/mask.frag), as 8-bit RGB.
+const TINT: [u16; 3] = [255, 0, 255];
+const BLACK: [u16; 3] = [0, 0, 0];
+/// Pixels this close to the mask outline may go either way (vertex snapping, f32 vs f64 mapping).
+const EDGE_MARGIN_PX: f64 = 1.0;
+
+struct ViewCheck {
+    view: u32,
+    hidden: u64,
+    shaded_drop: i64,
+}
+
+/// Runs one configuration with and without the layer; checks frame 1 (frame 0 renders before the
+/// OpenXR half saw an eye use, so it is unmasked and must equal the plain run) and returns per-view
+/// numbers.
+fn check(name: &str, args: &[&str], debug: bool) -> Vec<ViewCheck> {
+    check_env(name, args, debug, &[])
+}
+
+fn check_env(name: &str, args: &[&str], debug: bool, env: &[(&str, &str)]) -> Vec<ViewCheck> {
+    let mut base = Run::new(name).args(args.iter().copied());
+    for (k, v) in env {
+        base = base.env(k, v);
+    }
+    let plain = base.clone().run();
+    plain.assert_ok();
+    let mut layered = base.with_layer().env("STEREOSHIM_MASK_ENABLED", "1");
+    if debug {
+        layered = layered.env("STEREOSHIM_MASK_DEBUG", "1");
+    }
+    layered.name = format!("{name}-masked");
+    let masked = layered.run();
+    masked.assert_ok();
+    assert!(masked.log_lines("internal failure").is_empty(), "{name}: {}", masked.log);
+    assert!(!masked.log_lines("masking ").is_empty(), "{name}: the layer never masked a pass:\n{}", masked.log);
+    // Frame 0: eye uses unknown, nothing masked.
+    for (a, b) in masked.views(0).iter().zip(plain.views(0)) {
+        image::assert_identical(&format!("{name}-f0-view{}", a.view), &masked.image(&a.file), &plain.image(&b.file));
+    }
+    let frame = masked.frame(1);
+    assert_eq!(frame.visibility_masks.len(), 2, "{name}: frames.json has no visibility_masks");
+    let mut out = Vec::new();
+    for (a, b) in masked.views(1).iter().zip(plain.views(1)) {
+        let mask = &frame.visibility_masks.iter().find(|m| m.view == a.view).expect("mask of view").hidden_triangles;
+        let (w, h) = (a.image_rect.width, a.image_rect.height);
+        let hidden = hidden_pixels(mask, &a.fov, w, h);
+        let edge = mask_edge_pixels(mask, &a.fov, w, h, EDGE_MARGIN_PX);
+        let (got, want) = (masked.image(&a.file), plain.image(&b.file));
+        let inside = if debug { TINT } else { BLACK };
+        // Multisampled targets resolve partly covered edge pixels to a blend of both.
+        let msaa = args.contains(&"--intermediate") && !args.windows(2).any(|w| w == ["--samples", "1"]);
+        let mut bad = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                let g = &got.pixel(x, y)[..3];
+                if edge[i] {
+                    // Either the app's pixel or the mask's (or, multisampled, a blend).
+                    if !msaa && g != want.pixel(x, y) && g != inside {
+                        bad.push((x, y, "edge"));
+                    }
+                } else if hidden[i] {
+                    if g != inside {
+                        bad.push((x, y, "inside"));
+                    }
+                } else if g != &want.pixel(x, y)[..3] {
+                    bad.push((x, y, "outside"));
+                }
+            }
+        }
+        if !bad.is_empty() {
+            let dir = image::artifacts_dir(&format!("{name}-view{}", a.view));
+            got.save(&dir.join("actual.png"));
+            want.save(&dir.join("expected.png"));
+            image::difference(&got, &want).save(&dir.join("difference.png"));
+            save_coverage(&hidden, w, h, &dir.join("hidden.png"));
+            panic!("{name} view {}: {} wrong pixels, first {:?}; artifacts in {}", a.view, bad.len(), &bad[..bad.len().min(8)], dir.display());
+        }
+        let hidden_count = hidden.iter().filter(|&&b| b).count() as u64;
+        assert!(hidden_count > 0, "{name}: empty mask for view {}", a.view);
+        let shaded = |o: &RunOutput| {
+            let f = o.stats.as_ref().expect("stats").frames.iter().find(|f| f.frame == 1).expect("stats of frame 1");
+            f.views.iter().find(|v| v.view == a.view).expect("view stats").shaded_fragments as i64
+        };
+        out.push(ViewCheck { view: a.view, hidden: hidden_count, shaded_drop: shaded(&plain) - shaded(&masked) });
+    }
+    for v in &out {
+        assert!(
+            v.shaded_drop as f64 >= 0.98 * v.hidden as f64,
+            "{name} view {}: shaded fragments dropped by {} but {} pixels are masked",
+            v.view,
+            v.shaded_drop,
+            v.hidden
+        );
+        eprintln!("{name} view {}: masked {} px, shaded fragments -{}", v.view, v.hidden, v.shaded_drop);
+    }
+    // The layer's own count (rasterizer-exact coverage) agrees with the harness's within edges.
+    let line = masked.log_lines("vulkan device stats:");
+    let px: u64 = line
+        .iter()
+        .flat_map(|l| l.split_whitespace())
+        .filter_map(|f| f.strip_prefix("masked_pixels="))
+        .filter_map(|v| v.parse::<u64>().ok())
+        .sum();
+    let expected: u64 = out.iter().map(|v| v.hidden).sum();
+    assert!(px.abs_diff(expected) * 100 <= expected, "{name}: layer counted {px} masked pixels in frame 1, harness {expected}");
+    out
+}
+
+fn save_coverage(c: &[bool], w: u32, h: u32, path: &std::path::Path) {
+    let data = c.iter().flat_map(|&b| if b { [255u16; 3] } else { [0; 3] }).collect();
+    Image { width: w, height: h, channels: 3, bit_depth: 8, data }.save(path);
+}
+
+macro_rules! mask_tests {
+    ($($name:ident: [$($arg:literal),*];)*) => {$(
+        #[test]
+        fn $name() {
+            check(stringify!($name), &[$($arg),*], false);
+        }
+    )*};
+}
+
+mask_tests! {
+    per_eye_render_pass: ["--layout", "per-eye", "--rendering", "render-pass"];
+    per_eye_render_pass2_reverse: ["--layout", "per-eye", "--rendering", "render-pass2", "--depth", "reverse"];
+    per_eye_dynamic: ["--layout", "per-eye", "--rendering", "dynamic"];
+    per_eye_render_pass_reverse: ["--layout", "per-eye", "--rendering", "render-pass", "--depth", "reverse"];
+    multiview_render_pass: ["--layout", "multiview", "--rendering", "render-pass"];
+    multiview_render_pass2: ["--layout", "multiview", "--rendering", "render-pass2"];
+    multiview_dynamic_reverse: ["--layout", "multiview", "--rendering", "dynamic", "--depth", "reverse"];
+    side_by_side_render_pass: ["--layout", "side-by-side", "--rendering", "render-pass"];
+    side_by_side_render_pass2: ["--layout", "side-by-side", "--rendering", "render-pass2", "--depth", "reverse"];
+    side_by_side_dynamic: ["--layout", "side-by-side", "--rendering", "dynamic"];
+    intermediate_per_eye_msaa: ["--layout", "per-eye", "--rendering", "render-pass", "--intermediate"];
+    intermediate_multiview_copy_reverse: ["--layout", "multiview", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--depth", "reverse"];
+    intermediate_side_by_side_msaa: ["--layout", "side-by-side", "--rendering", "render-pass2", "--intermediate"];
+    submit_depth_per_eye: ["--layout", "per-eye", "--rendering", "dynamic", "--submit-depth"];
+    state_set_before_the_pass_per_eye: ["--layout", "per-eye", "--rendering", "render-pass", "--bind-before-pass"];
+    state_set_before_the_pass_multiview: ["--layout", "multiview", "--rendering", "dynamic", "--bind-before-pass"];
+    state_set_before_the_pass_side_by_side: ["--layout", "side-by-side", "--rendering", "render-pass2", "--bind-before-pass"];
+}
+
+/// Real HMD profiles: other mask shapes, FOVs and (non-square) image sizes.
+#[test]
+fn hmd_profiles() {
+    for hmd in ["index", "quest3"] {
+        check_env(&format!("hmd_{hmd}_per_eye"), &["--layout", "per-eye", "--rendering", "dynamic"], false, &[("MOCK_XR_HMD", hmd)]);
+        check_env(&format!("hmd_{hmd}_multiview"), &["--layout", "multiview", "--rendering", "render-pass"], false, &[("MOCK_XR_HMD", hmd)]);
+    }
+}
+
+#[test]
+fn debug_tint_paints_the_masked_area() {
+    check("debug_tint_per_eye", &["--layout", "per-eye", "--rendering", "dynamic"], true);
+    check("debug_tint_multiview", &["--layout", "multiview", "--rendering", "render-pass"], true);
+}
+
+/// `mask.intermediate = off`: a pass into an offscreen target is left alone (bit-identical) and
+/// the reason is counted.
+#[test]
+fn intermediate_off_leaves_offscreen_passes_alone() {
+    let args = ["--layout", "per-eye", "--intermediate", "--samples", "1"];
+    let plain = Run::new("mask-intermediate-off").args(args).run();
+    plain.assert_ok();
+    let mut run = Run::new("mask-intermediate-off").args(args).with_layer().env("STEREOSHIM_MASK_ENABLED", "1").env("STEREOSHIM_MASK_INTERMEDIATE", "off");
+    run.name = "mask-intermediate-off-layered".into();
+    let out = run.run();
+    out.assert_ok();
+    common::assert_same_captures("mask-intermediate-off", &out, &plain);
+    assert_eq!(out.stats, plain.stats);
+    let line = out.log_lines("vulkan device stats:").join("\n");
+    assert!(line.contains("masked_passes=0") && line.contains("not_masked.intermediate_off="), "{line}");
+}
