@@ -72,10 +72,11 @@ mod tests {
 
     #[test]
     fn records_are_json_lines() {
-        let mut mask = MaskFrameStats::default();
-        mask.passes_masked = 2;
-        mask.not_masked.insert("no_depth_attachment", 1);
-        mask.pixels_masked.insert(0, 1234);
+        let mask = MaskFrameStats {
+            passes_masked: 2,
+            not_masked: [("no_depth_attachment", 1)].into_iter().collect(),
+            pixels_masked: [(0, 1234)].into_iter().collect(),
+        };
         let r = FrameRecord { frame: 7, mask_enabled: true, mask };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
         assert_eq!(v["frame"], 7);
