@@ -435,6 +435,29 @@ mod tests {
     }
 
     #[test]
+    fn transfers_into_swapchain_images_make_intermediate_targets() {
+        use crate::shared::{EyeUse, ImageRect};
+        let (t, shared) = tracker_with_pass();
+        // Image 101 (64×64) copied 1:1 into swapchain image 100: eyes known once uses are.
+        let whole = crate::mask::PixelRect { x: 0, y: 0, width: 64, height: 64 };
+        let region = eye_pass::TransferRegion { src_layer: 0, dst_layer: 0, layer_count: 2, src: whole, dst: whole };
+        t.record_transfer(&shared, 101, 100, &[region]);
+        t.record_transfer(&shared, 101, 100, &[region]);
+        t.record_transfer(&shared, 101, 555, &[region]); // not a swapchain image: ignored
+        assert_eq!(t.intermediate_eyes(&shared, 101), Some(eye_pass::Learned::Rejected("no eye use of the destination".into())));
+        let rect = ImageRect { x: 0, y: 0, width: 64, height: 64 };
+        shared.images.get(100).unwrap().swapchain.set_uses(vec![
+            EyeUse { view: 0, image_rect: rect, image_array_index: 0, depth: false },
+            EyeUse { view: 1, image_rect: rect, image_array_index: 1, depth: false },
+        ]);
+        let Some(eye_pass::Learned::Eyes(eyes)) = t.intermediate_eyes(&shared, 101) else { panic!("not learned") };
+        assert_eq!(eyes.iter().map(|e| (e.view, e.layer)).collect::<Vec<_>>(), vec![(0, 0), (1, 1)]);
+        assert_eq!(t.intermediate_eyes(&shared, 100), None, "never a transfer source");
+        t.forget_image(101);
+        assert_eq!(t.intermediate_eyes(&shared, 101), None);
+    }
+
+    #[test]
     fn pool_reset_and_destroy_reach_their_buffers() {
         let (t, _) = tracker_with_pass();
         t.begin_command_buffer(9, vk::CommandBufferUsageFlags::empty());
