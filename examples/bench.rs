@@ -7,6 +7,7 @@
 //! cargo build --release --workspace && cargo build --release --examples &&
 //!   target/release/examples/bench [--hmd index] [--layout per-eye] [--scale 0.5]
 //!   [--shading-cost 64] [--frames 400] [--period 40] [--feature mask]
+//!   [--app-args "--empty"] [--config 'mask.source = "synthesized"; mask.synthesized.radius_deg = 89']
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -24,6 +25,10 @@ struct Args {
     frames: u64,
     period: u64,
     feature: String,
+    /// Extra xr-scene arguments (`--app-args "--empty"`).
+    app_args: Vec<String>,
+    /// Extra config lines for both modes (`--config 'mask.source = "synthesized"'`).
+    config: String,
 }
 
 fn parse_args() -> Args {
@@ -35,6 +40,8 @@ fn parse_args() -> Args {
         frames: 400,
         period: 40,
         feature: "mask".into(),
+        app_args: Vec::new(),
+        config: String::new(),
     };
     let argv: Vec<String> = std::env::args().skip(1).collect();
     for pair in argv.chunks(2) {
@@ -47,6 +54,8 @@ fn parse_args() -> Args {
             "--frames" => a.frames = v.parse().expect("--frames N"),
             "--period" => a.period = v.parse().expect("--period N"),
             "--feature" => a.feature = v,
+            "--app-args" => a.app_args = v.split_whitespace().map(String::from).collect(),
+            "--config" => a.config = v.replace(';', "\n"),
             other => panic!("unknown argument {other}"),
         }
     }
@@ -54,8 +63,8 @@ fn parse_args() -> Args {
 }
 
 /// The config text for mode B (features on) or A (off).
-fn config_text(feature: &str, on: bool, stats: &Path) -> String {
-    format!("stats.file = {:?}\n{feature}.enabled = {on}\n", stats.to_string_lossy())
+fn config_text(feature: &str, on: bool, stats: &Path, extra: &str) -> String {
+    format!("stats.file = {:?}\n{feature}.enabled = {on}\n{extra}\n", stats.to_string_lossy())
 }
 
 /// Rewrites the config through a rename, so the layer never reads half a file and sees a new
@@ -77,15 +86,17 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn main() {
     let a = parse_args();
-    let name = format!("bench-{}-{}-{}", a.feature, a.hmd, a.layout);
+    let tag: String = (a.app_args.concat() + &a.config).chars().filter(|c| c.is_ascii_alphanumeric()).collect();
+    let name = format!("bench-{}-{}-{}-{tag}", a.feature, a.hmd, a.layout);
     let dir = common::output_dir(&name);
     let (layer_stats, app_stats, capture) = (dir.join("layer-stats.jsonl"), dir.join("app-stats.json"), dir.join("capture"));
     let config = dir.join("config/stereoshim/config.toml");
     std::fs::create_dir_all(config.parent().unwrap()).unwrap();
-    write_config(&config, &config_text(&a.feature, false, &layer_stats));
+    write_config(&config, &config_text(&a.feature, false, &layer_stats, &a.config));
 
     let mut child = Command::new(common::xr_scene_exe())
         .args(["--layout", &a.layout, "--scale", &a.scale, "--shading-cost", &a.shading_cost])
+        .args(&a.app_args)
         .arg("--stats")
         .arg(&app_stats)
         .env("XR_RUNTIME_JSON", common::runtime_manifest())
@@ -102,18 +113,29 @@ fn main() {
         .spawn()
         .expect("spawn xr-scene");
 
-    // Switch modes by the layer's own frame count: every `period` frames, flip the config.
-    let (mut on, mut next_switch) = (false, a.period);
+    // Switch modes by the layer's own account: once it has reported `period` frames in the
+    // requested mode, request the other one (the layer applies a config change at a frame
+    // boundary, within its reload interval).
+    let key = format!("\"{}_enabled\":", a.feature);
+    let (mut on, mut in_mode) = (false, 0u64);
+    let mut seen = 0usize;
     loop {
         if let Some(status) = child.try_wait().unwrap() {
             assert!(status.success(), "xr-scene failed: {status}");
             break;
         }
-        let done = std::fs::read_to_string(&layer_stats).map(|t| t.lines().count() as u64).unwrap_or(0);
-        if done >= next_switch {
+        let text = std::fs::read_to_string(&layer_stats).unwrap_or_default();
+        let lines: Vec<&str> = text.lines().collect();
+        for line in &lines[seen.min(lines.len())..] {
+            if line.contains(&format!("{key}{on}")) {
+                in_mode += 1;
+            }
+        }
+        seen = lines.len();
+        if in_mode >= a.period {
             on = !on;
-            write_config(&config, &config_text(&a.feature, on, &layer_stats));
-            next_switch += a.period;
+            in_mode = 0;
+            write_config(&config, &config_text(&a.feature, on, &layer_stats, &a.config));
         }
         std::thread::sleep(Duration::from_millis(2));
     }
@@ -154,6 +176,7 @@ fn main() {
     let time_saved = 1.0 - g_on / g_off;
     let shaded_saved = 1.0 - s_on / s_off;
     println!("| hmd | layout | frames off/on | GPU ms off | GPU ms on | saved | shaded off | shaded on | saved | masked fraction | time saved / masked |");
+    // (With `--app-args --empty` nothing is shaded: "GPU ms on − off" is then the layer's own cost.)
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     println!(
         "| {} | {} | {}/{} | {g_off:.3} | {g_on:.3} | {:.1} % | {s_off:.0} | {s_on:.0} | {:.1} % | {:.1} % | {:.2} |",

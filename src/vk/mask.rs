@@ -477,13 +477,16 @@ fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, String> 
         PipelineKey::RenderPass { samples, colors, multiview, debug, .. } => (*multiview, *samples, *colors as usize, *debug),
         PipelineKey::Dynamic { colors, samples, view_mask, debug, .. } => (*view_mask != 0, *samples, colors.len(), *debug),
     };
-    let stages = [
+    // Without the debug tint the draw is depth-only: no fragment shader at all, so the GPU runs
+    // its depth-only fast path (colour writes are masked off, so no output is undefined).
+    let all_stages = [
         vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::VERTEX)
             .module(if multiview { vert_mv } else { vert })
             .name(c"main"),
         vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(frag).name(c"main"),
     ];
+    let stages = if debug { &all_stages[..] } else { &all_stages[..1] };
     let bindings = [vk::VertexInputBindingDescription { binding: 0, stride: std::mem::size_of::<Vertex>() as u32, input_rate: vk::VertexInputRate::VERTEX }];
     let attributes = [
         vk::VertexInputAttributeDescription { location: 0, binding: 0, format: vk::Format::R32G32_SFLOAT, offset: 0 },
@@ -514,7 +517,7 @@ fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, String> 
     let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
     let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
     let mut info = vk::GraphicsPipelineCreateInfo::default()
-        .stages(&stages)
+        .stages(stages)
         .vertex_input_state(&vertex_input)
         .input_assembly_state(&input_assembly)
         .viewport_state(&viewport)

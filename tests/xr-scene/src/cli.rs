@@ -51,6 +51,9 @@ pub struct Options {
     /// Bind pipeline, buffers, descriptor set, push constants and (one draw per pass) viewport and
     /// scissor before beginning each pass, not inside it.
     pub bind_before_pass: bool,
+    /// Begin and end every pass (clears included) but draw nothing: isolates the cost of what a
+    /// layer adds to a pass.
+    pub empty: bool,
     pub stats: Option<PathBuf>,
     pub validation: bool,
 }
@@ -71,6 +74,7 @@ impl Default for Options {
             shading_cost: 0,
             animate: false,
             bind_before_pass: false,
+            empty: false,
             stats: None,
             validation: false,
         }
@@ -92,6 +96,7 @@ usage: xr-scene [options]
   --shading-cost K                          K-iteration per-pixel busy loop (default 0)
   --animate                                 spin the near cube by frame number
   --bind-before-pass                        set draw state before vkCmdBegin*, not inside the pass
+  --empty                                   passes with their clears but no draws (layer cost benchmarks)
   --stats FILE                              write per-frame GPU time and shaded fragments as JSON
   --validation                              enable VK_LAYER_KHRONOS_validation (exit 3 on errors)
   --help                                    show this text";
@@ -185,13 +190,14 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                     .map_err(|_| format!("--shading-cost must be a non-negative integer, got {v:?}"))?;
             }
             "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
-            "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--validation" if inline.is_some() => {
+            "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" if inline.is_some() => {
                 return Err(format!("{flag} takes no value"))
             }
             "--intermediate" => o.intermediate = true,
             "--submit-depth" => o.submit_depth = true,
             "--animate" => o.animate = true,
             "--bind-before-pass" => o.bind_before_pass = true,
+            "--empty" => o.empty = true,
             "--validation" => o.validation = true,
             _ => return Err(format!("unknown argument {arg:?}")),
         }

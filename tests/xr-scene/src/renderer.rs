@@ -107,6 +107,8 @@ pub struct Renderer {
     vertices: Buffer,
     indices: Buffer,
     index_count: u32,
+    /// `--empty`: record the passes without their draws.
+    empty: bool,
     uniforms: Buffer,
     uniforms_mapped: *mut FrameUniforms,
     pub counters: GpuCounters,
@@ -154,6 +156,7 @@ impl Renderer {
             vertices: Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() },
             indices: Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() },
             index_count: 0,
+            empty: opts.empty,
             uniforms: Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() },
             uniforms_mapped: std::ptr::null_mut(),
             counters,
@@ -415,7 +418,9 @@ impl Renderer {
                     if !(early && one_draw) {
                         bind(eye, true);
                     }
-                    d.cmd_draw_indexed(cmd, self.index_count, 1, 0, 0, 0);
+                    if !self.empty {
+                        d.cmd_draw_indexed(cmd, self.index_count, 1, 0, 0, 0);
+                    }
                 }
                 self.passes.end(gpu, cmd);
             }
