@@ -57,3 +57,43 @@ fn mask_disabled_fetches_nothing() {
     assert_eq!(out.log_lines("for the layer's own use").len(), 1, "{}", out.log);
     assert!(out.log_lines("hidden-area mask").is_empty(), "{}", out.log);
 }
+
+/// A mask change reaches the pixels: after the runtime shrinks the visible area, later frames are
+/// masked with the new mesh, and the layer's per-frame statistics (`stats.file`) show it.
+#[test]
+fn changed_mask_is_applied_to_later_frames() {
+    let dir = common::output_dir("mask-change-stats");
+    let stats_file = dir.join("layer-stats.jsonl");
+    let out = masked("mask-change-applied")
+        .env("MOCK_XR_EXIT_AFTER", "4")
+        .env("MOCK_XR_VISIBILITY_MASK_CHANGE_AT", "2")
+        .env("STEREOSHIM_STATS_FILE", stats_file.to_str().unwrap())
+        .run();
+    out.assert_ok();
+    let records: Vec<serde_json::Value> =
+        std::fs::read_to_string(&stats_file).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(records.len(), 4, "one stats record per frame");
+    let pixels = |f: usize| -> u64 { records[f]["pixels_masked"].as_object().unwrap().values().map(|v| v.as_u64().unwrap()).sum() };
+    assert_eq!(pixels(0), 0, "frame 0 cannot be masked yet (eye uses unknown)");
+    assert!(pixels(1) > 0 && pixels(3) > pixels(1), "masked pixels per frame: {records:?}");
+    assert!(records.iter().all(|r| r["mask_enabled"] == true));
+
+    for frame in [1u64, 3] {
+        let masks = &out.frame(frame).visibility_masks;
+        for v in out.views(frame) {
+            let mask = &masks.iter().find(|m| m.view == v.view).expect("mask").hidden_triangles;
+            let (w, h) = (v.image_rect.width, v.image_rect.height);
+            let hidden = common::hidden_pixels(mask, &v.fov, w, h);
+            let edge = common::mask_edge_pixels(mask, &v.fov, w, h, 1.0);
+            let img = out.image(&v.file);
+            let wrong = (0..w * h)
+                .filter(|&i| hidden[i as usize] && !edge[i as usize])
+                .filter(|&i| img.pixel(i % w, i / w).iter().any(|&c| c != 0))
+                .count();
+            assert_eq!(wrong, 0, "frame {frame} view {}: {wrong} hidden pixels not masked", v.view);
+            let hidden_count = hidden.iter().filter(|&&b| b).count() as u64;
+            let layer_count = records[frame as usize]["pixels_masked"][v.view.to_string()].as_u64().unwrap();
+            assert!(hidden_count.abs_diff(layer_count) * 100 <= hidden_count, "frame {frame}: layer {layer_count}, harness {hidden_count}");
+        }
+    }
+}
