@@ -90,6 +90,42 @@ pub const KEYS: &[KeySpec] = &[
         doc: "paint the masked area in a tint instead of leaving it at the clear colour (to see it in the headset and in captures)",
     },
     KeySpec {
+        key: "foveation.enabled",
+        kind: Kind::Bool,
+        default: "false",
+        doc: "foveated shading: lower shading rate in the periphery of every eye pass",
+    },
+    KeySpec {
+        key: "foveation.method",
+        kind: Kind::Choice(&["auto", "vrs", "rdm"]),
+        default: "auto",
+        doc: "vrs: VK_KHR_fragment_shading_rate attachment; rdm: radial density masking with reconstruction; auto: vrs where the GPU has it, else rdm",
+    },
+    KeySpec {
+        key: "foveation.preset",
+        kind: Kind::Choice(&["subtle", "balanced", "aggressive"]),
+        default: "balanced",
+        doc: "ring sizes: subtle (full rate within 30°, half to 45°), balanced (20°, 35°), aggressive (12°, 25°)",
+    },
+    KeySpec {
+        key: "foveation.inner_deg",
+        kind: Kind::Float { min: 0.0, max: 90.0 },
+        default: "0",
+        doc: "full-rate radius around the centre, degrees (0: from the preset)",
+    },
+    KeySpec {
+        key: "foveation.middle_deg",
+        kind: Kind::Float { min: 0.0, max: 90.0 },
+        default: "0",
+        doc: "half-rate ring's outer radius, degrees; quarter rate beyond (0: from the preset)",
+    },
+    KeySpec {
+        key: "foveation.eye_tracking",
+        kind: Kind::Choice(&["auto", "off"]),
+        default: "auto",
+        doc: "auto: follow the gaze when the runtime has XR_EXT_eye_gaze_interaction and a valid gaze, else the optical axis; off: always the optical axis",
+    },
+    KeySpec {
         key: "stats.file",
         kind: Kind::Text,
         default: "",

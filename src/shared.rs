@@ -106,6 +106,27 @@ pub struct Views {
     pub fovs: Vec<ViewFov>,
 }
 
+/// One view's foveation: where full rate is needed and how fast the rate falls off, in angular
+/// terms so a setting means the same on every HMD. Rings are angular distances from the centre
+/// direction: within `inner_deg` full rate, up to `middle_deg` half rate, beyond that quarter rate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FoveaView {
+    pub view: u32,
+    /// The centre direction as a tangent-plane point (x right, y up) of that view: (0, 0) is the
+    /// optical axis (fixed foveation), a gaze direction otherwise.
+    pub center: [f32; 2],
+    pub inner_deg: f32,
+    pub middle_deg: f32,
+}
+
+/// Foveation of all views, replaced as a whole; `generation` increases on every change so the
+/// Vulkan half rebuilds rate maps only when the centre or the rings move.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Foveation {
+    pub generation: u64,
+    pub views: Vec<FoveaView>,
+}
+
 /// A swapchain image as the Vulkan half sees it.
 #[derive(Debug, Clone)]
 pub struct SwapchainImage {
@@ -120,6 +141,8 @@ pub struct Shared {
     pub config: RwLock<Option<Arc<crate::config::Config>>>,
     /// Hidden-area masks and FOVs per view (written by the OpenXR half).
     pub views: RwLock<Arc<Views>>,
+    /// Foveation centre and rings per view (written by the OpenXR half; empty when off).
+    pub foveation: RwLock<Arc<Foveation>>,
     /// `XrSwapchain` → swapchain.
     pub swapchains: HandleMap<u64, Swapchain>,
     /// `VkImage` → the swapchain image it is.
@@ -151,6 +174,18 @@ impl Shared {
         }
         next.generation = cur.generation + 1;
         *cur = Arc::new(next);
+        true
+    }
+    pub fn foveation(&self) -> Arc<Foveation> {
+        self.foveation.read().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+    /// Replaces the per-view foveation; bumps the generation only when something changed.
+    pub fn update_foveation(&self, views: Vec<FoveaView>) -> bool {
+        let mut cur = self.foveation.write().unwrap_or_else(|e| e.into_inner());
+        if cur.views == views {
+            return false;
+        }
+        *cur = Arc::new(Foveation { generation: cur.generation + 1, views });
         true
     }
     pub fn add_swapchain(&self, swapchain: Arc<Swapchain>) {
