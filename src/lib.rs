@@ -3,6 +3,7 @@
 //! that needs no GPU and is unit-tested.
 
 pub mod config;
+pub mod foveation;
 pub mod frame_stats;
 pub mod guard;
 pub mod log;
