@@ -25,6 +25,7 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
         // The app records its eye passes after this; masks must be there by then.
         if let (Some(s), true) = (&sess, r.into_raw() >= 0) {
             session::refresh_masks(s);
+            session::refresh_foveation(s);
         }
         Ok(r)
     }, plain)

@@ -38,6 +38,8 @@ pub(crate) struct Session {
     /// FOVs come from submitted frames once there are any (what the app really rendered with),
     /// before that from located views.
     pub fov_submitted: AtomicBool,
+    /// Fovea centre per view from the gaze policy (empty: optical axis).
+    pub gaze_centers: Mutex<Vec<crate::foveation::Tangent>>,
 }
 
 /// Views of `XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO`, the only configuration masks are kept for.
@@ -93,6 +95,22 @@ fn runtime_mask(s: &Session, view: u32) -> Option<Vec<[f32; 2]>> {
     indices.truncate(mask.index_count_output as usize);
     let v: Vec<[f32; 2]> = vertices.iter().map(|p| [p.x, p.y]).collect();
     Some(crate::mask_source::expand(&v, &indices))
+}
+
+/// Publishes this frame's foveation from the live config: rings from the preset or angles, centres
+/// from the gaze policy (the optical axis without eye tracking). An empty list when it is off.
+pub(crate) fn refresh_foveation(s: &Session) {
+    let config = crate::shared::shared().config().unwrap_or_else(|| s.instance.config.clone());
+    if !config.bool("foveation.enabled") {
+        crate::shared::shared().update_foveation(Vec::new());
+        return;
+    }
+    let rings = crate::foveation::Rings::from_config(&config);
+    let centers = s.gaze_centers.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    let centers = if centers.len() == STEREO_VIEWS as usize { centers } else { vec![[0.0, 0.0]; STEREO_VIEWS as usize] };
+    if crate::shared::shared().update_foveation(crate::foveation::fovea_views(&centers, rings)) {
+        tracing::debug!("foveation: centres {centers:?}, rings {rings:?}");
+    }
 }
 
 /// (Re)publishes the hidden-area masks of all views when they are due.
@@ -187,6 +205,7 @@ pub(super) unsafe extern "system" fn create_session(
             views: Mutex::new(Vec::new()),
             masks_dirty: AtomicBool::new(true),
             fov_submitted: AtomicBool::new(false),
+            gaze_centers: Mutex::new(Vec::new()),
         };
         state().sessions.insert(handle.into_raw(), Arc::new(s));
         Ok(r)
