@@ -1,5 +1,6 @@
 //! Compiles the layer's GLSL shaders (`shaders/`) to SPIR-V at build time with glslangValidator, so
-//! no generated binaries live in the repository; `src/vk/mask.rs` embeds them.
+//! no generated binaries live in the repository; `src/vk/mask.rs` and `src/vk/rdm.rs` embed them
+//! (`rdm_rule.glsl` is included by the RDM fragment shaders).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -9,6 +10,11 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("mask.vert", "mask.vert.spv", &[]),
     ("mask.vert", "mask_mv.vert.spv", &["-DMULTIVIEW"]),
     ("mask.frag", "mask.frag.spv", &[]),
+    ("rdm.vert", "rdm.vert.spv", &[]),
+    ("rdm.vert", "rdm_mv.vert.spv", &["-DMULTIVIEW"]),
+    ("rdm.frag", "rdm.frag.spv", &[]),
+    ("rdm_fill.vert", "rdm_fill.vert.spv", &[]),
+    ("rdm_fill.frag", "rdm_fill.frag.spv", &[]),
 ];
 
 fn main() {
@@ -22,6 +28,7 @@ fn main() {
         println!("cargo:rerun-if-changed={}", src_path.display());
         compile(&src_path, &out.join(dst), extra);
     }
+    println!("cargo:rerun-if-changed={}", shader_dir.join("rdm_rule.glsl").display());
 }
 
 fn compile(src: &Path, dst: &Path, extra: &[&str]) {

@@ -9,6 +9,7 @@ pub mod guard;
 pub mod log;
 pub mod mask;
 pub mod mask_source;
+pub mod rdm;
 pub mod registry;
 pub mod shared;
 pub mod submission;

@@ -1,0 +1,334 @@
+//! Radial density masking (foveation method 2), pure and GPU-free: which 2×2 pixel quads of an eye
+//! the layer rejects by depth (so the app shades none of their fragments) and which pixels the
+//! reconstruction later fills. The rule is written once here in f32 operations that the shaders
+//! (`shaders/rdm_rule.glsl`) repeat in the same order without fused multiply-adds, so the layer's
+//! statistics and the tests' predictions match what the GPU skips exactly.
+
+use crate::mask::PixelRect;
+use crate::shared::{FoveaView, ViewFov};
+use std::collections::BTreeMap;
+
+/// How far a quad's view direction lies from the fovea centre direction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Ring {
+    /// Within `inner_deg`: every quad shaded.
+    Inner,
+    /// Up to `middle_deg`: a checkerboard of quads, half of them skipped.
+    Middle,
+    /// Beyond: one quad in four shaded (both quad coordinates even).
+    Outer,
+}
+
+/// Everything the rule needs for one eye, as the shaders receive it (vertex attributes of the
+/// injected draw, push constants of the reconstruction): f32 values computed once on the CPU.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RdmParams {
+    /// The eye's image rect in the pass's framebuffer; quads are aligned to its origin.
+    pub rect: PixelRect,
+    /// Tangent of the left edge and of the top edge of the rect.
+    pub tan_left: f32,
+    pub tan_up: f32,
+    /// Tangent per pixel, horizontally (to the right) and vertically (downwards).
+    pub step_x: f32,
+    pub step_y: f32,
+    /// Fovea centre direction as a tangent-plane point (x right, y up).
+    pub center: [f32; 2],
+    /// cos²(inner_deg) · |centre|² and cos²(middle_deg) · |centre|², |centre| = |(cx, cy, −1)|:
+    /// a direction t is within the angle when dot(t, c) > 0 and dot(t, c)² ≥ k · |t|².
+    pub k_inner: f32,
+    pub k_middle: f32,
+}
+
+impl RdmParams {
+    /// The parameters of an eye whose image rect `rect` shows `fov`, foveated by `fovea`; None for
+    /// an empty rect or a FOV without extent.
+    pub fn new(fov: &ViewFov, fovea: &FoveaView, rect: PixelRect) -> Option<RdmParams> {
+        if rect.width == 0 || rect.height == 0 || !(fov.tan_right > fov.tan_left && fov.tan_up > fov.tan_down) {
+            return None;
+        }
+        let [cx, cy] = fovea.center;
+        if !(cx.is_finite() && cy.is_finite()) {
+            return None;
+        }
+        let c2 = cx as f64 * cx as f64 + cy as f64 * cy as f64 + 1.0;
+        let k = |deg: f32| {
+            let c = (deg.clamp(0.0, 90.0) as f64).to_radians().cos();
+            (c * c * c2) as f32
+        };
+        let middle = fovea.middle_deg.max(fovea.inner_deg);
+        Some(RdmParams {
+            rect,
+            tan_left: fov.tan_left,
+            tan_up: fov.tan_up,
+            step_x: (fov.tan_right - fov.tan_left) / rect.width as f32,
+            step_y: (fov.tan_up - fov.tan_down) / rect.height as f32,
+            center: [cx, cy],
+            k_inner: k(fovea.inner_deg),
+            k_middle: k(middle),
+        })
+    }
+
+    /// The ring of quad (qx, qy) (rect-relative quad coordinates), judged at the quad's centre,
+    /// the pixel corner (2qx + 1, 2qy + 1) of the rect. Every operation is a single f32 add or
+    /// multiply in the order `shaders/rdm_rule.glsl` uses (`precise` there: no fused multiply-add).
+    pub fn ring(&self, qx: u32, qy: u32) -> Ring {
+        let fx = (2 * qx + 1) as f32;
+        let fy = (2 * qy + 1) as f32;
+        let tx = self.tan_left + fx * self.step_x;
+        let ty = self.tan_up - fy * self.step_y;
+        let d = tx * self.center[0] + ty * self.center[1] + 1.0;
+        let n2 = tx * tx + ty * ty + 1.0;
+        let d2 = d * d;
+        if d > 0.0 && d2 >= self.k_inner * n2 {
+            Ring::Inner
+        } else if d > 0.0 && d2 >= self.k_middle * n2 {
+            Ring::Middle
+        } else {
+            Ring::Outer
+        }
+    }
+
+    /// Whether the layer skips quad (qx, qy).
+    pub fn quad_skipped(&self, qx: u32, qy: u32) -> bool {
+        skipped(self.ring(qx, qy), qx, qy)
+    }
+
+    /// Whether framebuffer pixel (x, y) lies in a skipped quad (false outside the rect).
+    pub fn pixel_skipped(&self, x: i32, y: i32) -> bool {
+        let (rx, ry) = (x as i64 - self.rect.x as i64, y as i64 - self.rect.y as i64);
+        if rx < 0 || ry < 0 || rx >= self.rect.width as i64 || ry >= self.rect.height as i64 {
+            return false;
+        }
+        self.quad_skipped((rx / 2) as u32, (ry / 2) as u32)
+    }
+
+    /// What the injected draw skips within `clip` (framebuffer pixels, e.g. rect ∩ render area).
+    pub fn count(&self, clip: PixelRect) -> SkipCount {
+        let area = self.rect.intersect(&clip);
+        let mut n = SkipCount::default();
+        if area.area() == 0 {
+            return n;
+        }
+        let (x0, y0) = ((area.x - self.rect.x) as u32, (area.y - self.rect.y) as u32);
+        let (x1, y1) = (x0 + area.width, y0 + area.height);
+        for qy in y0 / 2..y1.div_ceil(2) {
+            let rows = (2 * qy + 2).min(y1) - (2 * qy).max(y0);
+            for qx in x0 / 2..x1.div_ceil(2) {
+                let cols = (2 * qx + 2).min(x1) - (2 * qx).max(x0);
+                n.quads += 1;
+                if self.quad_skipped(qx, qy) {
+                    n.quads_skipped += 1;
+                    n.pixels_skipped += (rows * cols) as u64;
+                }
+            }
+        }
+        n
+    }
+}
+
+/// The skip rule per ring: middle: (qx + qy) odd; outer: all but qx, qy both even; inner: none.
+pub fn skipped(ring: Ring, qx: u32, qy: u32) -> bool {
+    match ring {
+        Ring::Inner => false,
+        Ring::Middle => (qx + qy) & 1 == 1,
+        Ring::Outer => qx & 1 == 1 || qy & 1 == 1,
+    }
+}
+
+/// Quads of an area (touching it), skipped quads, and skipped pixels inside it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SkipCount {
+    pub quads: u64,
+    pub quads_skipped: u64,
+    pub pixels_skipped: u64,
+}
+
+/// Reconstruction weight of a shaded neighbour at pixel offset (dx, dy) from the skipped pixel:
+/// the filter averages the pixels of the shaded quads bordering the skipped quad (the ring of 12
+/// pixels around it), weighted by inverse squared distance — nearest neighbours dominate, as in
+/// Vlachos' reconstruction, and the outer ring's isolated quads fall back to their diagonal
+/// neighbours. `shaders/rdm_fill.frag` implements this.
+pub fn reconstruction_weight(dx: i32, dy: i32) -> f32 {
+    1.0 / (dx * dx + dy * dy) as f32
+}
+
+/// Why a pass or a swapchain image got no radial density masking. Stable names (statistics).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum NotApplied {
+    /// The OpenXR half publishes no foveation for the view (or no FOV).
+    NoFovea,
+    /// The device cannot give the layer what it needs (pipeline, buffer, queue, usage).
+    LayerError,
+    /// The target's pixels do not reach a swapchain image 1:1 (reconstruction impossible).
+    NotOneToOne,
+    /// The swapchain image lacks TRANSFER_SRC / COLOR_ATTACHMENT usage for the reconstruction.
+    SwapchainUsage,
+}
+
+impl NotApplied {
+    pub fn name(&self) -> &'static str {
+        match self {
+            NotApplied::NoFovea => "no_fovea",
+            NotApplied::LayerError => "layer_error",
+            NotApplied::NotOneToOne => "not_one_to_one",
+            NotApplied::SwapchainUsage => "swapchain_usage",
+        }
+    }
+}
+
+/// What radial density masking did in one frame, summed over devices (`stats.file`).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RdmFrameStats {
+    /// Eye passes (or explicit depth clears) that got the checkerboard draw.
+    pub passes: u64,
+    /// Quads and pixels the draws skipped, per OpenXR view index.
+    pub quads_skipped: BTreeMap<u32, u64>,
+    pub pixels_skipped: BTreeMap<u32, u64>,
+    /// Eye rects filled in by the reconstruction before the runtime saw them, per view.
+    pub reconstructed: BTreeMap<u32, u64>,
+    /// Passes / images left alone, by reason (`NotApplied::name`).
+    pub not_applied: BTreeMap<&'static str, u64>,
+}
+
+impl RdmFrameStats {
+    pub fn add(&mut self, o: &RdmFrameStats) {
+        self.passes += o.passes;
+        for (dst, src) in [(&mut self.quads_skipped, &o.quads_skipped), (&mut self.pixels_skipped, &o.pixels_skipped), (&mut self.reconstructed, &o.reconstructed)] {
+            for (k, v) in src {
+                *dst.entry(*k).or_insert(0) += v;
+            }
+        }
+        for (k, v) in &o.not_applied {
+            *self.not_applied.entry(k).or_insert(0) += v;
+        }
+    }
+    pub fn count_not_applied(&mut self, why: NotApplied) {
+        *self.not_applied.entry(why.name()).or_insert(0) += 1;
+    }
+    pub fn is_empty(&self) -> bool {
+        *self == RdmFrameStats::default()
+    }
+    /// `key=value` pairs for the `vulkan device stats:` line.
+    pub fn summary(&self) -> String {
+        let sum = |m: &BTreeMap<u32, u64>| m.values().sum::<u64>();
+        let mut s = format!(
+            "rdm_passes={} rdm_quads_skipped={} rdm_pixels_skipped={} rdm_reconstructed={}",
+            self.passes,
+            sum(&self.quads_skipped),
+            sum(&self.pixels_skipped),
+            sum(&self.reconstructed)
+        );
+        for (k, v) in &self.not_applied {
+            s.push_str(&format!(" rdm_not_applied.{k}={v}"));
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const FOV: ViewFov = ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
+
+    fn fovea(inner: f32, middle: f32) -> FoveaView {
+        FoveaView { view: 0, center: [0.0, 0.0], inner_deg: inner, middle_deg: middle }
+    }
+
+    fn rect(w: u32, h: u32) -> PixelRect {
+        PixelRect { x: 0, y: 0, width: w, height: h }
+    }
+
+    #[test]
+    fn skip_pattern_per_ring() {
+        // Inner: nothing; middle: checkerboard, half; outer: only (even, even) kept, 3 of 4.
+        let all = |ring| (0..4).flat_map(|y| (0..4).map(move |x| (x, y))).filter(|&(x, y)| skipped(ring, x, y)).count();
+        assert_eq!(all(Ring::Inner), 0);
+        assert_eq!(all(Ring::Middle), 8);
+        assert_eq!(all(Ring::Outer), 12);
+        assert!(!skipped(Ring::Middle, 0, 0) && skipped(Ring::Middle, 1, 0) && !skipped(Ring::Middle, 1, 1));
+        assert!(!skipped(Ring::Outer, 2, 4) && skipped(Ring::Outer, 1, 0) && skipped(Ring::Outer, 0, 1) && skipped(Ring::Outer, 1, 1));
+    }
+
+    #[test]
+    fn rings_follow_the_angle_from_the_centre() {
+        // 90° FOV square, 200 px: tangent at pixel corner u is −1 + u/100.
+        let p = RdmParams::new(&FOV, &fovea(20.0, 35.0), rect(200, 200)).unwrap();
+        // The quad at the centre: inner.
+        assert_eq!(p.ring(50, 50), Ring::Inner);
+        // Quad centre x-corner 2q+1; tan 20° = 0.364 → corner ≈ 136.4 → q ≈ 67.7; tan 35° = 0.700
+        // → corner 170 → q 84.5.
+        assert_eq!(p.ring(67, 49), Ring::Inner, "corner 135, tan 0.35 < tan 20°");
+        assert_eq!(p.ring(68, 49), Ring::Middle);
+        assert_eq!(p.ring(84, 49), Ring::Middle);
+        assert_eq!(p.ring(85, 49), Ring::Outer);
+        // Symmetric to the left: corner 2q+1 = 200 − 137 → q 31 is middle, 32 inner.
+        assert_eq!(p.ring(31, 49), Ring::Middle);
+        assert_eq!(p.ring(32, 49), Ring::Inner);
+        // Corners are far out.
+        assert_eq!(p.ring(0, 0), Ring::Outer);
+    }
+
+    #[test]
+    fn an_off_axis_centre_moves_the_rings() {
+        let mut f = fovea(10.0, 20.0);
+        f.center = [0.5, 0.0];
+        let p = RdmParams::new(&FOV, &f, rect(200, 200)).unwrap();
+        // tan = 0.5 at corner 150 → quad 74.
+        assert_eq!(p.ring(74, 49), Ring::Inner);
+        assert_eq!(p.ring(50, 49), Ring::Outer, "the optical axis is ~26.6° from the centre");
+        // The angle is what counts, not the tangent distance: 10° from atan(0.5) = 26.57° is
+        // 36.57° (tan 0.7417) outwards but 16.57° (tan 0.2976) inwards.
+        let angle = |q: u32| crate::foveation::angle_between_deg([-1.0 + (2 * q + 1) as f32 / 100.0, 0.0], [0.5, 0.0]);
+        for q in 50..100 {
+            let want = if angle(q) <= 10.0 { Ring::Inner } else if angle(q) <= 20.0 { Ring::Middle } else { Ring::Outer };
+            if (angle(q) - 10.0).abs() > 0.05 && (angle(q) - 20.0).abs() > 0.05 {
+                assert_eq!(p.ring(q, 49), want, "quad {q} at {}°", angle(q));
+            }
+        }
+    }
+
+    #[test]
+    fn counts_clip_to_the_area_and_partial_quads() {
+        let p = RdmParams::new(&FOV, &fovea(0.0, 0.0), PixelRect { x: 10, y: 0, width: 7, height: 3 }).unwrap();
+        // All outer: quads (x 0..4) × (y 0..2); kept (even, even): (0,0), (2,0); the rest skipped.
+        let n = p.count(PixelRect { x: 0, y: 0, width: 100, height: 100 });
+        assert_eq!(n.quads, 8);
+        assert_eq!(n.quads_skipped, 6);
+        // Kept pixels: quads (0,0) and (2,0), 2×2 each = 8; skipped = 21 − 8.
+        assert_eq!(n.pixels_skipped, 13);
+        let by_pixel = (0..3).flat_map(|y| (10..17).map(move |x| (x, y))).filter(|&(x, y)| p.pixel_skipped(x, y)).count();
+        assert_eq!(by_pixel, 13);
+        assert!(!p.pixel_skipped(9, 0) && !p.pixel_skipped(17, 0));
+        // Clipped to the first 3 columns: quads 0 and 1 (partly), rows 0..3.
+        let c = p.count(PixelRect { x: 10, y: 0, width: 3, height: 3 });
+        assert_eq!((c.quads, c.quads_skipped, c.pixels_skipped), (4, 3, 9 - 4));
+        assert_eq!(p.count(PixelRect { x: 0, y: 0, width: 5, height: 5 }), SkipCount::default());
+    }
+
+    #[test]
+    fn balanced_skips_a_plausible_fraction() {
+        let p = RdmParams::new(&FOV, &fovea(20.0, 35.0), rect(400, 400)).unwrap();
+        let n = p.count(p.rect);
+        let f = n.pixels_skipped as f64 / p.rect.area() as f64;
+        // Inner disc r ≈ 0.364·200 px, middle to 0.70·200: ≈ 0.13 inner, ≈ 0.25 middle (half),
+        // ≈ 0.62 outer (¾): about 0.59.
+        assert!((0.5..0.7).contains(&f), "{f}");
+        assert!(RdmParams::new(&FOV, &fovea(20.0, 35.0), rect(0, 4)).is_none());
+    }
+
+    #[test]
+    fn stats_add_and_summarise() {
+        let mut a = RdmFrameStats { passes: 1, ..Default::default() };
+        a.quads_skipped.insert(1, 5);
+        a.pixels_skipped.insert(1, 20);
+        a.count_not_applied(NotApplied::NotOneToOne);
+        let mut b = RdmFrameStats::default();
+        assert!(b.is_empty());
+        b.add(&a);
+        b.add(&a);
+        assert_eq!(b.summary(), "rdm_passes=2 rdm_quads_skipped=10 rdm_pixels_skipped=40 rdm_reconstructed=0 rdm_not_applied.not_one_to_one=2");
+        assert_eq!(reconstruction_weight(1, 0), 1.0);
+        assert_eq!(reconstruction_weight(2, 1), 0.2);
+    }
+}
