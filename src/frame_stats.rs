@@ -16,6 +16,10 @@ pub struct FrameRecord {
     /// The live `mask.enabled` the frame was recorded under.
     pub mask_enabled: bool,
     pub mask: MaskFrameStats,
+    /// The foveation the frame was recorded with (empty when off).
+    pub fovea: Vec<crate::shared::FoveaView>,
+    /// Where the fovea centres came from: "Fixed", "Gaze" or "Held" (None when off).
+    pub fovea_source: Option<String>,
 }
 
 impl FrameRecord {
@@ -30,6 +34,10 @@ impl FrameRecord {
             "passes_masked": self.mask.passes_masked,
             "not_masked": not_masked,
             "pixels_masked": pixels,
+            "fovea": self.fovea.iter().map(|f| serde_json::json!({
+                "view": f.view, "center": f.center, "inner_deg": f.inner_deg, "middle_deg": f.middle_deg,
+            })).collect::<Vec<_>>(),
+            "fovea_source": self.fovea_source,
         })
         .to_string()
     }
@@ -77,7 +85,7 @@ mod tests {
             not_masked: [("no_depth_attachment", 1)].into_iter().collect(),
             pixels_masked: [(0, 1234)].into_iter().collect(),
         };
-        let r = FrameRecord { frame: 7, mask_enabled: true, mask };
+        let r = FrameRecord { frame: 7, mask_enabled: true, mask, fovea: Vec::new(), fovea_source: None };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
         assert_eq!(v["frame"], 7);
         assert_eq!(v["passes_masked"], 2);
@@ -89,7 +97,7 @@ mod tests {
         let path = dir.join("s.jsonl");
         let w = Writer::default();
         w.write(path.to_str().unwrap(), &r);
-        w.write(path.to_str().unwrap(), &FrameRecord { frame: 8, ..r });
+        w.write(path.to_str().unwrap(), &FrameRecord { frame: 8, ..r.clone() });
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(text.lines().count(), 2);
         std::fs::remove_dir_all(&dir).ok();

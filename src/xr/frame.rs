@@ -37,7 +37,19 @@ fn write_frame_stats(inst: &super::Instance, frame: u64) {
     static WRITER: std::sync::OnceLock<crate::frame_stats::Writer> = std::sync::OnceLock::new();
     let mask = crate::vk::take_frame_stats();
     let live = shared::shared().config().unwrap_or_else(|| inst.config.clone());
-    let record = crate::frame_stats::FrameRecord { frame, mask_enabled: live.bool("mask.enabled"), mask };
+    let fovea = shared::shared().foveation().views.clone();
+    let fovea_source = if fovea.is_empty() {
+        None
+    } else {
+        super::state()
+            .sessions
+            .values()
+            .into_iter()
+            .find_map(|(_, s)| *s.gaze.source.lock().unwrap_or_else(|e| e.into_inner()))
+            .or(Some(crate::foveation::CenterSource::Fixed))
+            .map(|src| format!("{src:?}"))
+    };
+    let record = crate::frame_stats::FrameRecord { frame, mask_enabled: live.bool("mask.enabled"), mask, fovea, fovea_source };
     if frame == 0 || record.mask.passes_masked > 0 || !record.mask.not_masked.is_empty() {
         tracing::debug!("frame stats: {}", record.to_json());
     }

@@ -39,8 +39,42 @@ fn wanted_extensions(config: &crate::config::Config) -> Vec<&'static str> {
     let mut v = Vec::new();
     if config.enabled() {
         v.push(super::VISIBILITY_MASK_EXT);
+        if config.choice("foveation.eye_tracking") != "off" {
+            v.push(super::EYE_GAZE_EXT);
+        }
     }
     v
+}
+
+/// The instance extensions below us, when the next layer answers the global query (None: unknown,
+/// then creation is tried with ours and retried without them).
+///
+/// # Safety
+/// `gipa` must be the next layer's `xrGetInstanceProcAddr`.
+unsafe fn runtime_extensions(gipa: xr::pfn::GetInstanceProcAddr) -> Option<Vec<String>> {
+    let mut f: Option<xr::pfn::VoidFunction> = None;
+    // SAFETY: querying a global function with a null instance (spec-allowed for this one).
+    let r = unsafe { gipa(xr::Instance::NULL, c"xrEnumerateInstanceExtensionProperties".as_ptr(), &mut f) };
+    let f = f.filter(|_| r == xr::Result::SUCCESS)?;
+    // SAFETY: the function returned for this name has this type.
+    let enumerate: xr::pfn::EnumerateInstanceExtensionProperties = unsafe { std::mem::transmute(f) };
+    let mut count = 0u32;
+    // SAFETY: two-call idiom.
+    if unsafe { enumerate(std::ptr::null(), 0, &mut count, std::ptr::null_mut()) } != xr::Result::SUCCESS {
+        return None;
+    }
+    let blank = xr::ExtensionProperties {
+        ty: xr::ExtensionProperties::TYPE,
+        next: std::ptr::null_mut(),
+        extension_name: [0; xr::MAX_EXTENSION_NAME_SIZE],
+        extension_version: 0,
+    };
+    let mut props = vec![blank; count as usize];
+    // SAFETY: `props` holds `count` initialised structs.
+    if unsafe { enumerate(std::ptr::null(), count, &mut count, props.as_mut_ptr()) } != xr::Result::SUCCESS {
+        return None;
+    }
+    Some(props.iter().take(count as usize).map(|p| super::fixed_str(&p.extension_name)).collect())
 }
 
 /// Reads an array of C strings.
@@ -111,7 +145,13 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             .unwrap_or_default();
         // Extensions the layer needs for itself; the app never sees them (hidden in
         // xrGetInstanceProcAddr and xrPollEvent).
-        let wanted: Vec<&str> = wanted_extensions(&config).into_iter().filter(|e| !app_extensions.iter().any(|a| a == e)).collect();
+        // SAFETY: `next_gipa` is the next layer's; global functions are queried with a null instance.
+        let available = unsafe { runtime_extensions(next_gipa) };
+        let wanted: Vec<&str> = wanted_extensions(&config)
+            .into_iter()
+            .filter(|e| !app_extensions.iter().any(|a| a == e))
+            .filter(|e| available.as_ref().is_none_or(|list| list.iter().any(|a| a == e)))
+            .collect();
         let mut added = Vec::new();
         let r = down.call(|| {
             if wanted.is_empty() || info.is_null() {

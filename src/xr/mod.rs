@@ -3,6 +3,7 @@
 //! decide is in the safe modules of the crate.
 
 mod frame;
+mod gaze;
 mod instance;
 mod session;
 mod swapchain;
@@ -20,12 +21,17 @@ use std::sync::{Arc, OnceLock};
 /// its type, and the hook. `Next` and the proc-addr lookup are both generated from this list, so a
 /// hook can never be handed out without the dispatch entry it calls.
 macro_rules! intercepts {
-    ($($name:literal => $field:ident: $pfn:ident = $hook:path,)*) => {
-        /// The next layer's (or the runtime's) functions for one instance.
+    (
+        hooks { $($name:literal => $field:ident: $pfn:ident = $hook:path,)* }
+        calls { $($cname:literal => $cfield:ident: $cpfn:ident,)* }
+    ) => {
+        /// The next layer's (or the runtime's) functions for one instance: those we intercept and
+        /// those the layer calls for its own purposes (`calls`).
         #[derive(Clone, Copy)]
         pub(crate) struct Next {
             pub get_instance_proc_addr: xr::pfn::GetInstanceProcAddr,
             $(pub $field: Option<xr::pfn::$pfn>,)*
+            $(pub $cfield: Option<xr::pfn::$cpfn>,)*
         }
 
         impl Next {
@@ -43,6 +49,18 @@ macro_rules! intercepts {
                             let r = gipa(instance, concat!($name, "\0").as_ptr().cast(), &mut f);
                             if r == xr::Result::SUCCESS {
                                 f.map(|f| std::mem::transmute::<xr::pfn::VoidFunction, xr::pfn::$pfn>(f))
+                            } else {
+                                None
+                            }
+                        }
+                    },)*
+                    $($cfield: {
+                        let mut f: Option<xr::pfn::VoidFunction> = None;
+                        // SAFETY: as above, for the functions the layer calls itself.
+                        unsafe {
+                            let r = gipa(instance, concat!($cname, "\0").as_ptr().cast(), &mut f);
+                            if r == xr::Result::SUCCESS {
+                                f.map(|f| std::mem::transmute::<xr::pfn::VoidFunction, xr::pfn::$cpfn>(f))
                             } else {
                                 None
                             }
@@ -70,6 +88,7 @@ macro_rules! intercepts {
 }
 
 intercepts! {
+    hooks {
     "xrDestroyInstance" => destroy_instance: DestroyInstance = instance::destroy_instance,
     "xrEnumerateViewConfigurationViews" => enumerate_view_configuration_views: EnumerateViewConfigurationViews = instance::enumerate_view_configuration_views,
     "xrPollEvent" => poll_event: PollEvent = instance::poll_event,
@@ -89,6 +108,18 @@ intercepts! {
     "xrCreateVulkanDeviceKHR" => create_vulkan_device: CreateVulkanDeviceKHR = vulkan::create_vulkan_device,
     "xrGetVulkanInstanceExtensionsKHR" => get_vulkan_instance_extensions: GetVulkanInstanceExtensionsKHR = vulkan::get_vulkan_instance_extensions,
     "xrGetVulkanDeviceExtensionsKHR" => get_vulkan_device_extensions: GetVulkanDeviceExtensionsKHR = vulkan::get_vulkan_device_extensions,
+    "xrAttachSessionActionSets" => attach_session_action_sets: AttachSessionActionSets = gaze::attach_session_action_sets,
+    "xrSyncActions" => sync_actions: SyncActions = gaze::sync_actions,
+    }
+    calls {
+    "xrStringToPath" => string_to_path: StringToPath,
+    "xrCreateActionSet" => create_action_set: CreateActionSet,
+    "xrDestroyActionSet" => destroy_action_set: DestroyActionSet,
+    "xrCreateAction" => create_action: CreateAction,
+    "xrSuggestInteractionProfileBindings" => suggest_interaction_profile_bindings: SuggestInteractionProfileBindings,
+    "xrCreateActionSpace" => create_action_space: CreateActionSpace,
+    "xrLocateSpace" => locate_space: LocateSpace,
+    }
 }
 
 /// Per-instance state; creation data is immutable.
@@ -111,6 +142,7 @@ pub(crate) struct Instance {
 }
 
 pub(crate) const VISIBILITY_MASK_EXT: &str = "XR_KHR_visibility_mask";
+pub(crate) const EYE_GAZE_EXT: &str = "XR_EXT_eye_gaze_interaction";
 
 /// The extension an extension function belongs to, for those the layer may enable for itself.
 fn extension_of(function: &str) -> Option<&'static str> {

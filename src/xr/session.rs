@@ -40,6 +40,8 @@ pub(crate) struct Session {
     pub fov_submitted: AtomicBool,
     /// Fovea centre per view from the gaze policy (empty: optical axis).
     pub gaze_centers: Mutex<Vec<crate::foveation::Tangent>>,
+    /// The layer's own eye-gaze action objects and policy state.
+    pub gaze: super::gaze::Gaze,
 }
 
 /// Views of `XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO`, the only configuration masks are kept for.
@@ -206,6 +208,7 @@ pub(super) unsafe extern "system" fn create_session(
             masks_dirty: AtomicBool::new(true),
             fov_submitted: AtomicBool::new(false),
             gaze_centers: Mutex::new(Vec::new()),
+            gaze: Default::default(),
         };
         state().sessions.insert(handle.into_raw(), Arc::new(s));
         Ok(r)
@@ -270,6 +273,11 @@ pub(super) unsafe extern "system" fn locate_views(
             last.extend(located.iter().map(|v| LocatedView { pose: v.pose, fov: v.fov }));
             if !s.fov_submitted.load(Ordering::Acquire) {
                 crate::shared::shared().update_views(None, Some(located.iter().map(|v| fov_tangents(&v.fov)).collect()));
+            }
+            drop(last);
+            // SAFETY: the app's locate info, valid for this call (the call succeeded).
+            if let Some(info) = unsafe { view_locate_info.as_ref() } {
+                super::gaze::sample(&s, info, located);
             }
         }
         Ok(r)
