@@ -123,6 +123,59 @@ layout_depth_tests! {
     side_by_side_reverse: "side-by-side", "reverse";
 }
 
+/// `--depth-clear attachments|image` (the depth buffer loaded by the pass and cleared by
+/// vkCmdClearAttachments inside it, or by vkCmdClearDepthStencilImage before it) is the same frame
+/// as the load-op clear: for one layout, every way of starting a pass × both depth conventions
+/// gives the load-op captures bit for bit, and the same shaded-fragment counts. The load-op
+/// baseline is rendered with render-pass only: `layout_depth` shows the other shapes equal it.
+/// Validation (synchronization included) must stay silent.
+fn depth_clear_modes(layout: &str) {
+    for depth in ["standard", "reverse"] {
+        let run = |rendering: &str, clear: &str, extra: &[&str]| {
+            let tag = if extra.is_empty() { String::new() } else { format!("-{}", extra.join("").trim_start_matches('-')) };
+            let out = Run::new(&format!("depth-clear-{layout}-{depth}-{rendering}-{clear}{tag}"))
+                .args(["--layout", layout, "--depth", depth, "--rendering", rendering, "--depth-clear", clear])
+                .args(extra.iter().copied())
+                .run();
+            out.assert_ok();
+            out
+        };
+        let baseline = run("render-pass", "load-op", &[]);
+        for rendering in ["render-pass", "render-pass2", "dynamic"] {
+            for clear in ["attachments", "image"] {
+                let other = run(rendering, clear, &[]);
+                let label = format!("depth-clear-{layout}-{depth}-{rendering}-{clear}-vs-load-op");
+                assert_same_captures(&label, &other, &baseline);
+                assert_eq!(other.stats, baseline.stats, "{label}: shaded fragments differ");
+            }
+        }
+        // Submitted depth (a swapchain image the runtime made with the usage asked for, TRANSFER_DST
+        // for the image clear) holds the same depth too.
+        let rendering = if depth == "standard" { "dynamic" } else { "render-pass2" };
+        let baseline = run(rendering, "load-op", &["--submit-depth"]);
+        for clear in ["attachments", "image"] {
+            let other = run(rendering, clear, &["--submit-depth"]);
+            assert!(other.views(FRAME).iter().all(|v| v.depth.is_some()), "{layout}: depth not submitted");
+            assert_same_captures(&format!("depth-clear-{layout}-{depth}-{clear}-submitted"), &other, &baseline);
+        }
+    }
+}
+
+#[test]
+fn depth_clear_per_eye() {
+    depth_clear_modes("per-eye");
+}
+
+#[test]
+fn depth_clear_multiview() {
+    depth_clear_modes("multiview");
+}
+
+#[test]
+fn depth_clear_side_by_side() {
+    depth_clear_modes("side-by-side");
+}
+
 /// The three layouts are the same scene through different plumbing: identical pixels per eye.
 #[test]
 fn layouts_agree() {

@@ -22,6 +22,17 @@ pub enum DepthMode {
     Reverse,
 }
 
+/// How the depth buffer of an eye pass starts out at its clear value (`--depth-clear`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DepthClear {
+    /// The pass's depth attachment has loadOp CLEAR.
+    LoadOp,
+    /// loadOp LOAD, then `vkCmdClearAttachments` of the depth aspect as the pass's first command.
+    Attachments,
+    /// `vkCmdClearDepthStencilImage` before the pass (image in TRANSFER_DST_OPTIMAL), loadOp LOAD.
+    Image,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum VulkanPath {
     Enable,
@@ -39,6 +50,7 @@ pub struct Options {
     pub layout: Layout,
     pub rendering: Rendering,
     pub depth: DepthMode,
+    pub depth_clear: DepthClear,
     pub intermediate: bool,
     pub samples: u32,
     pub submit_depth: bool,
@@ -64,6 +76,7 @@ impl Default for Options {
             layout: Layout::PerEye,
             rendering: Rendering::RenderPass,
             depth: DepthMode::Standard,
+            depth_clear: DepthClear::LoadOp,
             intermediate: false,
             samples: 4,
             submit_depth: false,
@@ -86,6 +99,8 @@ usage: xr-scene [options]
   --layout per-eye|multiview|side-by-side   swapchain layout (default per-eye)
   --rendering render-pass|render-pass2|dynamic  (default render-pass)
   --depth standard|reverse                  depth convention (default standard)
+  --depth-clear load-op|attachments|image   how depth is cleared: pass load op, vkCmdClearAttachments
+                                            in the pass, or vkCmdClearDepthStencilImage before it
   --intermediate                            render offscreen, then resolve/copy to the swapchain
   --samples N                               offscreen sample count with --intermediate (default 4)
   --submit-depth                            submit depth swapchains (XR_KHR_composition_layer_depth)
@@ -142,6 +157,14 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                     "standard" => DepthMode::Standard,
                     "reverse" => DepthMode::Reverse,
                     v => return Err(format!("unknown --depth {v:?}")),
+                }
+            }
+            "--depth-clear" => {
+                o.depth_clear = match value("--depth-clear")?.as_str() {
+                    "load-op" => DepthClear::LoadOp,
+                    "attachments" => DepthClear::Attachments,
+                    "image" => DepthClear::Image,
+                    v => return Err(format!("unknown --depth-clear {v:?}")),
                 }
             }
             "--vulkan" => {
@@ -231,6 +254,16 @@ mod tests {
         assert_eq!(o.vulkan, VulkanPath::Enable2);
         assert_eq!(o.samples, 1, "no intermediate target means single-sampled");
         assert_eq!(o.color_format, ColorFamily::Srgb);
+        assert_eq!(o.depth_clear, DepthClear::LoadOp);
+    }
+
+    #[test]
+    fn depth_clear() {
+        assert_eq!(p(&["--depth-clear", "attachments"]).unwrap().unwrap().depth_clear, DepthClear::Attachments);
+        assert_eq!(p(&["--depth-clear=image"]).unwrap().unwrap().depth_clear, DepthClear::Image);
+        assert_eq!(p(&["--depth-clear", "load-op"]).unwrap().unwrap().depth_clear, DepthClear::LoadOp);
+        assert!(p(&["--depth-clear", "shader"]).is_err());
+        assert!(p(&["--depth-clear"]).is_err());
     }
 
     #[test]

@@ -19,6 +19,9 @@ pub struct PassFormat {
     /// Depth is submitted to the runtime, so it must be stored.
     pub store_depth: bool,
     pub has_stencil: bool,
+    /// `--depth-clear attachments|image`: the depth (and stencil) attachment is loaded, not
+    /// cleared by the pass; the app clears it itself (inside the pass or before it).
+    pub load_depth: bool,
 }
 
 pub struct Passes {
@@ -43,6 +46,7 @@ impl Passes {
             framebuffers: HashMap::new(),
         };
         let depth_store = if format.store_depth { vk::AttachmentStoreOp::STORE } else { vk::AttachmentStoreOp::DONT_CARE };
+        let depth_load = if format.load_depth { vk::AttachmentLoadOp::LOAD } else { vk::AttachmentLoadOp::CLEAR };
         // Images arrive in their attachment layouts (barriers outside the pass put them there),
         // so the passes themselves do no layout transitions.
         match mode {
@@ -60,9 +64,9 @@ impl Passes {
                     vk::AttachmentDescription::default()
                         .format(format.depth)
                         .samples(format.samples)
-                        .load_op(vk::AttachmentLoadOp::CLEAR)
+                        .load_op(depth_load)
                         .store_op(depth_store)
-                        .stencil_load_op(vk::AttachmentLoadOp::CLEAR)
+                        .stencil_load_op(depth_load)
                         .stencil_store_op(depth_store)
                         .initial_layout(DEPTH_LAYOUT)
                         .final_layout(DEPTH_LAYOUT),
@@ -98,9 +102,9 @@ impl Passes {
                     vk::AttachmentDescription2::default()
                         .format(format.depth)
                         .samples(format.samples)
-                        .load_op(vk::AttachmentLoadOp::CLEAR)
+                        .load_op(depth_load)
                         .store_op(depth_store)
-                        .stencil_load_op(vk::AttachmentLoadOp::CLEAR)
+                        .stencil_load_op(depth_load)
                         .stencil_store_op(depth_store)
                         .initial_layout(DEPTH_LAYOUT)
                         .final_layout(DEPTH_LAYOUT),
@@ -154,7 +158,8 @@ impl Passes {
         Ok(fb)
     }
 
-    /// Opens the pass on `color`/`depth` with both attachments cleared.
+    /// Opens the pass on `color`/`depth`: colour cleared, depth cleared by the load op (or loaded,
+    /// with `load_depth`).
     pub fn begin(
         &mut self,
         gpu: &Gpu,
@@ -200,7 +205,7 @@ impl Passes {
                 let depth_att = vk::RenderingAttachmentInfo::default()
                     .image_view(depth)
                     .image_layout(DEPTH_LAYOUT)
-                    .load_op(vk::AttachmentLoadOp::CLEAR)
+                    .load_op(if self.format.load_depth { vk::AttachmentLoadOp::LOAD } else { vk::AttachmentLoadOp::CLEAR })
                     .store_op(if self.format.store_depth {
                         vk::AttachmentStoreOp::STORE
                     } else {
@@ -224,6 +229,29 @@ impl Passes {
             }
         }
         Ok(())
+    }
+
+    /// `--depth-clear attachments`: clears the depth (and stencil) attachment of the open pass with
+    /// `vkCmdClearAttachments` over the whole render area (`extent` from the origin: for
+    /// side-by-side one rect covering both eyes). Multiview: layer 0, count 1 clears every view.
+    pub fn clear_depth_attachment(&self, gpu: &Gpu, cmd: vk::CommandBuffer, extent: vk::Extent2D, clear_depth: f32) {
+        let aspect = if self.format.has_stencil {
+            vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL
+        } else {
+            vk::ImageAspectFlags::DEPTH
+        };
+        let attachment = [vk::ClearAttachment {
+            aspect_mask: aspect,
+            color_attachment: 0,
+            clear_value: vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: clear_depth, stencil: 0 } },
+        }];
+        let rect = [vk::ClearRect {
+            rect: vk::Rect2D { offset: vk::Offset2D::default(), extent },
+            base_array_layer: 0,
+            layer_count: 1,
+        }];
+        // SAFETY: a pass with a depth attachment is open on `cmd`; the rect lies in its render area.
+        unsafe { gpu.device.cmd_clear_attachments(cmd, &attachment, &rect) };
     }
 
     pub fn end(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {

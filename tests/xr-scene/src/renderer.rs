@@ -1,7 +1,7 @@
 //! Per-frame GPU work: scene buffers, descriptors, the pipeline, and recording one frame's
 //! command buffer with every barrier the frame needs (the tests run under synchronization validation).
 
-use crate::cli::{DepthMode, Layout, Options};
+use crate::cli::{DepthClear, DepthMode, Layout, Options};
 use crate::error::{Ctx, Error, Result};
 use crate::gpu::Gpu;
 use crate::passes::{PassFormat, Passes};
@@ -97,6 +97,7 @@ pub struct Renderer {
     bind_before_pass: bool,
     samples: vk::SampleCountFlags,
     clear_depth: f32,
+    depth_clear: DepthClear,
     push: PushConstants,
     passes: Passes,
     set_layout: vk::DescriptorSetLayout,
@@ -131,6 +132,7 @@ impl Renderer {
                 view_mask: multiview.then_some(0b11),
                 store_depth: opts.submit_depth,
                 has_stencil: depth_aspect(targets.depth_format).contains(vk::ImageAspectFlags::STENCIL),
+                load_depth: opts.depth_clear != DepthClear::LoadOp,
             },
         )?;
         let counters = GpuCounters::new(gpu)?;
@@ -142,6 +144,7 @@ impl Renderer {
             bind_before_pass: opts.bind_before_pass,
             samples: targets.samples,
             clear_depth: if opts.depth == DepthMode::Reverse { 0.0 } else { 1.0 },
+            depth_clear: opts.depth_clear,
             push: PushConstants {
                 eye: 0,
                 shading_cost: opts.shading_cost,
@@ -411,6 +414,10 @@ impl Renderer {
                     }
                 }
                 self.passes.begin(gpu, cmd, color_view, depth_view, extent, self.clear_depth)?;
+                // `--depth-clear attachments`: the pass loaded depth; clearing it is its first command.
+                if self.depth_clear == DepthClear::Attachments {
+                    self.passes.clear_depth_attachment(gpu, cmd, extent, self.clear_depth);
+                }
                 if !early {
                     bind_buffers();
                 }
@@ -466,38 +473,90 @@ impl Renderer {
                     color_rw,
                 )),
             }
+            // `--depth-clear image`: depth goes to TRANSFER_DST_OPTIMAL for its clear first.
+            let (depth_layout, depth_access) = if self.depth_clear == DepthClear::Image {
+                (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE)
+            } else {
+                (vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL, depth_rw)
+            };
             match (&slot.depth, a.depth, &slot.own_depth) {
                 (Some(chain), Some(di), _) => images.push(image_barrier(
                     chain.images[di as usize],
                     depth_range,
                     vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
-                    vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
+                    depth_layout,
                     vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
-                    depth_rw,
+                    depth_access,
                 )),
                 (_, _, Some(own)) => images.push(image_barrier(
                     own.image,
                     depth_range,
                     vk::ImageLayout::UNDEFINED,
-                    vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
+                    depth_layout,
                     vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
-                    depth_rw,
+                    depth_access,
                 )),
                 _ => {}
             }
         }
         let buffers = [self.counters.after_fill_barrier()];
         let fragment_tests = vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
+        let mut dst_stages = vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | fragment_tests;
+        if self.depth_clear == DepthClear::Image {
+            dst_stages |= vk::PipelineStageFlags::TRANSFER;
+        }
         // SAFETY: recording state, outside any render pass.
         unsafe {
             self.device.cmd_pipeline_barrier(
                 self.cmd,
                 vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | fragment_tests,
-                vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | fragment_tests,
+                dst_stages,
                 vk::DependencyFlags::empty(),
                 &[],
                 &buffers,
                 &images,
+            );
+        }
+        if self.depth_clear == DepthClear::Image {
+            self.clear_depth_images(targets, acquired);
+        }
+    }
+
+    /// `--depth-clear image`: `vkCmdClearDepthStencilImage` on every depth image of the frame (in
+    /// TRANSFER_DST_OPTIMAL), then the clear made visible to the passes that load it, in
+    /// DEPTH_STENCIL_ATTACHMENT_OPTIMAL.
+    fn clear_depth_images(&self, targets: &Targets, acquired: &[Acquired]) {
+        let value = vk::ClearDepthStencilValue { depth: self.clear_depth, stencil: 0 };
+        let mut to_attachment = Vec::new();
+        for (i, a) in acquired.iter().enumerate() {
+            let slot = &targets.slots[i];
+            let image = match (&slot.depth, a.depth, &slot.own_depth) {
+                (Some(chain), Some(di), _) => chain.images[di as usize],
+                (_, _, Some(own)) => own.image,
+                _ => continue,
+            };
+            let r = range(depth_aspect(targets.depth_format), slot.layers);
+            // SAFETY: recording, outside any pass; the image was just put in TRANSFER_DST_OPTIMAL.
+            unsafe { self.device.cmd_clear_depth_stencil_image(self.cmd, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &value, &[r]) };
+            to_attachment.push(image_barrier(
+                image,
+                r,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
+                vk::AccessFlags::TRANSFER_WRITE,
+                vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            ));
+        }
+        // SAFETY: recording state, outside any render pass.
+        unsafe {
+            self.device.cmd_pipeline_barrier(
+                self.cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS,
+                vk::DependencyFlags::empty(),
+                &[],
+                &[],
+                &to_attachment,
             );
         }
     }

@@ -264,11 +264,17 @@ impl Targets {
             t.slots.push(slot);
             Err(e)
         };
+        // `--depth-clear image` clears the depth image with a transfer command.
+        let clear_by_transfer = opts.depth_clear == crate::cli::DepthClear::Image;
         if opts.submit_depth {
+            let mut depth_usage = xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT;
+            if clear_by_transfer {
+                depth_usage |= xr::SwapchainUsageFlags::TRANSFER_DST;
+            }
             match self.chain(
                 xs,
                 self.depth_format,
-                xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+                depth_usage,
                 extent,
                 layers,
                 depth_aspect(self.depth_format),
@@ -283,7 +289,11 @@ impl Targets {
                 extent,
                 layers,
                 self.samples,
-                vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+                if clear_by_transfer {
+                    vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_DST
+                } else {
+                    vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
+                },
                 depth_aspect(self.depth_format),
             ) {
                 Ok(i) => slot.own_depth = Some(i),
