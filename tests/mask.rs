@@ -153,6 +153,30 @@ mask_tests! {
     state_set_before_the_pass_side_by_side: ["--layout", "side-by-side", "--rendering", "render-pass2", "--bind-before-pass"];
 }
 
+// Depth cleared by the app itself, not by the pass's load op (`--depth-clear`): the mask must go
+// in right after vkCmdClearAttachments (the pass's first command; side-by-side clears the whole
+// double-wide area in one rect), or at the beginning of a pass that loads an image
+// vkCmdClearDepthStencilImage cleared, at the depth that fails against that clear. A covering
+// subset: every layout with both conventions and every pass shape per clear method.
+mask_tests! {
+    clear_attachments_per_eye_render_pass: ["--layout", "per-eye", "--rendering", "render-pass", "--depth-clear", "attachments"];
+    clear_attachments_per_eye_dynamic_reverse: ["--layout", "per-eye", "--rendering", "dynamic", "--depth", "reverse", "--depth-clear", "attachments"];
+    clear_attachments_multiview_render_pass2: ["--layout", "multiview", "--rendering", "render-pass2", "--depth-clear", "attachments"];
+    clear_attachments_multiview_dynamic_reverse: ["--layout", "multiview", "--rendering", "dynamic", "--depth", "reverse", "--depth-clear", "attachments"];
+    clear_attachments_side_by_side_render_pass_reverse: ["--layout", "side-by-side", "--rendering", "render-pass", "--depth", "reverse", "--depth-clear", "attachments"];
+    clear_attachments_side_by_side_dynamic: ["--layout", "side-by-side", "--rendering", "dynamic", "--depth-clear", "attachments"];
+    clear_attachments_state_set_before_the_pass: ["--layout", "per-eye", "--rendering", "render-pass2", "--depth-clear", "attachments", "--bind-before-pass"];
+    clear_attachments_intermediate_side_by_side_msaa: ["--layout", "side-by-side", "--rendering", "dynamic", "--intermediate", "--depth-clear", "attachments"];
+    clear_image_per_eye_render_pass2: ["--layout", "per-eye", "--rendering", "render-pass2", "--depth-clear", "image"];
+    clear_image_per_eye_dynamic_reverse: ["--layout", "per-eye", "--rendering", "dynamic", "--depth", "reverse", "--depth-clear", "image"];
+    clear_image_multiview_render_pass_reverse: ["--layout", "multiview", "--rendering", "render-pass", "--depth", "reverse", "--depth-clear", "image"];
+    clear_image_multiview_dynamic: ["--layout", "multiview", "--rendering", "dynamic", "--depth-clear", "image"];
+    clear_image_side_by_side_render_pass2: ["--layout", "side-by-side", "--rendering", "render-pass2", "--depth-clear", "image"];
+    clear_image_side_by_side_dynamic_reverse: ["--layout", "side-by-side", "--rendering", "dynamic", "--depth", "reverse", "--depth-clear", "image"];
+    clear_image_submit_depth_side_by_side: ["--layout", "side-by-side", "--rendering", "render-pass", "--submit-depth", "--depth-clear", "image"];
+    clear_image_intermediate_multiview_msaa_reverse: ["--layout", "multiview", "--rendering", "render-pass2", "--intermediate", "--depth", "reverse", "--depth-clear", "image"];
+}
+
 /// Real HMD profiles: other mask shapes, FOVs and (non-square) image sizes.
 #[test]
 fn hmd_profiles() {
