@@ -28,6 +28,12 @@ impl FrameRecord {
             self.mask.not_masked.iter().map(|(k, v)| (k.to_string(), (*v).into())).collect();
         let pixels: serde_json::Map<String, serde_json::Value> =
             self.mask.pixels_masked.iter().map(|(k, v)| (k.to_string(), (*v).into())).collect();
+        // Radial density masking, per OpenXR view index where per view.
+        let per_view = |m: &std::collections::BTreeMap<u32, u64>| -> serde_json::Map<String, serde_json::Value> {
+            m.iter().map(|(k, v)| (k.to_string(), (*v).into())).collect()
+        };
+        let rdm = &self.mask.rdm;
+        let rdm_not_applied: serde_json::Map<String, serde_json::Value> = rdm.not_applied.iter().map(|(k, v)| (k.to_string(), (*v).into())).collect();
         serde_json::json!({
             "frame": self.frame,
             "mask_enabled": self.mask_enabled,
@@ -38,6 +44,13 @@ impl FrameRecord {
                 "view": f.view, "center": f.center, "inner_deg": f.inner_deg, "middle_deg": f.middle_deg,
             })).collect::<Vec<_>>(),
             "fovea_source": self.fovea_source,
+            "rdm": {
+                "passes": rdm.passes,
+                "quads_skipped": per_view(&rdm.quads_skipped),
+                "pixels_skipped": per_view(&rdm.pixels_skipped),
+                "reconstructed": per_view(&rdm.reconstructed),
+                "not_applied": rdm_not_applied,
+            },
         })
         .to_string()
     }
@@ -84,6 +97,7 @@ mod tests {
             passes_masked: 2,
             not_masked: [("no_depth_attachment", 1)].into_iter().collect(),
             pixels_masked: [(0, 1234)].into_iter().collect(),
+            rdm: crate::rdm::RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() },
         };
         let r = FrameRecord { frame: 7, mask_enabled: true, mask, fovea: Vec::new(), fovea_source: None };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
@@ -91,6 +105,8 @@ mod tests {
         assert_eq!(v["passes_masked"], 2);
         assert_eq!(v["not_masked"]["no_depth_attachment"], 1);
         assert_eq!(v["pixels_masked"]["0"], 1234);
+        assert_eq!(v["rdm"]["passes"], 1);
+        assert_eq!(v["rdm"]["quads_skipped"]["1"], 77);
 
         let dir = std::env::temp_dir().join(format!("stereoshim-stats-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();

@@ -221,6 +221,8 @@ pub struct MaskFrameStats {
     pub not_masked: BTreeMap<&'static str, u64>,
     /// Pixels covered by the drawn mask, per OpenXR view index.
     pub pixels_masked: BTreeMap<u32, u64>,
+    /// Radial density masking (foveation method 2), injected by the same machinery.
+    pub rdm: crate::rdm::RdmFrameStats,
 }
 
 impl MaskFrameStats {
@@ -232,6 +234,7 @@ impl MaskFrameStats {
         for (k, v) in &o.pixels_masked {
             *self.pixels_masked.entry(*k).or_insert(0) += v;
         }
+        self.rdm.add(&o.rdm);
     }
     pub fn count_not_masked(&mut self, why: NotMasked) {
         *self.not_masked.entry(why.name()).or_insert(0) += 1;
@@ -244,6 +247,10 @@ impl MaskFrameStats {
         let mut s = format!("masked_passes={} masked_pixels={}", self.passes_masked, self.pixels_total());
         for (k, v) in &self.not_masked {
             s.push_str(&format!(" not_masked.{k}={v}"));
+        }
+        if !self.rdm.is_empty() {
+            s.push(' ');
+            s.push_str(&self.rdm.summary());
         }
         s
     }

@@ -135,6 +135,16 @@ pub fn skipped(ring: Ring, qx: u32, qy: u32) -> bool {
     }
 }
 
+/// Whether `foveation.method` means radial density masking on a device: rdm always, vrs never,
+/// auto where the device lacks `attachmentFragmentShadingRate` (lavapipe, older GPUs).
+pub fn method_is_rdm(method: &str, fsr_attachment: bool) -> bool {
+    match method {
+        "rdm" => true,
+        "vrs" => false,
+        _ => !fsr_attachment,
+    }
+}
+
 /// Quads of an area (touching it), skipped quads, and skipped pixels inside it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SkipCount {
@@ -244,6 +254,7 @@ mod tests {
         // Inner: nothing; middle: checkerboard, half; outer: only (even, even) kept, 3 of 4.
         let all = |ring| (0..4).flat_map(|y| (0..4).map(move |x| (x, y))).filter(|&(x, y)| skipped(ring, x, y)).count();
         assert_eq!(all(Ring::Inner), 0);
+        assert!(method_is_rdm("rdm", true) && !method_is_rdm("vrs", false) && method_is_rdm("auto", false) && !method_is_rdm("auto", true));
         assert_eq!(all(Ring::Middle), 8);
         assert_eq!(all(Ring::Outer), 12);
         assert!(!skipped(Ring::Middle, 0, 0) && skipped(Ring::Middle, 1, 0) && !skipped(Ring::Middle, 1, 1));

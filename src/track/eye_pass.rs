@@ -59,6 +59,8 @@ impl EyeLayout {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct EyeDraw {
     pub view: u32,
+    /// The array layer of the target image that shows the view.
+    pub layer: u32,
     pub viewport: PixelRect,
     pub scissor: PixelRect,
 }
@@ -151,6 +153,24 @@ pub fn fail_depth(clear: f32) -> Option<f32> {
     }
 }
 
+/// Whether the depth attachment of the pass's current subpass / rendering starts from the image's
+/// earlier contents: load op LOAD where its contents start in this pass (its first subpass, a
+/// rendering that does not resume). Only then does a `vkCmdClearDepthStencilImage` recorded before
+/// the pass decide its depth; a load op CLEAR overwrites that clear.
+pub fn depth_loads(pass: &PassInstance) -> bool {
+    if let Some(r) = &pass.rendering {
+        return !r.resuming() && r.depth.as_ref().is_some_and(|d| d.attachment.view != 0 && d.attachment.load_op == vk::AttachmentLoadOp::LOAD);
+    }
+    let Some(rp) = pass.render_pass.as_ref() else { return false };
+    let Some(index) = rp.subpasses.get(pass.subpass as usize).and_then(|s| s.depth_stencil).and_then(|r| r.used()) else {
+        return false;
+    };
+    let used_before = rp.subpasses[..pass.subpass as usize].iter().any(|s| {
+        s.color.iter().chain(&s.resolve).chain(&s.input).chain(s.depth_stencil.iter()).any(|r| r.used() == Some(index))
+    });
+    !used_before && rp.attachments.get(index as usize).is_some_and(|a| a.load_op == vk::AttachmentLoadOp::LOAD)
+}
+
 /// Decides whether the open pass gets a mask, and where.
 pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotMasked> {
     // Eyes first: a pass that shows no eye is not an eye pass, whatever its depth does.
@@ -204,7 +224,7 @@ pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotM
 
     let base_layer = att.image_view.as_ref().map_or(0, |v| v.range.base_array_layer);
     let area = PixelRect { x: pass.render_area.x, y: pass.render_area.y, width: pass.render_area.width, height: pass.render_area.height };
-    let draw = |s: &EyeSource| EyeDraw { view: s.view, viewport: s.rect, scissor: s.rect.intersect(&area) };
+    let draw = |s: &EyeSource| EyeDraw { view: s.view, layer: s.layer, viewport: s.rect, scissor: s.rect.intersect(&area) };
     let view_mask = pass.view_mask();
     let mut sources = sources;
     sources.sort_by_key(|s| (s.layer, s.rect.x, s.rect.y, s.view));
@@ -471,6 +491,24 @@ mod tests {
         assert!(classify(&pass, &facts(&eyes)).is_ok());
         pass.subpass = 1;
         assert_eq!(classify(&pass, &facts(&eyes)), Err(NotMasked::DepthNotCleared));
+        // Loaded depth: only where its contents start (an image clear before the pass counts).
+        assert!(!depth_loads(&pass));
+        let rp = pass.render_pass.as_ref().unwrap();
+        pass.render_pass = Some(Arc::new(RenderPass { attachments: vec![desc(R), desc(vk::AttachmentLoadOp::LOAD)], ..(**rp).clone() }));
+        assert!(!depth_loads(&pass));
+        pass.subpass = 0;
+        assert!(depth_loads(&pass));
+    }
+
+    #[test]
+    fn depth_loads_only_with_load_op_load() {
+        let load = att(2, 20, vk::AttachmentLoadOp::LOAD, None, DEPTH);
+        assert!(depth_loads(&dynamic(Some(load.clone()), 0, vk::RenderingFlags::empty())));
+        assert!(!depth_loads(&dynamic(Some(load), 0, vk::RenderingFlags::RESUMING)));
+        assert!(!depth_loads(&dynamic(Some(att(2, 20, R, Some(1.0), DEPTH)), 0, vk::RenderingFlags::empty())));
+        let dont_care = att(2, 20, vk::AttachmentLoadOp::DONT_CARE, None, DEPTH);
+        assert!(!depth_loads(&dynamic(Some(dont_care), 0, vk::RenderingFlags::empty())));
+        assert!(!depth_loads(&dynamic(None, 0, vk::RenderingFlags::empty())));
     }
 
     fn eye_use(view: u32, layer: u32, x: i32, w: i32) -> EyeUse {

@@ -77,6 +77,29 @@ unsafe fn link_info<T>(mut p_next: *const c_void, s_type: vk::StructureType, fun
     None
 }
 
+/// The loader's `pfnSetDeviceLoaderData` from the `VK_LOADER_DATA_CALLBACK` struct of a device
+/// create info chain: layers call it on dispatchable objects they create themselves.
+///
+/// # Safety
+/// `p_next` must be a valid structure chain.
+unsafe fn loader_data_callback(mut p_next: *const c_void) -> Option<super::rdm::PfnSetDeviceLoaderData> {
+    while !p_next.is_null() {
+        // SAFETY: every struct in a valid chain starts with sType, pNext.
+        let base = unsafe { &*(p_next as *const vk::BaseInStructure<'_>) };
+        if base.s_type == loader::LOADER_DEVICE_CREATE_INFO {
+            // SAFETY: the loader's struct (its sType); the union holds the callback when
+            // `function` says so.
+            let info = unsafe { &*(p_next as *const loader::LayerDeviceCreateInfo) };
+            if info.function == loader::LayerFunction::LOADER_DATA_CALLBACK && !info.p_layer_info.is_null() {
+                // SAFETY: the union member is `PFN_vkSetDeviceLoaderData` for this function value.
+                return Some(unsafe { std::mem::transmute::<*mut loader::LayerDeviceLink, super::rdm::PfnSetDeviceLoaderData>(info.p_layer_info) });
+            }
+        }
+        p_next = base.p_next as *const c_void;
+    }
+    None
+}
+
 fn resolve_config() -> Arc<crate::config::Config> {
     if let Some(c) = crate::shared::shared().config() {
         return c;
@@ -336,12 +359,16 @@ pub(super) unsafe extern "system" fn create_device(
         // SAFETY: forwarding the app's arguments unchanged.
         let plain = || unsafe { create(pd, ci, allocator, p_device) };
         let mut decision = device_ext::Decision { reason: "pass-through".into(), ..Default::default() };
+        let mut fsr_attachment = false;
+        // SAFETY: the loader's create info chain, valid for this call.
+        let set_loader_data = unsafe { loader_data_callback(ci_ref.p_next) };
         let r = guard::run(
             "vkCreateDevice",
             &inst.pass_through,
             |down| {
                 check_fault(&inst.config, "vkCreateDevice")?;
                 let (available, api_version, fsr_support) = device_inputs(&inst, pd);
+                fsr_attachment = fsr_support.is_some_and(|f| f.attachment);
                 // SAFETY: the app's names array is valid with its count.
                 let requested = unsafe { convert::names(ci_ref.pp_enabled_extension_names, ci_ref.enabled_extension_count) };
                 let has_props2 = inst.api_version >= vk::API_VERSION_1_1
@@ -401,7 +428,8 @@ pub(super) unsafe extern "system" fn create_device(
             config: inst.config.clone(),
             track: Default::default(),
             extension_decision: decision,
-            mask: super::mask::MaskDevice::new(&inst.config, memory),
+            mask: super::mask::MaskDevice::new(&inst.config, memory, fsr_attachment),
+            rdm: super::rdm::RdmDevice::new(memory, set_loader_data),
         };
         layer().devices.insert(dispatch_key(device), Arc::new(state));
         r
@@ -437,6 +465,7 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
             tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {} {}", dev.track.stats.summary(), dev.mask.summary());
             // The app waited for the device to go idle before destroying it.
             super::mask::destroy(&dev);
+            super::rdm::destroy(&dev);
         } else {
             tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {}", dev.track.stats.summary());
         }
@@ -498,7 +527,10 @@ macro_rules! destroy_hook {
 }
 
 create_hook!(create_image, "vkCreateImage", vk::ImageCreateInfo<'_>, vk::Image, fp_v1_0.create_image, images, |h, ci| convert::image(h, ci));
-destroy_hook!(destroy_image, "vkDestroyImage", vk::Image, fp_v1_0.destroy_image, |d, h| d.track.forget_image(h));
+destroy_hook!(destroy_image, "vkDestroyImage", vk::Image, fp_v1_0.destroy_image, |d, h| {
+    d.track.forget_image(h);
+    super::rdm::forget_image(d, h)
+});
 create_hook!(create_image_view, "vkCreateImageView", vk::ImageViewCreateInfo<'_>, vk::ImageView, fp_v1_0.create_image_view, views, |h, ci| convert::image_view(h, ci));
 destroy_hook!(destroy_image_view, "vkDestroyImageView", vk::ImageView, fp_v1_0.destroy_image_view, |d, h| d.track.views.remove(h));
 create_hook!(create_render_pass, "vkCreateRenderPass", vk::RenderPassCreateInfo<'_>, vk::RenderPass, fp_v1_0.create_render_pass, render_passes, |h, ci| {
@@ -803,7 +835,10 @@ pub(super) unsafe extern "system" fn cmd_next_subpass(cb: vk::CommandBuffer, con
 
 pub(super) unsafe extern "system" fn cmd_end_render_pass(cb: vk::CommandBuffer) {
     // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdEndRenderPass", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_end_render_pass)(cb) }, |d, cb| d.track.end_pass(cb))
+    cmd("vkCmdEndRenderPass", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_end_render_pass)(cb) }, |d, raw| {
+        mask::on_trigger(d, cb, Trigger::End);
+        d.track.end_pass(raw)
+    })
 }
 
 pub(super) unsafe extern "system" fn cmd_begin_render_pass2(
@@ -828,7 +863,10 @@ pub(super) unsafe extern "system" fn cmd_next_subpass2(cb: vk::CommandBuffer, be
 
 pub(super) unsafe extern "system" fn cmd_end_render_pass2(cb: vk::CommandBuffer, end: *const vk::SubpassEndInfo<'_>) {
     // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdEndRenderPass2", cb, (), |d| unsafe { (d.fns.fp_v1_2().cmd_end_render_pass2)(cb, end) }, |d, cb| d.track.end_pass(cb))
+    cmd("vkCmdEndRenderPass2", cb, (), |d| unsafe { (d.fns.fp_v1_2().cmd_end_render_pass2)(cb, end) }, |d, raw| {
+        mask::on_trigger(d, cb, Trigger::End);
+        d.track.end_pass(raw)
+    })
 }
 
 pub(super) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandBuffer, info: *const vk::RenderingInfo<'_>) {
@@ -844,7 +882,10 @@ pub(super) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandBuffer, 
 
 pub(super) unsafe extern "system" fn cmd_end_rendering(cb: vk::CommandBuffer) {
     // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdEndRendering", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_end_rendering)(cb) }, |d, cb| d.track.end_pass(cb))
+    cmd("vkCmdEndRendering", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_end_rendering)(cb) }, |d, raw| {
+        mask::on_trigger(d, cb, Trigger::End);
+        d.track.end_pass(raw)
+    })
 }
 
 fn secondary_contents(info: *const vk::SubpassBeginInfo<'_>) -> bool {
@@ -888,8 +929,12 @@ pub(super) unsafe extern "system" fn cmd_bind_vertex_buffers2(
 }
 
 fn transfer(d: &DeviceState, src: vk::Image, dst: vk::Image, regions: Vec<crate::track::eye_pass::TransferRegion>) {
-    if d.mask.settings(&d.config).enabled {
+    let settings = d.mask.settings(&d.config);
+    if settings.enabled || settings.rdm {
         d.track.record_transfer(crate::shared::shared(), src.as_raw(), dst.as_raw(), &regions);
+    }
+    if settings.rdm {
+        super::rdm::on_transfer(d, src.as_raw(), dst.as_raw(), &regions);
     }
 }
 

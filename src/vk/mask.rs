@@ -23,8 +23,8 @@ static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/mask.frag.spv"));
 /// Frames ended (`take_frame_stats` calls): a retired vertex buffer is destroyed only this many
 /// frames after it stopped being used for new draws. OpenXR apps keep at most a few frames in
 /// flight (xrWaitFrame throttles them), so command buffers recorded with it have completed by then.
-const RETIRE_AFTER_FRAMES: u64 = 16;
-static FRAMES_ENDED: AtomicU64 = AtomicU64::new(0);
+pub(super) const RETIRE_AFTER_FRAMES: u64 = 16;
+pub(super) static FRAMES_ENDED: AtomicU64 = AtomicU64::new(0);
 
 /// One vertex: NDC position and the view it belongs to.
 #[repr(C)]
@@ -36,11 +36,11 @@ struct Vertex {
 
 /// What makes a layer pipeline usable inside an app's pass.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
-enum PipelineKey {
+pub(super) enum PipelineKey {
     /// Compatible with the app's render pass + subpass (the subpass carries its view mask).
-    RenderPass { render_pass: u64, subpass: u32, samples: u32, colors: u32, multiview: bool, debug: bool },
+    RenderPass { render_pass: u64, subpass: u32, samples: u32, colors: u32, multiview: bool, debug: bool, rdm: bool },
     /// `VkPipelineRenderingCreateInfo` for dynamic rendering.
-    Dynamic { colors: Vec<vk::Format>, depth: vk::Format, stencil: vk::Format, samples: u32, view_mask: u32, debug: bool },
+    Dynamic { colors: Vec<vk::Format>, depth: vk::Format, stencil: vk::Format, samples: u32, view_mask: u32, debug: bool, rdm: bool },
 }
 
 /// The vertex buffer of one mask generation.
@@ -60,9 +60,7 @@ struct MaskBuffer {
 #[derive(Default)]
 struct Objects {
     layout: vk::PipelineLayout,
-    vert: vk::ShaderModule,
-    vert_mv: vk::ShaderModule,
-    frag: vk::ShaderModule,
+    modules: Modules,
     pipelines: HashMap<PipelineKey, vk::Pipeline>,
     buffers: Vec<MaskBuffer>,
 }
@@ -76,6 +74,10 @@ struct Books {
     logged_kinds: HashSet<(EyeLayout, bool)>,
     logged_targets: HashSet<u64>,
     logged_reasons: HashSet<NotMasked>,
+    /// Command buffers whose open pass loads its depth and was not masked at its beginning: it
+    /// counts (masked or not) at its first depth clear (vkCmdClearAttachments), or as
+    /// `depth_not_cleared` when it ends, so it is counted once either way.
+    deferred: HashSet<u64>,
 }
 
 /// Per-device mask state. Locks are held only around bookkeeping, never while calling down.
@@ -85,6 +87,8 @@ pub(crate) struct MaskDevice {
     /// Whether the mask ever did anything on this device (adds its counters to the stats line).
     used: std::sync::atomic::AtomicBool,
     memory: vk::PhysicalDeviceMemoryProperties,
+    /// The device offers `attachmentFragmentShadingRate` (foveation.method = auto then means vrs).
+    fsr_attachment: bool,
     objects: Mutex<Objects>,
     books: Mutex<Books>,
 }
@@ -96,6 +100,8 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Settings {
     pub enabled: bool,
+    /// Radial density masking: `foveation.enabled` and the method resolves to rdm on this device.
+    pub rdm: bool,
     pub debug: bool,
     pub intermediate: bool,
 }
@@ -110,14 +116,17 @@ pub(crate) enum Trigger {
     NextSubpass { secondary: bool },
     /// vkCmdClearAttachments cleared the depth attachment to this value over these rects.
     Clear { depth: f32, rects: Vec<PixelRect> },
+    /// The pass is about to end (nothing is drawn): a deferred pass that was never cleared counts.
+    End,
 }
 
 impl MaskDevice {
-    pub fn new(config: &Config, memory: vk::PhysicalDeviceMemoryProperties) -> MaskDevice {
+    pub fn new(config: &Config, memory: vk::PhysicalDeviceMemoryProperties, fsr_attachment: bool) -> MaskDevice {
         MaskDevice {
             layer_enabled: config.enabled(),
             used: std::sync::atomic::AtomicBool::new(false),
             memory,
+            fsr_attachment,
             objects: Mutex::new(Objects::default()),
             books: Mutex::new(Books::default()),
         }
@@ -128,10 +137,11 @@ impl MaskDevice {
     pub fn settings(&self, device_config: &Arc<Config>) -> Settings {
         let c = shared().config().unwrap_or_else(|| device_config.clone());
         let enabled = self.layer_enabled && c.bool("mask.enabled");
-        if enabled {
+        let rdm = self.layer_enabled && c.bool("foveation.enabled") && crate::rdm::method_is_rdm(c.choice("foveation.method"), self.fsr_attachment);
+        if enabled || rdm {
             self.used.store(true, Ordering::Relaxed);
         }
-        Settings { enabled, debug: c.bool("mask.debug"), intermediate: c.choice("mask.intermediate") != "off" }
+        Settings { enabled, rdm, debug: c.bool("mask.debug"), intermediate: c.choice("mask.intermediate") != "off" }
     }
 
     pub fn used(&self) -> bool {
@@ -146,7 +156,7 @@ impl MaskDevice {
         lock(&self.books).total.summary()
     }
 
-    fn count(&self, f: impl Fn(&mut MaskFrameStats)) {
+    pub(super) fn count(&self, f: impl Fn(&mut MaskFrameStats)) {
         let mut b = lock(&self.books);
         f(&mut b.frame);
         f(&mut b.total);
@@ -174,10 +184,13 @@ struct Snapshot {
 /// Entry from the hooks, after the triggering command went down successfully.
 pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigger) {
     let settings = d.mask.settings(&d.config);
-    if !settings.enabled {
+    if !settings.enabled && !settings.rdm {
         return;
     }
     let key = cb.as_raw();
+    if trigger == Trigger::End && !lock(&d.mask.books).deferred.contains(&key) {
+        return;
+    }
     let secondary_level = d.track.command_buffers.get(key).is_some_and(|c| c.level == vk::CommandBufferLevel::SECONDARY);
     let snap = d.track.with_cb(key, |s| {
         let pass = s.pass.clone()?;
@@ -185,7 +198,8 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
         let mut explicit_clear = None;
         if matches!(trigger, Trigger::Begin { .. }) {
             let images: Vec<u64> = attachments(&pass).iter().filter_map(|a| a.image_view.as_ref().map(|v| v.image)).collect();
-            if let Some(depth_image) = depth_image(&pass) {
+            // Only a loaded depth attachment keeps that clear (a load op CLEAR replaces it).
+            if let Some(depth_image) = depth_image(&pass).filter(|_| eye_pass::depth_loads(&pass)) {
                 explicit_clear = s.depth_image_clears.iter().rev().find(|(i, _)| *i == depth_image).map(|(_, v)| *v);
             }
             s.depth_image_clears.retain(|(i, _)| !images.contains(i));
@@ -199,44 +213,98 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
     let resuming = snap.pass.rendering.as_ref().is_some_and(|r| r.resuming());
     let secondary = match &trigger {
         Trigger::Begin { secondary } | Trigger::NextSubpass { secondary } => *secondary,
-        Trigger::Clear { .. } => false,
+        Trigger::Clear { .. } | Trigger::End => false,
     } || snap.secondary_level;
     let eyes = |a: &AttachmentUse| eyes_of(d, a, settings.intermediate);
     let facts = eye_pass::Facts { secondary_contents: secondary, intermediate_enabled: settings.intermediate, eyes: &eyes, explicit_clear: snap.explicit_clear };
     let plan = eye_pass::classify(&snap.pass, &facts);
     // Only a pass's beginning counts as a pass; later subpasses and clears count when they mask.
-    let counts = matches!(trigger, Trigger::Begin { .. }) && !resuming;
+    // A pass that loads its depth may still clear it (vkCmdClearAttachments) before it draws: it
+    // counts at that clear, or when it ends uncleared (a suspended rendering counts at its end).
+    let counts = {
+        let mut books = lock(&d.mask.books);
+        match &trigger {
+            Trigger::Begin { .. } if resuming => false,
+            Trigger::Begin { .. } => {
+                let defer = matches!(plan, Err(NotMasked::DepthNotCleared)) && eye_pass::depth_loads(&snap.pass);
+                if defer {
+                    books.deferred.insert(key);
+                } else {
+                    books.deferred.remove(&key);
+                }
+                !defer
+            }
+            Trigger::NextSubpass { .. } => false,
+            Trigger::Clear { .. } => books.deferred.remove(&key),
+            Trigger::End => !snap.pass.rendering.as_ref().is_some_and(|r| r.suspending()) && books.deferred.remove(&key),
+        }
+    };
     let mut plan = match plan {
         Ok(p) => p,
         Err(why) => {
             if counts {
-                d.mask.count(|s| s.count_not_masked(why));
+                if settings.enabled {
+                    d.mask.count(|s| s.count_not_masked(why));
+                }
+                if settings.rdm && why != NotMasked::NotEyePass {
+                    d.mask.count(|s| *s.rdm.not_applied.entry(why.name()).or_insert(0) += 1);
+                }
                 log_reason_once(d, why, &snap.pass);
             }
             return;
         }
     };
+    if trigger == Trigger::End {
+        return;
+    }
     if let Trigger::Clear { rects, .. } = &trigger {
         // A clear of part of the attachment: mask only eyes it fully re-cleared.
         plan.draws.retain(|dr| rects.iter().any(|r| r.contains(&dr.scissor)));
         if plan.draws.is_empty() {
+            if counts {
+                // Still uncleared where the eyes are: a later clear or the pass's end counts it.
+                lock(&d.mask.books).deferred.insert(key);
+            }
             return;
         }
     }
-    match record(d, cb, &snap, &plan, settings.debug) {
-        Ok(pixels) => {
-            d.mask.count(|s| {
-                s.passes_masked += 1;
-                for (view, px) in &pixels {
-                    *s.pixels_masked.entry(*view).or_insert(0) += px;
+    if settings.enabled {
+        match record(d, cb, &snap, &plan, settings.debug) {
+            Ok(pixels) => {
+                d.mask.count(|s| {
+                    s.passes_masked += 1;
+                    for (view, px) in &pixels {
+                        *s.pixels_masked.entry(*view).or_insert(0) += px;
+                    }
+                });
+                log_kind_once(d, &plan, &pixels);
+            }
+            Err(why) => {
+                if counts {
+                    d.mask.count(|s| s.count_not_masked(why));
+                    log_reason_once(d, why, &snap.pass);
                 }
-            });
-            log_kind_once(d, &plan, &pixels);
+            }
         }
-        Err(why) => {
-            if counts {
-                d.mask.count(|s| s.count_not_masked(why));
-                log_reason_once(d, why, &snap.pass);
+    }
+    if settings.rdm {
+        // After the mask (if any): the checkerboard goes over the same cleared depth.
+        let key = pipeline_key(d, &snap.pass, &plan, false, true);
+        match key.ok_or(crate::rdm::NotApplied::LayerError).and_then(|k| super::rdm::record_draw(d, cb, &k, &plan)) {
+            Ok(()) => {}
+            Err(why) => {
+                if counts {
+                    d.mask.count(|s| s.rdm.count_not_applied(why));
+                }
+            }
+        }
+    }
+    if settings.enabled || settings.rdm {
+        // SAFETY: `cb` is recording inside the pass; the commands replay the app's state, whose
+        // handles are alive while it records.
+        unsafe {
+            for c in &snap.restore {
+                replay(d, cb, c);
             }
         }
     }
@@ -337,7 +405,7 @@ fn record(d: &DeviceState, cb: vk::CommandBuffer, snap: &Snapshot, plan: &MaskPl
     if plan.draws.iter().any(|dr| !ranges.contains_key(&dr.view)) {
         return Err(NotMasked::NoMask);
     }
-    let key = pipeline_key(d, &snap.pass, plan, debug).ok_or(NotMasked::Unsupported)?;
+    let key = pipeline_key(d, &snap.pass, plan, debug, false).ok_or(NotMasked::Unsupported)?;
     let pipeline = pipeline(d, &key).map_err(|e| {
         tracing::warn!(?key, "mask pipeline: {e}");
         NotMasked::LayerError
@@ -371,9 +439,6 @@ fn record(d: &DeviceState, cb: vk::CommandBuffer, snap: &Snapshot, plan: &MaskPl
                 (fns.cmd_draw)(cb, count, 1, first, 0);
             }
         }
-        for c in &snap.restore {
-            replay(d, cb, c);
-        }
     }
     let mut pixels = Vec::new();
     for dr in &plan.draws {
@@ -397,7 +462,7 @@ fn coverage(d: &DeviceState, generation: u64, view: u32, viewport: PixelRect, sc
     n
 }
 
-fn pipeline_key(d: &DeviceState, pass: &PassInstance, plan: &MaskPlan, debug: bool) -> Option<PipelineKey> {
+fn pipeline_key(d: &DeviceState, pass: &PassInstance, plan: &MaskPlan, debug: bool, rdm: bool) -> Option<PipelineKey> {
     let samples_of_view = |a: &AttachmentUse| {
         let v = a.image_view.as_ref()?;
         d.track.images.get(v.image).map(|i| i.samples.as_raw())
@@ -414,6 +479,7 @@ fn pipeline_key(d: &DeviceState, pass: &PassInstance, plan: &MaskPlan, debug: bo
             samples: samples_of_view(&depth.attachment)?,
             view_mask: r.view_mask,
             debug,
+            rdm,
         });
     }
     let rp = pass.render_pass.as_ref()?;
@@ -430,15 +496,33 @@ fn pipeline_key(d: &DeviceState, pass: &PassInstance, plan: &MaskPlan, debug: bo
         colors: sub.color.len() as u32,
         multiview,
         debug,
+        rdm,
     })
 }
 
+/// The shader modules of the layer's injected draws.
+#[derive(Clone, Copy, Default)]
+struct Modules {
+    vert: vk::ShaderModule,
+    vert_mv: vk::ShaderModule,
+    frag: vk::ShaderModule,
+    rdm_vert: vk::ShaderModule,
+    rdm_vert_mv: vk::ShaderModule,
+    rdm_frag: vk::ShaderModule,
+}
+
+impl Modules {
+    fn all(&self) -> [vk::ShaderModule; 6] {
+        [self.vert, self.vert_mv, self.frag, self.rdm_vert, self.rdm_vert_mv, self.rdm_frag]
+    }
+}
+
 /// Layout and shader modules, made once per device.
-fn common(d: &DeviceState) -> Result<(vk::PipelineLayout, vk::ShaderModule, vk::ShaderModule, vk::ShaderModule), String> {
+fn common(d: &DeviceState) -> Result<(vk::PipelineLayout, Modules), String> {
     {
         let o = lock(&d.mask.objects);
         if o.layout != vk::PipelineLayout::null() {
-            return Ok((o.layout, o.vert, o.vert_mv, o.frag));
+            return Ok((o.layout, o.modules));
         }
     }
     let module = |bytes: &[u8]| -> Result<vk::ShaderModule, String> {
@@ -446,10 +530,18 @@ fn common(d: &DeviceState) -> Result<(vk::PipelineLayout, vk::ShaderModule, vk::
         // SAFETY: valid SPIR-V compiled at build time; a valid create info.
         unsafe { d.fns.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }.map_err(|e| e.to_string())
     };
-    // No descriptor sets, no push constants: the mask needs nothing but its vertices.
+    // No descriptor sets, no push constants: the draws need nothing but their vertices.
     // SAFETY: a valid, empty create info.
     let layout = unsafe { d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default(), None) }.map_err(|e| e.to_string())?;
-    let (vert, vert_mv, frag) = (module(VERT)?, module(VERT_MV)?, module(FRAG)?);
+    let (rv, rvm, rf) = super::rdm::draw_shaders();
+    let modules = Modules {
+        vert: module(VERT)?,
+        vert_mv: module(VERT_MV)?,
+        frag: module(FRAG)?,
+        rdm_vert: module(rv)?,
+        rdm_vert_mv: module(rvm)?,
+        rdm_frag: module(rf)?,
+    };
     let mut o = lock(&d.mask.objects);
     if o.layout != vk::PipelineLayout::null() {
         drop(o);
@@ -457,26 +549,29 @@ fn common(d: &DeviceState) -> Result<(vk::PipelineLayout, vk::ShaderModule, vk::
         // SAFETY: objects this function just created, never used.
         unsafe {
             d.fns.destroy_pipeline_layout(layout, None);
-            for m in [vert, vert_mv, frag] {
+            for m in modules.all() {
                 d.fns.destroy_shader_module(m, None);
             }
         }
         return common(d);
     }
-    (o.layout, o.vert, o.vert_mv, o.frag) = (layout, vert, vert_mv, frag);
-    Ok((layout, vert, vert_mv, frag))
+    (o.layout, o.modules) = (layout, modules);
+    Ok((layout, modules))
 }
 
 /// The cached pipeline for `key`, created on first use (never per draw).
-fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, String> {
+pub(super) fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, String> {
     if let Some(p) = lock(&d.mask.objects).pipelines.get(key) {
         return Ok(*p);
     }
-    let (layout, vert, vert_mv, frag) = common(d)?;
-    let (multiview, samples, colors, debug) = match key {
-        PipelineKey::RenderPass { samples, colors, multiview, debug, .. } => (*multiview, *samples, *colors as usize, *debug),
-        PipelineKey::Dynamic { colors, samples, view_mask, debug, .. } => (*view_mask != 0, *samples, colors.len(), *debug),
+    let (layout, m) = common(d)?;
+    let (multiview, samples, colors, debug, rdm) = match key {
+        PipelineKey::RenderPass { samples, colors, multiview, debug, rdm, .. } => (*multiview, *samples, *colors as usize, *debug, *rdm),
+        PipelineKey::Dynamic { colors, samples, view_mask, debug, rdm, .. } => (*view_mask != 0, *samples, colors.len(), *debug, *rdm),
     };
+    // Radial density masking: its own vertex layout and a fragment shader that discards kept
+    // quads; colour writes stay off.
+    let (vert, vert_mv, frag) = if rdm { (m.rdm_vert, m.rdm_vert_mv, m.rdm_frag) } else { (m.vert, m.vert_mv, m.frag) };
     // Without the debug tint the draw is depth-only: no fragment shader at all, so the GPU runs
     // its depth-only fast path (colour writes are masked off, so no output is undefined).
     let all_stages = [
@@ -486,12 +581,19 @@ fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, String> 
             .name(c"main"),
         vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(frag).name(c"main"),
     ];
-    let stages = if debug { &all_stages[..] } else { &all_stages[..1] };
-    let bindings = [vk::VertexInputBindingDescription { binding: 0, stride: std::mem::size_of::<Vertex>() as u32, input_rate: vk::VertexInputRate::VERTEX }];
-    let attributes = [
-        vk::VertexInputAttributeDescription { location: 0, binding: 0, format: vk::Format::R32G32_SFLOAT, offset: 0 },
-        vk::VertexInputAttributeDescription { location: 1, binding: 0, format: vk::Format::R32_UINT, offset: 8 },
-    ];
+    let stages = if debug || rdm { &all_stages[..] } else { &all_stages[..1] };
+    let (stride, attributes) = if rdm {
+        super::rdm::vertex_layout()
+    } else {
+        (
+            std::mem::size_of::<Vertex>() as u32,
+            vec![
+                vk::VertexInputAttributeDescription { location: 0, binding: 0, format: vk::Format::R32G32_SFLOAT, offset: 0 },
+                vk::VertexInputAttributeDescription { location: 1, binding: 0, format: vk::Format::R32_UINT, offset: 8 },
+            ],
+        )
+    };
+    let bindings = [vk::VertexInputBindingDescription { binding: 0, stride, input_rate: vk::VertexInputRate::VERTEX }];
     let vertex_input = vk::PipelineVertexInputStateCreateInfo::default().vertex_binding_descriptions(&bindings).vertex_attribute_descriptions(&attributes);
     let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
     let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
@@ -509,7 +611,7 @@ fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, String> 
         .depth_compare_op(vk::CompareOp::ALWAYS);
     let blend_atts: Vec<vk::PipelineColorBlendAttachmentState> = (0..colors)
         .map(|i| {
-            let mask = if debug && i == 0 { vk::ColorComponentFlags::RGBA } else { vk::ColorComponentFlags::empty() };
+            let mask = if debug && !rdm && i == 0 { vk::ColorComponentFlags::RGBA } else { vk::ColorComponentFlags::empty() };
             vk::PipelineColorBlendAttachmentState::default().color_write_mask(mask)
         })
         .collect();
@@ -628,7 +730,7 @@ fn vertex_buffer(d: &DeviceState, views: &Arc<Views>) -> Result<Option<BufferInf
     Ok((total > 0).then_some((buffer, views.generation, ranges, total)))
 }
 
-fn create_buffer(d: &DeviceState, vertices: &[Vertex]) -> Result<(vk::Buffer, vk::DeviceMemory), String> {
+pub(super) fn create_buffer<T: Copy>(d: &DeviceState, vertices: &[T]) -> Result<(vk::Buffer, vk::DeviceMemory), String> {
     let size = std::mem::size_of_val(vertices) as u64;
     let info = vk::BufferCreateInfo::default().size(size).usage(vk::BufferUsageFlags::VERTEX_BUFFER).sharing_mode(vk::SharingMode::EXCLUSIVE);
     // SAFETY: a valid create info.
@@ -656,7 +758,7 @@ fn create_buffer(d: &DeviceState, vertices: &[Vertex]) -> Result<(vk::Buffer, vk
     // so the writes are visible to the queue submissions that follow.
     let r = unsafe {
         d.fns.bind_buffer_memory(buffer, memory, 0).and_then(|_| {
-            let p = d.fns.map_memory(memory, 0, size, vk::MemoryMapFlags::empty())? as *mut Vertex;
+            let p = d.fns.map_memory(memory, 0, size, vk::MemoryMapFlags::empty())? as *mut T;
             std::ptr::copy_nonoverlapping(vertices.as_ptr(), p, vertices.len());
             d.fns.unmap_memory(memory);
             Ok(())
@@ -687,7 +789,7 @@ pub(crate) fn destroy(d: &DeviceState) {
             d.fns.free_memory(b.memory, None);
         }
         d.fns.destroy_pipeline_layout(o.layout, None);
-        for m in [o.vert, o.vert_mv, o.frag] {
+        for m in o.modules.all() {
             d.fns.destroy_shader_module(m, None);
         }
     }
@@ -697,7 +799,7 @@ pub(crate) fn destroy(d: &DeviceState) {
 ///
 /// # Safety
 /// `cb` must be recording; the command's handles are the app's, still valid.
-unsafe fn replay(d: &DeviceState, cb: vk::CommandBuffer, c: &StateCmd) {
+pub(super) unsafe fn replay(d: &DeviceState, cb: vk::CommandBuffer, c: &StateCmd) {
     let v0 = d.fns.fp_v1_0();
     let v3 = d.fns.fp_v1_3();
     let vp = |v: &crate::track::cmd::Viewport| vk::Viewport { x: v.x, y: v.y, width: v.width, height: v.height, min_depth: v.min_depth, max_depth: v.max_depth };

@@ -10,6 +10,7 @@ mod convert;
 mod hooks;
 pub mod loader;
 mod mask;
+mod rdm;
 
 use crate::config::Config;
 use crate::guard::{self, PassThrough};
@@ -61,6 +62,8 @@ pub(crate) struct DeviceState {
     pub extension_decision: Decision,
     /// The hidden-area mask's objects and statistics.
     pub mask: mask::MaskDevice,
+    /// Radial density masking's objects (its statistics live with the mask's).
+    pub rdm: rdm::RdmDevice,
 }
 
 impl DeviceState {
@@ -122,6 +125,15 @@ pub(crate) fn device_is_tracked(device: u64) -> bool {
 /// start of the next frame. The OpenXR half calls this once per `xrEndFrame`.
 pub fn take_frame_stats() -> crate::mask::MaskFrameStats {
     mask::take_frame_stats()
+}
+
+/// Radial density masking: before `xrReleaseSwapchainImage` goes down, fill the quads skipped in
+/// the released image (`binding`: the session's device, queue family and queue index; `index`:
+/// the image being released, the oldest acquired). Does nothing unless RDM drew into that image.
+pub fn rdm_before_release(binding: Option<(u64, u32, u32)>, swapchain: u64, index: Option<u32>) {
+    if let (Some((device, family, queue)), Some(index)) = (binding, index) {
+        rdm::before_release(device, family, queue, swapchain, index);
+    }
 }
 
 /// A handle whose dispatch key we never saw means a broken chain; logged once, never per call.

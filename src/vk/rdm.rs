@@ -1,0 +1,948 @@
+//! Radial density masking on the Vulkan side. Two halves: right after an eye pass's depth clear
+//! (the hidden-area mask's injection point, `vk::mask::on_trigger`), a full-viewport draw writes the
+//! failing depth on the quads `crate::rdm` skips, so early-Z rejects the app's fragments there; and
+//! before the runtime sees the swapchain image (`xrReleaseSwapchainImage`), a layer command buffer
+//! on the session's queue fills those quads from their shaded neighbours. Passes that render into
+//! an intermediate target hand their skipped quads on to the swapchain image through the app's 1:1
+//! copies / resolves. The rule lives in `crate::rdm`; this module only turns it into commands.
+
+use super::mask::{self, PipelineKey};
+use super::DeviceState;
+use crate::mask::PixelRect;
+use crate::rdm::{NotApplied, RdmParams, SkipCount};
+use crate::shared::{self, shared};
+use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan, TransferRegion};
+use ash::vk::{self, Handle};
+use std::collections::{HashMap, HashSet, VecDeque};
+use std::ffi::c_void;
+use std::sync::atomic::Ordering;
+use std::sync::{Mutex, MutexGuard};
+
+static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm.vert.spv"));
+static VERT_MV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_mv.vert.spv"));
+static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm.frag.spv"));
+static FILL_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill.vert.spv"));
+static FILL_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill.frag.spv"));
+
+/// The loader's `PFN_vkSetDeviceLoaderData`: a layer must call it on dispatchable objects it
+/// creates itself (our command buffers) so the layers below find their dispatch tables.
+pub(crate) type PfnSetDeviceLoaderData = unsafe extern "system" fn(vk::Device, *mut c_void) -> vk::Result;
+
+/// Command buffers (with their temp image) in flight at most; a release finding all busy waits.
+const MAX_SLOTS: usize = 3;
+/// How long a release waits for an old reconstruction to finish before giving up on this one.
+const SLOT_WAIT_NS: u64 = 2_000_000_000;
+
+/// The depth draw's shaders, for `vk::mask`'s per-device shader modules.
+pub(super) fn draw_shaders() -> (&'static [u8], &'static [u8], &'static [u8]) {
+    (VERT, VERT_MV, FRAG)
+}
+
+/// One vertex of the depth draw: position, view, and the eye's rule parameters (flat).
+#[repr(C)]
+#[derive(Clone, Copy)]
+struct Vertex {
+    pos: [f32; 2],
+    view: u32,
+    origin: [i32; 2],
+    /// tan_left, tan_up, step_x, step_y.
+    tan: [f32; 4],
+    /// cx, cy, k_inner, k_middle.
+    fovea: [f32; 4],
+}
+
+/// Stride and attributes of `Vertex` (shaders/rdm.vert).
+pub(super) fn vertex_layout() -> (u32, Vec<vk::VertexInputAttributeDescription>) {
+    let a = |location, format, offset| vk::VertexInputAttributeDescription { location, binding: 0, format, offset };
+    (
+        std::mem::size_of::<Vertex>() as u32,
+        vec![
+            a(0, vk::Format::R32G32_SFLOAT, 0),
+            a(1, vk::Format::R32_UINT, 8),
+            a(2, vk::Format::R32G32_SINT, 12),
+            a(3, vk::Format::R32G32B32A32_SFLOAT, 20),
+            a(4, vk::Format::R32G32B32A32_SFLOAT, 36),
+        ],
+    )
+}
+
+/// (foveation generation, views generation, the eyes (view, rect) in draw order).
+type BufferKey = (u64, u64, Vec<(u32, PixelRect)>);
+
+struct DrawBuffer {
+    key: BufferKey,
+    buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+    retired_at: Option<u64>,
+}
+
+/// One eye of an image whose skipped quads await reconstruction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Pending {
+    pub view: u32,
+    pub layer: u32,
+    /// The rule as drawn; `params.rect` is in the image's pixels.
+    pub params: RdmParams,
+}
+
+#[derive(Default)]
+struct Books {
+    /// Image (swapchain or intermediate) → eyes drawn with RDM since it was last released / copied.
+    pending: HashMap<u64, Vec<Pending>>,
+    counts: HashMap<(u64, u64, u32, PixelRect, PixelRect), SkipCount>,
+    logged: HashSet<String>,
+}
+
+struct FillObjects {
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    sampler: vk::Sampler,
+    vert: vk::ShaderModule,
+    frag: vk::ShaderModule,
+    /// Per colour format: render pass (load, store, COLOR_ATTACHMENT_OPTIMAL) and pipeline.
+    passes: HashMap<vk::Format, (vk::RenderPass, vk::Pipeline)>,
+}
+
+struct Temp {
+    image: vk::Image,
+    memory: vk::DeviceMemory,
+    view: vk::ImageView,
+    key: (vk::Format, u32, u32, u32),
+}
+
+/// A command buffer with everything one reconstruction uses, reused once its fence signalled.
+struct Slot {
+    pool: vk::CommandPool,
+    cb: vk::CommandBuffer,
+    fence: vk::Fence,
+    descriptor_pool: vk::DescriptorPool,
+    set: vk::DescriptorSet,
+    temp: Option<Temp>,
+    /// Views and framebuffers of the swapchain image of the last use.
+    transient: Vec<(vk::ImageView, vk::Framebuffer)>,
+}
+
+/// Per-device RDM state. Locks guard bookkeeping only, never a call down.
+pub(crate) struct RdmDevice {
+    set_loader_data: Option<PfnSetDeviceLoaderData>,
+    memory: vk::PhysicalDeviceMemoryProperties,
+    buffers: Mutex<Vec<DrawBuffer>>,
+    books: Mutex<Books>,
+    fill: Mutex<Option<FillObjects>>,
+    slots: Mutex<VecDeque<Slot>>,
+    slot_count: std::sync::atomic::AtomicUsize,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl RdmDevice {
+    pub fn new(memory: vk::PhysicalDeviceMemoryProperties, set_loader_data: Option<PfnSetDeviceLoaderData>) -> RdmDevice {
+        RdmDevice {
+            set_loader_data,
+            memory,
+            buffers: Mutex::new(Vec::new()),
+            books: Mutex::new(Books::default()),
+            fill: Mutex::new(None),
+            slots: Mutex::new(VecDeque::new()),
+            slot_count: Default::default(),
+        }
+    }
+}
+
+fn log_once(d: &DeviceState, key: String, f: impl FnOnce()) {
+    if lock(&d.rdm.books).logged.insert(key) {
+        f();
+    }
+}
+
+/// Records the checkerboard depth draw into the open pass (after the mask, before the app's state
+/// is restored by the caller) and remembers which eyes of which image need reconstruction.
+pub(super) fn record_draw(d: &DeviceState, cb: vk::CommandBuffer, key: &PipelineKey, plan: &MaskPlan) -> Result<(), NotApplied> {
+    let fovea = shared().foveation();
+    let views = shared().views();
+    let mut eyes: Vec<(EyeDraw, RdmParams)> = Vec::new();
+    for dr in &plan.draws {
+        let f = fovea.views.iter().find(|f| f.view == dr.view).ok_or(NotApplied::NoFovea)?;
+        let fov = views.fovs.get(dr.view as usize).ok_or(NotApplied::NoFovea)?;
+        eyes.push((*dr, RdmParams::new(fov, f, dr.viewport).ok_or(NotApplied::NoFovea)?));
+    }
+    if eyes.is_empty() {
+        return Err(NotApplied::NoFovea);
+    }
+    let bkey: BufferKey = (fovea.generation, views.generation, eyes.iter().map(|(dr, _)| (dr.view, dr.viewport)).collect());
+    let buffer = draw_buffer(d, &bkey, &eyes).map_err(|e| {
+        tracing::warn!("rdm vertex buffer: {e}");
+        NotApplied::LayerError
+    })?;
+    let pipeline = mask::pipeline(d, key).map_err(|e| {
+        tracing::warn!(?key, "rdm pipeline: {e}");
+        NotApplied::LayerError
+    })?;
+    let fns = d.fns.fp_v1_0();
+    let viewport = |r: PixelRect| vk::Viewport {
+        x: r.x as f32,
+        y: r.y as f32,
+        width: r.width as f32,
+        height: r.height as f32,
+        min_depth: plan.fail_depth,
+        max_depth: plan.fail_depth,
+    };
+    let scissor = |r: PixelRect| vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } };
+    // SAFETY: `cb` is recording inside the pass the plan was made for; the pipeline is compatible
+    // with it; the buffer lives until retired frames after this command buffer completed.
+    unsafe {
+        (fns.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+        (fns.cmd_bind_vertex_buffers)(cb, 0, 1, &buffer, &0);
+        if plan.layout == EyeLayout::Multiview {
+            let dr = plan.draws[0];
+            (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
+            (fns.cmd_set_scissor)(cb, 0, 1, &scissor(dr.scissor));
+            (fns.cmd_draw)(cb, 3 * eyes.len() as u32, 1, 0, 0);
+        } else {
+            for (i, (dr, _)) in eyes.iter().enumerate().filter(|(_, (dr, _))| dr.scissor.area() > 0) {
+                (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
+                (fns.cmd_set_scissor)(cb, 0, 1, &scissor(dr.scissor));
+                (fns.cmd_draw)(cb, 3, 1, 3 * i as u32, 0);
+            }
+        }
+    }
+    let counts: Vec<(u32, SkipCount)> = eyes.iter().map(|(dr, p)| (dr.view, count(d, fovea.generation, views.generation, dr, p))).collect();
+    d.mask.count(|s| {
+        s.rdm.passes += 1;
+        for (view, c) in &counts {
+            *s.rdm.quads_skipped.entry(*view).or_insert(0) += c.quads_skipped;
+            *s.rdm.pixels_skipped.entry(*view).or_insert(0) += c.pixels_skipped;
+        }
+    });
+    {
+        let mut books = lock(&d.rdm.books);
+        let list = books.pending.entry(plan.image).or_default();
+        for (dr, p) in &eyes {
+            list.retain(|x| !(x.layer == dr.layer && x.params.rect == p.rect));
+            list.push(Pending { view: dr.view, layer: dr.layer, params: *p });
+        }
+    }
+    log_once(d, format!("draw {:?} {}", plan.layout, plan.intermediate), || {
+        let what: Vec<String> = eyes
+            .iter()
+            .zip(&counts)
+            .map(|((dr, p), (_, c))| {
+                let r = p.rect;
+                format!("view {} layer {} rect {}x{}+{}+{}: {} of {} quads skipped", dr.view, dr.layer, r.width, r.height, r.x, r.y, c.quads_skipped, c.quads)
+            })
+            .collect();
+        let target = if plan.intermediate { "intermediate image" } else { "swapchain image" };
+        tracing::info!("radial density masking {} pass on {target} {:#x}: {}", plan.layout.name(), plan.image, what.join("; "));
+    });
+    Ok(())
+}
+
+fn count(d: &DeviceState, fovea_gen: u64, views_gen: u64, dr: &EyeDraw, p: &RdmParams) -> SkipCount {
+    let k = (fovea_gen, views_gen, dr.view, dr.viewport, dr.scissor);
+    if let Some(c) = lock(&d.rdm.books).counts.get(&k) {
+        return *c;
+    }
+    let c = p.count(dr.scissor);
+    let mut books = lock(&d.rdm.books);
+    if books.counts.len() > 256 {
+        books.counts.clear();
+    }
+    books.counts.insert(k, c);
+    c
+}
+
+/// The vertex buffer for these eyes under the current generations, built on first use.
+fn draw_buffer(d: &DeviceState, key: &BufferKey, eyes: &[(EyeDraw, RdmParams)]) -> Result<vk::Buffer, String> {
+    let now = mask::FRAMES_ENDED.load(Ordering::Relaxed);
+    let mut retired = Vec::new();
+    {
+        let mut bufs = lock(&d.rdm.buffers);
+        if let Some(b) = bufs.iter().find(|b| b.key == *key && b.retired_at.is_none()) {
+            return Ok(b.buffer);
+        }
+        // Other generations are done; of the current one keep a few eye layouts.
+        let live = bufs.iter().filter(|b| b.retired_at.is_none() && (b.key.0, b.key.1) == (key.0, key.1)).count();
+        for b in bufs.iter_mut() {
+            if (b.key.0, b.key.1) != (key.0, key.1) || live >= 8 {
+                b.retired_at.get_or_insert(now);
+            }
+        }
+        bufs.retain(|b| {
+            let old = b.retired_at.is_some_and(|r| now >= r + mask::RETIRE_AFTER_FRAMES);
+            if old {
+                retired.push((b.buffer, b.memory));
+            }
+            !old
+        });
+    }
+    for (buffer, memory) in retired {
+        // SAFETY: retired RETIRE_AFTER_FRAMES frames ago; no command buffer still uses it.
+        unsafe {
+            d.fns.destroy_buffer(buffer, None);
+            d.fns.free_memory(memory, None);
+        }
+    }
+    let tri = [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]];
+    let vertices: Vec<Vertex> = eyes
+        .iter()
+        .flat_map(|(dr, p)| {
+            tri.iter().map(move |&pos| Vertex {
+                pos,
+                view: dr.view,
+                origin: [p.rect.x, p.rect.y],
+                tan: [p.tan_left, p.tan_up, p.step_x, p.step_y],
+                fovea: [p.center[0], p.center[1], p.k_inner, p.k_middle],
+            })
+        })
+        .collect();
+    let (buffer, memory) = mask::create_buffer(d, &vertices)?;
+    lock(&d.rdm.buffers).push(DrawBuffer { key: key.clone(), buffer, memory, retired_at: None });
+    tracing::debug!(?key, "rdm vertex buffer built");
+    Ok(buffer)
+}
+
+/// The app transfers `src` into `dst`: eyes of `src` awaiting reconstruction move to `dst` when a
+/// region carries them 1:1 into a swapchain image; a scaled region is counted (its skipped quads
+/// cannot be reconstructed there).
+pub(super) fn on_transfer(d: &DeviceState, src: u64, dst: u64, regions: &[TransferRegion]) {
+    if shared().images.get(dst).is_none() {
+        return;
+    }
+    let mut books = lock(&d.rdm.books);
+    let Some(list) = books.pending.remove(&src) else { return };
+    let (mut moved, mut kept, mut scaled) = (Vec::new(), Vec::new(), 0u64);
+    for p in list {
+        let hit = regions.iter().find(|r| p.layer >= r.src_layer && p.layer < r.src_layer + r.layer_count && r.src.intersect(&p.params.rect).area() > 0);
+        match hit {
+            Some(r) if (r.src.width, r.src.height) == (r.dst.width, r.dst.height) && r.src.contains(&p.params.rect) => {
+                let mut q = p;
+                q.layer = p.layer - r.src_layer + r.dst_layer;
+                q.params.rect.x = p.params.rect.x - r.src.x + r.dst.x;
+                q.params.rect.y = p.params.rect.y - r.src.y + r.dst.y;
+                moved.push(q);
+            }
+            Some(_) => scaled += 1,
+            None => kept.push(p),
+        }
+    }
+    if !kept.is_empty() {
+        books.pending.insert(src, kept);
+    }
+    let list = books.pending.entry(dst).or_default();
+    for q in moved {
+        list.retain(|x| !(x.layer == q.layer && x.params.rect == q.params.rect));
+        list.push(q);
+    }
+    drop(books);
+    if scaled > 0 {
+        d.mask.count(|s| *s.rdm.not_applied.entry(NotApplied::NotOneToOne.name()).or_insert(0) += scaled);
+        log_once(d, format!("scaled {src:#x}"), || {
+            tracing::warn!(src = format_args!("{src:#x}"), "radial density masking: target is not copied 1:1 into the swapchain image; its skipped quads cannot be reconstructed there")
+        });
+    }
+}
+
+/// The app destroyed an image: what was pending for it goes.
+pub(super) fn forget_image(d: &DeviceState, image: u64) {
+    lock(&d.rdm.books).pending.remove(&image);
+}
+
+/// Called by the OpenXR half in `xrReleaseSwapchainImage`, before calling down: reconstructs the
+/// skipped quads of the released image, on the session's queue, after the app's submitted work.
+pub(crate) fn before_release(device: u64, queue_family: u32, queue_index: u32, swapchain: u64, image_index: u32) {
+    let Some(d) = super::layer().devices.get(super::dispatch_key(vk::Device::from_raw(device))) else { return };
+    if d.pass_through.is_on() {
+        return;
+    }
+    let Some(sc) = shared().swapchains.get(swapchain) else { return };
+    let Some(&image) = sc.images.get(image_index as usize) else { return };
+    let pending = lock(&d.rdm.books).pending.remove(&image).unwrap_or_default();
+    if pending.is_empty() {
+        return;
+    }
+    match reconstruct(&d, &sc, image, &pending, queue_family, queue_index) {
+        Ok(()) => d.mask.count(|s| {
+            for p in &pending {
+                *s.rdm.reconstructed.entry(p.view).or_insert(0) += 1;
+            }
+        }),
+        Err((why, msg)) => {
+            d.mask.count(|s| s.rdm.count_not_applied(why));
+            log_once(&d, format!("reconstruct {}", why.name()), || tracing::warn!("radial density masking: no reconstruction of swapchain {swapchain:#x}: {msg}"));
+        }
+    }
+}
+
+type Failure = (NotApplied, String);
+
+fn layer_error(what: &str) -> impl Fn(vk::Result) -> Failure + '_ {
+    move |e| (NotApplied::LayerError, format!("{what}: {e}"))
+}
+
+fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[Pending], family: u32, queue_index: u32) -> Result<(), Failure> {
+    let needed = vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::COLOR_ATTACHMENT;
+    if let Some(img) = d.track.images.get(image) {
+        if !img.usage.contains(needed) {
+            return Err((NotApplied::SwapchainUsage, format!("image usage {:?} lacks {needed:?}", img.usage)));
+        }
+    }
+    let format = vk::Format::from_raw(sc.desc.format as i32);
+    let (width, height, layers) = (sc.desc.width, sc.desc.height, sc.desc.array_size.max(1));
+    let whole = PixelRect { x: 0, y: 0, width, height };
+    let eyes: Vec<Pending> = pending.iter().filter(|p| p.layer < layers && p.params.rect.intersect(&whole).area() > 0).copied().collect();
+    if eyes.is_empty() {
+        return Ok(());
+    }
+    let (layout, set_layout, render_pass, pipeline, sampler) = fill_objects(d, format).map_err(|e| (NotApplied::LayerError, e))?;
+    let mut slot = take_slot(d, family, set_layout)?;
+    let r = record_and_submit(d, &mut slot, image, format, (width, height, layers), &eyes, family, queue_index, (layout, render_pass, pipeline, sampler));
+    lock(&d.rdm.slots).push_back(slot);
+    r
+}
+
+/// A free slot (waiting for the oldest if all are in flight), reset for recording.
+fn take_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -> Result<Slot, Failure> {
+    let front = lock(&d.rdm.slots).pop_front();
+    let slot = match front {
+        Some(s) => {
+            // SAFETY: our fence.
+            let ready = unsafe { d.fns.get_fence_status(s.fence) }.unwrap_or(false);
+            if !ready && d.rdm.slot_count.load(Ordering::Relaxed) < MAX_SLOTS {
+                lock(&d.rdm.slots).push_back(s);
+                new_slot(d, family, set_layout)?
+            } else {
+                s
+            }
+        }
+        None => new_slot(d, family, set_layout)?,
+    };
+    // SAFETY: our fence, pool and transient objects; once the fence signalled the GPU is done
+    // with everything the slot's last submission used.
+    unsafe {
+        if let Err(e) = d.fns.wait_for_fences(&[slot.fence], true, SLOT_WAIT_NS) {
+            lock(&d.rdm.slots).push_back(slot);
+            return Err((NotApplied::LayerError, format!("waiting for an earlier reconstruction: {e}")));
+        }
+        let mut slot = slot;
+        for (view, fb) in slot.transient.drain(..) {
+            d.fns.destroy_framebuffer(fb, None);
+            d.fns.destroy_image_view(view, None);
+        }
+        let reset = d.fns.reset_fences(&[slot.fence]).and_then(|_| d.fns.reset_command_pool(slot.pool, vk::CommandPoolResetFlags::empty()));
+        if let Err(e) = reset {
+            lock(&d.rdm.slots).push_back(slot);
+            return Err((NotApplied::LayerError, format!("reset: {e}")));
+        }
+        Ok(slot)
+    }
+}
+
+fn new_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -> Result<Slot, Failure> {
+    let Some(set_loader_data) = d.rdm.set_loader_data else {
+        return Err((NotApplied::LayerError, "the loader gave no vkSetDeviceLoaderData".into()));
+    };
+    // SAFETY: valid create infos on our device; every object made here is destroyed on failure
+    // paths by `destroy_slot` or at vkDestroyDevice.
+    unsafe {
+        let pool = d
+            .fns
+            .create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(family), None)
+            .map_err(layer_error("command pool"))?;
+        let mut slot = Slot {
+            pool,
+            cb: vk::CommandBuffer::null(),
+            fence: vk::Fence::null(),
+            descriptor_pool: vk::DescriptorPool::null(),
+            set: vk::DescriptorSet::null(),
+            temp: None,
+            transient: Vec::new(),
+        };
+        let r = (|| -> Result<(), Failure> {
+            let alloc = vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1);
+            slot.cb = d.fns.allocate_command_buffers(&alloc).map_err(layer_error("command buffer"))?[0];
+            // The loader sets the dispatch word only on objects handed out through it.
+            let r = set_loader_data(d.handle, slot.cb.as_raw() as usize as *mut c_void);
+            if r != vk::Result::SUCCESS {
+                return Err((NotApplied::LayerError, format!("vkSetDeviceLoaderData: {r:?}")));
+            }
+            slot.fence = d.fns.create_fence(&vk::FenceCreateInfo::default().flags(vk::FenceCreateFlags::SIGNALED), None).map_err(layer_error("fence"))?;
+            let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 1 }];
+            slot.descriptor_pool =
+                d.fns.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None).map_err(layer_error("descriptor pool"))?;
+            let layouts = [set_layout];
+            slot.set = d
+                .fns
+                .allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(slot.descriptor_pool).set_layouts(&layouts))
+                .map_err(layer_error("descriptor set"))?[0];
+            Ok(())
+        })();
+        if let Err(e) = r {
+            destroy_slot(d, slot);
+            return Err(e);
+        }
+        d.rdm.slot_count.fetch_add(1, Ordering::Relaxed);
+        Ok(slot)
+    }
+}
+
+/// # Safety
+/// The slot's work must have completed (or never been submitted).
+unsafe fn destroy_slot(d: &DeviceState, slot: Slot) {
+    // SAFETY: per the contract; null handles are ignored by the destroy functions.
+    unsafe {
+        for (view, fb) in slot.transient {
+            d.fns.destroy_framebuffer(fb, None);
+            d.fns.destroy_image_view(view, None);
+        }
+        if let Some(t) = slot.temp {
+            destroy_temp(d, t);
+        }
+        d.fns.destroy_descriptor_pool(slot.descriptor_pool, None);
+        d.fns.destroy_fence(slot.fence, None);
+        d.fns.destroy_command_pool(slot.pool, None);
+    }
+}
+
+/// # Safety
+/// No pending GPU work may use it.
+unsafe fn destroy_temp(d: &DeviceState, t: Temp) {
+    // SAFETY: per the contract.
+    unsafe {
+        d.fns.destroy_image_view(t.view, None);
+        d.fns.destroy_image(t.image, None);
+        d.fns.free_memory(t.memory, None);
+    }
+}
+
+/// The slot's temp image (a copy target of the swapchain image's shape, sampled by the fill),
+/// recreated when the shape changes; the descriptor set then points at the new one.
+fn ensure_temp(d: &DeviceState, slot: &mut Slot, format: vk::Format, (width, height, layers): (u32, u32, u32), sampler: vk::Sampler) -> Result<vk::Image, Failure> {
+    let key = (format, width, height, layers);
+    if let Some(t) = slot.temp.as_ref().filter(|t| t.key == key) {
+        return Ok(t.image);
+    }
+    if let Some(t) = slot.temp.take() {
+        // SAFETY: the slot's fence signalled: nothing uses it.
+        unsafe { destroy_temp(d, t) };
+    }
+    let info = vk::ImageCreateInfo::default()
+        .image_type(vk::ImageType::TYPE_2D)
+        .format(format)
+        .extent(vk::Extent3D { width, height, depth: 1 })
+        .mip_levels(1)
+        .array_layers(layers)
+        .samples(vk::SampleCountFlags::TYPE_1)
+        .tiling(vk::ImageTiling::OPTIMAL)
+        .usage(vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::SAMPLED)
+        .sharing_mode(vk::SharingMode::EXCLUSIVE)
+        .initial_layout(vk::ImageLayout::UNDEFINED);
+    // SAFETY: valid create / allocate infos on our device; failures destroy what was made.
+    unsafe {
+        let image = d.fns.create_image(&info, None).map_err(layer_error("temp image"))?;
+        let req = d.fns.get_image_memory_requirements(image);
+        let mem = &d.rdm.memory;
+        let types = (0..mem.memory_type_count).filter(|&i| req.memory_type_bits & (1 << i) != 0);
+        let index = types
+            .clone()
+            .find(|&i| mem.memory_types[i as usize].property_flags.contains(vk::MemoryPropertyFlags::DEVICE_LOCAL))
+            .or_else(|| types.clone().next());
+        let Some(index) = index else {
+            d.fns.destroy_image(image, None);
+            return Err((NotApplied::LayerError, "no memory type for the temp image".into()));
+        };
+        let memory = match d.fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(index), None) {
+            Ok(m) => m,
+            Err(e) => {
+                d.fns.destroy_image(image, None);
+                return Err((NotApplied::LayerError, format!("temp memory: {e}")));
+            }
+        };
+        let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: layers };
+        let view = d.fns.bind_image_memory(image, memory, 0).and_then(|_| {
+            d.fns.create_image_view(&vk::ImageViewCreateInfo::default().image(image).view_type(vk::ImageViewType::TYPE_2D_ARRAY).format(format).subresource_range(range), None)
+        });
+        let view = match view {
+            Ok(v) => v,
+            Err(e) => {
+                d.fns.destroy_image(image, None);
+                d.fns.free_memory(memory, None);
+                return Err((NotApplied::LayerError, format!("temp view: {e}")));
+            }
+        };
+        let infos = [vk::DescriptorImageInfo { sampler, image_view: view, image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL }];
+        let write = vk::WriteDescriptorSet::default().dst_set(slot.set).dst_binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(&infos);
+        d.fns.update_descriptor_sets(&[write], &[]);
+        slot.temp = Some(Temp { image, memory, view, key });
+        Ok(image)
+    }
+}
+
+/// Push constants of shaders/rdm_fill.frag.
+#[repr(C)]
+#[derive(Clone, Copy)]
+struct FillParams {
+    rect: [i32; 4],
+    tan: [f32; 4],
+    fovea: [f32; 4],
+    layer: i32,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn record_and_submit(
+    d: &DeviceState,
+    slot: &mut Slot,
+    image: u64,
+    format: vk::Format,
+    shape: (u32, u32, u32),
+    eyes: &[Pending],
+    family: u32,
+    queue_index: u32,
+    (layout, render_pass, pipeline, sampler): (vk::PipelineLayout, vk::RenderPass, vk::Pipeline, vk::Sampler),
+) -> Result<(), Failure> {
+    let temp = ensure_temp(d, slot, format, shape, sampler)?;
+    let image = vk::Image::from_raw(image);
+    let (width, height, _) = shape;
+    let whole = PixelRect { x: 0, y: 0, width, height };
+    let mut layers: Vec<u32> = eyes.iter().map(|p| p.layer).collect();
+    layers.sort_unstable();
+    layers.dedup();
+    let range = |layer: u32, count: u32| vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: count };
+    let layer_of = |layer: u32| vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: layer, layer_count: 1 };
+    let cb = slot.cb;
+    // SAFETY: our command buffer, reset and not in use (its fence signalled); every handle is
+    // alive: the swapchain image is acquired by the app and not yet released; arrays outlive the
+    // calls. The OpenXR Vulkan binding lets a call inside xrReleaseSwapchainImage use the session's
+    // queue (the app synchronizes its queue use around these calls).
+    unsafe {
+        d.fns.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(layer_error("begin"))?;
+        // The app's writes (rendering, or resolve / copy from an intermediate) finish before the
+        // copy reads the image; the temp image's previous readers before it is overwritten.
+        let mut first: Vec<vk::ImageMemoryBarrier> = layers
+            .iter()
+            .map(|&l| {
+                vk::ImageMemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::TRANSFER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
+                    .old_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                    .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .image(image)
+                    .subresource_range(range(l, 1))
+            })
+            .collect();
+        first.push(
+            vk::ImageMemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::empty())
+                .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .old_layout(vk::ImageLayout::UNDEFINED)
+                .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
+                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .image(temp)
+                .subresource_range(range(0, shape.2)),
+        );
+        d.fns.cmd_pipeline_barrier(
+            cb,
+            vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::FRAGMENT_SHADER,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::DependencyFlags::empty(),
+            &[],
+            &[],
+            &first,
+        );
+        let regions: Vec<vk::ImageCopy> = eyes
+            .iter()
+            .map(|p| {
+                let r = p.params.rect.intersect(&whole);
+                vk::ImageCopy {
+                    src_subresource: layer_of(p.layer),
+                    src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+                    dst_subresource: layer_of(p.layer),
+                    dst_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+                    extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
+                }
+            })
+            .collect();
+        d.fns.cmd_copy_image(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, temp, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &regions);
+        let mut second: Vec<vk::ImageMemoryBarrier> = layers
+            .iter()
+            .map(|&l| {
+                vk::ImageMemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::empty())
+                    .dst_access_mask(vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE)
+                    .old_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
+                    .new_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .image(image)
+                    .subresource_range(range(l, 1))
+            })
+            .collect();
+        second.push(
+            vk::ImageMemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::SHADER_READ)
+                .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
+                .new_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
+                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .image(temp)
+                .subresource_range(range(0, shape.2)),
+        );
+        d.fns.cmd_pipeline_barrier(
+            cb,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+            vk::DependencyFlags::empty(),
+            &[],
+            &[],
+            &second,
+        );
+        for &l in &layers {
+            let view = d
+                .fns
+                .create_image_view(&vk::ImageViewCreateInfo::default().image(image).view_type(vk::ImageViewType::TYPE_2D).format(format).subresource_range(range(l, 1)), None)
+                .map_err(layer_error("swapchain view"))?;
+            let views = [view];
+            let fb = match d.fns.create_framebuffer(
+                &vk::FramebufferCreateInfo::default().render_pass(render_pass).attachments(&views).width(width).height(height).layers(1),
+                None,
+            ) {
+                Ok(f) => f,
+                Err(e) => {
+                    d.fns.destroy_image_view(view, None);
+                    return Err((NotApplied::LayerError, format!("framebuffer: {e}")));
+                }
+            };
+            slot.transient.push((view, fb));
+            let here: Vec<&Pending> = eyes.iter().filter(|p| p.layer == l).collect();
+            let area = here.iter().map(|p| p.params.rect.intersect(&whole)).reduce(|a, b| {
+                let (x0, y0) = (a.x.min(b.x), a.y.min(b.y));
+                let x1 = (a.x + a.width as i32).max(b.x + b.width as i32);
+                let y1 = (a.y + a.height as i32).max(b.y + b.height as i32);
+                PixelRect { x: x0, y: y0, width: (x1 - x0) as u32, height: (y1 - y0) as u32 }
+            });
+            let Some(area) = area else { continue };
+            let rect2d = |r: PixelRect| vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } };
+            d.fns.cmd_begin_render_pass(
+                cb,
+                &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(fb).render_area(rect2d(area)),
+                vk::SubpassContents::INLINE,
+            );
+            d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[slot.set], &[]);
+            for p in here {
+                let r = p.params.rect;
+                let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
+                d.fns.cmd_set_viewport(cb, 0, &[vp]);
+                d.fns.cmd_set_scissor(cb, 0, &[rect2d(r.intersect(&whole))]);
+                let pc = FillParams {
+                    rect: [r.x, r.y, r.width as i32, r.height as i32],
+                    tan: [p.params.tan_left, p.params.tan_up, p.params.step_x, p.params.step_y],
+                    fovea: [p.params.center[0], p.params.center[1], p.params.k_inner, p.params.k_middle],
+                    layer: p.layer as i32,
+                };
+                let bytes = std::slice::from_raw_parts(&pc as *const FillParams as *const u8, std::mem::size_of::<FillParams>());
+                d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, bytes);
+                d.fns.cmd_draw(cb, 3, 1, 0, 0);
+            }
+            d.fns.cmd_end_render_pass(cb);
+        }
+        d.fns.end_command_buffer(cb).map_err(layer_error("end"))?;
+        let queue = d.fns.get_device_queue(family, queue_index);
+        let cbs = [cb];
+        let submit = vk::SubmitInfo::default().command_buffers(&cbs);
+        d.fns.queue_submit(queue, &[submit], slot.fence).map_err(layer_error("vkQueueSubmit"))?;
+    }
+    Ok(())
+}
+
+/// The fill pipeline's shared objects and the render pass + pipeline for `format`, made once.
+fn fill_objects(d: &DeviceState, format: vk::Format) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::RenderPass, vk::Pipeline, vk::Sampler), String> {
+    let mut guard = lock(&d.rdm.fill);
+    // Creating a few objects under this lock is fine: these calls never re-enter the layer.
+    if guard.is_none() {
+        *guard = Some(create_fill_common(d)?);
+    }
+    let f = guard.as_mut().expect("just set");
+    if let Some(&(rp, p)) = f.passes.get(&format) {
+        return Ok((f.layout, f.set_layout, rp, p, f.sampler));
+    }
+    let (rp, p) = create_fill_pipeline(d, f, format)?;
+    f.passes.insert(format, (rp, p));
+    Ok((f.layout, f.set_layout, rp, p, f.sampler))
+}
+
+fn create_fill_common(d: &DeviceState) -> Result<FillObjects, String> {
+    let module = |bytes: &[u8]| -> Result<vk::ShaderModule, String> {
+        let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes)).map_err(|e| e.to_string())?;
+        // SAFETY: valid SPIR-V compiled at build time.
+        unsafe { d.fns.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }.map_err(|e| e.to_string())
+    };
+    let bindings = [vk::DescriptorSetLayoutBinding::default()
+        .binding(0)
+        .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+        .descriptor_count(1)
+        .stage_flags(vk::ShaderStageFlags::FRAGMENT)];
+    // SAFETY: valid create infos on our device.
+    unsafe {
+        let set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
+        let set_layouts = [set_layout];
+        let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::FRAGMENT, offset: 0, size: std::mem::size_of::<FillParams>() as u32 }];
+        let layout = d
+            .fns
+            .create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges), None)
+            .map_err(|e| e.to_string())?;
+        let sampler = d
+            .fns
+            .create_sampler(
+                &vk::SamplerCreateInfo::default()
+                    .mag_filter(vk::Filter::NEAREST)
+                    .min_filter(vk::Filter::NEAREST)
+                    .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                    .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                    .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE),
+                None,
+            )
+            .map_err(|e| e.to_string())?;
+        Ok(FillObjects { set_layout, layout, sampler, vert: module(FILL_VERT)?, frag: module(FILL_FRAG)?, passes: HashMap::new() })
+    }
+}
+
+fn create_fill_pipeline(d: &DeviceState, f: &FillObjects, format: vk::Format) -> Result<(vk::RenderPass, vk::Pipeline), String> {
+    let attachments = [vk::AttachmentDescription::default()
+        .format(format)
+        .samples(vk::SampleCountFlags::TYPE_1)
+        .load_op(vk::AttachmentLoadOp::LOAD)
+        .store_op(vk::AttachmentStoreOp::STORE)
+        .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
+        .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
+        .initial_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+        .final_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)];
+    let color = [vk::AttachmentReference { attachment: 0, layout: vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL }];
+    let subpasses = [vk::SubpassDescription::default().pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS).color_attachments(&color)];
+    // In: the barriers before the pass already order it after the copy. Out: whatever reads the
+    // image next (the runtime's compositor or capture) sees the reconstructed pixels.
+    let deps = [
+        vk::SubpassDependency {
+            src_subpass: vk::SUBPASS_EXTERNAL,
+            dst_subpass: 0,
+            src_stage_mask: vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+            dst_stage_mask: vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+            src_access_mask: vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+            dst_access_mask: vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+            dependency_flags: vk::DependencyFlags::empty(),
+        },
+        vk::SubpassDependency {
+            src_subpass: 0,
+            dst_subpass: vk::SUBPASS_EXTERNAL,
+            src_stage_mask: vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+            dst_stage_mask: vk::PipelineStageFlags::ALL_COMMANDS,
+            src_access_mask: vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+            dst_access_mask: vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE,
+            dependency_flags: vk::DependencyFlags::empty(),
+        },
+    ];
+    // SAFETY: valid create infos; arrays outlive the calls.
+    unsafe {
+        let rp = d
+            .fns
+            .create_render_pass(&vk::RenderPassCreateInfo::default().attachments(&attachments).subpasses(&subpasses).dependencies(&deps), None)
+            .map_err(|e| e.to_string())?;
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(f.vert).name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(f.frag).name(c"main"),
+        ];
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(vk::CullModeFlags::NONE)
+            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .line_width(1.0);
+        let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let blend_atts = [vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA)];
+        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_atts);
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let info = vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&input_assembly)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic)
+            .layout(f.layout)
+            .render_pass(rp)
+            .subpass(0);
+        match d.fns.create_graphics_pipelines(vk::PipelineCache::null(), &[info], None) {
+            Ok(p) => Ok((rp, p[0])),
+            Err((_, e)) => {
+                d.fns.destroy_render_pass(rp, None);
+                Err(e.to_string())
+            }
+        }
+    }
+}
+
+/// Destroys every RDM object of the device (at vkDestroyDevice, before calling down; the app has
+/// waited for the device to go idle, and our submissions are on its queues).
+pub(crate) fn destroy(d: &DeviceState) {
+    let slots: Vec<Slot> = lock(&d.rdm.slots).drain(..).collect();
+    let buffers: Vec<DrawBuffer> = std::mem::take(&mut *lock(&d.rdm.buffers));
+    let fill = lock(&d.rdm.fill).take();
+    // SAFETY: our objects; the device is idle (fences waited for safety all the same).
+    unsafe {
+        for s in slots {
+            let _ = d.fns.wait_for_fences(&[s.fence], true, SLOT_WAIT_NS);
+            destroy_slot(d, s);
+        }
+        for b in buffers {
+            d.fns.destroy_buffer(b.buffer, None);
+            d.fns.free_memory(b.memory, None);
+        }
+        if let Some(f) = fill {
+            for (rp, p) in f.passes.values() {
+                d.fns.destroy_pipeline(*p, None);
+                d.fns.destroy_render_pass(*rp, None);
+            }
+            d.fns.destroy_pipeline_layout(f.layout, None);
+            d.fns.destroy_descriptor_set_layout(f.set_layout, None);
+            d.fns.destroy_sampler(f.sampler, None);
+            d.fns.destroy_shader_module(f.vert, None);
+            d.fns.destroy_shader_module(f.frag, None);
+        }
+    }
+}
+
+/// Pending reconstructions per image (tests of the transfer hand-over).
+#[cfg(test)]
+fn pending_views(list: &[Pending]) -> std::collections::BTreeMap<u32, u32> {
+    list.iter().map(|p| (p.view, p.layer)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shaders_are_embedded_spirv_and_the_vertex_matches_its_layout() {
+        for s in [VERT, VERT_MV, FRAG, FILL_VERT, FILL_FRAG] {
+            assert_eq!(&s[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
+        }
+        let (stride, attrs) = vertex_layout();
+        assert_eq!(stride, 52);
+        assert_eq!(attrs.last().unwrap().offset, std::mem::offset_of!(Vertex, fovea) as u32);
+        assert_eq!(attrs[3].offset, std::mem::offset_of!(Vertex, tan) as u32);
+        assert_eq!(attrs[2].offset, std::mem::offset_of!(Vertex, origin) as u32);
+        assert_eq!(std::mem::size_of::<FillParams>(), 52);
+        let p = Pending { view: 1, layer: 0, params: RdmParams::new(&crate::shared::ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 }, &crate::shared::FoveaView { view: 1, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 }, PixelRect { x: 0, y: 0, width: 8, height: 8 }).unwrap() };
+        assert_eq!(pending_views(&[p]), std::collections::BTreeMap::from([(1, 0)]));
+    }
+}

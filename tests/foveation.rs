@@ -1,0 +1,200 @@
+//! End-to-end checks of foveation method 2, radial density masking: xr-scene runs through the layer
+//! with `foveation.enabled`, `foveation.method = rdm`, and frame 1 (frame 0 renders before the
+//! OpenXR half saw an eye use) is compared with a run without the layer:
+//! - pixels of quads the rule keeps are bit-identical, and so — computed independently here, in
+//!   f64 from frames.json's FOV and the preset's angle — is every pixel well inside the inner ring;
+//! - the skipped quads are reconstructed: periphery PSNR is reported (and ≥ 30 dB for `balanced`);
+//! - shaded fragments drop by exactly the fragments the skipped pixels had in the plain run. xr-scene
+//!   reports only a per-view total, so that sum is bounded from both sides: every skipped pixel had
+//!   at least one fragment (the scene covers every pixel) and at most one plus its share of the
+//!   plain run's overdraw (plain fragments − pixels): skipped ≤ drop ≤ skipped + overdraw. The
+//!   skipped count itself is exact: the layer's `stats.file` reports the rule's count per view,
+//!   and every pixel the rule keeps is bit-identical to the plain run;
+//! - validation (with synchronization validation) stays silent.
+
+mod common;
+
+use common::image;
+use common::{Fov, Run, RunOutput};
+use stereoshim::mask::PixelRect;
+use stereoshim::rdm::RdmParams;
+use stereoshim::shared::{FoveaView, ViewFov};
+
+fn preset(name: &str) -> (f32, f32) {
+    match name {
+        "subtle" => (30.0, 45.0),
+        "aggressive" => (12.0, 25.0),
+        _ => (20.0, 35.0),
+    }
+}
+
+/// The layer's tangents: f32 `tan` of the submitted f32 angles (src/xr/session.rs fov_tangents).
+fn view_fov(f: &Fov) -> ViewFov {
+    ViewFov { tan_left: f.angle_left.tan(), tan_right: f.angle_right.tan(), tan_up: f.angle_up.tan(), tan_down: f.angle_down.tan() }
+}
+
+/// Angle (degrees) between the optical axis and the view direction through image point (px, py)
+/// of a `w` × `h` rect (pixels, y down), in f64 — independent of the layer's f32 rule.
+fn angle_deg(f: &Fov, w: u32, h: u32, px: f64, py: f64) -> f64 {
+    let (l, r) = ((f.angle_left as f64).tan(), (f.angle_right as f64).tan());
+    let (u, d) = ((f.angle_up as f64).tan(), (f.angle_down as f64).tan());
+    let tx = l + px / w as f64 * (r - l);
+    let ty = u - py / h as f64 * (u - d);
+    (1.0 / (tx * tx + ty * ty + 1.0).sqrt()).acos().to_degrees()
+}
+
+pub struct ViewResult {
+    pub view: u32,
+    pub pixels: u64,
+    pub skipped: u64,
+    pub shaded_drop: i64,
+    /// Plain run's fragments beyond one per pixel.
+    pub overdraw: i64,
+    pub psnr_db: f64,
+}
+
+fn psnr(pairs: &[(f64, f64)]) -> f64 {
+    if pairs.is_empty() {
+        return f64::INFINITY;
+    }
+    let mse = pairs.iter().map(|(a, b)| (a - b) * (a - b)).sum::<f64>() / pairs.len() as f64;
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0f64 * 255.0 / mse).log10()
+    }
+}
+
+fn layer_stats(out: &RunOutput, path: &std::path::Path, frame: u64) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: no stats.file {}: {e}\n{}", out.name, path.display(), out.log));
+    text.lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).expect("stats line parses"))
+        .find(|v| v["frame"] == frame)
+        .unwrap_or_else(|| panic!("{}: no layer stats for frame {frame}", out.name))
+}
+
+/// Runs one configuration with and without the layer and checks frame 1; returns per-view numbers.
+pub fn check(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &str)]) -> Vec<ViewResult> {
+    let mut base = Run::new(name).args(args.iter().copied()).env("MOCK_XR_EYE_TRACKER", "0");
+    for (k, v) in extra_env {
+        base = base.env(k, v);
+    }
+    let plain = base.clone().run();
+    plain.assert_ok();
+    let mut layered = base
+        .with_layer()
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
+        .env("STEREOSHIM_FOVEATION_PRESET", preset_name)
+        .env("STEREOSHIM_FOVEATION_EYE_TRACKING", "off");
+    layered.name = format!("{name}-rdm");
+    let stats_path = common::target_dir().join("test-output").join(format!("{name}-rdm.layer-stats.jsonl"));
+    let _ = std::fs::remove_file(&stats_path);
+    layered = layered.env("STEREOSHIM_STATS_FILE", stats_path.to_str().unwrap());
+    let rdm = layered.run();
+    rdm.assert_ok();
+    assert!(rdm.log_lines("internal failure").is_empty(), "{name}: {}", rdm.log);
+    assert!(!rdm.log_lines("radial density masking ").is_empty(), "{name}: the layer never applied RDM:\n{}", rdm.log);
+    // Frame 0: eye uses unknown, nothing skipped.
+    for (a, b) in rdm.views(0).iter().zip(plain.views(0)) {
+        image::assert_identical(&format!("{name}-f0-view{}", a.view), &rdm.image(&a.file), &plain.image(&b.file));
+    }
+    let (inner_deg, middle_deg) = preset(preset_name);
+    let stats1 = layer_stats(&rdm, &stats_path, 1);
+    let mut out = Vec::new();
+    for (a, b) in rdm.views(1).iter().zip(plain.views(1)) {
+        let (w, h) = (a.image_rect.width, a.image_rect.height);
+        let fovea = FoveaView { view: a.view, center: [0.0, 0.0], inner_deg, middle_deg };
+        let params = RdmParams::new(&view_fov(&a.fov), &fovea, PixelRect { x: 0, y: 0, width: w, height: h }).expect("params");
+        let (got, want) = (rdm.image(&a.file), plain.image(&b.file));
+        let mut bad = Vec::new();
+        let (mut skipped, mut periphery) = (0u64, Vec::new());
+        for y in 0..h {
+            for x in 0..w {
+                let (g, e) = (&got.pixel(x, y)[..3], &want.pixel(x, y)[..3]);
+                let is_skipped = params.pixel_skipped(x as i32, y as i32);
+                skipped += is_skipped as u64;
+                // Independently: the whole quad, grown by a pixel, lies inside the inner ring.
+                let (qx, qy) = ((x / 2 * 2) as f64, (y / 2 * 2) as f64);
+                let deep_inside = [(qx - 1.0, qy - 1.0), (qx + 3.0, qy - 1.0), (qx - 1.0, qy + 3.0), (qx + 3.0, qy + 3.0)]
+                    .iter()
+                    .all(|&(px, py)| angle_deg(&a.fov, w, h, px, py) < inner_deg as f64);
+                if deep_inside && g != e {
+                    bad.push((x, y, "inner ring"));
+                } else if !is_skipped && g != e {
+                    bad.push((x, y, "kept quad"));
+                }
+                if !deep_inside {
+                    periphery.extend(g.iter().zip(e).map(|(&p, &q)| (p as f64, q as f64)));
+                }
+            }
+        }
+        if !bad.is_empty() {
+            let dir = image::artifacts_dir(&format!("{name}-view{}", a.view));
+            got.save(&dir.join("actual.png"));
+            want.save(&dir.join("expected.png"));
+            image::difference(&got, &want).save(&dir.join("difference.png"));
+            panic!("{name} view {}: {} wrong pixels, first {:?}; artifacts in {}", a.view, bad.len(), &bad[..bad.len().min(8)], dir.display());
+        }
+        let shaded = |o: &RunOutput| {
+            let f = o.stats.as_ref().expect("stats").frames.iter().find(|f| f.frame == 1).expect("stats of frame 1");
+            f.views.iter().find(|v| v.view == a.view).expect("view stats").shaded_fragments as i64
+        };
+        let r = ViewResult { view: a.view, pixels: w as u64 * h as u64, skipped, shaded_drop: shaded(&plain) - shaded(&rdm), overdraw: shaded(&plain) - (w as i64 * h as i64), psnr_db: psnr(&periphery) };
+        // The layer's own count of frame 1 (rdm.pixels_skipped, summed over its passes) is the
+        // rule's count over the eye's rect.
+        let layer_px = stats1["rdm"]["pixels_skipped"][a.view.to_string()].as_u64().unwrap_or(0);
+        assert_eq!(layer_px, skipped, "{name} view {}: layer stats {}", a.view, stats1);
+        assert_eq!(stats1["rdm"]["reconstructed"][a.view.to_string()].as_u64(), Some(1), "{name} view {}: {}", a.view, stats1);
+        eprintln!(
+            "{name} [{preset_name}] view {}: {}x{} px, skipped {} px ({:.1} %), shaded fragments -{} (plain {}), periphery PSNR {:.2} dB",
+            a.view,
+            w,
+            h,
+            r.skipped,
+            100.0 * r.skipped as f64 / r.pixels as f64,
+            r.shaded_drop,
+            shaded(&plain),
+            r.psnr_db
+        );
+        out.push(r);
+    }
+    for r in &out {
+        assert!(r.skipped > 0, "{name} view {}: nothing skipped", r.view);
+        // Every skipped pixel had at least one fragment (xr-scene covers every pixel) and loses
+        // all of them; kept pixels keep theirs.
+        assert!(r.shaded_drop >= r.skipped as i64, "{name} view {}: shaded fragments dropped by {} but {} pixels were skipped", r.view, r.shaded_drop, r.skipped);
+        assert!(
+            r.shaded_drop <= r.skipped as i64 + r.overdraw,
+            "{name} view {}: shaded fragments dropped by {}, more than the {} skipped pixels plus all {} overdraw fragments",
+            r.view,
+            r.shaded_drop,
+            r.skipped,
+            r.overdraw
+        );
+        if preset_name == "balanced" {
+            assert!(r.psnr_db >= 30.0, "{name} view {}: periphery PSNR {:.2} dB < 30", r.view, r.psnr_db);
+        }
+    }
+    out
+}
+
+macro_rules! rdm_tests {
+    ($($name:ident: [$($arg:literal),*];)*) => {$(
+        #[test]
+        fn $name() {
+            check(stringify!($name), &[$($arg),*], "balanced", &[]);
+        }
+    )*};
+}
+
+rdm_tests! {
+    per_eye_render_pass: ["--layout", "per-eye", "--rendering", "render-pass"];
+    per_eye_dynamic_reverse: ["--layout", "per-eye", "--rendering", "dynamic", "--depth", "reverse"];
+    multiview_render_pass2: ["--layout", "multiview", "--rendering", "render-pass2"];
+    multiview_dynamic: ["--layout", "multiview", "--rendering", "dynamic"];
+    side_by_side_render_pass: ["--layout", "side-by-side", "--rendering", "render-pass"];
+    side_by_side_dynamic_reverse: ["--layout", "side-by-side", "--rendering", "dynamic", "--depth", "reverse"];
+    intermediate_per_eye_msaa: ["--layout", "per-eye", "--rendering", "render-pass", "--intermediate"];
+    intermediate_multiview_copy: ["--layout", "multiview", "--rendering", "dynamic", "--intermediate", "--samples", "1"];
+}
