@@ -116,6 +116,12 @@ fn check_env(name: &str, args: &[&str], debug: bool, env: &[(&str, &str)]) -> Ve
         .sum();
     let expected: u64 = out.iter().map(|v| v.hidden).sum();
     assert!(px.abs_diff(expected) * 100 <= expected, "{name}: layer counted {px} masked pixels in frame 1, harness {expected}");
+    // Every pass's depth is cleared (by its load op, vkCmdClearAttachments or an image clear), so
+    // none may be counted as not cleared — a pass masked at its vkCmdClearAttachments is counted
+    // once, as masked, not also as unmasked at its beginning.
+    let stats = line.join("\n");
+    assert!(!stats.contains("not_masked.depth_not_cleared"), "{name}: {stats}");
+    assert!(!masked.log.contains("pass not masked: depth_not_cleared"), "{name}: {}", masked.log);
     out
 }
 
