@@ -20,6 +20,10 @@ use stereoshim::mask::PixelRect;
 use stereoshim::rdm::RdmParams;
 use stereoshim::shared::{FoveaView, ViewFov};
 
+/// With the hidden-area mask: how far from its outline the periphery PSNR starts (the filter reads
+/// up to 2 px beyond a skipped quad).
+const MASK_MARGIN_PX: f64 = 3.0;
+
 fn preset(name: &str) -> (f32, f32) {
     match name {
         "subtle" => (30.0, 45.0),
@@ -75,9 +79,18 @@ fn layer_stats(out: &RunOutput, path: &std::path::Path, frame: u64) -> serde_jso
 
 /// Runs one configuration with and without the layer and checks frame 1; returns per-view numbers.
 pub fn check(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &str)]) -> Vec<ViewResult> {
+    check_with(name, args, preset_name, extra_env, false)
+}
+
+/// `with_mask`: both runs go through the layer with the hidden-area mask on (the baseline is the
+/// mask alone), so RDM is judged on top of it.
+pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &str)], with_mask: bool) -> Vec<ViewResult> {
     let mut base = Run::new(name).args(args.iter().copied()).env("MOCK_XR_EYE_TRACKER", "0");
     for (k, v) in extra_env {
         base = base.env(k, v);
+    }
+    if with_mask {
+        base = base.with_layer().env("STEREOSHIM_MASK_ENABLED", "1");
     }
     let plain = base.clone().run();
     plain.assert_ok();
@@ -87,6 +100,9 @@ pub fn check(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &
         .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
         .env("STEREOSHIM_FOVEATION_PRESET", preset_name)
         .env("STEREOSHIM_FOVEATION_EYE_TRACKING", "off");
+    for (k, v) in extra_env.iter().filter(|(k, _)| k.starts_with("STEREOSHIM_FOVEATION_")) {
+        layered = layered.env(k, v);
+    }
     layered.name = format!("{name}-rdm");
     let stats_path = common::target_dir().join("test-output").join(format!("{name}-rdm.layer-stats.jsonl"));
     let _ = std::fs::remove_file(&stats_path);
@@ -99,7 +115,15 @@ pub fn check(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &
     for (a, b) in rdm.views(0).iter().zip(plain.views(0)) {
         image::assert_identical(&format!("{name}-f0-view{}", a.view), &rdm.image(&a.file), &plain.image(&b.file));
     }
-    let (inner_deg, middle_deg) = preset(preset_name);
+    let (mut inner_deg, mut middle_deg) = preset(preset_name);
+    // Explicit angles override the preset (as the layer's config does).
+    for (k, v) in extra_env {
+        match *k {
+            "STEREOSHIM_FOVEATION_INNER_DEG" => inner_deg = v.parse().unwrap(),
+            "STEREOSHIM_FOVEATION_MIDDLE_DEG" => middle_deg = v.parse().unwrap(),
+            _ => {}
+        }
+    }
     let stats1 = layer_stats(&rdm, &stats_path, 1);
     let mut out = Vec::new();
     for (a, b) in rdm.views(1).iter().zip(plain.views(1)) {
@@ -107,6 +131,18 @@ pub fn check(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &
         let fovea = FoveaView { view: a.view, center: [0.0, 0.0], inner_deg, middle_deg };
         let params = RdmParams::new(&view_fov(&a.fov), &fovea, PixelRect { x: 0, y: 0, width: w, height: h }).expect("params");
         let (got, want) = (rdm.image(&a.file), plain.image(&b.file));
+        // With the mask, its hidden area is never shown, and skipped quads along its outline are
+        // reconstructed partly from the hidden (black) side: PSNR counts the visible periphery
+        // from MASK_MARGIN_PX inwards.
+        let lens_hidden: Vec<bool> = if with_mask {
+            let frame = rdm.frame(1);
+            let mask = &frame.visibility_masks.iter().find(|m| m.view == a.view).expect("mask of view").hidden_triangles;
+            let hidden = common::hidden_pixels(mask, &a.fov, w, h);
+            let edge = common::mask_edge_pixels(mask, &a.fov, w, h, MASK_MARGIN_PX);
+            hidden.iter().zip(&edge).map(|(a, b)| *a || *b).collect()
+        } else {
+            vec![false; (w * h) as usize]
+        };
         let mut bad = Vec::new();
         let (mut skipped, mut periphery) = (0u64, Vec::new());
         for y in 0..h {
@@ -124,7 +160,7 @@ pub fn check(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &
                 } else if !is_skipped && g != e {
                     bad.push((x, y, "kept quad"));
                 }
-                if !deep_inside {
+                if !deep_inside && !lens_hidden[(y * w + x) as usize] {
                     periphery.extend(g.iter().zip(e).map(|(&p, &q)| (p as f64, q as f64)));
                 }
             }
@@ -140,7 +176,8 @@ pub fn check(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &
             let f = o.stats.as_ref().expect("stats").frames.iter().find(|f| f.frame == 1).expect("stats of frame 1");
             f.views.iter().find(|v| v.view == a.view).expect("view stats").shaded_fragments as i64
         };
-        let r = ViewResult { view: a.view, pixels: w as u64 * h as u64, skipped, shaded_drop: shaded(&plain) - shaded(&rdm), overdraw: shaded(&plain) - (w as i64 * h as i64), psnr_db: psnr(&periphery) };
+        let overdraw = (shaded(&plain) - (w as i64 * h as i64)).max(0);
+        let r = ViewResult { view: a.view, pixels: w as u64 * h as u64, skipped, shaded_drop: shaded(&plain) - shaded(&rdm), overdraw, psnr_db: psnr(&periphery) };
         // The layer's own count of frame 1 (rdm.pixels_skipped, summed over its passes) is the
         // rule's count over the eye's rect.
         let layer_px = stats1["rdm"]["pixels_skipped"][a.view.to_string()].as_u64().unwrap_or(0);
@@ -162,8 +199,8 @@ pub fn check(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &
     for r in &out {
         assert!(r.skipped > 0, "{name} view {}: nothing skipped", r.view);
         // Every skipped pixel had at least one fragment (xr-scene covers every pixel) and loses
-        // all of them; kept pixels keep theirs.
-        assert!(r.shaded_drop >= r.skipped as i64, "{name} view {}: shaded fragments dropped by {} but {} pixels were skipped", r.view, r.shaded_drop, r.skipped);
+        // all of them; kept pixels keep theirs. (Behind the mask, skipped pixels had none.)
+        assert!(with_mask || r.shaded_drop >= r.skipped as i64, "{name} view {}: shaded fragments dropped by {} but {} pixels were skipped", r.view, r.shaded_drop, r.skipped);
         assert!(
             r.shaded_drop <= r.skipped as i64 + r.overdraw,
             "{name} view {}: shaded fragments dropped by {}, more than the {} skipped pixels plus all {} overdraw fragments",
@@ -197,4 +234,58 @@ rdm_tests! {
     side_by_side_dynamic_reverse: ["--layout", "side-by-side", "--rendering", "dynamic", "--depth", "reverse"];
     intermediate_per_eye_msaa: ["--layout", "per-eye", "--rendering", "render-pass", "--intermediate"];
     intermediate_multiview_copy: ["--layout", "multiview", "--rendering", "dynamic", "--intermediate", "--samples", "1"];
+}
+
+/// Every preset on two layouts: the skipped fraction and periphery PSNR per preset (reported), PSNR
+/// ≥ 30 dB asserted for `balanced` only.
+#[test]
+fn presets() {
+    for preset in ["subtle", "balanced", "aggressive"] {
+        check(&format!("preset_{preset}_per_eye"), &["--layout", "per-eye", "--rendering", "dynamic"], preset, &[]);
+        check(&format!("preset_{preset}_side_by_side"), &["--layout", "side-by-side", "--rendering", "render-pass2"], preset, &[]);
+    }
+}
+
+/// Explicit angles override the preset (foveation.inner_deg / middle_deg).
+#[test]
+fn explicit_ring_angles() {
+    // The preset says subtle (30°/45°); the angles win.
+    let env = [("STEREOSHIM_FOVEATION_INNER_DEG", "15"), ("STEREOSHIM_FOVEATION_MIDDLE_DEG", "28")];
+    check("explicit_angles_per_eye", &["--layout", "per-eye", "--rendering", "render-pass"], "subtle", &env);
+}
+
+/// Depth cleared by vkCmdClearAttachments inside the pass / vkCmdClearDepthStencilImage before it.
+#[test]
+fn explicit_depth_clears() {
+    check("depth_clear_attachments_multiview", &["--layout", "multiview", "--rendering", "render-pass", "--depth-clear", "attachments"], "balanced", &[]);
+    check("depth_clear_image_side_by_side", &["--layout", "side-by-side", "--rendering", "dynamic", "--depth-clear", "image", "--depth", "reverse"], "balanced", &[]);
+}
+
+/// Real HMD profiles: other FOVs (asymmetric) and image sizes.
+#[test]
+fn hmd_profiles() {
+    check("hmd_index_multiview", &["--layout", "multiview", "--rendering", "dynamic"], "balanced", &[("MOCK_XR_HMD", "index")]);
+    check("hmd_quest3_per_eye", &["--layout", "per-eye", "--rendering", "render-pass"], "balanced", &[("MOCK_XR_HMD", "quest3")]);
+}
+
+/// RDM on top of the hidden-area mask: judged against the mask alone.
+#[test]
+fn with_hidden_area_mask() {
+    check_with("mask_and_rdm_per_eye", &["--layout", "per-eye", "--rendering", "dynamic"], "balanced", &[], true);
+    check_with("mask_and_rdm_multiview", &["--layout", "multiview", "--rendering", "render-pass"], "balanced", &[], true);
+}
+
+/// Off by default: with the layer but without `foveation.enabled`, frames equal the plain run's.
+#[test]
+fn off_by_default() {
+    let args = ["--layout", "per-eye", "--rendering", "dynamic"];
+    let plain = Run::new("rdm-off").args(args).run();
+    plain.assert_ok();
+    let mut run = Run::new("rdm-off").args(args).with_layer().env("STEREOSHIM_FOVEATION_METHOD", "rdm");
+    run.name = "rdm-off-layered".into();
+    let out = run.run();
+    out.assert_ok();
+    common::assert_same_captures("rdm-off", &out, &plain);
+    assert_eq!(out.stats, plain.stats);
+    assert!(out.log_lines("radial density masking").is_empty(), "{}", out.log);
 }

@@ -1065,7 +1065,7 @@ pub(super) unsafe extern "system" fn cmd_clear_attachments(
         // SAFETY: forwarding the app's arguments unchanged.
         |d| unsafe { (d.fns.fp_v1_0().cmd_clear_attachments)(cb, n, attachments, rect_count, rects) },
         |d, _| {
-            if !d.mask.settings(&d.config).enabled {
+            if !d.mask.settings(&d.config).any() {
                 return;
             }
             // SAFETY: arrays valid with their counts during the app's call.
@@ -1096,7 +1096,7 @@ pub(super) unsafe extern "system" fn cmd_clear_depth_stencil_image(
         // SAFETY: forwarding the app's arguments unchanged.
         |d| unsafe { (d.fns.fp_v1_0().cmd_clear_depth_stencil_image)(cb, image, layout, value, n, ranges) },
         |d, raw| {
-            if !d.mask.settings(&d.config).enabled {
+            if !d.mask.settings(&d.config).any() {
                 return;
             }
             // SAFETY: valid pointers during the app's call.

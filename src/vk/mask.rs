@@ -120,6 +120,13 @@ pub(crate) enum Trigger {
     End,
 }
 
+impl Settings {
+    /// Whether anything injects at eye passes (the mask, radial density masking, or both).
+    pub fn any(&self) -> bool {
+        self.enabled || self.rdm
+    }
+}
+
 impl MaskDevice {
     pub fn new(config: &Config, memory: vk::PhysicalDeviceMemoryProperties, fsr_attachment: bool) -> MaskDevice {
         MaskDevice {
