@@ -50,7 +50,20 @@ pub(super) unsafe extern "system" fn create_swapchain(
     let plain = || unsafe { next(session, create_info, swapchain) };
     guard::run("xrCreateSwapchain", &inst.pass_through, |down| {
         inst.check_fault("xrCreateSwapchain")?;
-        let r = down.call(plain);
+        // Colour swapchains also get TRANSFER_SRC: radial density masking reconstructs skipped
+        // quads from a copy of the image. An extra usage bit changes nothing the app can see.
+        // SAFETY: the app's create info, valid for this call (null goes down unchanged).
+        let r = match unsafe { create_info.as_ref() } {
+            Some(ci) if ci.usage_flags.contains(xr::SwapchainUsageFlags::COLOR_ATTACHMENT)
+                && !ci.usage_flags.contains(xr::SwapchainUsageFlags::TRANSFER_SRC) =>
+            {
+                let mut with = *ci;
+                with.usage_flags |= xr::SwapchainUsageFlags::TRANSFER_SRC;
+                // SAFETY: the copy lives until the call returns.
+                down.call(|| unsafe { next(session, &with, swapchain) })
+            }
+            _ => down.call(plain),
+        };
         let (Some(sess), true) = (sess.clone(), r == xr::Result::SUCCESS) else { return Ok(r) };
         // SAFETY: success means the create info was valid and the handle was written.
         let (ci, handle) = unsafe { (&*create_info, *swapchain) };
