@@ -15,6 +15,8 @@ pub struct FrameRecord {
     pub frame: u64,
     /// The live `mask.enabled` the frame was recorded under.
     pub mask_enabled: bool,
+    /// The live `foveation.enabled` (benchmarks switch it as `{feature}_enabled`).
+    pub foveation_enabled: bool,
     pub mask: MaskFrameStats,
     /// The foveation the frame was recorded with (empty when off).
     pub fovea: Vec<crate::shared::FoveaView>,
@@ -37,6 +39,7 @@ impl FrameRecord {
         serde_json::json!({
             "frame": self.frame,
             "mask_enabled": self.mask_enabled,
+            "foveation_enabled": self.foveation_enabled,
             "passes_masked": self.mask.passes_masked,
             "not_masked": not_masked,
             "pixels_masked": pixels,
@@ -50,6 +53,11 @@ impl FrameRecord {
                 "pixels_skipped": per_view(&rdm.pixels_skipped),
                 "reconstructed": per_view(&rdm.reconstructed),
                 "not_applied": rdm_not_applied,
+            },
+            "vrs": {
+                "passes": self.mask.vrs.passes,
+                "maps_built": self.mask.vrs.maps_built,
+                "not_applied": self.mask.vrs.not_applied.iter().map(|(k, v)| (k.to_string(), serde_json::Value::from(*v))).collect::<serde_json::Map<_, _>>(),
             },
         })
         .to_string()
@@ -98,8 +106,9 @@ mod tests {
             not_masked: [("no_depth_attachment", 1)].into_iter().collect(),
             pixels_masked: [(0, 1234)].into_iter().collect(),
             rdm: crate::rdm::RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() },
+            vrs: crate::vrs::VrsFrameStats { passes: 3, ..Default::default() },
         };
-        let r = FrameRecord { frame: 7, mask_enabled: true, mask, fovea: Vec::new(), fovea_source: None };
+        let r = FrameRecord { frame: 7, mask_enabled: true, foveation_enabled: true, mask, fovea: Vec::new(), fovea_source: None };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
         assert_eq!(v["frame"], 7);
         assert_eq!(v["passes_masked"], 2);
@@ -107,6 +116,7 @@ mod tests {
         assert_eq!(v["pixels_masked"]["0"], 1234);
         assert_eq!(v["rdm"]["passes"], 1);
         assert_eq!(v["rdm"]["quads_skipped"]["1"], 77);
+        assert_eq!((v["vrs"]["passes"].as_u64(), v["foveation_enabled"].as_bool()), (Some(3), Some(true)));
 
         let dir = std::env::temp_dir().join(format!("stereoshim-stats-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();

@@ -10,6 +10,7 @@ pub mod log;
 pub mod mask;
 pub mod mask_source;
 pub mod rdm;
+pub mod vrs;
 pub mod registry;
 pub mod shared;
 pub mod submission;

@@ -223,6 +223,8 @@ pub struct MaskFrameStats {
     pub pixels_masked: BTreeMap<u32, u64>,
     /// Radial density masking (foveation method 2), injected by the same machinery.
     pub rdm: crate::rdm::RdmFrameStats,
+    /// Variable-rate shading (foveation method 1): rate attachments chained into eye passes.
+    pub vrs: crate::vrs::VrsFrameStats,
 }
 
 impl MaskFrameStats {
@@ -235,6 +237,7 @@ impl MaskFrameStats {
             *self.pixels_masked.entry(*k).or_insert(0) += v;
         }
         self.rdm.add(&o.rdm);
+        self.vrs.add(&o.vrs);
     }
     pub fn count_not_masked(&mut self, why: NotMasked) {
         *self.not_masked.entry(why.name()).or_insert(0) += 1;
@@ -251,6 +254,10 @@ impl MaskFrameStats {
         if !self.rdm.is_empty() {
             s.push(' ');
             s.push_str(&self.rdm.summary());
+        }
+        if !self.vrs.is_empty() {
+            s.push(' ');
+            s.push_str(&self.vrs.summary());
         }
         s
     }

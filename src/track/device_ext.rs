@@ -31,7 +31,7 @@ pub struct Inputs<'a> {
     pub instance_has_properties2: bool,
     /// `vulkan.fragment_shading_rate`: auto | on | off.
     pub fsr_mode: &'a str,
-    /// Some enabled feature needs shading rate (none yet: auto behaves as off).
+    /// Some feature may need shading rate (`foveation_wants_fsr`).
     pub feature_wants_fsr: bool,
     /// None when it could not be queried.
     pub fsr_support: Option<FsrSupport>,
@@ -47,6 +47,14 @@ pub struct Decision {
     pub enable_fsr: Option<FsrSupport>,
     /// Why, for the log.
     pub reason: String,
+}
+
+/// Whether foveation asks for shading rate at device creation: `foveation.method` auto or vrs,
+/// whether or not `foveation.enabled` is on yet — it can be switched on live, but extensions and
+/// features can only be enabled when the device is created. (The device must still have
+/// attachment rates: `decide` checks that.)
+pub fn foveation_wants_fsr(method: &str) -> bool {
+    matches!(method, "auto" | "vrs")
 }
 
 fn has(list: &[String], name: &str) -> bool {
@@ -138,6 +146,23 @@ mod tests {
         // auto with a feature asking behaves like on.
         let d = decide(&Inputs { feature_wants_fsr: true, ..inputs(&avail, &req, "auto") });
         assert_eq!(d.add_extensions, vec![FRAGMENT_SHADING_RATE]);
+    }
+
+    #[test]
+    fn foveation_asks_for_shading_rate_unless_it_is_rdm() {
+        assert!(foveation_wants_fsr("auto") && foveation_wants_fsr("vrs") && !foveation_wants_fsr("rdm"));
+        let avail = strings(&[FRAGMENT_SHADING_RATE]);
+        let req = strings(&[]);
+        let d = decide(&Inputs { feature_wants_fsr: foveation_wants_fsr("auto"), ..inputs(&avail, &req, "auto") });
+        assert_eq!(d.enable_fsr, Some(FsrSupport { pipeline: true, primitive: false, attachment: true }));
+        // ... but not on a device without attachment rates (lavapipe), nor with rdm.
+        let no_att = FsrSupport { pipeline: true, primitive: true, attachment: false };
+        let d = decide(&Inputs { feature_wants_fsr: true, fsr_support: Some(no_att), ..inputs(&avail, &req, "auto") });
+        assert!(d.enable_fsr.is_none() && d.add_extensions.is_empty());
+        let none = strings(&[]);
+        assert!(decide(&Inputs { feature_wants_fsr: true, ..inputs(&none, &req, "auto") }).enable_fsr.is_none());
+        let d = decide(&Inputs { feature_wants_fsr: foveation_wants_fsr("rdm"), ..inputs(&avail, &req, "auto") });
+        assert!(d.enable_fsr.is_none());
     }
 
     #[test]

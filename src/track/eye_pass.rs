@@ -171,9 +171,10 @@ pub fn depth_loads(pass: &PassInstance) -> bool {
     !used_before && rp.attachments.get(index as usize).is_some_and(|a| a.load_op == vk::AttachmentLoadOp::LOAD)
 }
 
-/// Decides whether the open pass gets a mask, and where.
-pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotMasked> {
-    // Eyes first: a pass that shows no eye is not an eye pass, whatever its depth does.
+/// The attachment of the open pass that shows eyes, which eyes its image holds, and whether it
+/// is an intermediate target: the eye-pass test shared by the mask, radial density masking and
+/// variable-rate shading (which needs no depth).
+pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p AttachmentUse, Vec<EyeSource>, bool), NotMasked> {
     let mut found: Option<(&AttachmentUse, Vec<EyeSource>, bool)> = None;
     let mut unknown_swapchain = false;
     let mut has_color = false;
@@ -198,6 +199,13 @@ pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotM
     if intermediate && !facts.intermediate_enabled {
         return Err(NotMasked::IntermediateOff);
     }
+    Ok((att, sources, intermediate))
+}
+
+/// Decides whether the open pass gets a mask, and where.
+pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotMasked> {
+    // Eyes first: a pass that shows no eye is not an eye pass, whatever its depth does.
+    let (att, sources, intermediate) = find_eyes(pass, facts)?;
     if facts.secondary_contents {
         return Err(NotMasked::Secondary);
     }

@@ -45,6 +45,39 @@ fn hook<H: Handle + Copy, R: Copy>(
     )
 }
 
+/// Like `hook`, for calls whose arguments the layer may change: `decide` runs first (layered path
+/// only) and `next` calls down with its decision (None: the app's arguments, unchanged).
+fn hook_decided<H: Handle + Copy, R: Copy, D>(
+    call: &'static str,
+    handle: H,
+    unknown: R,
+    decide: impl FnOnce(&DeviceState) -> D,
+    next: impl Fn(&DeviceState, Option<&D>) -> R,
+    record: impl FnOnce(&DeviceState, R) -> Result<(), Fault>,
+) -> R {
+    let Some(dev) = device_of(handle) else {
+        return unknown;
+    };
+    let span = if call.starts_with("vkCmd") {
+        tracing::trace_span!("vk", call)
+    } else {
+        tracing::debug_span!("vk", call)
+    };
+    let _entered = span.entered();
+    guard::run(
+        call,
+        &dev.pass_through,
+        |down| {
+            dev.check(call)?;
+            let decision = decide(&dev);
+            let r = down.call(|| next(&dev, Some(&decision)));
+            record(&dev, r)?;
+            Ok(r)
+        },
+        || next(&dev, None),
+    )
+}
+
 /// Command-buffer hooks that only record state.
 fn cmd<R: Copy>(call: &'static str, cb: vk::CommandBuffer, unknown: R, next: impl Fn(&DeviceState) -> R, record: impl FnOnce(&DeviceState, u64)) -> R {
     hook(call, cb, unknown, next, |dev, _| {
@@ -359,7 +392,6 @@ pub(super) unsafe extern "system" fn create_device(
         // SAFETY: forwarding the app's arguments unchanged.
         let plain = || unsafe { create(pd, ci, allocator, p_device) };
         let mut decision = device_ext::Decision { reason: "pass-through".into(), ..Default::default() };
-        let mut fsr_attachment = false;
         // SAFETY: the loader's create info chain, valid for this call.
         let set_loader_data = unsafe { loader_data_callback(ci_ref.p_next) };
         let r = guard::run(
@@ -368,7 +400,6 @@ pub(super) unsafe extern "system" fn create_device(
             |down| {
                 check_fault(&inst.config, "vkCreateDevice")?;
                 let (available, api_version, fsr_support) = device_inputs(&inst, pd);
-                fsr_attachment = fsr_support.is_some_and(|f| f.attachment);
                 // SAFETY: the app's names array is valid with its count.
                 let requested = unsafe { convert::names(ci_ref.pp_enabled_extension_names, ci_ref.enabled_extension_count) };
                 let has_props2 = inst.api_version >= vk::API_VERSION_1_1
@@ -379,7 +410,7 @@ pub(super) unsafe extern "system" fn create_device(
                     api_version,
                     instance_has_properties2: has_props2,
                     fsr_mode: inst.config.choice("vulkan.fragment_shading_rate"),
-                    feature_wants_fsr: false,
+                    feature_wants_fsr: device_ext::foveation_wants_fsr(inst.config.choice("foveation.method")),
                     fsr_support,
                 });
                 if decision.enable_fsr.is_none() {
@@ -419,6 +450,13 @@ pub(super) unsafe extern "system" fn create_device(
         // SAFETY: a physical device of this instance; the next layer's instance functions.
         let memory = unsafe { inst.fns.get_physical_device_memory_properties(pd) };
         tracing::info!(decision = %decision.reason, pass_through = inst.pass_through.is_on(), "vulkan device created");
+        // Attachment rates enabled by the layer (or kept from the app's own request): foveation
+        // can use VRS on this device; `auto` then means vrs, not rdm.
+        let fsr_attachment = decision.enable_fsr.is_some_and(|f| f.attachment);
+        let rates = if fsr_attachment { fsr_rates(&inst, pd) } else { None };
+        if let Some(r) = rates {
+            tracing::info!(texel_width = r.texel_width, texel_height = r.texel_height, layered = r.layered, "fragment shading rate attachment available for foveation");
+        }
         let state = DeviceState {
             handle: device,
             next_gdpa,
@@ -428,11 +466,32 @@ pub(super) unsafe extern "system" fn create_device(
             config: inst.config.clone(),
             track: Default::default(),
             extension_decision: decision,
-            mask: super::mask::MaskDevice::new(&inst.config, memory, fsr_attachment),
+            mask: super::mask::MaskDevice::new(&inst.config, memory, rates.is_some()),
+            vrs: super::vrs::VrsDevice::new(&inst.config, memory, rates),
             rdm: super::rdm::RdmDevice::new(memory, set_loader_data),
         };
         layer().devices.insert(dispatch_key(device), Arc::new(state));
         r
+    })
+}
+
+/// `VkPhysicalDeviceFragmentShadingRatePropertiesKHR`: the finest rate-map texel and whether
+/// multiview passes can have one layer per view. None when the instance cannot query it.
+fn fsr_rates(inst: &InstanceState, pd: vk::PhysicalDevice) -> Option<crate::vrs::DeviceRates> {
+    // SAFETY: a physical device of this instance; the next layer's instance functions.
+    let props = unsafe { inst.fns.get_physical_device_properties(pd) };
+    if props.api_version.min(inst.api_version) < vk::API_VERSION_1_1 {
+        return None;
+    }
+    let mut fsr = vk::PhysicalDeviceFragmentShadingRatePropertiesKHR::default();
+    let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut fsr);
+    // SAFETY: as above; a correctly chained output struct (1.1 instance and device).
+    unsafe { inst.fns.get_physical_device_properties2(pd, &mut p2) };
+    let t = fsr.min_fragment_shading_rate_attachment_texel_size;
+    (t.width > 0 && t.height > 0).then_some(crate::vrs::DeviceRates {
+        texel_width: t.width,
+        texel_height: t.height,
+        layered: fsr.layered_shading_rate_attachments != 0,
     })
 }
 
@@ -469,6 +528,7 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
         } else {
             tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {}", dev.track.stats.summary());
         }
+        super::vrs::destroy(&dev);
         // SAFETY: forwarding the app's arguments.
         unsafe { (dev.fns.fp_v1_0().destroy_device)(device, allocator) };
         layer().devices.remove(key);
@@ -564,12 +624,25 @@ pub(super) unsafe extern "system" fn create_graphics_pipelines(
     allocator: *const vk::AllocationCallbacks<'_>,
     out: *mut vk::Pipeline,
 ) -> vk::Result {
-    hook(
+    hook_decided(
         "vkCreateGraphicsPipelines",
         device,
         vk::Result::ERROR_INITIALIZATION_FAILED,
-        // SAFETY: forwarding the app's arguments unchanged.
-        |d| unsafe { (d.fns.fp_v1_0().create_graphics_pipelines)(device, cache, count, infos, allocator, out) },
+        // SAFETY: the app's infos, valid during its call; the copies live in the decision.
+        |d| unsafe { super::vrs::pipeline_infos(d, infos, count) },
+        |d, decided| {
+            let create = d.fns.fp_v1_0().create_graphics_pipelines;
+            if let Some(Some(m)) = decided.filter(|m| m.as_ref().is_some_and(|m| m.changed > 0)) {
+                // SAFETY: the app's infos with only the shading-rate state added (see `vk::vrs`).
+                let r = unsafe { create(device, cache, count, m.infos.as_ptr(), allocator, out) };
+                if r == vk::Result::SUCCESS || r == vk::Result::PIPELINE_COMPILE_REQUIRED {
+                    return r;
+                }
+                tracing::warn!(?r, "vkCreateGraphicsPipelines failed with the shading-rate state; retrying as the app asked");
+            }
+            // SAFETY: forwarding the app's arguments unchanged.
+            unsafe { create(device, cache, count, infos, allocator, out) }
+        },
         |d, r| {
             if r != vk::Result::SUCCESS {
                 return Ok(());
@@ -821,6 +894,7 @@ pub(super) unsafe extern "system" fn cmd_begin_render_pass(cb: vk::CommandBuffer
     // SAFETY: forwarding the app's arguments unchanged.
     cmd("vkCmdBeginRenderPass", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_begin_render_pass)(cb, info, contents) }, |d, raw| {
         begin_pass(d, raw, PassKind::RenderPass, info);
+        super::vrs::on_render_pass_begin(d, cb, contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS);
         mask::on_trigger(d, cb, Trigger::Begin { secondary: contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS });
     })
 }
@@ -849,6 +923,7 @@ pub(super) unsafe extern "system" fn cmd_begin_render_pass2(
     // SAFETY: forwarding the app's arguments unchanged.
     cmd("vkCmdBeginRenderPass2", cb, (), |d| unsafe { (d.fns.fp_v1_2().cmd_begin_render_pass2)(cb, info, subpass_info) }, |d, raw| {
         begin_pass(d, raw, PassKind::RenderPass2, info);
+        super::vrs::on_render_pass_begin(d, cb, secondary_contents(subpass_info));
         mask::on_trigger(d, cb, Trigger::Begin { secondary: secondary_contents(subpass_info) });
     })
 }
@@ -870,14 +945,31 @@ pub(super) unsafe extern "system" fn cmd_end_render_pass2(cb: vk::CommandBuffer,
 }
 
 pub(super) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandBuffer, info: *const vk::RenderingInfo<'_>) {
-    // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdBeginRendering", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_begin_rendering)(cb, info) }, |d, raw| {
-        // SAFETY: a valid rendering info during the app's call.
-        let (area, rendering) = unsafe { convert::rendering(&d.track, &*info) };
-        let secondary = rendering.flags.contains(vk::RenderingFlags::CONTENTS_SECONDARY_COMMAND_BUFFERS);
-        d.track.begin_rendering(raw, area, rendering);
-        mask::on_trigger(d, cb, Trigger::Begin { secondary });
-    })
+    hook_decided(
+        "vkCmdBeginRendering",
+        cb,
+        (),
+        // SAFETY: the app's valid info; `cb` is recording outside a pass (it is about to begin one).
+        |d| unsafe { super::vrs::for_rendering(d, cb, info) },
+        |d, decided| {
+            let begin = d.fns.fp_v1_3().cmd_begin_rendering;
+            match decided {
+                // SAFETY: the app's info with variable-rate shading's attachment chained first.
+                Some(Some(v)) => unsafe { begin(cb, &v.info) },
+                // SAFETY: forwarding the app's arguments unchanged.
+                _ => unsafe { begin(cb, info) },
+            }
+        },
+        |d, _| {
+            let raw = cb.as_raw();
+            // SAFETY: a valid rendering info during the app's call.
+            let (area, rendering) = unsafe { convert::rendering(&d.track, &*info) };
+            let secondary = rendering.flags.contains(vk::RenderingFlags::CONTENTS_SECONDARY_COMMAND_BUFFERS);
+            d.track.begin_rendering(raw, area, rendering);
+            mask::on_trigger(d, cb, Trigger::Begin { secondary });
+            Ok(())
+        },
+    )
 }
 
 pub(super) unsafe extern "system" fn cmd_end_rendering(cb: vk::CommandBuffer) {

@@ -151,6 +151,11 @@ impl MaskDevice {
         Settings { enabled, rdm, debug: c.bool("mask.debug"), intermediate: c.choice("mask.intermediate") != "off" }
     }
 
+    /// Another injecting feature (variable-rate shading) counted here: the stats line includes it.
+    pub(super) fn mark_used(&self) {
+        self.used.store(true, Ordering::Relaxed);
+    }
+
     pub fn used(&self) -> bool {
         self.used.load(Ordering::Relaxed)
     }
@@ -336,7 +341,7 @@ fn depth_image(pass: &PassInstance) -> Option<u64> {
     att.image_view.as_ref().map(|v| v.image)
 }
 
-fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) -> Eyes {
+pub(super) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) -> Eyes {
     if let Some(sc) = &a.swapchain {
         return Eyes::Swapchain(sc.swapchain.uses().iter().map(EyeSource::from_use).collect());
     }
@@ -650,6 +655,11 @@ pub(super) fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipelin
                 .depth_attachment_format(*depth)
                 .stencil_attachment_format(*stencil);
             info = info.push_next(&mut rendering);
+            // The pass may carry variable-rate shading's attachment, which every pipeline bound
+            // in it must be made for.
+            if d.vrs.enabled() {
+                info = info.flags(vk::PipelineCreateFlags::RENDERING_FRAGMENT_SHADING_RATE_ATTACHMENT_KHR);
+            }
         }
     }
     // SAFETY: a valid create info; every object it names is alive (the app's render pass is in use

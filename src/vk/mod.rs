@@ -11,6 +11,7 @@ mod hooks;
 pub mod loader;
 mod mask;
 mod rdm;
+mod vrs;
 
 use crate::config::Config;
 use crate::guard::{self, PassThrough};
@@ -64,6 +65,8 @@ pub(crate) struct DeviceState {
     pub mask: mask::MaskDevice,
     /// Radial density masking's objects (its statistics live with the mask's).
     pub rdm: rdm::RdmDevice,
+    /// Variable-rate shading's rate images (its statistics live with the mask's).
+    pub vrs: vrs::VrsDevice,
 }
 
 impl DeviceState {

@@ -49,8 +49,8 @@ fn write_frame_stats(inst: &super::Instance, frame: u64) {
             .or(Some(crate::foveation::CenterSource::Fixed))
             .map(|src| format!("{src:?}"))
     };
-    let record = crate::frame_stats::FrameRecord { frame, mask_enabled: live.bool("mask.enabled"), mask, fovea, fovea_source };
-    if frame == 0 || record.mask.passes_masked > 0 || !record.mask.not_masked.is_empty() {
+    let record = crate::frame_stats::FrameRecord { frame, mask_enabled: live.bool("mask.enabled"), foveation_enabled: live.bool("foveation.enabled"), mask, fovea, fovea_source };
+    if frame == 0 || record.mask.passes_masked > 0 || !record.mask.not_masked.is_empty() || !record.mask.vrs.is_empty() {
         tracing::debug!("frame stats: {}", record.to_json());
     }
     WRITER.get_or_init(Default::default).write(live.text("stats.file"), &record);
