@@ -1,0 +1,203 @@
+//! GPU proof of foveated rendering, for any machine with a Vulkan GPU and no Rust: xr-scene (scale
+//! 1.0, the index profile) runs once without the layer, once with `foveation.method = vrs` and
+//! once with `rdm`, for every layout × rendering asked for; frame 2 is compared:
+//! (a) pixels inside the inner ring (from frames.json's FOV, fovea centre (0, 0) and the preset's
+//!     angle, minus a one-texel margin): must be bit-identical — the count of differing pixels;
+//! (b) periphery PSNR (outside that region);
+//! (c) shaded fragments without / with;
+//! (d) the layer's own stats for the frame (VRS passes, or why not).
+//! Exits non-zero when a fovea is not bit-identical, when VRS did not engage in a VRS run, or when
+//! a run fails (validation errors included: xr-scene `--validation` exits non-zero on one).
+//!
+//! Prebuilt binaries in a folder laid out like target/release (xr-scene, libmock_runtime.so,
+//! libstereoshim.so, the manifests the harness writes there, examples/fovea_check):
+//!   target/release/examples/fovea_check [--layouts per-eye,side-by-side,multiview]
+//!     [--renderings dynamic,render-pass] [--methods vrs,rdm] [--preset balanced]
+//!     [--texel 16] [--hmd index] [--scale 1.0] [--no-validation]
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use common::{Fov, Run, RunOutput};
+
+struct Args {
+    layouts: Vec<String>,
+    renderings: Vec<String>,
+    methods: Vec<String>,
+    preset: String,
+    texel: f64,
+    hmd: String,
+    scale: String,
+    validation: bool,
+}
+
+fn parse_args() -> Args {
+    let mut a = Args {
+        layouts: vec!["per-eye".into(), "side-by-side".into(), "multiview".into()],
+        renderings: vec!["dynamic".into()],
+        methods: vec!["vrs".into(), "rdm".into()],
+        preset: "balanced".into(),
+        texel: 16.0,
+        hmd: "index".into(),
+        scale: "1.0".into(),
+        validation: true,
+    };
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    let mut i = 0;
+    let list = |v: &str| v.split(',').filter(|s| !s.is_empty()).map(String::from).collect::<Vec<_>>();
+    while i < argv.len() {
+        let v = argv.get(i + 1).cloned().unwrap_or_default();
+        match argv[i].as_str() {
+            "--no-validation" => {
+                a.validation = false;
+                i += 1;
+                continue;
+            }
+            "--layouts" => a.layouts = list(&v),
+            "--renderings" => a.renderings = list(&v),
+            "--methods" => a.methods = list(&v),
+            "--preset" => a.preset = v,
+            "--texel" => a.texel = v.parse().expect("--texel N"),
+            "--hmd" => a.hmd = v,
+            "--scale" => a.scale = v,
+            other => panic!("unknown argument {other}"),
+        }
+        i += 2;
+    }
+    a
+}
+
+fn preset(name: &str) -> (f64, f64) {
+    match name {
+        "subtle" => (30.0, 45.0),
+        "aggressive" => (12.0, 25.0),
+        _ => (20.0, 35.0),
+    }
+}
+
+/// Angle (degrees) between the optical axis and the direction through image point (px, py) of a
+/// `w` × `h` rect (pixels, y down).
+fn angle_deg(f: &Fov, w: u32, h: u32, px: f64, py: f64) -> f64 {
+    let (l, r) = ((f.angle_left as f64).tan(), (f.angle_right as f64).tan());
+    let (u, d) = ((f.angle_up as f64).tan(), (f.angle_down as f64).tan());
+    let tx = l + px / w as f64 * (r - l);
+    let ty = u - py / h as f64 * (u - d);
+    (1.0 / (tx * tx + ty * ty + 1.0).sqrt()).acos().to_degrees()
+}
+
+fn psnr(se: f64, n: u64) -> f64 {
+    if n == 0 || se == 0.0 {
+        return f64::INFINITY;
+    }
+    10.0 * (255.0f64 * 255.0 / (se / n as f64)).log10()
+}
+
+const FRAME: u64 = 2;
+
+fn shaded(o: &RunOutput, view: u32) -> u64 {
+    o.stats
+        .as_ref()
+        .and_then(|s| s.frames.iter().find(|f| f.frame == FRAME))
+        .and_then(|f| f.views.iter().find(|v| v.view == view))
+        .map_or(0, |v| v.shaded_fragments)
+}
+
+fn layer_stats(path: &std::path::Path) -> serde_json::Value {
+    std::fs::read_to_string(path)
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .find(|v| v["frame"] == FRAME)
+        .unwrap_or(serde_json::Value::Null)
+}
+
+fn main() {
+    let a = parse_args();
+    let (inner_deg, _) = preset(&a.preset);
+    let mut failures = Vec::new();
+    println!("| layout | rendering | method | view | inner px | inner differing | periphery PSNR dB | shaded off | shaded on | saved | layer stats (frame {FRAME}) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for layout in &a.layouts {
+        for rendering in &a.renderings {
+            let name = format!("fovea-check-{layout}-{rendering}");
+            let mut base = Run::new(&name).env("MOCK_XR_HMD", &a.hmd).env("MOCK_XR_EXIT_AFTER", &(FRAME + 1).to_string()).env("MOCK_XR_EYE_TRACKER", "0");
+            base.args = vec!["--scale".into(), a.scale.clone(), "--layout".into(), layout.clone(), "--rendering".into(), rendering.clone()];
+            base.validation = a.validation;
+            let plain = base.clone().run();
+            if plain.code != Some(0) {
+                failures.push(format!("{name}: plain run failed: {}", plain.stderr));
+                continue;
+            }
+            for method in &a.methods {
+                let stats_path = common::target_dir().join("test-output").join(format!("{name}-{method}.layer-stats.jsonl"));
+                let _ = std::fs::remove_file(&stats_path);
+                let mut run = base
+                    .clone()
+                    .with_layer()
+                    .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+                    .env("STEREOSHIM_FOVEATION_METHOD", method)
+                    .env("STEREOSHIM_FOVEATION_PRESET", &a.preset)
+                    .env("STEREOSHIM_FOVEATION_EYE_TRACKING", "off")
+                    .env("STEREOSHIM_STATS_FILE", stats_path.to_str().unwrap());
+                run.name = format!("{name}-{method}");
+                let out = run.run();
+                if out.code != Some(0) {
+                    failures.push(format!("{}: run failed (validation?): {}", run.name, out.stderr));
+                    continue;
+                }
+                let stats = layer_stats(&stats_path);
+                let summary = format!("vrs {} rdm {}", stats["vrs"], stats["rdm"]["passes"]);
+                if method == "vrs" && stats["vrs"]["passes"].as_u64().unwrap_or(0) == 0 {
+                    failures.push(format!("{}: VRS did not engage: {}", run.name, stats["vrs"]));
+                }
+                for (got_v, want_v) in out.views(FRAME).iter().zip(plain.views(FRAME)) {
+                    let (w, h) = (got_v.image_rect.width, got_v.image_rect.height);
+                    let (got, want) = (out.image(&got_v.file), plain.image(&want_v.file));
+                    let m = a.texel;
+                    let (mut inner, mut differing, mut se, mut n) = (0u64, 0u64, 0f64, 0u64);
+                    for y in 0..h {
+                        for x in 0..w {
+                            let (px, py) = (x as f64, y as f64);
+                            // The pixel grown by one texel lies inside the inner ring (with the
+                            // centre on the axis the angle grows with the distance, so corners
+                            // bound it).
+                            let is_inner = [(px - m, py - m), (px + 1.0 + m, py - m), (px - m, py + 1.0 + m), (px + 1.0 + m, py + 1.0 + m)]
+                                .iter()
+                                .all(|&(qx, qy)| angle_deg(&got_v.fov, w, h, qx, qy) < inner_deg);
+                            let (g, e) = (&got.pixel(x, y)[..3], &want.pixel(x, y)[..3]);
+                            if is_inner {
+                                inner += 1;
+                                differing += (g != e) as u64;
+                            } else {
+                                se += g.iter().zip(e).map(|(&p, &q)| (p as f64 - q as f64).powi(2)).sum::<f64>();
+                                n += 3;
+                            }
+                        }
+                    }
+                    if differing > 0 {
+                        let dir = common::image::artifacts_dir(&format!("{}-view{}", run.name, got_v.view));
+                        got.save(&dir.join("actual.png"));
+                        want.save(&dir.join("expected.png"));
+                        common::image::difference(&got, &want).save(&dir.join("difference.png"));
+                        failures.push(format!("{} view {}: {differing} of {inner} inner-ring pixels differ; artifacts in {}", run.name, got_v.view, dir.display()));
+                    }
+                    let (s_off, s_on) = (shaded(&plain, got_v.view), shaded(&out, got_v.view));
+                    println!(
+                        "| {layout} | {rendering} | {method} | {} | {inner} | {differing} | {:.2} | {s_off} | {s_on} | {:.1} % | {summary} |",
+                        got_v.view,
+                        psnr(se, n),
+                        100.0 * (1.0 - s_on as f64 / s_off.max(1) as f64)
+                    );
+                }
+            }
+        }
+    }
+    if failures.is_empty() {
+        println!("fovea_check: OK");
+    } else {
+        for f in &failures {
+            eprintln!("FAIL {f}");
+        }
+        std::process::exit(1);
+    }
+}

@@ -1,0 +1,60 @@
+//! Foveation method 1, variable-rate shading, on lavapipe — which has no
+//! `attachmentFragmentShadingRate`: `foveation.method = vrs` must report itself unsupported and
+//! change nothing (captures bit-identical to a run without the layer, validation silent), and
+//! `auto` must fall back to radial density masking. (The GPU proof is `examples/fovea_check`.)
+
+mod common;
+
+use common::Run;
+
+fn stats_lines(path: &std::path::Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(path).unwrap_or_default().lines().map(|l| serde_json::from_str(l).expect("stats line parses")).collect()
+}
+
+fn foveated(name: &str, args: &[&str], method: &str) -> (common::RunOutput, Vec<serde_json::Value>) {
+    let stats = common::target_dir().join("test-output").join(format!("{name}.layer-stats.jsonl"));
+    let _ = std::fs::remove_file(&stats);
+    let mut run = Run::new(name)
+        .args(args.iter().copied())
+        .with_layer()
+        .env("MOCK_XR_EYE_TRACKER", "0")
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", method)
+        .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap());
+    run.name = name.to_string();
+    let out = run.run();
+    out.assert_ok();
+    assert!(out.log_lines("internal failure").is_empty(), "{name}: {}", out.log);
+    (out, stats_lines(&stats))
+}
+
+#[test]
+fn vrs_is_unsupported_on_lavapipe_and_changes_nothing() {
+    for (layout, rendering) in [("per-eye", "dynamic"), ("multiview", "dynamic"), ("side-by-side", "render-pass")] {
+        let args = ["--layout", layout, "--rendering", rendering];
+        let plain = Run::new(&format!("vrs-plain-{layout}-{rendering}")).args(args).env("MOCK_XR_EYE_TRACKER", "0").run();
+        plain.assert_ok();
+        let (out, stats) = foveated(&format!("vrs-lavapipe-{layout}-{rendering}"), &args, "vrs");
+        common::assert_same_captures(&out.name, &out, &plain);
+        assert_eq!(out.stats.as_ref().map(|s| s.frames.len()), plain.stats.as_ref().map(|s| s.frames.len()));
+        // The device never got the extension (lavapipe lacks attachment rates), nothing went in.
+        assert!(!out.log_lines("vrs unsupported on this device").is_empty(), "{}: {}", out.name, out.log);
+        assert!(out.log_lines("vrs on ").is_empty() && out.log_lines("radial density masking ").is_empty(), "{}: {}", out.name, out.log);
+        let f1 = stats.iter().find(|v| v["frame"] == 1).unwrap_or_else(|| panic!("{}: no stats for frame 1", out.name));
+        assert_eq!(f1["foveation_enabled"], true, "{f1}");
+        assert_eq!(f1["vrs"]["passes"], 0, "{f1}");
+        assert!(f1["vrs"]["not_applied"]["unsupported"].as_u64().unwrap_or(0) >= 1, "{f1}");
+        assert_eq!(f1["rdm"]["passes"], 0, "{f1}");
+    }
+}
+
+#[test]
+fn auto_falls_back_to_rdm_on_lavapipe() {
+    let (out, stats) = foveated("vrs-auto-lavapipe", &["--layout", "per-eye", "--rendering", "dynamic"], "auto");
+    assert!(!out.log_lines("radial density masking ").is_empty(), "auto did not use RDM: {}", out.log);
+    assert!(out.log_lines("vrs unsupported").is_empty(), "{}", out.log);
+    let f1 = stats.iter().find(|v| v["frame"] == 1).expect("stats of frame 1");
+    assert!(f1["rdm"]["passes"].as_u64().unwrap_or(0) >= 1, "{f1}");
+    assert_eq!(f1["vrs"]["passes"], 0, "{f1}");
+    assert!(f1["vrs"]["not_applied"].as_object().is_none_or(|m| m.is_empty()), "{f1}");
+}
