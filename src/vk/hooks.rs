@@ -22,27 +22,7 @@ fn hook<H: Handle + Copy, R: Copy>(
     next: impl Fn(&DeviceState) -> R,
     record: impl FnOnce(&DeviceState, R) -> Result<(), Fault>,
 ) -> R {
-    let Some(dev) = device_of(handle) else {
-        // No dispatch table: there is nothing to call down to.
-        return unknown;
-    };
-    let span = if call.starts_with("vkCmd") {
-        tracing::trace_span!("vk", call)
-    } else {
-        tracing::debug_span!("vk", call)
-    };
-    let _entered = span.entered();
-    guard::run(
-        call,
-        &dev.pass_through,
-        |down| {
-            dev.check(call)?;
-            let r = down.call(|| next(&dev));
-            record(&dev, r)?;
-            Ok(r)
-        },
-        || next(&dev),
-    )
+    hook_decided(call, handle, unknown, |_| (), |dev, _| next(dev), record)
 }
 
 /// Like `hook`, for calls whose arguments the layer may change: `decide` runs first (layered path
@@ -56,6 +36,7 @@ fn hook_decided<H: Handle + Copy, R: Copy, D>(
     record: impl FnOnce(&DeviceState, R) -> Result<(), Fault>,
 ) -> R {
     let Some(dev) = device_of(handle) else {
+        // No dispatch table: there is nothing to call down to.
         return unknown;
     };
     let span = if call.starts_with("vkCmd") {

@@ -423,15 +423,8 @@ fn record(d: &DeviceState, cb: vk::CommandBuffer, snap: &Snapshot, plan: &MaskPl
         NotMasked::LayerError
     })?;
     let fns = d.fns.fp_v1_0();
-    let viewport = |r: PixelRect| vk::Viewport {
-        x: r.x as f32,
-        y: r.y as f32,
-        width: r.width as f32,
-        height: r.height as f32,
-        min_depth: plan.fail_depth,
-        max_depth: plan.fail_depth,
-    };
-    let scissor = |r: PixelRect| vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } };
+    let viewport = |r: PixelRect| fail_viewport(r, plan.fail_depth);
+    let scissor = rect2d;
     // SAFETY: `cb` is recording inside the pass the plan was made for (the hook just recorded its
     // begin / clear); the pipeline is compatible with it; the buffer lives until retired frames
     // after this command buffer completed; all arrays outlive the calls.
@@ -910,6 +903,24 @@ pub(super) unsafe fn replay(d: &DeviceState, cb: vk::CommandBuffer, c: &StateCmd
         }
     }
 }
+
+/// The viewport of an injected depth draw: the eye's rect, with the depth range pinned to the fail
+/// depth so one pipeline serves both depth conventions.
+pub(super) fn fail_viewport(r: PixelRect, fail_depth: f32) -> vk::Viewport {
+    vk::Viewport {
+        x: r.x as f32,
+        y: r.y as f32,
+        width: r.width as f32,
+        height: r.height as f32,
+        min_depth: fail_depth,
+        max_depth: fail_depth,
+    }
+}
+
+pub(super) fn rect2d(r: PixelRect) -> vk::Rect2D {
+    vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } }
+}
+
 
 #[cfg(test)]
 mod tests {

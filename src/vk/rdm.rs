@@ -181,15 +181,8 @@ pub(super) fn record_draw(d: &DeviceState, cb: vk::CommandBuffer, key: &Pipeline
         NotApplied::LayerError
     })?;
     let fns = d.fns.fp_v1_0();
-    let viewport = |r: PixelRect| vk::Viewport {
-        x: r.x as f32,
-        y: r.y as f32,
-        width: r.width as f32,
-        height: r.height as f32,
-        min_depth: plan.fail_depth,
-        max_depth: plan.fail_depth,
-    };
-    let scissor = |r: PixelRect| vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } };
+    let viewport = |r: PixelRect| mask::fail_viewport(r, plan.fail_depth);
+    let scissor = mask::rect2d;
     // SAFETY: `cb` is recording inside the pass the plan was made for; the pipeline is compatible
     // with it; the buffer lives until retired frames after this command buffer completed.
     unsafe {
