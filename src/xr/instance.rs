@@ -258,7 +258,7 @@ pub(super) unsafe extern "system" fn enumerate_view_configuration_views(
     view_count_output: *mut u32,
     views: *mut xr::ViewConfigurationView,
 ) -> xr::Result {
-    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+    let Some(inst) = super::instance_for(instance) else {
         return xr::Result::ERROR_HANDLE_INVALID;
     };
     let Some(next) = inst.next.enumerate_view_configuration_views else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
@@ -285,7 +285,7 @@ pub(super) unsafe extern "system" fn enumerate_view_configuration_views(
 }
 
 pub(super) unsafe extern "system" fn poll_event(instance: xr::Instance, event_data: *mut xr::EventDataBuffer) -> xr::Result {
-    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+    let Some(inst) = super::instance_for(instance) else {
         return xr::Result::ERROR_HANDLE_INVALID;
     };
     let Some(next) = inst.next.poll_event else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };

@@ -195,6 +195,11 @@ fn sole_instance() -> Option<Arc<Instance>> {
     }
 }
 
+/// The state of an instance the app passed, or the one to forward an unknown handle through.
+fn instance_for(instance: xr::Instance) -> Option<Arc<Instance>> {
+    state().instances.get(instance.into_raw()).or_else(sole_instance)
+}
+
 /// Reads a fixed-size, NUL-terminated C string field.
 fn fixed_str(chars: &[c_char]) -> String {
     let bytes: Vec<u8> = chars.iter().take_while(|&&c| c != 0).map(|&c| c as u8).collect();

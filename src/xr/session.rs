@@ -171,7 +171,7 @@ pub(super) unsafe extern "system" fn create_session(
     create_info: *const xr::SessionCreateInfo,
     session: *mut xr::Session,
 ) -> xr::Result {
-    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+    let Some(inst) = super::instance_for(instance) else {
         return xr::Result::ERROR_HANDLE_INVALID;
     };
     let Some(next) = inst.next.create_session else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };

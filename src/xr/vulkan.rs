@@ -4,12 +4,10 @@
 //! asking for the runtime's instance extensions, so that request is where the layer is put into
 //! `VK_INSTANCE_LAYERS`. Either way the loader finds the layer through `VK_ADD_LAYER_PATH`.
 
-use super::state;
 use crate::guard;
 use crate::vk_manifest::{self, VK_LAYER_NAME};
 use ash::vk;
 use openxr_sys as xr;
-use openxr_sys::Handle as _;
 use std::ffi::{c_char, CStr, CString};
 use std::sync::OnceLock;
 
@@ -75,7 +73,7 @@ pub(super) unsafe extern "system" fn create_vulkan_instance(
     vulkan_instance: *mut xr::platform::VkInstance,
     vulkan_result: *mut xr::platform::VkResult,
 ) -> xr::Result {
-    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+    let Some(inst) = super::instance_for(instance) else {
         return xr::Result::ERROR_HANDLE_INVALID;
     };
     let Some(next) = inst.next.create_vulkan_instance else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
@@ -134,7 +132,7 @@ pub(super) unsafe extern "system" fn create_vulkan_device(
     vulkan_device: *mut xr::platform::VkDevice,
     vulkan_result: *mut xr::platform::VkResult,
 ) -> xr::Result {
-    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+    let Some(inst) = super::instance_for(instance) else {
         return xr::Result::ERROR_HANDLE_INVALID;
     };
     let Some(next) = inst.next.create_vulkan_device else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
@@ -162,7 +160,7 @@ pub(super) unsafe extern "system" fn get_vulkan_instance_extensions(
     buffer_count_output: *mut u32,
     buffer: *mut c_char,
 ) -> xr::Result {
-    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+    let Some(inst) = super::instance_for(instance) else {
         return xr::Result::ERROR_HANDLE_INVALID;
     };
     let Some(next) = inst.next.get_vulkan_instance_extensions else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
@@ -192,7 +190,7 @@ pub(super) unsafe extern "system" fn get_vulkan_device_extensions(
     buffer_count_output: *mut u32,
     buffer: *mut c_char,
 ) -> xr::Result {
-    let Some(inst) = state().instances.get(instance.into_raw()).or_else(super::sole_instance) else {
+    let Some(inst) = super::instance_for(instance) else {
         return xr::Result::ERROR_HANDLE_INVALID;
     };
     let Some(next) = inst.next.get_vulkan_device_extensions else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
