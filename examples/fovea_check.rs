@@ -6,13 +6,14 @@
 //! (b) periphery PSNR (outside that region);
 //! (c) shaded fragments without / with;
 //! (d) the layer's own stats for the frame (VRS passes, or why not).
-//! Exits non-zero when a fovea is not bit-identical, when VRS did not engage in a VRS run, or when
-//! a run fails (validation errors included: xr-scene `--validation` exits non-zero on one).
+//! Exits non-zero when a fovea is not bit-identical, when VRS did not engage in a VRS run (dynamic
+//! rendering and render pass objects alike: `render-pass`, `render-pass2`), or when a run fails
+//! (validation errors included: xr-scene `--validation` exits non-zero on one).
 //!
 //! Prebuilt binaries in a folder laid out like target/release (xr-scene, libmock_runtime.so,
 //! libstereoshim.so, the manifests the harness writes there, examples/fovea_check):
 //!   target/release/examples/fovea_check [--layouts per-eye,side-by-side,multiview]
-//!     [--renderings dynamic,render-pass] [--methods vrs,rdm] [--preset balanced]
+//!     [--renderings dynamic,render-pass,render-pass2] [--methods vrs,rdm] [--preset balanced]
 //!     [--texel 16] [--hmd index] [--scale 1.0] [--no-validation]
 
 #[path = "../tests/common/mod.rs"]
@@ -34,7 +35,7 @@ struct Args {
 fn parse_args() -> Args {
     let mut a = Args {
         layouts: vec!["per-eye".into(), "side-by-side".into(), "multiview".into()],
-        renderings: vec!["dynamic".into()],
+        renderings: vec!["dynamic".into(), "render-pass".into()],
         methods: vec!["vrs".into(), "rdm".into()],
         preset: "balanced".into(),
         texel: 16.0,

@@ -181,6 +181,33 @@ pub fn texels(pixels: u32, texel: u32) -> u32 {
     pixels.div_ceil(texel.max(1))
 }
 
+/// Whether the layer appends its shading-rate attachment to a render pass the app creates:
+/// only on a device where it enabled attachment rates, and never to a pass that has its own rate
+/// attachment or uses a fragment density map (the two must not meet), nor to one without a
+/// graphics subpass.
+pub fn adds_rate_attachment(enabled: bool, app_has_rate_attachment: bool, app_uses_density_map: bool, graphics_subpasses: usize) -> bool {
+    enabled && !app_has_rate_attachment && !app_uses_density_map && graphics_subpasses > 0
+}
+
+/// Layers of the rate image attached to a framebuffer of a render pass object: one per view
+/// (up to the highest view of any subpass) for multiview passes on a device that reads layered
+/// rate attachments; else 1, which the spec accepts for any framebuffer (every view and layer
+/// then reads layer 0).
+pub fn pass_rate_layers(view_masks: &[u32], layered: bool) -> u32 {
+    let all = view_masks.iter().fold(0u32, |a, m| a | m);
+    if all == 0 || !layered {
+        1
+    } else {
+        32 - all.leading_zeros()
+    }
+}
+
+/// (width, height, layers) in texels of the rate image for a framebuffer of `width` × `height`
+/// pixels: covers every pixel (`ceil(extent / texel)`).
+pub fn pass_rate_extent(width: u32, height: u32, view_masks: &[u32], rates: DeviceRates) -> (u32, u32, u32) {
+    (texels(width, rates.texel_width), texels(height, rates.texel_height), pass_rate_layers(view_masks, rates.layered))
+}
+
 /// Why a pass got no rate attachment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum NotApplied {
@@ -191,7 +218,8 @@ pub enum NotApplied {
     MultiviewNotLayered,
     /// The app chains its own fragment shading rate attachment.
     AppUsesFsr,
-    /// A render pass object (`vkCmdBeginRenderPass(2)`): not implemented yet.
+    /// A render pass object (`vkCmdBeginRenderPass(2)`) without the layer's rate attachment
+    /// (created before the layer, or one it left alone: its own rate attachment, a density map).
     RenderPass,
     /// Contents recorded in secondary command buffers.
     Secondary,
@@ -270,6 +298,23 @@ impl VrsFrameStats {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn render_pass_rate_attachment_shape() {
+        assert!(adds_rate_attachment(true, false, false, 1));
+        assert!(!adds_rate_attachment(false, false, false, 1), "not on a device without layer-enabled rates");
+        assert!(!adds_rate_attachment(true, true, false, 1), "not beside the app's own");
+        assert!(!adds_rate_attachment(true, false, true, 1), "not with a fragment density map");
+        assert!(!adds_rate_attachment(true, false, false, 0));
+        let r = DeviceRates { texel_width: 16, texel_height: 8, layered: true };
+        // ceil(fb / texel); one layer without multiview.
+        assert_eq!(pass_rate_extent(1000, 1001, &[0], r), (63, 126, 1));
+        assert_eq!(pass_rate_extent(16, 8, &[], r), (1, 1, 1));
+        // Multiview: up to the highest view of any subpass, only when layered.
+        assert_eq!(pass_rate_extent(32, 32, &[0b11, 0b01], r), (2, 4, 2));
+        assert_eq!(pass_rate_extent(32, 32, &[0b100], r), (2, 4, 3));
+        assert_eq!(pass_rate_extent(32, 32, &[0b11], DeviceRates { layered: false, ..r }), (2, 4, 1));
+    }
 
     const FOV: ViewFov = ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
 

@@ -484,6 +484,7 @@ mod tests {
             attachments: vec![desc(R), desc(R)],
             subpasses: vec![sub.clone(), sub],
             correlation_masks: vec![],
+            layer_rate_attachment: None,
         });
         let mut pass = PassInstance {
             kind: PassKind::RenderPass,

@@ -165,6 +165,12 @@ impl DeviceTracker {
 
     /// `vkCmdBeginRenderPass` / `vkCmdBeginRenderPass2`.
     pub fn begin_render_pass(&self, shared: &Shared, cb: u64, kind: PassKind, begin: RenderPassBegin) {
+        let pass = self.render_pass_instance(shared, kind, begin);
+        self.open_pass(cb, pass, true);
+    }
+
+    /// The pass instance `vkCmdBeginRenderPass(2)` with `begin` opens (the app's attachments).
+    pub fn render_pass_instance(&self, shared: &Shared, kind: PassKind, begin: RenderPassBegin) -> PassInstance {
         let render_pass = self.render_passes.get(begin.render_pass);
         let framebuffer = self.framebuffers.get(begin.framebuffer);
         let views: Vec<u64> = match (&begin.attachment_views, framebuffer.as_deref()) {
@@ -188,7 +194,7 @@ impl DeviceTracker {
                 self.attachment(shared, view, layout, load, store, clear)
             })
             .collect();
-        let pass = PassInstance {
+        PassInstance {
             kind,
             render_area: begin.render_area,
             subpass: 0,
@@ -197,8 +203,7 @@ impl DeviceTracker {
             attachments,
             clear_values: begin.clear_values,
             rendering: None,
-        };
-        self.open_pass(cb, pass, true);
+        }
     }
 
     /// `vkCmdBeginRendering`; attachments already resolved with [`Self::attachment`]. A resuming
@@ -351,6 +356,7 @@ mod tests {
                 ],
                 subpasses: vec![Subpass { view_mask: 0b11, ..Subpass::default() }],
                 correlation_masks: vec![],
+                layer_rate_attachment: None,
             }),
         );
         t.framebuffers.insert(

@@ -111,6 +111,9 @@ pub struct RenderPass {
     pub subpasses: Vec<Subpass>,
     /// `VkRenderPassMultiviewCreateInfo::pCorrelationMasks` or `VkRenderPassCreateInfo2`'s.
     pub correlation_masks: Vec<u32>,
+    /// The shading-rate attachment the layer appended (variable-rate shading): its index, which
+    /// is the app's attachment count. Everything else here is the app's view of the pass.
+    pub layer_rate_attachment: Option<u32>,
 }
 
 impl RenderPass {
@@ -214,6 +217,7 @@ mod tests {
             attachments: vec![],
             subpasses: vec![Subpass { view_mask: 0b11, ..Subpass::default() }],
             correlation_masks: vec![0b11],
+            layer_rate_attachment: None,
         };
         assert!(rp.is_multiview());
     }

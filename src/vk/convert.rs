@@ -204,6 +204,7 @@ pub unsafe fn render_pass(handle: vk::RenderPass, ci: &vk::RenderPassCreateInfo<
             .collect(),
         subpasses,
         correlation_masks: correlation,
+        layer_rate_attachment: None,
     }
 }
 
@@ -251,6 +252,7 @@ pub unsafe fn render_pass2(handle: vk::RenderPass, ci: &vk::RenderPassCreateInfo
             .collect(),
         subpasses,
         correlation_masks: corr.to_vec(),
+        layer_rate_attachment: None,
     }
 }
 

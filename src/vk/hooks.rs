@@ -574,23 +574,147 @@ destroy_hook!(destroy_image, "vkDestroyImage", vk::Image, fp_v1_0.destroy_image,
 });
 create_hook!(create_image_view, "vkCreateImageView", vk::ImageViewCreateInfo<'_>, vk::ImageView, fp_v1_0.create_image_view, views, |h, ci| convert::image_view(h, ci));
 destroy_hook!(destroy_image_view, "vkDestroyImageView", vk::ImageView, fp_v1_0.destroy_image_view, |d, h| d.track.views.remove(h));
-create_hook!(create_render_pass, "vkCreateRenderPass", vk::RenderPassCreateInfo<'_>, vk::RenderPass, fp_v1_0.create_render_pass, render_passes, |h, ci| {
-    // SAFETY: the create info is valid during the app's call.
-    unsafe { convert::render_pass(h, ci) }
-});
-create_hook!(create_render_pass2, "vkCreateRenderPass2", vk::RenderPassCreateInfo2<'_>, vk::RenderPass, fp_v1_2.create_render_pass2, render_passes, |h, ci| {
-    // SAFETY: the create info is valid during the app's call.
-    unsafe { convert::render_pass2(h, ci) }
-});
+/// `vkCreateRenderPass` / `vkCreateRenderPass2(KHR)`: with variable-rate shading's attachment
+/// appended where the layer enabled attachment rates (`vk::vrs`; v1 infos go down translated to
+/// `vkCreateRenderPass2`); the tracked description is the app's, with the appended index.
+fn create_render_pass_common(
+    call: &'static str,
+    device: vk::Device,
+    allocator: *const vk::AllocationCallbacks<'_>,
+    out: *mut vk::RenderPass,
+    decide: impl FnOnce(&DeviceState) -> Option<super::vrs::RatePass>,
+    app: impl Fn(&DeviceState) -> vk::Result,
+    describe: impl FnOnce(vk::RenderPass) -> crate::track::resources::RenderPass,
+) -> vk::Result {
+    let appended = std::cell::Cell::new(None);
+    hook_decided(
+        call,
+        device,
+        vk::Result::ERROR_INITIALIZATION_FAILED,
+        decide,
+        |d, decided| {
+            if let Some(Some(rp)) = decided {
+                // SAFETY: the app's pass with only the rate attachment added (see `vk::vrs`), with
+                // the app's allocator (the app destroys the pass).
+                let r = unsafe { (d.fns.fp_v1_2().create_render_pass2)(device, &rp.info, allocator, out) };
+                if r == vk::Result::SUCCESS {
+                    appended.set(Some(rp.index));
+                    return r;
+                }
+                tracing::warn!(?r, "{call} failed with the shading-rate attachment; retrying as the app asked");
+            }
+            appended.set(None);
+            app(d)
+        },
+        |d, r| {
+            if r == vk::Result::SUCCESS {
+                // SAFETY: on success the handle was written.
+                let h = unsafe { *out };
+                let mut desc = describe(h);
+                desc.layer_rate_attachment = appended.get();
+                d.track.render_passes.insert(h.as_raw(), Arc::new(desc));
+            }
+            Ok(())
+        },
+    )
+}
+
+pub(super) unsafe extern "system" fn create_render_pass(
+    device: vk::Device,
+    ci: *const vk::RenderPassCreateInfo<'_>,
+    allocator: *const vk::AllocationCallbacks<'_>,
+    out: *mut vk::RenderPass,
+) -> vk::Result {
+    create_render_pass_common(
+        "vkCreateRenderPass",
+        device,
+        allocator,
+        out,
+        // SAFETY: the app's info, valid during its call; the copies live in the decision.
+        |d| unsafe { super::vrs::render_pass_v1(d, ci) },
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d| unsafe { (d.fns.fp_v1_0().create_render_pass)(device, ci, allocator, out) },
+        // SAFETY: the create info is valid during the app's call.
+        |h| unsafe { convert::render_pass(h, &*ci) },
+    )
+}
+
+pub(super) unsafe extern "system" fn create_render_pass2(
+    device: vk::Device,
+    ci: *const vk::RenderPassCreateInfo2<'_>,
+    allocator: *const vk::AllocationCallbacks<'_>,
+    out: *mut vk::RenderPass,
+) -> vk::Result {
+    create_render_pass_common(
+        "vkCreateRenderPass2",
+        device,
+        allocator,
+        out,
+        // SAFETY: the app's info, valid during its call; the copies live in the decision.
+        |d| unsafe { super::vrs::render_pass_v2(d, ci) },
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d| unsafe { (d.fns.fp_v1_2().create_render_pass2)(device, ci, allocator, out) },
+        // SAFETY: the create info is valid during the app's call.
+        |h| unsafe { convert::render_pass2(h, &*ci) },
+    )
+}
+
 destroy_hook!(destroy_render_pass, "vkDestroyRenderPass", vk::RenderPass, fp_v1_0.destroy_render_pass, |d, h| {
     d.track.render_passes.remove(h);
     super::mask::forget_render_pass(d, h)
 });
-create_hook!(create_framebuffer, "vkCreateFramebuffer", vk::FramebufferCreateInfo<'_>, vk::Framebuffer, fp_v1_0.create_framebuffer, framebuffers, |h, ci| {
-    // SAFETY: the create info is valid during the app's call.
-    unsafe { convert::framebuffer(h, ci) }
+/// `vkCreateFramebuffer`: a framebuffer of a pass with variable-rate shading's attachment gets
+/// the layer's rate image as that attachment (`vk::vrs`); tracked as the app described it.
+pub(super) unsafe extern "system" fn create_framebuffer(
+    device: vk::Device,
+    ci: *const vk::FramebufferCreateInfo<'_>,
+    allocator: *const vk::AllocationCallbacks<'_>,
+    out: *mut vk::Framebuffer,
+) -> vk::Result {
+    let pending = std::cell::Cell::new(None);
+    hook_decided(
+        "vkCreateFramebuffer",
+        device,
+        vk::Result::ERROR_INITIALIZATION_FAILED,
+        // SAFETY: the app's info, valid during its call; the copies live in the decision.
+        |d| match unsafe { super::vrs::framebuffer_info(d, ci) } {
+            Ok(Some((info, rate))) => {
+                pending.set(Some(rate));
+                Some(info)
+            }
+            Ok(None) => None,
+            Err(e) => {
+                tracing::warn!("vrs rate image for a framebuffer: {e}");
+                None
+            }
+        },
+        |d, decided| match decided {
+            // SAFETY: the app's info with only the rate attachment added.
+            Some(Some(f)) => unsafe { (d.fns.fp_v1_0().create_framebuffer)(device, &f.info, allocator, out) },
+            // SAFETY: forwarding the app's arguments unchanged.
+            _ => unsafe { (d.fns.fp_v1_0().create_framebuffer)(device, ci, allocator, out) },
+        },
+        |d, r| {
+            let ok = r == vk::Result::SUCCESS;
+            if let Some(rate) = pending.take() {
+                // SAFETY: on success the handle was written.
+                super::vrs::framebuffer_created(d, ok.then(|| unsafe { *out }), rate);
+            }
+            if ok {
+                // SAFETY: on success the handle was written; the create info is valid during the
+                // app's call.
+                let (h, ci) = unsafe { (*out, &*ci) };
+                // SAFETY: as above.
+                d.track.framebuffers.insert(h.as_raw(), Arc::new(unsafe { convert::framebuffer(h, ci) }));
+            }
+            Ok(())
+        },
+    )
+}
+destroy_hook!(destroy_framebuffer, "vkDestroyFramebuffer", vk::Framebuffer, fp_v1_0.destroy_framebuffer, |d, h| {
+    d.track.framebuffers.remove(h);
+    super::vrs::forget_framebuffer(d, h)
 });
-destroy_hook!(destroy_framebuffer, "vkDestroyFramebuffer", vk::Framebuffer, fp_v1_0.destroy_framebuffer, |d, h| d.track.framebuffers.remove(h));
 destroy_hook!(destroy_pipeline, "vkDestroyPipeline", vk::Pipeline, fp_v1_0.destroy_pipeline, |d, h| d.track.pipelines.remove(h));
 create_hook!(create_command_pool, "vkCreateCommandPool", vk::CommandPoolCreateInfo<'_>, vk::CommandPool, fp_v1_0.create_command_pool, pools, |h, ci| {
     crate::track::resources::CommandPool { handle: h.as_raw(), flags: ci.flags, queue_family_index: ci.queue_family_index }
@@ -872,12 +996,29 @@ fn begin_pass(d: &DeviceState, cb: u64, kind: PassKind, info: *const vk::RenderP
 }
 
 pub(super) unsafe extern "system" fn cmd_begin_render_pass(cb: vk::CommandBuffer, info: *const vk::RenderPassBeginInfo<'_>, contents: vk::SubpassContents) {
-    // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdBeginRenderPass", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_begin_render_pass)(cb, info, contents) }, |d, raw| {
-        begin_pass(d, raw, PassKind::RenderPass, info);
-        super::vrs::on_render_pass_begin(d, cb, contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS);
-        mask::on_trigger(d, cb, Trigger::Begin { secondary: contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS });
-    })
+    let secondary = contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS;
+    hook_decided(
+        "vkCmdBeginRenderPass",
+        cb,
+        (),
+        // SAFETY: the app's valid info; `cb` is recording outside a pass (it is about to begin one).
+        |d| unsafe { super::vrs::for_render_pass_begin(d, cb, PassKind::RenderPass, info) },
+        |d, decided| {
+            let begin = d.fns.fp_v1_0().cmd_begin_render_pass;
+            match decided {
+                // SAFETY: the app's info with the rate view appended (imageless framebuffer).
+                Some(Some(v)) => unsafe { begin(cb, &v.info, contents) },
+                // SAFETY: forwarding the app's arguments unchanged.
+                _ => unsafe { begin(cb, info, contents) },
+            }
+        },
+        |d, _| {
+            begin_pass(d, cb.as_raw(), PassKind::RenderPass, info);
+            super::vrs::on_render_pass_begin(d, cb, secondary);
+            mask::on_trigger(d, cb, Trigger::Begin { secondary });
+            Ok(())
+        },
+    )
 }
 
 pub(super) unsafe extern "system" fn cmd_next_subpass(cb: vk::CommandBuffer, contents: vk::SubpassContents) {
@@ -901,12 +1042,28 @@ pub(super) unsafe extern "system" fn cmd_begin_render_pass2(
     info: *const vk::RenderPassBeginInfo<'_>,
     subpass_info: *const vk::SubpassBeginInfo<'_>,
 ) {
-    // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdBeginRenderPass2", cb, (), |d| unsafe { (d.fns.fp_v1_2().cmd_begin_render_pass2)(cb, info, subpass_info) }, |d, raw| {
-        begin_pass(d, raw, PassKind::RenderPass2, info);
-        super::vrs::on_render_pass_begin(d, cb, secondary_contents(subpass_info));
-        mask::on_trigger(d, cb, Trigger::Begin { secondary: secondary_contents(subpass_info) });
-    })
+    hook_decided(
+        "vkCmdBeginRenderPass2",
+        cb,
+        (),
+        // SAFETY: the app's valid info; `cb` is recording outside a pass (it is about to begin one).
+        |d| unsafe { super::vrs::for_render_pass_begin(d, cb, PassKind::RenderPass2, info) },
+        |d, decided| {
+            let begin = d.fns.fp_v1_2().cmd_begin_render_pass2;
+            match decided {
+                // SAFETY: the app's info with the rate view appended (imageless framebuffer).
+                Some(Some(v)) => unsafe { begin(cb, &v.info, subpass_info) },
+                // SAFETY: forwarding the app's arguments unchanged.
+                _ => unsafe { begin(cb, info, subpass_info) },
+            }
+        },
+        |d, _| {
+            begin_pass(d, cb.as_raw(), PassKind::RenderPass2, info);
+            super::vrs::on_render_pass_begin(d, cb, secondary_contents(subpass_info));
+            mask::on_trigger(d, cb, Trigger::Begin { secondary: secondary_contents(subpass_info) });
+            Ok(())
+        },
+    )
 }
 
 pub(super) unsafe extern "system" fn cmd_next_subpass2(cb: vk::CommandBuffer, begin: *const vk::SubpassBeginInfo<'_>, end: *const vk::SubpassEndInfo<'_>) {

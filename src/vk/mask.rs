@@ -655,6 +655,9 @@ pub(super) fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipelin
             }
         }
     }
+    // No VkPipelineFragmentShadingRateStateCreateInfoKHR: the defaults (1×1, [KEEP, KEEP]) ignore
+    // a rate attachment, so mask and RDM depth is written at full rate, pixel-exact, in render
+    // pass objects that carry the layer's rate attachment too (same render pass: compatible).
     // SAFETY: a valid create info; every object it names is alive (the app's render pass is in use
     // by the pass being recorded).
     let created = unsafe { d.fns.create_graphics_pipelines(vk::PipelineCache::null(), &[info], None) }.map_err(|(_, e)| e.to_string())?;

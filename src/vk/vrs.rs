@@ -12,10 +12,21 @@
 //!   (the attachment rate is then 1×1), so foveation can be switched on live.
 //! - `vkCmdBeginRendering`: an eye pass goes down with a copy of the app's `VkRenderingInfo`
 //!   whose chain starts with `VkRenderingFragmentShadingRateAttachmentInfoKHR`.
-//! - Render pass objects (`vkCmdBeginRenderPass(2)`): not implemented; counted as
-//!   `vrs_not_applied.render_pass`. The spec's render pass compatibility rules compare subpass
-//!   descriptions (and so a subpass's `VkFragmentShadingRateAttachmentInfoKHR`), so a variant
-//!   pass with the extra attachment would also need pipeline variants.
+//! - Render pass objects: render pass compatibility compares subpass descriptions (and so a
+//!   subpass's `VkFragmentShadingRateAttachmentInfoKHR`), so a variant pass with the attachment
+//!   would need pipeline variants. Instead the app's own pass gets it: `vkCreateRenderPass(2)`
+//!   goes down as `vkCreateRenderPass2` with one more attachment (R8_UINT, LOAD / DONT_CARE,
+//!   `FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL` throughout; index = the app's attachment count,
+//!   recorded as `RenderPass::layer_rate_attachment`; the tracked description stays the app's)
+//!   referenced from every graphics subpass, so the app's pipelines are made against it.
+//!   Passes with their own rate attachment or a density map are left alone. Each framebuffer of
+//!   such a pass gets a layer rate image (`ceil(extent / texel)`, one layer per view when
+//!   multiview and layered, else 1) appended — imageless: its image info at creation, its view
+//!   at each begin — destroyed with the framebuffer. At `vkCmdBeginRenderPass(2)` (before it
+//!   goes down) the image is rewritten when it holds another map than the pass needs: the eye's
+//!   rates for an eye pass with VRS on, 1×1 everywhere otherwise (those passes are unchanged).
+//!   Limits: an imageless framebuffer's chain must start with its attachments struct (create and
+//!   begin); contents are tracked in recording order (as below).
 //!
 //! Rate images are built when a (foveation generation, views generation, extent, eyes) shape is
 //! first seen — never per frame — and uploaded by commands recorded into the first command buffer
@@ -82,6 +93,8 @@ pub(crate) struct VrsDevice {
     rates: Option<DeviceRates>,
     memory: vk::PhysicalDeviceMemoryProperties,
     objects: Mutex<Objects>,
+    /// Render pass objects: framebuffers' rate images and the maps' staging buffers.
+    pass_objects: Mutex<PassObjects>,
     books: Mutex<Books>,
 }
 
@@ -96,7 +109,7 @@ enum Mode {
 
 impl VrsDevice {
     pub fn new(config: &Config, memory: vk::PhysicalDeviceMemoryProperties, rates: Option<DeviceRates>) -> VrsDevice {
-        VrsDevice { layer_enabled: config.enabled(), rates, memory, objects: Mutex::default(), books: Mutex::default() }
+        VrsDevice { layer_enabled: config.enabled(), rates, memory, objects: Mutex::default(), pass_objects: Mutex::default(), books: Mutex::default() }
     }
 
     /// The layer enabled `attachmentFragmentShadingRate` on this device (pipelines get the state).
@@ -276,14 +289,18 @@ pub(super) unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info:
     Some(Rendering { info: copy, _fsr: fsr })
 }
 
-/// `vkCmdBeginRenderPass(2)` (after it went down, the pass tracked): counts an eye pass VRS
-/// would apply to as not applied (render pass objects are not implemented).
+/// `vkCmdBeginRenderPass(2)` (after it went down, the pass tracked) of a pass without the
+/// layer's rate attachment: counts an eye pass VRS would apply to as not applied.
 pub(super) fn on_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, secondary: bool) {
     let mode = d.vrs.mode(&d.config);
     if mode == Mode::Off {
         return;
     }
     let Some(Some(pass)) = d.track.with_cb(cb.as_raw(), |s| s.pass.clone()) else { return };
+    if pass.render_pass.as_ref().is_some_and(|rp| rp.layer_rate_attachment.is_some()) {
+        // Handled before it went down (`for_render_pass_begin`).
+        return;
+    }
     match plan(d, mode, &pass, secondary, || false) {
         Ok(None) => {}
         Ok(Some(_)) => not_applied(d, NotApplied::RenderPass, pass.kind),
@@ -312,9 +329,6 @@ fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: bool, app_f
     if secondary {
         return Err(NotApplied::Secondary);
     }
-    if pass.kind != PassKind::Dynamic {
-        return Ok(Some((MapKey { width: 0, height: 0, layers: 0, eyes: vec![], foveation_generation: 0, views_generation: 0 }, vec![], DeviceRates { texel_width: 1, texel_height: 1, layered: false })));
-    }
     let rates = d.vrs.rates.ok_or(NotApplied::Unsupported)?;
     let (views, fovea) = (shared().views(), shared().foveation());
     let base_layer = att.image_view.as_ref().map_or(0, |v| v.range.base_array_layer);
@@ -336,7 +350,9 @@ fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: bool, app_f
         }
         32 - view_mask.leading_zeros()
     } else {
-        if pass.rendering.as_ref().is_some_and(|r| r.layer_count > 1) {
+        // A layered pass without multiview: one rate layer (the spec's only choice for a render
+        // pass object) cannot carry per-layer eyes.
+        if pass.rendering.as_ref().is_some_and(|r| r.layer_count > 1) || pass.framebuffer.as_ref().is_some_and(|f| f.layers > 1) {
             return Err(NotApplied::Layered);
         }
         for s in sources.iter().filter(|s| s.layer == base_layer) {
@@ -486,6 +502,12 @@ fn create(d: &DeviceState, key: &MapKey, data: &[u8]) -> Result<RateImage, Strin
 }
 
 fn fill(d: &DeviceState, key: &MapKey, data: &[u8], img: &mut RateImage) -> Result<(), String> {
+    image_objects(d, key, img)?;
+    staging_objects(d, data, img)
+}
+
+/// The rate image (`key`'s extent and layers) and its view, into `img`.
+fn image_objects(d: &DeviceState, key: &MapKey, img: &mut RateImage) -> Result<(), String> {
     let e = |e: vk::Result| e.to_string();
     let ci = vk::ImageCreateInfo::default()
         .image_type(vk::ImageType::TYPE_2D)
@@ -513,6 +535,15 @@ fn fill(d: &DeviceState, key: &MapKey, data: &[u8], img: &mut RateImage) -> Resu
             .format(vk::Format::R8_UINT)
             .subresource_range(vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: key.layers });
         img.view = d.fns.create_image_view(&view, None).map_err(e)?;
+    }
+    Ok(())
+}
+
+/// A host-visible staging buffer holding `data`, into `img`.
+fn staging_objects(d: &DeviceState, data: &[u8], img: &mut RateImage) -> Result<(), String> {
+    let e = |e: vk::Result| e.to_string();
+    // SAFETY: valid create / allocate infos; every object is ours and destroyed by the caller on error.
+    unsafe {
         let bi = vk::BufferCreateInfo::default().size(data.len() as u64).usage(vk::BufferUsageFlags::TRANSFER_SRC).sharing_mode(vk::SharingMode::EXCLUSIVE);
         img.staging = d.fns.create_buffer(&bi, None).map_err(e)?;
         let req = d.fns.get_buffer_memory_requirements(img.staging);
@@ -547,6 +578,22 @@ fn retire(d: &DeviceState, now: u64) {
     for img in &old {
         destroy_image(d, img);
     }
+    let old: Vec<Staging> = {
+        let mut o = lock(&d.vrs.pass_objects);
+        let keys: Vec<MapKey> = o.stagings.iter().filter(|(_, s)| now >= s.last_used_frame + RETIRE_AFTER_FRAMES).map(|(k, _)| k.clone()).collect();
+        keys.iter().filter_map(|k| o.stagings.remove(k)).collect()
+    };
+    for st in &old {
+        destroy_staging(d, st);
+    }
+}
+
+fn destroy_staging(d: &DeviceState, st: &Staging) {
+    // SAFETY: ours; its command buffers completed (retired) or the device is idle.
+    unsafe {
+        d.fns.destroy_buffer(st.buffer, None);
+        d.fns.free_memory(st.memory, None);
+    }
 }
 
 /// At vkDestroyDevice (the app waited for the device to go idle).
@@ -554,5 +601,756 @@ pub(crate) fn destroy(d: &DeviceState) {
     let all = std::mem::take(&mut lock(&d.vrs.objects).images);
     for img in all.values() {
         destroy_image(d, img);
+    }
+    let p = std::mem::take(&mut *lock(&d.vrs.pass_objects));
+    for r in p.framebuffers.values() {
+        destroy_fb_rate(d, r);
+    }
+    for st in p.stagings.values() {
+        destroy_staging(d, st);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Render pass objects: the layer's rate attachment is part of the app's own render pass (so the
+// app's pipelines, created against that very pass, are compatible with it), its image part of
+// each framebuffer of the pass. Non-eye passes read an all-1×1 image (unchanged output).
+
+/// What a framebuffer's rate image holds now (as recorded: the command buffers run in the order
+/// they were recorded in, the same limit as the dynamic-rendering images).
+#[derive(Clone, Debug, PartialEq, Eq)]
+enum Content {
+    Undefined,
+    /// Rate 0 (1×1) everywhere.
+    Neutral,
+    Map(MapKey),
+}
+
+#[derive(Clone, Debug)]
+struct FbRate {
+    image: vk::Image,
+    memory: vk::DeviceMemory,
+    view: vk::ImageView,
+    width: u32,
+    height: u32,
+    layers: u32,
+    /// The rate attachment's index in the render pass (the app's attachment count).
+    index: u32,
+    content: Content,
+}
+
+struct Staging {
+    buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+    last_used_frame: u64,
+}
+
+#[derive(Default)]
+pub(super) struct PassObjects {
+    framebuffers: HashMap<u64, FbRate>,
+    /// Immutable per map; kept until unused for `RETIRE_AFTER_FRAMES` frames (their command
+    /// buffers completed).
+    stagings: HashMap<MapKey, Staging>,
+}
+
+/// The parts of a `VkRenderPassCreateInfo2`, owned (the arrays the pointers lead to live here).
+struct Owned2 {
+    flags: vk::RenderPassCreateFlags,
+    p_next: *const c_void,
+    attachments: Vec<vk::AttachmentDescription2<'static>>,
+    subpasses: Vec<vk::SubpassDescription2<'static>>,
+    /// What the subpasses' pointers lead to (v1 translations).
+    _refs: Vec<Vec<vk::AttachmentReference2<'static>>>,
+    dependencies: Vec<vk::SubpassDependency2<'static>>,
+    correlation: Vec<u32>,
+}
+
+/// `vkCreateRenderPass(2)` with the rate attachment: a `VkRenderPassCreateInfo2` whose arrays
+/// live here while the call goes down.
+pub(super) struct RatePass {
+    pub info: vk::RenderPassCreateInfo2<'static>,
+    /// The rate attachment's index (the app's attachment count).
+    pub index: u32,
+    _owned: Owned2,
+    #[allow(clippy::vec_box)]
+    _fsr: Vec<Box<vk::FragmentShadingRateAttachmentInfoKHR<'static>>>,
+    _fsr_ref: Box<vk::AttachmentReference2<'static>>,
+}
+
+fn ptr_or_null<T>(v: &[T]) -> *const T {
+    if v.is_empty() {
+        std::ptr::null()
+    } else {
+        v.as_ptr()
+    }
+}
+
+/// The aspects a v1 input attachment reads when the app chains no
+/// `VkRenderPassInputAttachmentAspectCreateInfo`: all of its format's.
+fn format_aspects(f: vk::Format) -> vk::ImageAspectFlags {
+    use vk::{Format as F, ImageAspectFlags as A};
+    match f {
+        F::D16_UNORM | F::X8_D24_UNORM_PACK32 | F::D32_SFLOAT => A::DEPTH,
+        F::S8_UINT => A::STENCIL,
+        F::D16_UNORM_S8_UINT | F::D24_UNORM_S8_UINT | F::D32_SFLOAT_S8_UINT => A::DEPTH | A::STENCIL,
+        _ => A::COLOR,
+    }
+}
+
+/// A `VkRenderPassCreateInfo` as the equivalent `VkRenderPassCreateInfo2` (multiview and input
+/// aspects translated); None when its chain holds anything else.
+///
+/// # Safety
+/// `ci` and everything it points to must be valid; the result is used while they are.
+unsafe fn owned_from_v1(ci: &vk::RenderPassCreateInfo<'_>) -> Option<Owned2> {
+    let mut multiview: Option<&vk::RenderPassMultiviewCreateInfo<'_>> = None;
+    let mut aspects: &[vk::InputAttachmentAspectReference] = &[];
+    let mut p = ci.p_next as *const vk::BaseInStructure<'_>;
+    // SAFETY: a valid chain; each struct is read as the type its sType names.
+    unsafe {
+        while let Some(b) = p.as_ref() {
+            match b.s_type {
+                vk::StructureType::RENDER_PASS_MULTIVIEW_CREATE_INFO => multiview = Some(&*(p as *const vk::RenderPassMultiviewCreateInfo<'_>)),
+                vk::StructureType::RENDER_PASS_INPUT_ATTACHMENT_ASPECT_CREATE_INFO => {
+                    let a = &*(p as *const vk::RenderPassInputAttachmentAspectCreateInfo<'_>);
+                    aspects = super::convert::slice(a.p_aspect_references, a.aspect_reference_count);
+                }
+                _ => return None,
+            }
+            p = b.p_next;
+        }
+    }
+    // SAFETY: arrays valid with their counts (the caller's contract).
+    let (atts, subs, deps) = unsafe {
+        (
+            super::convert::slice(ci.p_attachments, ci.attachment_count),
+            super::convert::slice(ci.p_subpasses, ci.subpass_count),
+            super::convert::slice(ci.p_dependencies, ci.dependency_count),
+        )
+    };
+    // SAFETY: the multiview struct's arrays, valid with their counts.
+    let (view_masks, view_offsets, correlation) = multiview.map_or((&[][..], &[][..], &[][..]), |m| unsafe {
+        (
+            super::convert::slice(m.p_view_masks, m.subpass_count),
+            super::convert::slice(m.p_view_offsets, m.dependency_count),
+            super::convert::slice(m.p_correlation_masks, m.correlation_mask_count),
+        )
+    });
+    let attachments: Vec<vk::AttachmentDescription2<'static>> = atts
+        .iter()
+        .map(|a| vk::AttachmentDescription2 {
+            flags: a.flags,
+            format: a.format,
+            samples: a.samples,
+            load_op: a.load_op,
+            store_op: a.store_op,
+            stencil_load_op: a.stencil_load_op,
+            stencil_store_op: a.stencil_store_op,
+            initial_layout: a.initial_layout,
+            final_layout: a.final_layout,
+            ..Default::default()
+        })
+        .collect();
+    let r2 = |r: &vk::AttachmentReference, aspect: vk::ImageAspectFlags| vk::AttachmentReference2 { attachment: r.attachment, layout: r.layout, aspect_mask: aspect, ..Default::default() };
+    let mut refs = Vec::new();
+    // Per subpass: indices into `refs` of (input, color, resolve, depth).
+    let mut at = Vec::new();
+    for (i, s) in subs.iter().enumerate() {
+        // SAFETY: the subpass's arrays are valid with its counts; resolve has color_count entries.
+        let (input, color, resolve, depth) = unsafe {
+            (
+                super::convert::slice(s.p_input_attachments, s.input_attachment_count),
+                super::convert::slice(s.p_color_attachments, s.color_attachment_count),
+                super::convert::slice(s.p_resolve_attachments, s.color_attachment_count),
+                s.p_depth_stencil_attachment.as_ref(),
+            )
+        };
+        let input: Vec<_> = input
+            .iter()
+            .enumerate()
+            .map(|(j, r)| {
+                let aspect = if r.attachment == vk::ATTACHMENT_UNUSED {
+                    vk::ImageAspectFlags::empty()
+                } else {
+                    aspects
+                        .iter()
+                        .find(|a| a.subpass as usize == i && a.input_attachment_index as usize == j)
+                        .map(|a| a.aspect_mask)
+                        .unwrap_or_else(|| atts.get(r.attachment as usize).map_or(vk::ImageAspectFlags::COLOR, |a| format_aspects(a.format)))
+                };
+                r2(r, aspect)
+            })
+            .collect();
+        let none = vk::ImageAspectFlags::empty();
+        at.push(refs.len());
+        refs.push(input);
+        refs.push(color.iter().map(|r| r2(r, none)).collect());
+        refs.push(resolve.iter().map(|r| r2(r, none)).collect());
+        refs.push(depth.iter().map(|r| r2(r, none)).collect());
+    }
+    let subpasses = subs
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let k = at[i];
+            vk::SubpassDescription2 {
+                flags: s.flags,
+                pipeline_bind_point: s.pipeline_bind_point,
+                view_mask: view_masks.get(i).copied().unwrap_or(0),
+                input_attachment_count: refs[k].len() as u32,
+                p_input_attachments: ptr_or_null(&refs[k]),
+                color_attachment_count: refs[k + 1].len() as u32,
+                p_color_attachments: ptr_or_null(&refs[k + 1]),
+                p_resolve_attachments: ptr_or_null(&refs[k + 2]),
+                p_depth_stencil_attachment: ptr_or_null(&refs[k + 3]),
+                preserve_attachment_count: s.preserve_attachment_count,
+                p_preserve_attachments: s.p_preserve_attachments,
+                ..Default::default()
+            }
+        })
+        .collect();
+    let dependencies = deps
+        .iter()
+        .enumerate()
+        .map(|(i, d)| vk::SubpassDependency2 {
+            src_subpass: d.src_subpass,
+            dst_subpass: d.dst_subpass,
+            src_stage_mask: d.src_stage_mask,
+            dst_stage_mask: d.dst_stage_mask,
+            src_access_mask: d.src_access_mask,
+            dst_access_mask: d.dst_access_mask,
+            dependency_flags: d.dependency_flags,
+            view_offset: view_offsets.get(i).copied().unwrap_or(0),
+            ..Default::default()
+        })
+        .collect();
+    Some(Owned2 { flags: ci.flags, p_next: std::ptr::null(), attachments, subpasses, _refs: refs, dependencies, correlation: correlation.to_vec() })
+}
+
+/// A `VkRenderPassCreateInfo2`'s arrays, copied (its chains are kept as the app wrote them).
+///
+/// # Safety
+/// `ci` and everything it points to must be valid; the result is used while they are.
+unsafe fn owned_from_v2(ci: &vk::RenderPassCreateInfo2<'_>) -> Owned2 {
+    // SAFETY: arrays valid with their counts; lifetimes erased: used only during the app's call.
+    unsafe {
+        Owned2 {
+            flags: ci.flags,
+            p_next: ci.p_next,
+            attachments: super::convert::slice(ci.p_attachments, ci.attachment_count).iter().map(|a| std::mem::transmute_copy(a)).collect(),
+            subpasses: super::convert::slice(ci.p_subpasses, ci.subpass_count).iter().map(|s| std::mem::transmute_copy(s)).collect(),
+            _refs: Vec::new(),
+            dependencies: super::convert::slice(ci.p_dependencies, ci.dependency_count).iter().map(|d| std::mem::transmute_copy(d)).collect(),
+            correlation: super::convert::slice(ci.p_correlated_view_masks, ci.correlated_view_mask_count).to_vec(),
+        }
+    }
+}
+
+/// Whether the app's pass has its own rate attachment or a density map (left alone).
+///
+/// # Safety
+/// As `owned_from_v2`.
+unsafe fn v2_leave_alone(o: &Owned2) -> bool {
+    use vk::StructureType as S;
+    // SAFETY: valid chains.
+    let in_chain = |p: *const c_void, t: S| unsafe { super::convert::find_in_chain::<vk::BaseInStructure<'_>>(p, t) }.is_some();
+    in_chain(o.p_next, S::RENDER_PASS_FRAGMENT_DENSITY_MAP_CREATE_INFO_EXT) || o.subpasses.iter().any(|s| in_chain(s.p_next, S::FRAGMENT_SHADING_RATE_ATTACHMENT_INFO_KHR))
+}
+
+/// Appends the rate attachment (index = the app's count) and references it from every graphics
+/// subpass with the device's finest texel.
+fn with_rate(mut o: Owned2, texel: vk::Extent2D) -> RatePass {
+    let index = o.attachments.len() as u32;
+    let layout = vk::ImageLayout::FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL_KHR;
+    o.attachments.push(vk::AttachmentDescription2 {
+        format: vk::Format::R8_UINT,
+        samples: vk::SampleCountFlags::TYPE_1,
+        load_op: vk::AttachmentLoadOp::LOAD,
+        store_op: vk::AttachmentStoreOp::DONT_CARE,
+        stencil_load_op: vk::AttachmentLoadOp::DONT_CARE,
+        stencil_store_op: vk::AttachmentStoreOp::DONT_CARE,
+        initial_layout: layout,
+        final_layout: layout,
+        ..Default::default()
+    });
+    let fsr_ref = Box::new(vk::AttachmentReference2 { attachment: index, layout, ..Default::default() });
+    let mut fsr = Vec::new();
+    for s in o.subpasses.iter_mut().filter(|s| s.pipeline_bind_point == vk::PipelineBindPoint::GRAPHICS) {
+        let f = Box::new(vk::FragmentShadingRateAttachmentInfoKHR {
+            p_next: s.p_next,
+            p_fragment_shading_rate_attachment: &*fsr_ref,
+            shading_rate_attachment_texel_size: texel,
+            ..Default::default()
+        });
+        s.p_next = &*f as *const _ as *const c_void;
+        fsr.push(f);
+    }
+    let info = vk::RenderPassCreateInfo2 {
+        p_next: o.p_next,
+        flags: o.flags,
+        attachment_count: o.attachments.len() as u32,
+        p_attachments: ptr_or_null(&o.attachments),
+        subpass_count: o.subpasses.len() as u32,
+        p_subpasses: ptr_or_null(&o.subpasses),
+        dependency_count: o.dependencies.len() as u32,
+        p_dependencies: ptr_or_null(&o.dependencies),
+        correlated_view_mask_count: o.correlation.len() as u32,
+        p_correlated_view_masks: ptr_or_null(&o.correlation),
+        ..Default::default()
+    };
+    RatePass { info, index, _owned: o, _fsr: fsr, _fsr_ref: fsr_ref }
+}
+
+fn texel(d: &DeviceState) -> Option<vk::Extent2D> {
+    d.vrs.rates.filter(|_| d.vrs.enabled()).map(|r| vk::Extent2D { width: r.texel_width, height: r.texel_height })
+}
+
+fn adds(d: &DeviceState, o: &Owned2, app_fsr_or_fdm: bool) -> bool {
+    let graphics = o.subpasses.iter().filter(|s| s.pipeline_bind_point == vk::PipelineBindPoint::GRAPHICS).count();
+    rule::adds_rate_attachment(d.vrs.enabled(), app_fsr_or_fdm, false, graphics)
+}
+
+/// `vkCreateRenderPass`: the app's pass as `vkCreateRenderPass2` info with the rate attachment;
+/// None where the layer leaves it alone.
+///
+/// # Safety
+/// `ci` must be the app's valid create info, alive while the result is used.
+pub(super) unsafe fn render_pass_v1(d: &DeviceState, ci: *const vk::RenderPassCreateInfo<'_>) -> Option<RatePass> {
+    let texel = texel(d)?;
+    // SAFETY: the caller's contract.
+    let o = unsafe { owned_from_v1(&*ci) }?;
+    adds(d, &o, false).then(|| with_rate(o, texel))
+}
+
+/// `vkCreateRenderPass2`: as `render_pass_v1`.
+///
+/// # Safety
+/// As `render_pass_v1`.
+pub(super) unsafe fn render_pass_v2(d: &DeviceState, ci: *const vk::RenderPassCreateInfo2<'_>) -> Option<RatePass> {
+    let texel = texel(d)?;
+    // SAFETY: the caller's contract.
+    let o = unsafe { owned_from_v2(&*ci) };
+    // SAFETY: as above.
+    let alone = unsafe { v2_leave_alone(&o) };
+    adds(d, &o, alone).then(|| with_rate(o, texel))
+}
+
+/// `vkCreateFramebuffer` for a pass with the layer's rate attachment: the app's info with the
+/// rate image's view (or, imageless, its image info) appended.
+pub(super) struct RateFramebuffer {
+    pub info: vk::FramebufferCreateInfo<'static>,
+    _views: Vec<vk::ImageView>,
+    _image_infos: Vec<vk::FramebufferAttachmentImageInfo<'static>>,
+    _attachments: Option<Box<vk::FramebufferAttachmentsCreateInfo<'static>>>,
+    _format: Box<vk::Format>,
+}
+
+/// The rate image objects made for a framebuffer being created (registered once it exists).
+pub(super) struct PendingRate(FbRate);
+
+/// Builds the rate image for a framebuffer of a pass with the layer's rate attachment; None for
+/// other passes. Err: the framebuffer cannot be given its rate image.
+///
+/// # Safety
+/// `ci` must be the app's valid create info, alive while the result is used.
+pub(super) unsafe fn framebuffer_info(d: &DeviceState, ci: *const vk::FramebufferCreateInfo<'_>) -> Result<Option<(RateFramebuffer, PendingRate)>, String> {
+    // SAFETY: the caller's contract.
+    let app = unsafe { &*ci };
+    let Some(rp) = d.track.render_passes.get(app.render_pass.as_raw()) else { return Ok(None) };
+    let (Some(index), Some(rates)) = (rp.layer_rate_attachment, d.vrs.rates) else { return Ok(None) };
+    let masks: Vec<u32> = rp.subpasses.iter().map(|s| s.view_mask).collect();
+    let (width, height, layers) = rule::pass_rate_extent(app.width, app.height, &masks, rates);
+    let imageless = app.flags.contains(vk::FramebufferCreateFlags::IMAGELESS);
+    // SAFETY: lifetimes erased: the copy lives only during the app's call.
+    let mut info: vk::FramebufferCreateInfo<'static> = unsafe { std::mem::transmute(*app) };
+    let format = Box::new(vk::Format::R8_UINT);
+    let mut out = RateFramebuffer { info, _views: Vec::new(), _image_infos: Vec::new(), _attachments: None, _format: format };
+    let key = MapKey { width, height, layers, eyes: vec![], foveation_generation: 0, views_generation: 0 };
+    let mut img = RateImage {
+        image: vk::Image::null(),
+        memory: vk::DeviceMemory::null(),
+        view: vk::ImageView::null(),
+        staging: vk::Buffer::null(),
+        staging_memory: vk::DeviceMemory::null(),
+        uploaded: false,
+        last_used_frame: 0,
+    };
+    if let Err(e) = image_objects(d, &key, &mut img) {
+        destroy_image(d, &img);
+        return Err(e);
+    }
+    if imageless {
+        // SAFETY: a valid chain: the attachments info must come first (we replace it by a copy).
+        let first = unsafe { (app.p_next as *const vk::BaseInStructure<'_>).as_ref() };
+        if first.map(|b| b.s_type) != Some(vk::StructureType::FRAMEBUFFER_ATTACHMENTS_CREATE_INFO) {
+            destroy_image(d, &img);
+            return Err("imageless framebuffer whose chain does not start with VkFramebufferAttachmentsCreateInfo".into());
+        }
+        // SAFETY: the sType names this struct; its array is valid with its count.
+        let a = unsafe { &*(app.p_next as *const vk::FramebufferAttachmentsCreateInfo<'static>) };
+        // SAFETY: as above; lifetimes erased (used only during the app's call).
+        out._image_infos = unsafe { super::convert::slice(a.p_attachment_image_infos, a.attachment_image_info_count) }.iter().map(|i| unsafe { std::mem::transmute_copy(i) }).collect();
+        out._image_infos.push(vk::FramebufferAttachmentImageInfo {
+            usage: vk::ImageUsageFlags::FRAGMENT_SHADING_RATE_ATTACHMENT_KHR | vk::ImageUsageFlags::TRANSFER_DST,
+            width,
+            height,
+            layer_count: layers,
+            view_format_count: 1,
+            p_view_formats: &*out._format,
+            ..Default::default()
+        });
+        let mut copy = Box::new(*a);
+        copy.attachment_image_info_count = out._image_infos.len() as u32;
+        copy.p_attachment_image_infos = out._image_infos.as_ptr();
+        info.p_next = &*copy as *const _ as *const c_void;
+        info.attachment_count = out._image_infos.len() as u32;
+        out._attachments = Some(copy);
+    } else {
+        // SAFETY: valid with its count.
+        out._views = unsafe { super::convert::slice(app.p_attachments, app.attachment_count) }.to_vec();
+        out._views.push(img.view);
+        info.p_attachments = out._views.as_ptr();
+        info.attachment_count = out._views.len() as u32;
+    }
+    out.info = info;
+    let rate = FbRate { image: img.image, memory: img.memory, view: img.view, width, height, layers, index, content: Content::Undefined };
+    Ok(Some((out, PendingRate(rate))))
+}
+
+/// After `vkCreateFramebuffer`: keeps the rate image with the framebuffer, or destroys it when
+/// the call failed.
+pub(super) fn framebuffer_created(d: &DeviceState, fb: Option<vk::Framebuffer>, pending: PendingRate) {
+    match fb {
+        Some(fb) => {
+            lock(&d.vrs.pass_objects).framebuffers.insert(fb.as_raw(), pending.0);
+        }
+        None => destroy_fb_rate(d, &pending.0),
+    }
+}
+
+fn destroy_fb_rate(d: &DeviceState, r: &FbRate) {
+    // SAFETY: our objects; the framebuffer (and so every command buffer using them) is done.
+    unsafe {
+        d.fns.destroy_image_view(r.view, None);
+        d.fns.destroy_image(r.image, None);
+        d.fns.free_memory(r.memory, None);
+    }
+}
+
+/// `vkDestroyFramebuffer` (after it went down).
+pub(super) fn forget_framebuffer(d: &DeviceState, fb: u64) {
+    let r = lock(&d.vrs.pass_objects).framebuffers.remove(&fb);
+    if let Some(r) = r {
+        destroy_fb_rate(d, &r);
+    }
+}
+
+/// `vkCmdBeginRenderPass(2)` of an imageless framebuffer: the app's begin info with the rate
+/// view appended to `VkRenderPassAttachmentBeginInfo`.
+pub(super) struct RateBegin {
+    pub info: vk::RenderPassBeginInfo<'static>,
+    _attachments: Box<vk::RenderPassAttachmentBeginInfo<'static>>,
+    _views: Vec<vk::ImageView>,
+}
+
+/// Before `vkCmdBeginRenderPass(2)` goes down: for a pass with the layer's rate attachment,
+/// records into `cb` what makes the framebuffer's rate image hold this pass's map (the eye's
+/// rates for an eye pass with VRS on, else 1×1 everywhere) when it holds another. Some: the
+/// begin info to use instead of the app's (imageless framebuffers).
+///
+/// # Safety
+/// `info` must be the app's valid begin info, alive while the result is used; `cb` recording
+/// outside a render pass instance.
+pub(super) unsafe fn for_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, kind: PassKind, info: *const vk::RenderPassBeginInfo<'_>) -> Option<RateBegin> {
+    if !d.vrs.enabled() {
+        return None;
+    }
+    // SAFETY: the caller's contract.
+    let app = unsafe { &*info };
+    let rp = d.track.render_passes.get(app.render_pass.as_raw())?;
+    rp.layer_rate_attachment?;
+    let fb = lock(&d.vrs.pass_objects).framebuffers.get(&app.framebuffer.as_raw()).cloned()?;
+    let rates = d.vrs.rates?;
+    // SAFETY: as above.
+    let begin = unsafe { super::convert::render_pass_begin(app) };
+    let imageless_views = begin.attachment_views.clone();
+    let mode = d.vrs.mode(&d.config);
+    let mut eyes = Vec::new();
+    let want = if mode == Mode::Off {
+        Content::Neutral
+    } else {
+        let pass = d.track.render_pass_instance(shared(), kind, begin);
+        // Secondary command buffers inherit the render pass, rate attachment included.
+        match plan(d, mode, &pass, false, || false) {
+            Ok(None) => Content::Neutral,
+            Ok(Some((mut key, e, _))) => {
+                key.width = fb.width;
+                key.height = fb.height;
+                key.layers = fb.layers;
+                eyes = e.into_iter().filter(|e| e.layer < fb.layers).collect();
+                key.eyes.retain(|(l, _, _)| *l < fb.layers);
+                count(d, |s| s.passes += 1);
+                log_kind_once(d, kind, pass.view_mask() != 0, &key);
+                Content::Map(key)
+            }
+            Err(why) => {
+                not_applied(d, why, kind);
+                Content::Neutral
+            }
+        }
+    };
+    if want != fb.content {
+        let r = match &want {
+            Content::Map(key) => staging_for(d, key, &eyes, rates).map(|buffer| record_fb_upload(d, cb, &fb, Some(buffer))),
+            _ => {
+                record_fb_upload(d, cb, &fb, None);
+                Ok(())
+            }
+        };
+        match r {
+            Ok(()) => {
+                if let Some(f) = lock(&d.vrs.pass_objects).framebuffers.get_mut(&app.framebuffer.as_raw()) {
+                    f.content = want;
+                }
+            }
+            Err(e) => {
+                tracing::warn!("vrs rate map for a render pass: {e}");
+                if fb.content == Content::Undefined {
+                    record_fb_upload(d, cb, &fb, None);
+                    if let Some(f) = lock(&d.vrs.pass_objects).framebuffers.get_mut(&app.framebuffer.as_raw()) {
+                        f.content = Content::Neutral;
+                    }
+                }
+            }
+        }
+    }
+    let views = imageless_views?;
+    // SAFETY: a valid chain: the attachment begin info must come first (we replace it by a copy).
+    let first = unsafe { (app.p_next as *const vk::BaseInStructure<'_>).as_ref() };
+    if first.map(|b| b.s_type) != Some(vk::StructureType::RENDER_PASS_ATTACHMENT_BEGIN_INFO) {
+        tracing::warn!("imageless framebuffer begun with a chain that does not start with VkRenderPassAttachmentBeginInfo: no rate view");
+        return None;
+    }
+    // SAFETY: the sType names this struct.
+    let a = unsafe { *(app.p_next as *const vk::RenderPassAttachmentBeginInfo<'static>) };
+    let mut out_views: Vec<vk::ImageView> = views.iter().map(|&v| vk::ImageView::from_raw(v)).collect();
+    out_views.truncate(fb.index as usize);
+    out_views.push(fb.view);
+    let mut copy = Box::new(a);
+    copy.attachment_count = out_views.len() as u32;
+    copy.p_attachments = out_views.as_ptr();
+    // SAFETY: lifetimes erased: the copy lives only during the app's call.
+    let mut bi: vk::RenderPassBeginInfo<'static> = unsafe { std::mem::transmute(*app) };
+    bi.p_next = &*copy as *const _ as *const c_void;
+    Some(RateBegin { info: bi, _attachments: copy, _views: out_views })
+}
+
+/// The immutable staging buffer holding `key`'s map, made when first needed.
+fn staging_for(d: &DeviceState, key: &MapKey, eyes: &[EyeRates], rates: DeviceRates) -> Result<vk::Buffer, String> {
+    let now = FRAMES_ENDED.load(Ordering::Relaxed);
+    if let Some(s) = lock(&d.vrs.pass_objects).stagings.get_mut(key) {
+        s.last_used_frame = now;
+        return Ok(s.buffer);
+    }
+    retire(d, now);
+    let data: Vec<u8> = (0..key.layers).flat_map(|l| rule::rate_layer(key.width, key.height, rates.texel_width, rates.texel_height, l, eyes)).collect();
+    let mut img = RateImage {
+        image: vk::Image::null(),
+        memory: vk::DeviceMemory::null(),
+        view: vk::ImageView::null(),
+        staging: vk::Buffer::null(),
+        staging_memory: vk::DeviceMemory::null(),
+        uploaded: false,
+        last_used_frame: now,
+    };
+    if let Err(e) = staging_objects(d, &data, &mut img) {
+        destroy_image(d, &img);
+        return Err(e);
+    }
+    let mut o = lock(&d.vrs.pass_objects);
+    if let Some(s) = o.stagings.get_mut(key) {
+        // Another thread made the same map first: ours was never used.
+        let b = s.buffer;
+        drop(o);
+        destroy_image(d, &img);
+        return Ok(b);
+    }
+    o.stagings.insert(key.clone(), Staging { buffer: img.staging, memory: img.staging_memory, last_used_frame: now });
+    drop(o);
+    count(d, |s| s.maps_built += 1);
+    Ok(img.staging)
+}
+
+/// Records the framebuffer rate image's new content: `staging`'s map, or 1×1 (0) everywhere.
+fn record_fb_upload(d: &DeviceState, cb: vk::CommandBuffer, fb: &FbRate, staging: Option<vk::Buffer>) {
+    let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: fb.layers };
+    // Every texel is rewritten, so the old content (and layout) need not be kept.
+    let to_dst = vk::ImageMemoryBarrier::default()
+        .src_access_mask(vk::AccessFlags::empty())
+        .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+        .old_layout(vk::ImageLayout::UNDEFINED)
+        .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
+        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .image(fb.image)
+        .subresource_range(range);
+    let to_fsr = vk::ImageMemoryBarrier::default()
+        .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+        .dst_access_mask(vk::AccessFlags::FRAGMENT_SHADING_RATE_ATTACHMENT_READ_KHR)
+        .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
+        .new_layout(vk::ImageLayout::FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL_KHR)
+        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .image(fb.image)
+        .subresource_range(range);
+    let f = d.fns.fp_v1_0();
+    let fsr = vk::PipelineStageFlags::FRAGMENT_SHADING_RATE_ATTACHMENT_KHR;
+    // SAFETY: `cb` is recording outside a render pass instance (the app is about to begin one);
+    // the image lives with the framebuffer, the staging buffer until frames after its last use.
+    unsafe {
+        (f.cmd_pipeline_barrier)(cb, fsr, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), 1, &to_dst);
+        match staging {
+            Some(buffer) => {
+                let region = vk::BufferImageCopy {
+                    buffer_offset: 0,
+                    buffer_row_length: 0,
+                    buffer_image_height: 0,
+                    image_subresource: vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: fb.layers },
+                    image_offset: vk::Offset3D::default(),
+                    image_extent: vk::Extent3D { width: fb.width, height: fb.height, depth: 1 },
+                };
+                (f.cmd_copy_buffer_to_image)(cb, buffer, fb.image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, 1, &region);
+            }
+            None => {
+                let zero = vk::ClearColorValue { uint32: [0; 4] };
+                (f.cmd_clear_color_image)(cb, fb.image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &zero, 1, &range);
+            }
+        }
+        (f.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, fsr, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), 1, &to_fsr);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn reference(attachment: u32, layout: vk::ImageLayout) -> vk::AttachmentReference {
+        vk::AttachmentReference { attachment, layout }
+    }
+
+    /// Reads a v2 subpass's array (test helper over the rewrite's own pointers).
+    fn refs(p: *const vk::AttachmentReference2<'_>, n: u32) -> Vec<(u32, vk::ImageLayout, vk::ImageAspectFlags)> {
+        // SAFETY: the rewrite's arrays, alive with it.
+        unsafe { super::super::convert::slice(p, n) }.iter().map(|r| (r.attachment, r.layout, r.aspect_mask)).collect()
+    }
+
+    #[test]
+    fn v1_pass_is_translated_and_gets_the_rate_attachment_last() {
+        use vk::ImageLayout as L;
+        let atts = [
+            vk::AttachmentDescription { format: vk::Format::R8G8B8A8_SRGB, samples: vk::SampleCountFlags::TYPE_1, load_op: vk::AttachmentLoadOp::CLEAR, ..Default::default() },
+            vk::AttachmentDescription { format: vk::Format::D24_UNORM_S8_UINT, samples: vk::SampleCountFlags::TYPE_1, ..Default::default() },
+        ];
+        let color = [reference(0, L::COLOR_ATTACHMENT_OPTIMAL)];
+        let depth = reference(1, L::DEPTH_STENCIL_ATTACHMENT_OPTIMAL);
+        let input = [reference(1, L::DEPTH_STENCIL_READ_ONLY_OPTIMAL)];
+        let subs = [
+            vk::SubpassDescription::default().pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS).color_attachments(&color).depth_stencil_attachment(&depth),
+            vk::SubpassDescription::default().pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS).input_attachments(&input).color_attachments(&color),
+        ];
+        let deps = [vk::SubpassDependency { src_subpass: 0, dst_subpass: 1, dependency_flags: vk::DependencyFlags::VIEW_LOCAL, ..Default::default() }];
+        let masks = [0b11u32, 0b11];
+        let offsets = [0i32];
+        let corr = [0b11u32];
+        let mut mv = vk::RenderPassMultiviewCreateInfo::default().view_masks(&masks).view_offsets(&offsets).correlation_masks(&corr);
+        let ci = vk::RenderPassCreateInfo::default().attachments(&atts).subpasses(&subs).dependencies(&deps).push_next(&mut mv);
+        // SAFETY: a valid create info built above.
+        let o = unsafe { owned_from_v1(&ci) }.expect("multiview is translated");
+        let rp = with_rate(o, vk::Extent2D { width: 16, height: 16 });
+        assert_eq!(rp.index, 2, "appended after the app's attachments");
+        let i = &rp.info;
+        assert_eq!(i.attachment_count, 3);
+        assert!(i.p_next.is_null(), "v1 chain translated, not forwarded");
+        // SAFETY: the rewrite's arrays.
+        let (a, s, dep, c) = unsafe {
+            (
+                super::super::convert::slice(i.p_attachments, i.attachment_count),
+                super::super::convert::slice(i.p_subpasses, i.subpass_count),
+                super::super::convert::slice(i.p_dependencies, i.dependency_count),
+                super::super::convert::slice(i.p_correlated_view_masks, i.correlated_view_mask_count),
+            )
+        };
+        assert_eq!(a[0].format, vk::Format::R8G8B8A8_SRGB);
+        assert_eq!(a[0].load_op, vk::AttachmentLoadOp::CLEAR);
+        assert_eq!((a[2].format, a[2].load_op, a[2].samples), (vk::Format::R8_UINT, vk::AttachmentLoadOp::LOAD, vk::SampleCountFlags::TYPE_1));
+        assert_eq!((a[2].initial_layout, a[2].final_layout), (L::FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL_KHR, L::FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL_KHR));
+        assert_eq!((s[0].view_mask, s[1].view_mask), (0b11, 0b11));
+        assert_eq!(refs(s[0].p_color_attachments, s[0].color_attachment_count)[0].0, 0);
+        assert!(s[0].p_resolve_attachments.is_null());
+        // SAFETY: as above.
+        assert_eq!(unsafe { (*s[0].p_depth_stencil_attachment).attachment }, 1);
+        assert!(s[1].p_depth_stencil_attachment.is_null());
+        // A v1 input attachment reads all of its format's aspects.
+        assert_eq!(refs(s[1].p_input_attachments, 1)[0].2, vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL);
+        assert_eq!((dep[0].view_offset, dep[0].dependency_flags), (0, vk::DependencyFlags::VIEW_LOCAL));
+        assert_eq!(c, &[0b11]);
+        for sub in s {
+            // SAFETY: the chain the rewrite built.
+            let f = unsafe { super::super::convert::find_in_chain::<vk::FragmentShadingRateAttachmentInfoKHR<'_>>(sub.p_next, vk::StructureType::FRAGMENT_SHADING_RATE_ATTACHMENT_INFO_KHR) }.expect("every graphics subpass");
+            // SAFETY: as above.
+            let f = unsafe { &*f };
+            assert_eq!(f.shading_rate_attachment_texel_size, vk::Extent2D { width: 16, height: 16 });
+            // SAFETY: as above.
+            let r = unsafe { &*f.p_fragment_shading_rate_attachment };
+            assert_eq!((r.attachment, r.layout), (2, L::FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL_KHR));
+        }
+    }
+
+    #[test]
+    fn v1_chains_with_unknown_structs_are_left_alone() {
+        let mut fdm = vk::RenderPassFragmentDensityMapCreateInfoEXT::default();
+        let ci = vk::RenderPassCreateInfo::default().push_next(&mut fdm);
+        // SAFETY: a valid create info built above.
+        assert!(unsafe { owned_from_v1(&ci) }.is_none());
+    }
+
+    #[test]
+    fn v2_pass_keeps_its_chains_and_own_rate_attachments_are_left_alone() {
+        let atts = [vk::AttachmentDescription2::default().format(vk::Format::B8G8R8A8_SRGB).samples(vk::SampleCountFlags::TYPE_4)];
+        let color = [vk::AttachmentReference2::default().attachment(0).layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)];
+        let mut dsr = vk::SubpassDescriptionDepthStencilResolve::default();
+        let subs = [
+            vk::SubpassDescription2::default().pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS).color_attachments(&color).push_next(&mut dsr),
+            vk::SubpassDescription2::default().pipeline_bind_point(vk::PipelineBindPoint::COMPUTE),
+        ];
+        let ci = vk::RenderPassCreateInfo2::default().attachments(&atts).subpasses(&subs);
+        // SAFETY: a valid create info built above.
+        let o = unsafe { owned_from_v2(&ci) };
+        // SAFETY: as above.
+        assert!(!unsafe { v2_leave_alone(&o) });
+        let rp = with_rate(o, vk::Extent2D { width: 8, height: 8 });
+        assert_eq!(rp.index, 1);
+        // SAFETY: the rewrite's arrays.
+        let s = unsafe { super::super::convert::slice(rp.info.p_subpasses, rp.info.subpass_count) };
+        // SAFETY: the chain the rewrite built: ours first, then the app's.
+        let first = unsafe { &*(s[0].p_next as *const vk::BaseInStructure<'_>) };
+        assert_eq!(first.s_type, vk::StructureType::FRAGMENT_SHADING_RATE_ATTACHMENT_INFO_KHR);
+        // SAFETY: as above.
+        assert_eq!(unsafe { (*first.p_next).s_type }, vk::StructureType::SUBPASS_DESCRIPTION_DEPTH_STENCIL_RESOLVE);
+        assert!(s[1].p_next.is_null(), "compute subpasses get none");
+
+        let fsr_ref = vk::AttachmentReference2::default().attachment(0).layout(vk::ImageLayout::FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL_KHR);
+        let mut own = vk::FragmentShadingRateAttachmentInfoKHR::default().fragment_shading_rate_attachment(&fsr_ref);
+        let subs = [vk::SubpassDescription2::default().pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS).push_next(&mut own)];
+        let ci = vk::RenderPassCreateInfo2::default().attachments(&atts).subpasses(&subs);
+        // SAFETY: as above.
+        assert!(unsafe { v2_leave_alone(&owned_from_v2(&ci)) });
+    }
+
+    #[test]
+    fn input_aspects_by_format() {
+        assert_eq!(format_aspects(vk::Format::D32_SFLOAT), vk::ImageAspectFlags::DEPTH);
+        assert_eq!(format_aspects(vk::Format::S8_UINT), vk::ImageAspectFlags::STENCIL);
+        assert_eq!(format_aspects(vk::Format::R16G16B16A16_SFLOAT), vk::ImageAspectFlags::COLOR);
     }
 }
