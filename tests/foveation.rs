@@ -37,14 +37,18 @@ fn view_fov(f: &Fov) -> ViewFov {
     ViewFov { tan_left: f.angle_left.tan(), tan_right: f.angle_right.tan(), tan_up: f.angle_up.tan(), tan_down: f.angle_down.tan() }
 }
 
-/// Angle (degrees) between the optical axis and the view direction through image point (px, py)
-/// of a `w` × `h` rect (pixels, y down), in f64 — independent of the layer's f32 rule.
-fn angle_deg(f: &Fov, w: u32, h: u32, px: f64, py: f64) -> f64 {
+/// Angle (degrees) between the fovea centre direction (a tangent-plane point; (0, 0) is the optical
+/// axis) and the view direction through image point (px, py) of a `w` × `h` rect (pixels, y down),
+/// in f64 — independent of the layer's f32 rule.
+fn angle_deg(f: &Fov, w: u32, h: u32, px: f64, py: f64, center: [f32; 2]) -> f64 {
     let (l, r) = ((f.angle_left as f64).tan(), (f.angle_right as f64).tan());
     let (u, d) = ((f.angle_up as f64).tan(), (f.angle_down as f64).tan());
     let tx = l + px / w as f64 * (r - l);
     let ty = u - py / h as f64 * (u - d);
-    (1.0 / (tx * tx + ty * ty + 1.0).sqrt()).acos().to_degrees()
+    let (cx, cy) = (center[0] as f64, center[1] as f64);
+    let dot = tx * cx + ty * cy + 1.0;
+    let norms = (tx * tx + ty * ty + 1.0).sqrt() * (cx * cx + cy * cy + 1.0).sqrt();
+    (dot / norms).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
 pub struct ViewResult {
@@ -85,7 +89,16 @@ pub fn check(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &
 /// `with_mask`: both runs go through the layer with the hidden-area mask on (the baseline is the
 /// mask alone), so RDM is judged on top of it.
 pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&str, &str)], with_mask: bool) -> Vec<ViewResult> {
-    let mut base = Run::new(name).args(args.iter().copied()).env("MOCK_XR_EYE_TRACKER", "0");
+    // With `MOCK_XR_GAZE=yaw,pitch` among the env, the fovea follows that gaze (eye tracking on);
+    // otherwise there is no eye tracker and the fovea sits on the optical axis.
+    let gaze: Option<(f64, f64)> = extra_env.iter().find(|(k, _)| *k == "MOCK_XR_GAZE").map(|(_, v)| {
+        let (y, p) = v.split_once(',').expect("yaw,pitch");
+        (y.trim().parse().unwrap(), p.trim().parse().unwrap())
+    });
+    let mut base = Run::new(name).args(args.iter().copied());
+    if gaze.is_none() {
+        base = base.env("MOCK_XR_EYE_TRACKER", "0");
+    }
     for (k, v) in extra_env {
         base = base.env(k, v);
     }
@@ -99,7 +112,7 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
         .env("STEREOSHIM_FOVEATION_ENABLED", "1")
         .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
         .env("STEREOSHIM_FOVEATION_PRESET", preset_name)
-        .env("STEREOSHIM_FOVEATION_EYE_TRACKING", "off");
+        .env("STEREOSHIM_FOVEATION_EYE_TRACKING", if gaze.is_some() { "auto" } else { "off" });
     for (k, v) in extra_env.iter().filter(|(k, _)| k.starts_with("STEREOSHIM_FOVEATION_")) {
         layered = layered.env(k, v);
     }
@@ -128,7 +141,13 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
     let mut out = Vec::new();
     for (a, b) in rdm.views(1).iter().zip(plain.views(1)) {
         let (w, h) = (a.image_rect.width, a.image_rect.height);
-        let fovea = FoveaView { view: a.view, center: [0.0, 0.0], inner_deg, middle_deg };
+        // The gaze direction of the mock runtime (yaw right, pitch up) as a tangent-plane point of
+        // these parallel views: (tan yaw, tan pitch / cos yaw).
+        let center = gaze.map_or([0.0, 0.0], |(yaw, pitch)| {
+            let (yaw, pitch) = (yaw.to_radians(), pitch.to_radians());
+            [yaw.tan() as f32, (pitch.tan() / yaw.cos()) as f32]
+        });
+        let fovea = FoveaView { view: a.view, center, inner_deg, middle_deg };
         let params = RdmParams::new(&view_fov(&a.fov), &fovea, PixelRect { x: 0, y: 0, width: w, height: h }).expect("params");
         let (got, want) = (rdm.image(&a.file), plain.image(&b.file));
         // With the mask, its hidden area is never shown, and skipped quads along its outline are
@@ -154,7 +173,7 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
                 let (qx, qy) = ((x / 2 * 2) as f64, (y / 2 * 2) as f64);
                 let deep_inside = [(qx - 1.0, qy - 1.0), (qx + 3.0, qy - 1.0), (qx - 1.0, qy + 3.0), (qx + 3.0, qy + 3.0)]
                     .iter()
-                    .all(|&(px, py)| angle_deg(&a.fov, w, h, px, py) < inner_deg as f64);
+                    .all(|&(px, py)| angle_deg(&a.fov, w, h, px, py, center) < inner_deg as f64);
                 if deep_inside && g != e {
                     bad.push((x, y, "inner ring"));
                 } else if !is_skipped && g != e {
@@ -276,6 +295,16 @@ fn with_hidden_area_mask() {
 }
 
 /// Off by default: with the layer but without `foveation.enabled`, frames equal the plain run's.
+/// With an eye tracker the full-rate region follows the gaze: the fovea around the gaze point is
+/// bit-identical, and the skipped quads are exactly the rule's for the gaze-centred rings (so the
+/// optical axis, 15° away, now lies in the half-rate ring).
+#[test]
+fn follows_the_gaze() {
+    for (layout, gaze) in [("per-eye", "15,-5"), ("multiview", "-12,8")] {
+        check(&format!("gaze-{layout}"), &["--layout", layout, "--rendering", "dynamic"], "balanced", &[("MOCK_XR_GAZE", gaze)]);
+    }
+}
+
 #[test]
 fn off_by_default() {
     let args = ["--layout", "per-eye", "--rendering", "dynamic"];
