@@ -4,8 +4,11 @@
 //! - pixels of quads the rule keeps are bit-identical, and so — computed independently here, in
 //!   f64 from frames.json's FOV and the preset's angle — is every pixel well inside the inner ring;
 //! - the skipped quads are reconstructed: periphery PSNR is reported (and ≥ 30 dB for `balanced`);
-//! - shaded fragments drop by exactly the fragments the skipped pixels had in the plain run. xr-scene
-//!   reports only a per-view total, so that sum is bounded from both sides: every skipped pixel had
+//! - shaded fragments drop by exactly the fragments the skipped pixels had in the plain run: both
+//!   runs write xr-scene's `--pixel-stats`, and per view
+//!   shaded_rdm == shaded_plain − Σ_{p skipped by the rule} plain_counts[p] holds exactly (RDM's
+//!   depth makes every fragment of a skipped pixel fail early-Z; kept pixels keep all of theirs).
+//!   The older bounds stay as a cross-check of the per-view totals alone: every skipped pixel had
 //!   at least one fragment (the scene covers every pixel) and at most one plus its share of the
 //!   plain run's overdraw (plain fragments − pixels): skipped ≤ drop ≤ skipped + overdraw. The
 //!   skipped count itself is exact: the layer's `stats.file` reports the rule's count per view,
@@ -56,6 +59,8 @@ pub struct ViewResult {
     pub pixels: u64,
     pub skipped: u64,
     pub shaded_drop: i64,
+    /// The plain run's fragments at the pixels the rule skips (`--pixel-stats`).
+    pub skipped_fragments: i64,
     /// Plain run's fragments beyond one per pixel.
     pub overdraw: i64,
     pub psnr_db: f64,
@@ -95,7 +100,7 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
         let (y, p) = v.split_once(',').expect("yaw,pitch");
         (y.trim().parse().unwrap(), p.trim().parse().unwrap())
     });
-    let mut base = Run::new(name).args(args.iter().copied());
+    let mut base = Run::new(name).args(args.iter().copied()).pixel_stats();
     if gaze.is_none() {
         base = base.env("MOCK_XR_EYE_TRACKER", "0");
     }
@@ -162,13 +167,19 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
         } else {
             vec![false; (w * h) as usize]
         };
+        let plain_counts = plain.pixel_counts(1, b.view);
         let mut bad = Vec::new();
         let (mut skipped, mut periphery) = (0u64, Vec::new());
+        // Σ over the pixels the rule skips of the plain run's fragments there.
+        let mut skipped_fragments = 0i64;
         for y in 0..h {
             for x in 0..w {
                 let (g, e) = (&got.pixel(x, y)[..3], &want.pixel(x, y)[..3]);
                 let is_skipped = params.pixel_skipped(x as i32, y as i32);
                 skipped += is_skipped as u64;
+                if is_skipped {
+                    skipped_fragments += plain_counts[(y * w + x) as usize] as i64;
+                }
                 // Independently: the whole quad, grown by a pixel, lies inside the inner ring.
                 let (qx, qy) = ((x / 2 * 2) as f64, (y / 2 * 2) as f64);
                 let deep_inside = [(qx - 1.0, qy - 1.0), (qx + 3.0, qy - 1.0), (qx - 1.0, qy + 3.0), (qx + 3.0, qy + 3.0)]
@@ -196,19 +207,28 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
             f.views.iter().find(|v| v.view == a.view).expect("view stats").shaded_fragments as i64
         };
         let overdraw = (shaded(&plain) - (w as i64 * h as i64)).max(0);
-        let r = ViewResult { view: a.view, pixels: w as u64 * h as u64, skipped, shaded_drop: shaded(&plain) - shaded(&rdm), overdraw, psnr_db: psnr(&periphery) };
+        let r = ViewResult {
+            view: a.view,
+            pixels: w as u64 * h as u64,
+            skipped,
+            shaded_drop: shaded(&plain) - shaded(&rdm),
+            skipped_fragments,
+            overdraw,
+            psnr_db: psnr(&periphery),
+        };
         // The layer's own count of frame 1 (rdm.pixels_skipped, summed over its passes) is the
         // rule's count over the eye's rect.
         let layer_px = stats1["rdm"]["pixels_skipped"][a.view.to_string()].as_u64().unwrap_or(0);
         assert_eq!(layer_px, skipped, "{name} view {}: layer stats {}", a.view, stats1);
         assert_eq!(stats1["rdm"]["reconstructed"][a.view.to_string()].as_u64(), Some(1), "{name} view {}: {}", a.view, stats1);
         eprintln!(
-            "{name} [{preset_name}] view {}: {}x{} px, skipped {} px ({:.1} %), shaded fragments -{} (plain {}), periphery PSNR {:.2} dB",
+            "{name} [{preset_name}] view {}: {}x{} px, skipped {} px ({:.1} %, {} plain fragments), shaded fragments -{} (plain {}), periphery PSNR {:.2} dB",
             a.view,
             w,
             h,
             r.skipped,
             100.0 * r.skipped as f64 / r.pixels as f64,
+            r.skipped_fragments,
             r.shaded_drop,
             shaded(&plain),
             r.psnr_db
@@ -227,6 +247,13 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
             r.shaded_drop,
             r.skipped,
             r.overdraw
+        );
+        // Exact: the skipped pixels lose every fragment they had in the plain run, the kept ones
+        // keep all of theirs.
+        assert_eq!(
+            r.shaded_drop, r.skipped_fragments,
+            "{name} view {}: shaded fragments dropped by {}, but the skipped pixels had {} fragments in the plain run",
+            r.view, r.shaded_drop, r.skipped_fragments
         );
         if preset_name == "balanced" {
             assert!(r.psnr_db >= 30.0, "{name} view {}: periphery PSNR {:.2} dB < 30", r.view, r.psnr_db);

@@ -302,3 +302,43 @@ fn animation_is_deterministic() {
     let f1 = a.image(&a.views(1)[0].file);
     assert!(f0.count_different(&f1) > 0, "--animate: frames 0 and 1 are identical");
 }
+
+/// `--pixel-stats`: in every layout × way of starting a pass (and through intermediate targets,
+/// copied and MSAA-resolved) the per-pixel counts of each view sum to the view's
+/// `shaded_fragments`, every pixel was shaded at least once (the scene covers the image), the run
+/// stays validation-clean, and the flag changes neither the captures nor the per-view counts.
+#[test]
+fn pixel_stats_sum_to_view_counts() {
+    for layout in ["per-eye", "multiview", "side-by-side"] {
+        let plain = Run::new(&format!("pixel-stats-{layout}-plain")).args(["--layout", layout]).run();
+        plain.assert_ok();
+        let variants: [&[&str]; 5] = [
+            &["--rendering", "render-pass"],
+            &["--rendering", "render-pass2"],
+            &["--rendering", "dynamic"],
+            &["--rendering", "dynamic", "--intermediate", "--samples", "1"],
+            &["--rendering", "render-pass", "--intermediate", "--samples", "4"],
+        ];
+        for (i, extra) in variants.iter().enumerate() {
+            let name = format!("pixel-stats-{layout}-{i}");
+            let out = Run::new(&name).args(["--layout", layout]).args(extra.iter().copied()).pixel_stats().run();
+            out.assert_ok();
+            let stats = out.stats.as_ref().expect("stats");
+            for f in &stats.frames {
+                for v in &f.views {
+                    let counts = out.pixel_counts(f.frame, v.view);
+                    let sum: u64 = counts.iter().map(|&c| c as u64).sum();
+                    assert_eq!(sum, v.shaded_fragments, "{name}: frame {} view {}: per-pixel counts sum to {sum}", f.frame, v.view);
+                    let empty = counts.iter().filter(|&&c| c == 0).count();
+                    assert_eq!(empty, 0, "{name}: frame {} view {}: {empty} pixels never shaded", f.frame, v.view);
+                }
+            }
+            if i == 0 {
+                assert_same_captures(&format!("{name}-vs-plain"), &out, &plain);
+                assert_eq!(out.stats.as_ref().map(|s| s.frames.iter().map(|f| f.views.iter().map(|v| v.shaded_fragments).collect::<Vec<_>>()).collect::<Vec<_>>()),
+                    plain.stats.as_ref().map(|s| s.frames.iter().map(|f| f.views.iter().map(|v| v.shaded_fragments).collect::<Vec<_>>()).collect::<Vec<_>>()),
+                    "{name}: --pixel-stats changed the per-view counts");
+            }
+        }
+    }
+}

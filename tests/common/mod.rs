@@ -64,6 +64,8 @@ pub struct Run {
     pub layer: bool,
     /// Run the app through this program (e.g. `stereoshim run --`), prepended to the command.
     pub wrapper: Vec<std::ffi::OsString>,
+    /// Pass `--pixel-stats <run dir>/pixel-stats` (read back with `RunOutput::pixel_counts`).
+    pub pixel_stats: bool,
 }
 
 impl Run {
@@ -78,6 +80,7 @@ impl Run {
             config_toml: None,
             layer: false,
             wrapper: Vec::new(),
+            pixel_stats: false,
         }
     }
     pub fn args<I: IntoIterator<Item = S>, S: Into<String>>(mut self, args: I) -> Run {
@@ -93,6 +96,10 @@ impl Run {
     /// Enables stereoshim as an explicit API layer (the way `stereoshim run` does).
     pub fn with_layer(mut self) -> Run {
         self.layer = true;
+        self
+    }
+    pub fn pixel_stats(mut self) -> Run {
+        self.pixel_stats = true;
         self
     }
     pub fn config(mut self, toml: &str) -> Run {
@@ -119,6 +126,9 @@ impl Run {
         cmd.args(&self.args).arg("--stats").arg(&stats);
         if self.validation {
             cmd.arg("--validation");
+        }
+        if self.pixel_stats {
+            cmd.arg("--pixel-stats").arg(dir.join("pixel-stats"));
         }
         cmd.env("XR_RUNTIME_JSON", runtime_manifest())
             .env("MOCK_XR_CAPTURE", &capture)
@@ -223,6 +233,17 @@ impl RunOutput {
         let frame = self.frame(n);
         let layer = frame.layers.iter().find(|l| l.kind == "projection").expect("a projection layer");
         layer.views.iter().collect()
+    }
+    /// `--pixel-stats` of frame `n`, view `view`: shaded fragments per pixel of the view's image
+    /// rect, row-major (`width` × `height` of the captured view).
+    pub fn pixel_counts(&self, n: u64, view: u32) -> Vec<u32> {
+        let dir = self.capture.parent().expect("run dir").join("pixel-stats");
+        let path = dir.join(format!("frame-{n:05}-view-{view}.u32"));
+        let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {}: {e}; stderr:\n{}", self.name, path.display(), self.stderr));
+        let v = self.views(n).into_iter().find(|v| v.view == view).unwrap_or_else(|| panic!("{}: no view {view}", self.name));
+        let expected = v.image_rect.width as usize * v.image_rect.height as usize * 4;
+        assert_eq!(bytes.len(), expected, "{}: {} has {} bytes, not width × height × 4", self.name, path.display(), bytes.len());
+        bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
     }
     /// Log lines containing `needle`.
     pub fn log_lines(&self, needle: &str) -> Vec<&str> {

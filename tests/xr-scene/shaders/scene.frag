@@ -1,6 +1,6 @@
 #version 450
 // The scene's fragment shader: flat/Lambert colour, a procedural ground checker, distance fog, an
-// optional cost loop and the shaded-fragment counter behind `--stats`.
+// optional cost loop and the shaded-fragment counters behind `--stats` and `--pixel-stats`.
 #ifdef MULTIVIEW
 #extension GL_EXT_multiview : require
 #endif
@@ -24,10 +24,22 @@ layout(set = 0, binding = 1, std430) buffer Counts {
     uint counts[];
 };
 
+// `--pixel-stats`: shaded fragments per pixel of the eye rect (row-major, rect-relative).
+layout(set = 0, binding = 2, std430) buffer PixelCounts {
+    uint pixel_counts[];
+};
+
 layout(push_constant) uniform Push {
     uint eye;
     uint shading_cost;
     uint flags;
+    // `--pixel-stats`: the eye rect's origin x in the framebuffer and its size, and how many
+    // elements apart the views' regions are in the bound range (multiview; 0 otherwise, where the
+    // dynamic offset selects the region).
+    int pix_origin_x;
+    uint pix_width;
+    uint pix_height;
+    uint pix_view_stride;
 } pc;
 
 layout(location = 0) out vec4 out_color;
@@ -36,6 +48,7 @@ const uint FLAG_LIT = 1u;
 const uint FLAG_CHECKER = 4u;
 const uint FLAG_FOG = 8u;
 const uint PC_MANUAL_SRGB = 1u;
+const uint PC_PIXEL_STATS = 2u;
 
 const vec3 SUN = vec3(0.3, 0.8, 0.4) / 0.9434;
 const vec3 HAZE = vec3(0.62, 0.72, 0.88);
@@ -56,6 +69,13 @@ void main() {
     // how the driver packs quads.
     if (!gl_HelperInvocation) {
         atomicAdd(counts[view], 1u);
+        if ((pc.flags & PC_PIXEL_STATS) != 0u) {
+            int x = int(gl_FragCoord.x) - pc.pix_origin_x;
+            int y = int(gl_FragCoord.y);
+            if (x >= 0 && y >= 0 && uint(x) < pc.pix_width && uint(y) < pc.pix_height) {
+                atomicAdd(pixel_counts[view * pc.pix_view_stride + uint(y) * pc.pix_width + uint(x)], 1u);
+            }
+        }
     }
 
     vec3 c = v_color;

@@ -20,6 +20,13 @@ layout(push_constant) uniform Push {
     uint eye;
     uint shading_cost;
     uint flags;
+    // `--pixel-stats`: the eye rect's origin x in the framebuffer and its size, and how many
+    // elements apart the views' regions are in the bound range (multiview; 0 otherwise, where the
+    // dynamic offset selects the region).
+    int pix_origin_x;
+    uint pix_width;
+    uint pix_height;
+    uint pix_view_stride;
 } pc;
 
 layout(location = 0) out vec3 v_world;

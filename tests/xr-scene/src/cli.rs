@@ -67,6 +67,8 @@ pub struct Options {
     /// layer adds to a pass.
     pub empty: bool,
     pub stats: Option<PathBuf>,
+    /// `--pixel-stats DIR`: per frame and view, shaded fragments per pixel of the view's rect.
+    pub pixel_stats: Option<PathBuf>,
     pub validation: bool,
 }
 
@@ -89,6 +91,7 @@ impl Default for Options {
             bind_before_pass: false,
             empty: false,
             stats: None,
+            pixel_stats: None,
             validation: false,
         }
     }
@@ -113,6 +116,8 @@ usage: xr-scene [options]
   --bind-before-pass                        set draw state before vkCmdBegin*, not inside the pass
   --empty                                   passes with their clears but no draws (layer cost benchmarks)
   --stats FILE                              write per-frame GPU time and shaded fragments as JSON
+  --pixel-stats DIR                         write per frame and view the shaded fragments of each pixel
+                                            (DIR/frame-NNNNN-view-V.u32, raw little-endian u32)
   --validation                              enable VK_LAYER_KHRONOS_validation (exit 3 on errors)
   --help                                    show this text";
 
@@ -213,6 +218,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                     .map_err(|_| format!("--shading-cost must be a non-negative integer, got {v:?}"))?;
             }
             "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
+            "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
             "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" if inline.is_some() => {
                 return Err(format!("{flag} takes no value"))
             }
@@ -272,6 +278,7 @@ mod tests {
             "--layout", "multiview", "--rendering=dynamic", "--depth", "reverse", "--intermediate",
             "--vulkan", "enable", "--frames", "5", "--scale", "0.25", "--color-format", "unorm",
             "--shading-cost", "10", "--animate", "--stats", "/tmp/s.json", "--validation",
+            "--pixel-stats", "/tmp/px",
         ])
         .unwrap()
         .unwrap();
@@ -285,6 +292,8 @@ mod tests {
         assert_eq!(o.scale, 0.25);
         assert_eq!(o.shading_cost, 10);
         assert_eq!(o.stats.as_deref(), Some(std::path::Path::new("/tmp/s.json")));
+        assert_eq!(o.pixel_stats.as_deref(), Some(std::path::Path::new("/tmp/px")));
+        assert_eq!(p(&[]).unwrap().unwrap().pixel_stats, None);
     }
 
     #[test]

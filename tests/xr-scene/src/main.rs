@@ -66,6 +66,9 @@ fn run(opts: &cli::Options) -> Result<u64> {
     let mut targets = targets::Targets::new(opts, &gpu, &xri, &xs)?;
     let mut renderer = renderer::Renderer::new(opts, &gpu, &targets)?;
     let mut stats = opts.stats.clone().map(stats::StatsLog::new);
+    if let Some(dir) = &opts.pixel_stats {
+        std::fs::create_dir_all(dir).map_err(|e| error::Error(format!("creating {}: {e}", dir.display())))?;
+    }
     if let Some(s) = &stats {
         s.write()?;
     }
@@ -117,6 +120,9 @@ fn run(opts: &cli::Options) -> Result<u64> {
             xr_time += t.elapsed();
             let uniforms = frame_uniforms(&views, reversed, opts.animate, frame);
             let (gpu_ms, counts, record_us) = renderer.render(&gpu, &targets, &acquired, &uniforms)?;
+            if let (Some(p), Some(dir)) = (&renderer.pixels, &opts.pixel_stats) {
+                p.write(dir, frame)?;
+            }
             let t = std::time::Instant::now();
             for slot in &mut targets.slots {
                 slot.color.swapchain.release_image().ctx("xrReleaseSwapchainImage")?;

@@ -5,7 +5,7 @@ use crate::cli::{DepthClear, DepthMode, Layout, Options};
 use crate::error::{Ctx, Error, Result};
 use crate::gpu::Gpu;
 use crate::passes::{PassFormat, Passes};
-use crate::stats::{GpuCounters, BINDING_RANGE};
+use crate::stats::{GpuCounters, PixelCounters, BINDING_RANGE};
 use crate::targets::{depth_aspect, Targets};
 use ash::vk;
 use glam::{Mat4, Vec4};
@@ -31,9 +31,16 @@ struct PushConstants {
     eye: u32,
     shading_cost: u32,
     flags: u32,
+    /// `--pixel-stats`: the eye rect's origin x in the framebuffer, its size, and the element
+    /// distance between the views' regions in the bound range (multiview only).
+    pix_origin_x: i32,
+    pix_width: u32,
+    pix_height: u32,
+    pix_view_stride: u32,
 }
 
 const PC_MANUAL_SRGB: u32 = 1;
+const PC_PIXEL_STATS: u32 = 2;
 
 struct Buffer {
     buffer: vk::Buffer,
@@ -113,6 +120,9 @@ pub struct Renderer {
     uniforms: Buffer,
     uniforms_mapped: *mut FrameUniforms,
     pub counters: GpuCounters,
+    /// `--pixel-stats`: per-pixel counters. Without it, binding 2 aliases the per-view counters
+    /// (same ranges, same offsets) and the shader never touches it.
+    pub pixels: Option<PixelCounters>,
     command_pool: vk::CommandPool,
     cmd: vk::CommandBuffer,
     fence: vk::Fence,
@@ -136,6 +146,14 @@ impl Renderer {
             },
         )?;
         let counters = GpuCounters::new(gpu)?;
+        let pixels = match opts.pixel_stats {
+            Some(_) => Some(PixelCounters::new(gpu, targets.views.map(|v| (v.extent.width, v.extent.height)))?),
+            None => None,
+        };
+        let mut flags = if opts.color_format == crate::cli::ColorFamily::Unorm { PC_MANUAL_SRGB } else { 0 };
+        if pixels.is_some() {
+            flags |= PC_PIXEL_STATS;
+        }
         let mut r = Renderer {
             device: d.clone(),
             layout: opts.layout,
@@ -148,7 +166,11 @@ impl Renderer {
             push: PushConstants {
                 eye: 0,
                 shading_cost: opts.shading_cost,
-                flags: if opts.color_format == crate::cli::ColorFamily::Unorm { PC_MANUAL_SRGB } else { 0 },
+                flags,
+                pix_origin_x: 0,
+                pix_width: 0,
+                pix_height: 0,
+                pix_view_stride: pixels.as_ref().map_or(0, |p| p.view_stride(multiview)),
             },
             passes,
             set_layout: vk::DescriptorSetLayout::null(),
@@ -163,6 +185,7 @@ impl Renderer {
             uniforms: Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() },
             uniforms_mapped: std::ptr::null_mut(),
             counters,
+            pixels,
             command_pool: vk::CommandPool::null(),
             cmd: vk::CommandBuffer::null(),
             fence: vk::Fence::null(),
@@ -204,6 +227,11 @@ impl Renderer {
                     .descriptor_type(vk::DescriptorType::STORAGE_BUFFER_DYNAMIC)
                     .descriptor_count(1)
                     .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(2)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER_DYNAMIC)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::FRAGMENT),
             ];
             self.set_layout = d
                 .create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None)
@@ -238,7 +266,7 @@ impl Renderer {
 
             let pool_sizes = [
                 vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: 1 },
-                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER_DYNAMIC, descriptor_count: 1 },
+                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER_DYNAMIC, descriptor_count: 2 },
             ];
             self.descriptor_pool = d
                 .create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&pool_sizes), None)
@@ -264,6 +292,10 @@ impl Renderer {
 
             let ubo_info = [vk::DescriptorBufferInfo { buffer: self.uniforms.buffer, offset: 0, range: ubo_size }];
             let ssbo_info = [vk::DescriptorBufferInfo { buffer: self.counters.buffer, offset: 0, range: BINDING_RANGE }];
+            let pixel_info = [match &self.pixels {
+                Some(p) => vk::DescriptorBufferInfo { buffer: p.buffer, offset: 0, range: p.binding_range(self.multiview) },
+                None => ssbo_info[0],
+            }];
             let writes = [
                 vk::WriteDescriptorSet::default()
                     .dst_set(self.descriptor_set)
@@ -275,6 +307,11 @@ impl Renderer {
                     .dst_binding(1)
                     .descriptor_type(vk::DescriptorType::STORAGE_BUFFER_DYNAMIC)
                     .buffer_info(&ssbo_info),
+                vk::WriteDescriptorSet::default()
+                    .dst_set(self.descriptor_set)
+                    .dst_binding(2)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER_DYNAMIC)
+                    .buffer_info(&pixel_info),
             ];
             d.update_descriptor_sets(&writes, &[]);
         }
@@ -357,6 +394,9 @@ impl Renderer {
             d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
                 .ctx("vkBeginCommandBuffer")?;
             self.counters.record_start(cmd);
+            if let Some(p) = &self.pixels {
+                p.record_start(cmd);
+            }
             self.pre_pass_barriers(targets, acquired);
 
             for (slot_index, a) in acquired.iter().enumerate() {
@@ -391,9 +431,15 @@ impl Renderer {
                         self.pipeline_layout,
                         0,
                         &[self.descriptor_set],
-                        &[self.counters.dynamic_offset(eye, self.multiview)],
+                        &[
+                            self.counters.dynamic_offset(eye, self.multiview),
+                            match &self.pixels {
+                                Some(p) => p.dynamic_offset(eye, self.multiview),
+                                None => self.counters.dynamic_offset(eye, self.multiview),
+                            },
+                        ],
                     );
-                    let pc = PushConstants { eye, ..self.push };
+                    let pc = PushConstants { eye, pix_origin_x: x, pix_width: rect.extent.width, pix_height: h, ..self.push };
                     let bytes = std::slice::from_raw_parts(&pc as *const PushConstants as *const u8, std::mem::size_of::<PushConstants>());
                     d.cmd_push_constants(cmd, self.pipeline_layout, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT, 0, bytes);
                 };
@@ -436,6 +482,9 @@ impl Renderer {
                 self.resolve_to_swapchains(targets, acquired);
             }
             self.counters.record_end(cmd);
+            if let Some(p) = &self.pixels {
+                p.record_end(cmd);
+            }
             d.end_command_buffer(cmd).ctx("vkEndCommandBuffer")?;
         }
         let record_us = record_start.elapsed().as_secs_f64() * 1e6;
@@ -499,7 +548,8 @@ impl Renderer {
                 _ => {}
             }
         }
-        let buffers = [self.counters.after_fill_barrier()];
+        let mut buffers = vec![self.counters.after_fill_barrier()];
+        buffers.extend(self.pixels.as_ref().map(|p| p.after_fill_barrier()));
         let fragment_tests = vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
         let mut dst_stages = vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | fragment_tests;
         if self.depth_clear == DepthClear::Image {

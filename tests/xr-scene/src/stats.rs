@@ -200,6 +200,176 @@ impl Drop for GpuCounters {
     }
 }
 
+/// `--pixel-stats`: shaded fragments per pixel of each view's image rect.
+///
+/// One `minStorageBufferOffsetAlignment`-aligned region per view (row-major, rect-relative, y
+/// down). Per-eye and side-by-side draws bind their view's region alone with a dynamic offset, so
+/// draws of different eyes in one pass touch disjoint memory; the multiview draw binds both regions
+/// at offset 0 and indexes with gl_ViewIndex × `view_stride`.
+pub struct PixelCounters {
+    device: ash::Device,
+    pub buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+    mapped: *const u8,
+    /// Bytes from one view's region to the next.
+    region: u64,
+    sizes: [(u32, u32); 2],
+}
+
+impl PixelCounters {
+    pub fn new(gpu: &Gpu, sizes: [(u32, u32); 2]) -> Result<PixelCounters> {
+        let d = &gpu.device;
+        let align = gpu.props.limits.min_storage_buffer_offset_alignment.max(4);
+        let bytes = sizes.iter().map(|&(w, h)| w as u64 * h as u64 * 4).max().unwrap_or(4).max(4);
+        let region = bytes.div_ceil(align) * align;
+        let mut p = PixelCounters {
+            device: d.clone(),
+            buffer: vk::Buffer::null(),
+            memory: vk::DeviceMemory::null(),
+            mapped: std::ptr::null(),
+            region,
+            sizes,
+        };
+        let info = vk::BufferCreateInfo::default()
+            .size(2 * region)
+            .usage(vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST);
+        // SAFETY: valid create infos; partial results are destroyed by Drop.
+        unsafe {
+            p.buffer = d.create_buffer(&info, None).ctx("vkCreateBuffer(pixel counters)")?;
+            let req = d.get_buffer_memory_requirements(p.buffer);
+            let ty = gpu
+                .memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_CACHED)
+                .or_else(|_| gpu.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE))?;
+            p.memory = d
+                .allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None)
+                .ctx("vkAllocateMemory(pixel counters)")?;
+            d.bind_buffer_memory(p.buffer, p.memory, 0).ctx("vkBindBufferMemory")?;
+            p.mapped = d
+                .map_memory(p.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
+                .ctx("vkMapMemory(pixel counters)")? as *const u8;
+        }
+        Ok(p)
+    }
+
+    /// The dynamic offset for the draw of `view` (0 for the multiview draw).
+    pub fn dynamic_offset(&self, view: u32, multiview: bool) -> u32 {
+        if multiview {
+            0
+        } else {
+            (self.region * view as u64) as u32
+        }
+    }
+
+    /// Bytes the shader may see through the binding: one region, both for multiview.
+    pub fn binding_range(&self, multiview: bool) -> u64 {
+        if multiview {
+            2 * self.region
+        } else {
+            self.region
+        }
+    }
+
+    /// Elements between the views' regions inside the bound range (multiview only).
+    pub fn view_stride(&self, multiview: bool) -> u32 {
+        if multiview {
+            (self.region / 4) as u32
+        } else {
+            0
+        }
+    }
+
+    /// Start of the frame: the previous frame's atomics done, then the regions zeroed. The
+    /// fill → fragment-shader dependency is `after_fill_barrier`, in the pre-pass barrier.
+    pub fn record_start(&self, cmd: vk::CommandBuffer) {
+        let d = &self.device;
+        let before = [buffer_barrier(self.buffer, vk::AccessFlags::SHADER_WRITE, vk::AccessFlags::TRANSFER_WRITE)];
+        // SAFETY: recording state, outside any render pass.
+        unsafe {
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::FRAGMENT_SHADER,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &[],
+                &before,
+                &[],
+            );
+            d.cmd_fill_buffer(cmd, self.buffer, 0, vk::WHOLE_SIZE, 0);
+        }
+    }
+
+    pub fn after_fill_barrier(&self) -> vk::BufferMemoryBarrier<'static> {
+        buffer_barrier(self.buffer, vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)
+    }
+
+    /// End of the frame: the counts made visible to the host.
+    pub fn record_end(&self, cmd: vk::CommandBuffer) {
+        let b = [buffer_barrier(self.buffer, vk::AccessFlags::SHADER_WRITE, vk::AccessFlags::HOST_READ)];
+        // SAFETY: recording state, outside any render pass.
+        unsafe {
+            self.device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::FRAGMENT_SHADER,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &[],
+                &b,
+                &[],
+            );
+        }
+    }
+
+    /// Writes the finished frame's counts as `dir/frame-NNNNN-view-V.u32`. Call only after the
+    /// frame's fence signalled.
+    pub fn write(&self, dir: &std::path::Path, frame: u64) -> Result<()> {
+        // SAFETY: the fence of the frame that wrote these was waited on; the mapping is live and
+        // each region holds w × h u32s.
+        let views: Vec<Vec<u8>> = unsafe {
+            self.device
+                .invalidate_mapped_memory_ranges(&[vk::MappedMemoryRange::default().memory(self.memory).offset(0).size(vk::WHOLE_SIZE)])
+                .ctx("vkInvalidateMappedMemoryRanges")?;
+            self.sizes
+                .iter()
+                .enumerate()
+                .map(|(v, &(w, h))| {
+                    let n = w as usize * h as usize * 4;
+                    std::slice::from_raw_parts(self.mapped.add(v * self.region as usize), n).to_vec()
+                })
+                .collect()
+        };
+        for (v, bytes) in views.iter().enumerate() {
+            // The buffer holds native-endian u32s; the file is little-endian.
+            let le: Vec<u8> = bytes.chunks_exact(4).flat_map(|c| u32::from_ne_bytes([c[0], c[1], c[2], c[3]]).to_le_bytes()).collect();
+            let path = dir.join(format!("frame-{frame:05}-view-{v}.u32"));
+            std::fs::write(&path, le).map_err(|e| Error(format!("writing {}: {e}", path.display())))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for PixelCounters {
+    fn drop(&mut self) {
+        // SAFETY: the owner waited for idle; null handles are ignored by the destroy functions.
+        unsafe {
+            self.device.destroy_buffer(self.buffer, None);
+            if self.memory != vk::DeviceMemory::null() {
+                self.device.free_memory(self.memory, None);
+            }
+        }
+    }
+}
+
+fn buffer_barrier(buffer: vk::Buffer, src: vk::AccessFlags, dst: vk::AccessFlags) -> vk::BufferMemoryBarrier<'static> {
+    vk::BufferMemoryBarrier::default()
+        .src_access_mask(src)
+        .dst_access_mask(dst)
+        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .buffer(buffer)
+        .offset(0)
+        .size(vk::WHOLE_SIZE)
+}
+
 #[derive(Debug, Serialize)]
 pub struct ViewStats {
     pub view: u32,
