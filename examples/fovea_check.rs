@@ -14,7 +14,7 @@
 //! libstereoshim.so, the manifests the harness writes there, examples/fovea_check):
 //!   target/release/examples/fovea_check [--layouts per-eye,side-by-side,multiview]
 //!     [--renderings dynamic,render-pass,render-pass2] [--methods vrs,rdm] [--preset balanced]
-//!     [--texel 16] [--hmd index] [--scale 1.0] [--no-validation]
+//!     [--texel 16] [--hmd index] [--scale 1.0] [--depth standard|reverse] [--no-validation]
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -29,6 +29,8 @@ struct Args {
     texel: f64,
     hmd: String,
     scale: String,
+    /// xr-scene `--depth`: standard or reverse.
+    depth: String,
     validation: bool,
 }
 
@@ -41,6 +43,7 @@ fn parse_args() -> Args {
         texel: 16.0,
         hmd: "index".into(),
         scale: "1.0".into(),
+        depth: "standard".into(),
         validation: true,
     };
     let argv: Vec<String> = std::env::args().skip(1).collect();
@@ -61,6 +64,7 @@ fn parse_args() -> Args {
             "--texel" => a.texel = v.parse().expect("--texel N"),
             "--hmd" => a.hmd = v,
             "--scale" => a.scale = v,
+            "--depth" => a.depth = v,
             other => panic!("unknown argument {other}"),
         }
         i += 2;
@@ -120,9 +124,18 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for layout in &a.layouts {
         for rendering in &a.renderings {
-            let name = format!("fovea-check-{layout}-{rendering}");
+            let name = format!("fovea-check-{layout}-{rendering}-{}", a.depth);
             let mut base = Run::new(&name).env("MOCK_XR_HMD", &a.hmd).env("MOCK_XR_EXIT_AFTER", &(FRAME + 1).to_string()).env("MOCK_XR_EYE_TRACKER", "0");
-            base.args = vec!["--scale".into(), a.scale.clone(), "--layout".into(), layout.clone(), "--rendering".into(), rendering.clone()];
+            base.args = vec![
+                "--scale".into(),
+                a.scale.clone(),
+                "--layout".into(),
+                layout.clone(),
+                "--rendering".into(),
+                rendering.clone(),
+                "--depth".into(),
+                a.depth.clone(),
+            ];
             base.validation = a.validation;
             let plain = base.clone().run();
             if plain.code != Some(0) {
