@@ -422,61 +422,13 @@ fn image_for(d: &DeviceState, cb: vk::CommandBuffer, key: &MapKey, eyes: &[EyeRa
             r
         }
     };
-    record_upload(d, cb, image, staging, key);
+    record_rate_content(d, cb, image, key.layers, (key.width, key.height), Some(staging));
     if let Some(img) = lock(&d.vrs.objects).images.get_mut(key) {
         img.uploaded = true;
     }
     Ok(view)
 }
 
-fn record_upload(d: &DeviceState, cb: vk::CommandBuffer, image: vk::Image, staging: vk::Buffer, key: &MapKey) {
-    let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: key.layers };
-    let to_dst = vk::ImageMemoryBarrier::default()
-        .src_access_mask(vk::AccessFlags::empty())
-        .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-        .old_layout(vk::ImageLayout::UNDEFINED)
-        .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(image)
-        .subresource_range(range);
-    let to_fsr = vk::ImageMemoryBarrier::default()
-        .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-        .dst_access_mask(vk::AccessFlags::FRAGMENT_SHADING_RATE_ATTACHMENT_READ_KHR)
-        .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-        .new_layout(vk::ImageLayout::FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL_KHR)
-        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(image)
-        .subresource_range(range);
-    let region = vk::BufferImageCopy {
-        buffer_offset: 0,
-        buffer_row_length: 0,
-        buffer_image_height: 0,
-        image_subresource: vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: key.layers },
-        image_offset: vk::Offset3D::default(),
-        image_extent: vk::Extent3D { width: key.width, height: key.height, depth: 1 },
-    };
-    let f = d.fns.fp_v1_0();
-    // SAFETY: `cb` is recording outside a render pass instance (the app is about to begin one);
-    // our image and buffer are alive until retired frames after their last use.
-    unsafe {
-        (f.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), 1, &to_dst);
-        (f.cmd_copy_buffer_to_image)(cb, staging, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, 1, &region);
-        (f.cmd_pipeline_barrier)(
-            cb,
-            vk::PipelineStageFlags::TRANSFER,
-            vk::PipelineStageFlags::FRAGMENT_SHADING_RATE_ATTACHMENT_KHR,
-            vk::DependencyFlags::empty(),
-            0,
-            std::ptr::null(),
-            0,
-            std::ptr::null(),
-            1,
-            &to_fsr,
-        );
-    }
-}
 
 fn memory_type(d: &DeviceState, bits: u32, wanted: vk::MemoryPropertyFlags) -> Option<u32> {
     let mem = &d.vrs.memory;
@@ -1183,8 +1135,14 @@ fn staging_for(d: &DeviceState, key: &MapKey, eyes: &[EyeRates], rates: DeviceRa
 
 /// Records the framebuffer rate image's new content: `staging`'s map, or 1×1 (0) everywhere.
 fn record_fb_upload(d: &DeviceState, cb: vk::CommandBuffer, fb: &FbRate, staging: Option<vk::Buffer>) {
-    let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: fb.layers };
-    // Every texel is rewritten, so the old content (and layout) need not be kept.
+    record_rate_content(d, cb, fb.image, fb.layers, (fb.width, fb.height), staging);
+}
+
+/// Records new content for a rate image, outside a render pass instance: `staging`'s map, or 1×1
+/// (0) everywhere. Every texel is rewritten, so the old content (and layout) need not be kept; the
+/// first barrier waits for earlier passes' reads of the image (none for a new one).
+fn record_rate_content(d: &DeviceState, cb: vk::CommandBuffer, image: vk::Image, layers: u32, extent: (u32, u32), staging: Option<vk::Buffer>) {
+    let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: layers };
     let to_dst = vk::ImageMemoryBarrier::default()
         .src_access_mask(vk::AccessFlags::empty())
         .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE)
@@ -1192,7 +1150,7 @@ fn record_fb_upload(d: &DeviceState, cb: vk::CommandBuffer, fb: &FbRate, staging
         .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
         .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
         .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(fb.image)
+        .image(image)
         .subresource_range(range);
     let to_fsr = vk::ImageMemoryBarrier::default()
         .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
@@ -1201,12 +1159,13 @@ fn record_fb_upload(d: &DeviceState, cb: vk::CommandBuffer, fb: &FbRate, staging
         .new_layout(vk::ImageLayout::FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL_KHR)
         .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
         .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(fb.image)
+        .image(image)
         .subresource_range(range);
     let f = d.fns.fp_v1_0();
     let fsr = vk::PipelineStageFlags::FRAGMENT_SHADING_RATE_ATTACHMENT_KHR;
     // SAFETY: `cb` is recording outside a render pass instance (the app is about to begin one);
-    // the image lives with the framebuffer, the staging buffer until frames after its last use.
+    // the image lives until retired frames after its last use (or with its framebuffer), the
+    // staging buffer until frames after its last use.
     unsafe {
         (f.cmd_pipeline_barrier)(cb, fsr, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), 1, &to_dst);
         match staging {
@@ -1215,15 +1174,15 @@ fn record_fb_upload(d: &DeviceState, cb: vk::CommandBuffer, fb: &FbRate, staging
                     buffer_offset: 0,
                     buffer_row_length: 0,
                     buffer_image_height: 0,
-                    image_subresource: vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: fb.layers },
+                    image_subresource: vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: layers },
                     image_offset: vk::Offset3D::default(),
-                    image_extent: vk::Extent3D { width: fb.width, height: fb.height, depth: 1 },
+                    image_extent: vk::Extent3D { width: extent.0, height: extent.1, depth: 1 },
                 };
-                (f.cmd_copy_buffer_to_image)(cb, buffer, fb.image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, 1, &region);
+                (f.cmd_copy_buffer_to_image)(cb, buffer, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, 1, &region);
             }
             None => {
                 let zero = vk::ClearColorValue { uint32: [0; 4] };
-                (f.cmd_clear_color_image)(cb, fb.image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &zero, 1, &range);
+                (f.cmd_clear_color_image)(cb, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &zero, 1, &range);
             }
         }
         (f.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, fsr, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), 1, &to_fsr);
