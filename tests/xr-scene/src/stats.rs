@@ -51,24 +51,9 @@ impl GpuCounters {
                 b => (1u64 << b) - 1,
             },
         };
-        let info = vk::BufferCreateInfo::default()
-            .size(size)
-            .usage(vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST);
+        (c.buffer, c.memory, c.mapped) = readback_buffer(gpu, size, "counters")?;
         // SAFETY: valid create infos; partial results are destroyed by Drop.
         unsafe {
-            c.buffer = d.create_buffer(&info, None).ctx("vkCreateBuffer(counters)")?;
-            let req = d.get_buffer_memory_requirements(c.buffer);
-            // Cached memory reads back faster; invalidation below makes it correct either way.
-            let ty = gpu
-                .memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_CACHED)
-                .or_else(|_| gpu.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE))?;
-            c.memory = d
-                .allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None)
-                .ctx("vkAllocateMemory(counters)")?;
-            d.bind_buffer_memory(c.buffer, c.memory, 0).ctx("vkBindBufferMemory")?;
-            c.mapped = d
-                .map_memory(c.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
-                .ctx("vkMapMemory(counters)")? as *const u8;
             if c.valid_mask != 0 {
                 // Only queries 0 and 1 are used. The spare two absorb a lavapipe 25.0 defect:
                 // a timestamp written after a multiview pass ended is still written to
@@ -230,24 +215,7 @@ impl PixelCounters {
             region,
             sizes,
         };
-        let info = vk::BufferCreateInfo::default()
-            .size(2 * region)
-            .usage(vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST);
-        // SAFETY: valid create infos; partial results are destroyed by Drop.
-        unsafe {
-            p.buffer = d.create_buffer(&info, None).ctx("vkCreateBuffer(pixel counters)")?;
-            let req = d.get_buffer_memory_requirements(p.buffer);
-            let ty = gpu
-                .memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_CACHED)
-                .or_else(|_| gpu.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE))?;
-            p.memory = d
-                .allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None)
-                .ctx("vkAllocateMemory(pixel counters)")?;
-            d.bind_buffer_memory(p.buffer, p.memory, 0).ctx("vkBindBufferMemory")?;
-            p.mapped = d
-                .map_memory(p.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
-                .ctx("vkMapMemory(pixel counters)")? as *const u8;
-        }
+        (p.buffer, p.memory, p.mapped) = readback_buffer(gpu, 2 * region, "pixel counters")?;
         Ok(p)
     }
 
@@ -418,6 +386,49 @@ impl StatsLog {
 pub fn to_json(frames: &[FrameStats]) -> String {
     serde_json::to_string_pretty(&StatsFile { frames }).expect("stats serialize")
 }
+
+/// A mapped storage buffer the GPU writes counters into and the CPU reads back after the frame's
+/// fence. Cached memory reads back faster; invalidation before reading makes it correct either
+/// way. On failure, whatever was made is destroyed again.
+fn readback_buffer(gpu: &Gpu, size: u64, what: &str) -> Result<(vk::Buffer, vk::DeviceMemory, *const u8)> {
+    let d = &gpu.device;
+    let info = vk::BufferCreateInfo::default()
+        .size(size)
+        .usage(vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST);
+    // SAFETY: valid create infos; on any error the objects made so far are destroyed before
+    // returning, and nothing else refers to them yet.
+    unsafe {
+        let buffer = d.create_buffer(&info, None).ctx(&format!("vkCreateBuffer({what})"))?;
+        let made = (|| {
+            let req = d.get_buffer_memory_requirements(buffer);
+            let ty = gpu
+                .memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_CACHED)
+                .or_else(|_| gpu.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE))?;
+            let memory = d
+                .allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None)
+                .ctx(&format!("vkAllocateMemory({what})"))?;
+            let mapped = d
+                .bind_buffer_memory(buffer, memory, 0)
+                .ctx("vkBindBufferMemory")
+                .and_then(|_| d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()).ctx(&format!("vkMapMemory({what})")));
+            match mapped {
+                Ok(m) => Ok((memory, m as *const u8)),
+                Err(e) => {
+                    d.free_memory(memory, None);
+                    Err(e)
+                }
+            }
+        })();
+        match made {
+            Ok((memory, mapped)) => Ok((buffer, memory, mapped)),
+            Err(e) => {
+                d.destroy_buffer(buffer, None);
+                Err(e)
+            }
+        }
+    }
+}
+
 
 #[cfg(test)]
 mod tests {
