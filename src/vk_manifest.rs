@@ -17,8 +17,7 @@ pub fn manifest_json(library_path: &Path) -> String {
             "type": "GLOBAL",
             "library_path": library_path,
             "api_version": "1.3.0",
-            "implementation_version": env!("CARGO_PKG_VERSION_MAJOR").parse::<u32>().unwrap_or(0) * 100
-                + env!("CARGO_PKG_VERSION_MINOR").parse::<u32>().unwrap_or(0),
+            "implementation_version": "1",
             "description": "stereoshim: renders less in unmodified VR apps",
         }
     });

@@ -295,17 +295,21 @@ pub unsafe extern "system" fn vkNegotiateLoaderLayerInterfaceVersion(
             return vk::Result::ERROR_INITIALIZATION_FAILED;
         }
         v.loader_layer_interface_version = loader::LAYER_INTERFACE_VERSION;
-        v.pfn_get_instance_proc_addr = Some(vkGetInstanceProcAddr);
-        v.pfn_get_device_proc_addr = Some(vkGetDeviceProcAddr);
+        v.pfn_get_instance_proc_addr = Some(get_instance_proc_addr);
+        v.pfn_get_device_proc_addr = Some(get_device_proc_addr);
         v.pfn_get_physical_device_proc_addr = None;
         vk::Result::SUCCESS
     })
 }
 
+/// The layer's `vkGetInstanceProcAddr`. Deliberately not exported: the loader gets it from
+/// `vkNegotiateLoaderLayerInterfaceVersion`, and an exported `vkGetInstanceProcAddr` would be
+/// interposed by `libvulkan.so.1`'s own symbol in apps that link the loader, handing the loader its
+/// own trampoline and deadlocking it.
+///
 /// # Safety
 /// Called by the loader or the app with a valid (or null) instance and a NUL-terminated name.
-#[no_mangle]
-pub unsafe extern "system" fn vkGetInstanceProcAddr(instance: vk::Instance, p_name: *const c_char) -> vk::PFN_vkVoidFunction {
+pub(crate) unsafe extern "system" fn get_instance_proc_addr(instance: vk::Instance, p_name: *const c_char) -> vk::PFN_vkVoidFunction {
     guard::catch("vkGetInstanceProcAddr", None, || {
         if p_name.is_null() {
             return None;
@@ -313,8 +317,8 @@ pub unsafe extern "system" fn vkGetInstanceProcAddr(instance: vk::Instance, p_na
         // SAFETY: the caller passes a NUL-terminated string (checked non-null).
         let name = unsafe { CStr::from_ptr(p_name) }.to_bytes();
         match name {
-            b"vkGetInstanceProcAddr" => return Some(void_fn(vkGetInstanceProcAddr as vk::PFN_vkGetInstanceProcAddr)),
-            b"vkGetDeviceProcAddr" => return Some(void_fn(vkGetDeviceProcAddr as vk::PFN_vkGetDeviceProcAddr)),
+            b"vkGetInstanceProcAddr" => return Some(void_fn(get_instance_proc_addr as vk::PFN_vkGetInstanceProcAddr)),
+            b"vkGetDeviceProcAddr" => return Some(void_fn(get_device_proc_addr as vk::PFN_vkGetDeviceProcAddr)),
             b"vkCreateInstance" => return intercept(name).map(|(_, f)| f),
             _ => {}
         }
@@ -327,10 +331,12 @@ pub unsafe extern "system" fn vkGetInstanceProcAddr(instance: vk::Instance, p_na
     })
 }
 
+/// The layer's `vkGetDeviceProcAddr`; not exported, for the reason given at
+/// [`get_instance_proc_addr`].
+///
 /// # Safety
 /// Called by the loader or the app with a valid device and a NUL-terminated name.
-#[no_mangle]
-pub unsafe extern "system" fn vkGetDeviceProcAddr(device: vk::Device, p_name: *const c_char) -> vk::PFN_vkVoidFunction {
+pub(crate) unsafe extern "system" fn get_device_proc_addr(device: vk::Device, p_name: *const c_char) -> vk::PFN_vkVoidFunction {
     guard::catch("vkGetDeviceProcAddr", None, || {
         if p_name.is_null() {
             return None;
@@ -338,7 +344,7 @@ pub unsafe extern "system" fn vkGetDeviceProcAddr(device: vk::Device, p_name: *c
         // SAFETY: the caller passes a NUL-terminated string (checked non-null).
         let name = unsafe { CStr::from_ptr(p_name) }.to_bytes();
         if name == b"vkGetDeviceProcAddr" {
-            return Some(void_fn(vkGetDeviceProcAddr as vk::PFN_vkGetDeviceProcAddr));
+            return Some(void_fn(get_device_proc_addr as vk::PFN_vkGetDeviceProcAddr));
         }
         let state = device_of(device)?;
         // SAFETY: the next layer's vkGetDeviceProcAddr for the device it created.
@@ -394,8 +400,8 @@ mod tests {
     fn unknown_instance_gets_nothing_but_entry_points() {
         let name = c"vkCreateDevice";
         // SAFETY: a null instance and a valid name.
-        assert!(unsafe { vkGetInstanceProcAddr(vk::Instance::null(), name.as_ptr()) }.is_none());
+        assert!(unsafe { get_instance_proc_addr(vk::Instance::null(), name.as_ptr()) }.is_none());
         // SAFETY: as above.
-        assert!(unsafe { vkGetInstanceProcAddr(vk::Instance::null(), c"vkCreateInstance".as_ptr()) }.is_some());
+        assert!(unsafe { get_instance_proc_addr(vk::Instance::null(), c"vkCreateInstance".as_ptr()) }.is_some());
     }
 }
