@@ -9,6 +9,7 @@ pub mod guard;
 pub mod log;
 pub mod mask;
 pub mod mask_source;
+pub mod notices;
 pub mod rdm;
 pub mod vrs;
 pub mod registry;
