@@ -15,6 +15,8 @@ const SCENE_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene.vert.s
 const SCENE_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene.frag.spv"));
 const SCENE_MV_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_mv.vert.spv"));
 const SCENE_MV_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_mv.frag.spv"));
+const SCENE_VK10_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_vk10.vert.spv"));
+const SCENE_VK10_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_vk10.frag.spv"));
 
 /// Uniform block `Frame` of the shaders (std140: mat4s and vec4s only, no padding surprises).
 #[repr(C)]
@@ -249,7 +251,11 @@ impl Renderer {
                 )
                 .ctx("vkCreatePipelineLayout")?;
 
-            let (vs, fs) = if self.multiview { (SCENE_MV_VERT, SCENE_MV_FRAG) } else { (SCENE_VERT, SCENE_FRAG) };
+            let (vs, fs) = match (self.multiview, opts.vulkan_api) {
+                (true, _) => (SCENE_MV_VERT, SCENE_MV_FRAG),
+                (false, crate::cli::VulkanApi::V1_0) => (SCENE_VK10_VERT, SCENE_VK10_FRAG),
+                (false, _) => (SCENE_VERT, SCENE_FRAG),
+            };
             let vert = shader_module(d, vs)?;
             let frag = match shader_module(d, fs) {
                 Ok(f) => f,
