@@ -271,8 +271,8 @@ impl Renderer {
                 (false, crate::cli::VulkanApi::V1_0) => (SCENE_VK10_VERT, SCENE_VK10_FRAG),
                 (false, _) => (SCENE_VERT, SCENE_FRAG),
             };
-            let vert = shader_module(d, vs)?;
-            let frag = match shader_module(d, fs) {
+            let vert = shader_module(d, vs, opts.vulkan_api)?;
+            let frag = match shader_module(d, fs, opts.vulkan_api) {
                 Ok(f) => f,
                 Err(e) => {
                     d.destroy_shader_module(vert, None);
@@ -760,8 +760,24 @@ fn image_barrier(
         .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
 }
 
-fn shader_module(d: &ash::Device, bytes: &[u8]) -> Result<vk::ShaderModule> {
+/// The newest SPIR-V a device of this API version accepts (Vulkan 1.0: 1.0, 1.1: 1.3, 1.3: 1.6),
+/// as the header's version word.
+fn max_spirv(api: crate::cli::VulkanApi) -> u32 {
+    match api {
+        crate::cli::VulkanApi::V1_0 => 0x0001_0000,
+        crate::cli::VulkanApi::V1_1 => 0x0001_0300,
+        crate::cli::VulkanApi::V1_3 => 0x0001_0600,
+    }
+}
+
+fn shader_module(d: &ash::Device, bytes: &[u8], api: crate::cli::VulkanApi) -> Result<vk::ShaderModule> {
     let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes)).ctx("reading SPIR-V")?;
+    // Checked here because bookworm's validation layer (1.3.239) does not check a module's SPIR-V
+    // version against the device's API version (VUID-VkShaderModuleCreateInfo-pCode-08737).
+    let version = words.get(1).copied().unwrap_or(u32::MAX);
+    if version > max_spirv(api) {
+        return Err(Error(format!("internal: a shader's SPIR-V version {version:#x} is too new for Vulkan 1.{}", api.minor())));
+    }
     // SAFETY: valid SPIR-V produced by glslangValidator at build time.
     unsafe { d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }.ctx("vkCreateShaderModule")
 }
