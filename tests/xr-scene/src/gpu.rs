@@ -149,8 +149,13 @@ impl Gpu {
             .engine_version(1)
             .api_version(api_version(opts.vulkan_api));
         let enabled_validation = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
-        let mut validation_features =
-            vk::ValidationFeaturesEXT::default().enabled_validation_features(&enabled_validation);
+        // The shader validation cache ($HOME/.cache/shader_validation_cache-*.bin) remembers a
+        // module as valid by its hash alone: one validated on a Vulkan 1.3 device would then pass
+        // unchecked on a 1.0 device (SPIR-V 1.3 on Vulkan 1.0), depending on earlier runs.
+        let disabled_validation = [vk::ValidationFeatureDisableEXT::SHADER_VALIDATION_CACHE];
+        let mut validation_features = vk::ValidationFeaturesEXT::default()
+            .enabled_validation_features(&enabled_validation)
+            .disabled_validation_features(&disabled_validation);
         let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
             .message_severity(
                 vk::DebugUtilsMessageSeverityFlagsEXT::ERROR | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,

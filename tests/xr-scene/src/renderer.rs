@@ -772,8 +772,8 @@ fn max_spirv(api: crate::cli::VulkanApi) -> u32 {
 
 fn shader_module(d: &ash::Device, bytes: &[u8], api: crate::cli::VulkanApi) -> Result<vk::ShaderModule> {
     let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes)).ctx("reading SPIR-V")?;
-    // Checked here because bookworm's validation layer (1.3.239) does not check a module's SPIR-V
-    // version against the device's API version (VUID-VkShaderModuleCreateInfo-pCode-08737).
+    // Checked here too, so that a run without `--validation` fails as well (the validation layer
+    // reports it as UNASSIGNED-CoreValidation-Shader-InconsistentSpirv).
     let version = words.get(1).copied().unwrap_or(u32::MAX);
     if version > max_spirv(api) {
         return Err(Error(format!("internal: a shader's SPIR-V version {version:#x} is too new for Vulkan 1.{}", api.minor())));
