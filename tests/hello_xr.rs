@@ -30,8 +30,12 @@ use common::{hidden_pixels, mask_edge_pixels, RunOutput};
 
 /// Frames each run submits (frame 0 is never masked: the eye use of the images is not yet known).
 const FRAMES: u64 = 3;
-/// A run on lavapipe takes a few seconds; anything near this is a hang.
-const TIMEOUT: Duration = Duration::from_secs(120);
+/// A run on lavapipe takes a few seconds; anything near this is a hang (`HELLO_XR_TIMEOUT_S`
+/// overrides it).
+fn timeout() -> Duration {
+    let s = std::env::var("HELLO_XR_TIMEOUT_S").ok().and_then(|v| v.parse().ok()).unwrap_or(120);
+    Duration::from_secs(s)
+}
 /// Pixels this close to the mask outline may go either way (vertex snapping, f32 vs f64 mapping).
 const EDGE_MARGIN_PX: f64 = 1.0;
 
@@ -60,6 +64,8 @@ fn run(name: &str, plugin: &str, layer: bool, env: &[(&str, &str)]) -> HelloRun 
     let stats_file = dir.join("layer-stats.jsonl");
     let mut cmd = Command::new(hello_xr_exe());
     cmd.args(["-g", plugin])
+        // Runtime diagnostics: every OpenXR call the mock refuses is logged ("xrFunc -> ERROR_…").
+        .env("MOCK_XR_LOG", "1")
         .env("XR_RUNTIME_JSON", common::runtime_manifest())
         .env("MOCK_XR_CAPTURE", &capture)
         .env("MOCK_XR_EXIT_AFTER", FRAMES.to_string())
@@ -96,15 +102,16 @@ fn run(name: &str, plugin: &str, layer: bool, env: &[(&str, &str)]) -> HelloRun 
         if let Some(s) = child.try_wait().expect("wait for hello_xr") {
             break s;
         }
-        if started.elapsed() > TIMEOUT {
+        if started.elapsed() > timeout() {
             let backtrace = all_thread_backtraces(child.id());
             let _ = child.kill();
             let _ = child.wait();
             let output: String = readers.into_iter().flatten().map(|r| r.join().unwrap_or_default()).collect();
             std::fs::write(dir.join("output.txt"), &output).ok();
             panic!(
-                "{name}: hello_xr -g {plugin} did not finish within {TIMEOUT:?} (hang); killed.\n\
+                "{name}: hello_xr -g {plugin} did not finish within {:?} (hang); killed.\n\
                  backtrace of every thread:\n{backtrace}\noutput (last 4000 bytes):\n{}",
+                timeout(),
                 tail(&output, 4000)
             );
         }
@@ -171,6 +178,10 @@ fn plain_runs_are_deterministic() {
     v1.assert_clean_exit();
     for r in [&v2, &v1] {
         assert!(r.validation_errors.is_empty(), "{}: {:#?}", r.out.name, r.validation_errors);
+        // hello_xr's every OpenXR call succeeds on the mock (interaction profiles, action spaces,
+        // reference spaces, the frame loop).
+        let refused: Vec<&str> = r.out.stderr.lines().filter(|l| l.contains("[mock-runtime]") && l.contains("-> ERROR_")).collect();
+        assert!(refused.is_empty(), "{}: the runtime refused calls:\n{}", r.out.name, refused.join("\n"));
         for f in 1..FRAMES {
             assert_same_frames(&format!("{}-f0-f{f}", r.out.name), &r.out, 0, &r.out, f);
         }
