@@ -300,3 +300,20 @@ fn masked_runs_are_validation_clean() {
         assert!(r.validation_errors.is_empty(), "{}: {} validation errors:\n{}", r.out.name, r.validation_errors.len(), r.validation_errors.join("\n"));
     }
 }
+
+/// Issue 8 A ("eye images are recognised whatever sits above the layer"): validation enabled the
+/// usual way, through `VK_INSTANCE_LAYERS`, wraps handles above the layer. Fails while the layer
+/// matches swapchain images by handle: with `-g Vulkan2` every eye pass is `eye_unknown` and
+/// nothing is masked (found with hello_xr 1.0.20 on the mock runtime; `-g Vulkan` is masked).
+#[test]
+#[ignore = "layer bug (issue 8 A): eye passes unknown under a handle-wrapping layer (VK_INSTANCE_LAYERS); un-ignore once fixed"]
+fn masked_under_validation_from_vk_instance_layers() {
+    for plugin in ["Vulkan2", "Vulkan"] {
+        let r = run(&format!("hello-xr-vk-instance-layers-{}", plugin.to_lowercase()), plugin, true, &[("VK_INSTANCE_LAYERS", "VK_LAYER_KHRONOS_validation")]);
+        r.assert_clean_exit();
+        for f in 1..FRAMES {
+            let record = r.stats.iter().find(|x| x["frame"] == f).unwrap_or_else(|| panic!("{}: no stats for frame {f}", r.out.name));
+            assert_eq!(record["passes_masked"], 2, "{} frame {f}: {record}", r.out.name);
+        }
+    }
+}
