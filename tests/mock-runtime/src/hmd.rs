@@ -72,6 +72,7 @@ pub enum Lens {
 /// transcribed from `1runeberg/VRHiddenAreaMaskPreviewer`, `Vertices.pde`,
 /// `verts_lineloop_left` (MIT licence, © 2020 Rune Berg).
 #[rustfmt::skip]
+#[allow(clippy::excessive_precision)] // digits as published
 pub const INDEX_LINE_LOOP_LEFT: [[f32; 2]; 27] = [
     [0.913920, -0.402731], [0.900955, -0.154579], [0.898362, 0.090753], [0.911327, 0.321986],
     [0.929479, 0.561678], [0.828349, 0.812650], [0.652021, 1.049523], [0.457541, 1.215897],
