@@ -189,6 +189,18 @@ fn plain_runs_are_deterministic() {
     assert_same_frames("hello-xr-plain-vulkan-vs-vulkan2", &v1.out, 1, &v2.out, 1);
 }
 
+/// hello_xr's input reaches it through the mock's interaction profiles: of the five profiles it
+/// suggests, the simple controller's menu click (`MOCK_XR_MENU_CLICK_AT`) fires its quit action,
+/// and it ends the session itself long before the runtime would.
+#[test]
+fn menu_click_quits_hello_xr() {
+    let r = run("hello-xr-menu-click", "Vulkan2", false, &[("MOCK_XR_EXIT_AFTER", "1000"), ("MOCK_XR_MENU_CLICK_AT", "2")]);
+    assert_eq!(r.out.code, Some(0), "{}", tail(&r.out.stderr, 6000));
+    assert!(r.out.stderr.contains("Quit action is bound to 'Mock /user/hand/left/input/menu/click'"), "{}", tail(&r.out.stderr, 6000));
+    let frames = r.out.frames().frames.len();
+    assert!((3..10).contains(&frames), "hello_xr submitted {frames} frames after a menu click at frame 2");
+}
+
 /// With the layer and `mask.enabled`: from frame 1 on, pixels outside the runtime's hidden mesh
 /// (frames.json, rasterized by the harness) are bit-identical to the run without the layer;
 /// inside it every pixel is hello_xr's clear colour (the app's fragments there fail the depth
