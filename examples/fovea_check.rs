@@ -15,6 +15,7 @@
 //!   target/release/examples/fovea_check [--layouts per-eye,side-by-side,multiview]
 //!     [--renderings dynamic,render-pass,render-pass2] [--methods vrs,rdm] [--preset balanced]
 //!     [--texel 16] [--hmd index] [--scale 1.0] [--depth standard|reverse] [--no-validation]
+//!     [--app-args "--vulkan-api 1.0 --secondary"]
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -32,6 +33,8 @@ struct Args {
     /// xr-scene `--depth`: standard or reverse.
     depth: String,
     validation: bool,
+    /// More xr-scene arguments for every run (`--app-args "--vulkan-api 1.0 --secondary"`).
+    app_args: Vec<String>,
 }
 
 fn parse_args() -> Args {
@@ -45,6 +48,7 @@ fn parse_args() -> Args {
         scale: "1.0".into(),
         depth: "standard".into(),
         validation: true,
+        app_args: Vec::new(),
     };
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
@@ -65,6 +69,7 @@ fn parse_args() -> Args {
             "--hmd" => a.hmd = v,
             "--scale" => a.scale = v,
             "--depth" => a.depth = v,
+            "--app-args" => a.app_args = v.split_whitespace().map(String::from).collect(),
             other => panic!("unknown argument {other}"),
         }
         i += 2;
@@ -124,7 +129,7 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for layout in &a.layouts {
         for rendering in &a.renderings {
-            let name = format!("fovea-check-{layout}-{rendering}-{}", a.depth);
+            let name = format!("fovea-check-{layout}-{rendering}-{}{}", a.depth, a.app_args.concat());
             let mut base = Run::new(&name).env("MOCK_XR_HMD", &a.hmd).env("MOCK_XR_EXIT_AFTER", &(FRAME + 1).to_string()).env("MOCK_XR_EYE_TRACKER", "0");
             base.args = vec![
                 "--scale".into(),
@@ -136,6 +141,7 @@ fn main() {
                 "--depth".into(),
                 a.depth.clone(),
             ];
+            base.args.extend(a.app_args.iter().cloned());
             base.validation = a.validation;
             let plain = base.clone().run();
             if plain.code != Some(0) {
