@@ -15,6 +15,7 @@ pub mod vrs;
 pub mod registry;
 pub mod shared;
 pub mod submission;
+pub mod swapchain_images;
 pub mod track;
 pub mod vk;
 pub mod vk_manifest;

@@ -5,6 +5,8 @@
 
 pub const FRAGMENT_SHADING_RATE: &str = "VK_KHR_fragment_shading_rate";
 pub const CREATE_RENDERPASS_2: &str = "VK_KHR_create_renderpass2";
+/// `VK_KHR_create_renderpass2`'s own dependencies on a Vulkan 1.0 device (core in 1.1).
+pub const RENDERPASS_2_DEPENDENCIES_1_0: &[&str] = &["VK_KHR_multiview", "VK_KHR_maintenance2"];
 /// Extensions whose features must not be enabled together with `pipelineFragmentShadingRate` /
 /// `attachmentFragmentShadingRate` (VUIDs of `VkDeviceCreateInfo`: shadingRateImage-04478..,
 /// fragmentDensityMap-04481..): if the app uses one, we never add shading rate.
@@ -77,13 +79,23 @@ pub fn decide(i: &Inputs<'_>) -> Decision {
     if let Some(c) = CONFLICTING.iter().find(|c| has(i.requested, c)) {
         return no(format!("fragment shading rate: app enables {c}, which conflicts"));
     }
-    let v12 = i.api_version >= ash::vk::API_VERSION_1_2;
-    if !v12 && !has(i.requested, CREATE_RENDERPASS_2) {
-        return no(format!("fragment shading rate: needs Vulkan 1.2 or the app's {CREATE_RENDERPASS_2}"));
-    }
     if i.api_version < ash::vk::API_VERSION_1_1 && !i.instance_has_properties2 {
         return no("fragment shading rate: instance lacks VK_KHR_get_physical_device_properties2".into());
     }
+    // VK_KHR_fragment_shading_rate requires VK_KHR_create_renderpass2 (core in 1.2), which on a
+    // 1.0 device requires VK_KHR_multiview and VK_KHR_maintenance2 (core in 1.1). A Vulkan 1.0 or
+    // 1.1 app rarely enables them itself, so the layer adds whichever the device offers.
+    let mut deps: Vec<&'static str> = Vec::new();
+    if i.api_version < ash::vk::API_VERSION_1_2 {
+        deps.push(CREATE_RENDERPASS_2);
+        if i.api_version < ash::vk::API_VERSION_1_1 {
+            deps.extend_from_slice(RENDERPASS_2_DEPENDENCIES_1_0);
+        }
+    }
+    if let Some(lacking) = deps.iter().find(|e| !has(i.requested, e) && !has(i.available, e)) {
+        return no(format!("fragment shading rate: device lacks {lacking}, which {FRAGMENT_SHADING_RATE} needs below Vulkan 1.2"));
+    }
+    deps.retain(|e| !has(i.requested, e));
     let Some(support) = i.fsr_support else {
         return no("fragment shading rate: features could not be queried".into());
     };
@@ -92,8 +104,12 @@ pub fn decide(i: &Inputs<'_>) -> Decision {
     }
     let enable = FsrSupport { pipeline: support.pipeline, primitive: false, attachment: true };
     let already = has(i.requested, FRAGMENT_SHADING_RATE);
+    let mut add_extensions = deps;
+    if !already {
+        add_extensions.push(FRAGMENT_SHADING_RATE);
+    }
     Decision {
-        add_extensions: if already { vec![] } else { vec![FRAGMENT_SHADING_RATE] },
+        add_extensions,
         enable_fsr: Some(enable),
         reason: format!(
             "fragment shading rate: {} {FRAGMENT_SHADING_RATE}, enabling attachment{} rates",
@@ -181,13 +197,25 @@ mod tests {
     fn dependencies_and_conflicts_decline() {
         let avail = strings(&[FRAGMENT_SHADING_RATE, CREATE_RENDERPASS_2]);
         let req = strings(&[]);
-        // 1.1 device without the app's create_renderpass2.
+        // 1.1 device without the app's create_renderpass2: the layer adds it.
         let d = decide(&Inputs { api_version: vk::API_VERSION_1_1, ..inputs(&avail, &req, "on") });
-        assert!(d.enable_fsr.is_none(), "{d:?}");
-        // ... with it, fine.
+        assert!(d.enable_fsr.is_some(), "{d:?}");
+        assert_eq!(d.add_extensions, vec![CREATE_RENDERPASS_2, FRAGMENT_SHADING_RATE]);
+        // ... with it, only shading rate is added.
         let req2 = strings(&[CREATE_RENDERPASS_2]);
         let d = decide(&Inputs { api_version: vk::API_VERSION_1_1, ..inputs(&avail, &req2, "on") });
-        assert!(d.enable_fsr.is_some(), "{d:?}");
+        assert_eq!(d.add_extensions, vec![FRAGMENT_SHADING_RATE]);
+        // A device that does not offer create_renderpass2 below 1.2: declined.
+        let only_fsr = strings(&[FRAGMENT_SHADING_RATE]);
+        let d = decide(&Inputs { api_version: vk::API_VERSION_1_1, ..inputs(&only_fsr, &req, "on") });
+        assert!(d.enable_fsr.is_none() && d.add_extensions.is_empty(), "{d:?}");
+        assert!(d.reason.contains(CREATE_RENDERPASS_2), "{}", d.reason);
+        // Vulkan 1.0 (a 1.0 app on any GPU): create_renderpass2 and its 1.1 dependencies too.
+        let all = strings(&[FRAGMENT_SHADING_RATE, CREATE_RENDERPASS_2, "VK_KHR_multiview", "VK_KHR_maintenance2"]);
+        let d = decide(&Inputs { api_version: vk::API_VERSION_1_0, ..inputs(&all, &req, "on") });
+        assert_eq!(d.add_extensions, vec![CREATE_RENDERPASS_2, "VK_KHR_multiview", "VK_KHR_maintenance2", FRAGMENT_SHADING_RATE]);
+        let d = decide(&Inputs { api_version: vk::API_VERSION_1_0, ..inputs(&avail, &req, "on") });
+        assert!(d.enable_fsr.is_none(), "1.0 device without VK_KHR_multiview: {d:?}");
         // 1.0 instance without properties2.
         let d = decide(&Inputs {
             api_version: vk::API_VERSION_1_0,
