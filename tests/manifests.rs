@@ -484,7 +484,7 @@ impl Loaders {
         for (k, v) in extra {
             cmd.env(k, v);
         }
-        let out = run_with_timeout(cmd, Duration::from_secs(120));
+        let out = run_with_timeout(cmd, Duration::from_secs(60));
         let probe = Probe { label: format!("{} {mode} {env:?} {extra:?}", self.label), out };
         // The loaders in the process are this set's, not whatever the system has.
         let ours: Vec<PathBuf> = [self.vulkan(), self.openxr()].iter().filter_map(|p| std::fs::canonicalize(p).ok()).collect();
@@ -683,6 +683,20 @@ fn check_loaders(loaders: &Loaders) {
     let text = std::fs::read_to_string(&path).unwrap();
     assert_valid("the Vulkan manifest the OpenXR half wrote", Api::Vulkan, false, &text, &path);
     assert_eq!(text, manifest::json(Kind::Vulkan, &lib));
+
+    // 7. The manifest of issue 8 (numeric implementation_version): the rules reject it, and the
+    // loaders misread it (1.3.239 lists version 0; 1.4.309 "skips" it but lists it without a
+    // library, and an instance with it then hangs). Enumeration only: creating the instance would
+    // hang the probe.
+    let dir = out.join("numeric");
+    let mut v: Value = serde_json::from_str(&manifest::json(Kind::Vulkan, &lib)).unwrap();
+    v["layer"]["implementation_version"] = 1.into();
+    let text = serde_json::to_string_pretty(&v).unwrap();
+    let path = dir.join(manifest::MANIFEST_FILE);
+    write(&path, &text);
+    assert!(!check(Api::Vulkan, false, &text, &path).0.is_empty(), "the rules accept a numeric implementation_version");
+    let p = loaders.probe("vulkan-enumerate", &[("VK_LAYER_PATH", &dir)], &[]);
+    assert_ne!(p.value("vk-layer"), expected_vk_listing(), "{}: the loader read a numeric implementation_version right", p.label);
 }
 
 #[test]
@@ -728,17 +742,34 @@ fn report_mapped() {
     }
 }
 
-fn probe_vulkan(enable: bool) {
+/// Loads a loader library into the global symbol scope, as a program linked against it has it
+/// (so a manifest the loader half-reads, whose entry points it then looks up globally, finds the
+/// loader's own functions: the hang of issue 8, caught by the probe's time limit).
+fn load_global(path: &std::ffi::OsStr) -> libloading::os::unix::Library {
+    use libloading::os::unix::{Library, RTLD_GLOBAL, RTLD_NOW};
+    // SAFETY: a loader library; its initialisers are safe to run.
+    unsafe { Library::open(Some(path), RTLD_NOW | RTLD_GLOBAL) }.unwrap_or_else(|e| panic!("load {path:?}: {e}"))
+}
+
+fn probe_vulkan(enable: bool, create: bool) {
     use ash::vk;
     let path = std::env::var_os("STEREOSHIM_PROBE_VULKAN").expect("STEREOSHIM_PROBE_VULKAN");
-    // SAFETY: the Vulkan loader library.
-    let entry = unsafe { ash::Entry::load_from(&path) }.expect("load the Vulkan loader");
+    let lib = load_global(&path);
+    // SAFETY: the loader's exported entry point, with this type.
+    let gipa = unsafe { *lib.get::<vk::PFN_vkGetInstanceProcAddr>(b"vkGetInstanceProcAddr").expect("vkGetInstanceProcAddr") };
+    // SAFETY: a loader's vkGetInstanceProcAddr; the library stays loaded (leaked below).
+    let entry = unsafe { ash::Entry::from_static_fn(ash::StaticFn { get_instance_proc_addr: gipa }) };
+    std::mem::forget(lib);
     // SAFETY: global command.
     for p in unsafe { entry.enumerate_instance_layer_properties() }.expect("vkEnumerateInstanceLayerProperties") {
         if p.layer_name_as_c_str().is_ok_and(|n| n.to_bytes() == manifest::VK_LAYER_NAME.as_bytes()) {
             let s = p.spec_version;
             println!("PROBE vk-layer spec={}.{}.{} impl={}", vk::api_version_major(s), vk::api_version_minor(s), vk::api_version_patch(s), p.implementation_version);
         }
+    }
+    if !create {
+        report_mapped();
+        return;
     }
     let layer = std::ffi::CString::new(manifest::VK_LAYER_NAME).unwrap();
     let layers = [layer.as_ptr()];
@@ -764,8 +795,7 @@ fn probe_openxr(enable: bool, vulkan: bool) {
     use xr::Handle as _;
     use std::ffi::{c_char, CStr};
     let path = std::env::var_os("STEREOSHIM_PROBE_OPENXR").expect("STEREOSHIM_PROBE_OPENXR");
-    // SAFETY: the OpenXR loader library.
-    let lib = unsafe { libloading::Library::new(&path) }.expect("load the OpenXR loader");
+    let lib = load_global(&path);
     // SAFETY: exported core functions of the loader, with these types.
     let (enumerate, create, destroy, get_system, gipa) = unsafe {
         (
@@ -837,7 +867,7 @@ fn probe_openxr(enable: bool, vulkan: bool) {
             println!("PROBE {k} {}", std::env::var(k).unwrap_or_default());
         }
         // The app now creates its own instance, naming no layer.
-        probe_vulkan(false);
+        probe_vulkan(false, true);
     }
     // SAFETY: created above.
     unsafe { destroy(instance) };
@@ -849,7 +879,8 @@ fn loader_probe_child() {
     let enable = std::env::var_os("STEREOSHIM_PROBE_ENABLE").is_some();
     println!(); // libtest's "test loader_probe_child ... " has no newline
     match mode.as_str() {
-        "vulkan" => probe_vulkan(enable),
+        "vulkan" => probe_vulkan(enable, true),
+        "vulkan-enumerate" => probe_vulkan(enable, false),
         "openxr" => probe_openxr(enable, false),
         "openxr-vulkan" => probe_openxr(enable, true),
         m => panic!("unknown probe mode {m}"),
