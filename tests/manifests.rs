@@ -447,17 +447,27 @@ impl Loaders {
         self.root.join(LIBDIR).join("libopenxr_loader.so.1")
     }
 
+    /// What runs a program with this set's libraries first (nothing for this machine's).
+    fn wrapper(&self) -> Vec<std::ffi::OsString> {
+        if self.root == Path::new("/") {
+            return Vec::new();
+        }
+        let ld = self.root.join(LIBDIR).join("ld-linux-x86-64.so.2");
+        vec![ld.into(), "--library-path".into(), self.root.join(LIBDIR).into()]
+    }
+
     /// The probe: this test binary's `loader_probe_child`, with the root's libraries first.
     fn probe(&self, mode: &str, env: &[(&str, &Path)], extra: &[(&str, &str)]) -> Probe {
         let exe = std::env::current_exe().unwrap();
-        let mut cmd = if self.root == Path::new("/") {
-            Command::new(&exe)
-        } else {
-            let ld = self.root.join(LIBDIR).join("ld-linux-x86-64.so.2");
-            assert!(ld.is_file(), "{}: no dynamic linker {}", self.label, ld.display());
-            let mut c = Command::new(ld);
-            c.arg("--library-path").arg(self.root.join(LIBDIR)).arg(&exe);
-            c
+        let wrapper = self.wrapper();
+        let mut cmd = match wrapper.split_first() {
+            None => Command::new(&exe),
+            Some((ld, rest)) => {
+                assert!(Path::new(ld).is_file(), "{}: no dynamic linker {:?}", self.label, ld);
+                let mut c = Command::new(ld);
+                c.args(rest).arg(&exe);
+                c
+            }
         };
         cmd.args(["--exact", "loader_probe_child", "--nocapture", "--test-threads=1"]);
         // Nothing from the developer's setup; lavapipe only.
@@ -493,7 +503,7 @@ impl Loaders {
         for l in loaders {
             assert!(ours.iter().any(|o| o == Path::new(l)), "{}: loader {l} is not one of {ours:?}:\n{}", probe.label, probe.out);
         }
-        let version = probe.out.lines().find_map(|l| l.split_once("Vulkan Loader Version ").map(|(_, v)| v.trim().to_string()));
+        let version = probe.vulkan_loader_version();
         eprintln!("{}: loaders {:?}, Vulkan loader version {}", probe.label, probe.values("loader"), version.as_deref().unwrap_or("(not reported)"));
         probe
     }
@@ -547,6 +557,10 @@ impl Probe {
     /// The loader put the layer into the instance chain with `library` (not `(null)`), and the
     /// library is mapped in the process.
     fn assert_vulkan_layer_loaded(&self, library: &Path) {
+        self.assert_inserted(library);
+        self.assert_mapped(library);
+    }
+    fn assert_inserted(&self, library: &Path) {
         let insert = format!("Insert instance layer \"{}\" (", manifest::VK_LAYER_NAME);
         let shown: Vec<&str> = self.out.lines().filter_map(|l| l.split_once(&insert)).filter_map(|(_, rest)| rest.strip_suffix(')')).collect();
         assert!(
@@ -557,7 +571,10 @@ impl Probe {
             self.out
         );
         assert!(!self.out.contains("((null))"), "{}: a layer without library path:\n{}", self.label, self.out);
-        self.assert_mapped(library);
+    }
+    /// The version the Vulkan loader reports in its debug output.
+    fn vulkan_loader_version(&self) -> Option<String> {
+        self.out.lines().find_map(|l| l.split_once("Vulkan Loader Version ").map(|(_, v)| v.trim().to_string()))
     }
     fn assert_mapped(&self, library: &Path) {
         let mapped = self.values("mapped");
@@ -566,8 +583,8 @@ impl Probe {
     fn assert_not_mapped(&self) {
         assert!(self.values("mapped").is_empty(), "{}: the layer was loaded:\n{}", self.label, self.out);
     }
-    /// None of the loaders' complaints about a manifest (their wording in loader.c and
-    /// manifest_file.cpp); the environment holds no manifests but ours and the mock runtime's.
+    /// None of the loaders' complaints (their wording in loader.c and manifest_file.cpp) about our
+    /// manifests or library.
     fn assert_no_loader_complaint(&self) {
         const COMPLAINTS: &[&str] = &[
             // Vulkan loader
@@ -589,7 +606,8 @@ impl Probe {
             "contains non-string values",
             "is not a valid manifest file",
         ];
-        for line in self.out.lines() {
+        // Lines about our manifests or library (file stereoshim.json, libstereoshim.so, our names).
+        for line in self.out.lines().filter(|l| l.to_ascii_lowercase().contains("stereoshim")) {
             if let Some(c) = COMPLAINTS.iter().find(|c| line.contains(*c)) {
                 panic!("{}: a loader complains ({c:?}): {line}\n{}", self.label, self.out);
             }
@@ -626,6 +644,7 @@ fn check_loaders(loaders: &Loaders) {
     p.expect("vk-instance", "ok");
     p.assert_vulkan_layer_loaded(&lib);
     p.assert_no_loader_complaint();
+    let vulkan_version = p.vulkan_loader_version().expect("the Vulkan loader reports its version");
 
     // 2. The shipped Vulkan manifest, in place, where this tree has a debug build.
     let debug_lib = repo().join("target/debug/libstereoshim.so");
@@ -697,6 +716,21 @@ fn check_loaders(loaders: &Loaders) {
     assert!(!check(Api::Vulkan, false, &text, &path).0.is_empty(), "the rules accept a numeric implementation_version");
     let p = loaders.probe("vulkan-enumerate", &[("VK_LAYER_PATH", &dir)], &[]);
     assert_ne!(p.value("vk-layer"), expected_vk_listing(), "{}: the loader read a numeric implementation_version right", p.label);
+
+    // 8. An app: xr-scene (validation on) with the layer as `stereoshim run` gives it, both Vulkan
+    // bindings, through these loaders: the Vulkan half joins through the generated manifest.
+    for vulkan in ["enable", "enable2"] {
+        let name = format!("manifests-{}-xr-scene-{vulkan}", loaders.label);
+        let mut run = common::Run::new(&name).args(["--vulkan", vulkan]).with_layer().env("VK_LOADER_DEBUG", "info,layer");
+        run.wrapper = loaders.wrapper();
+        let out = run.run();
+        out.assert_ok();
+        let p = Probe { label: name.clone(), out: out.stderr.clone() };
+        assert_eq!(p.vulkan_loader_version().as_deref(), Some(vulkan_version.as_str()), "{name}: another Vulkan loader:\n{}", out.stderr);
+        p.assert_inserted(&lib);
+        p.assert_no_loader_complaint();
+        assert_eq!(out.log_lines("the Vulkan half tracks this device").len(), 1, "{name}: {}", out.log);
+    }
 }
 
 #[test]
