@@ -479,6 +479,13 @@ impl Loaders {
             .chain([PathBuf::from("/usr/share/vulkan/icd.d/lvp_icd.json"), PathBuf::from("/usr/share/vulkan/icd.d/lvp_icd.x86_64.json")])
             .find(|p| p.is_file())
             .expect("a lavapipe ICD manifest");
+        // Private XDG folders: no manifest of the developer's, the layer's log and generated
+        // manifest inside the test's output.
+        static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let dir = common::output_dir(&format!("manifests-{}-probe-{}", self.label, N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)));
+        for (k, sub) in [("XDG_DATA_HOME", "data"), ("XDG_CONFIG_HOME", "config"), ("XDG_STATE_HOME", "state"), ("XDG_RUNTIME_DIR", "run")] {
+            cmd.env(k, dir.join(sub));
+        }
         cmd.env("VK_ICD_FILENAMES", icd)
             .env("VK_LOADER_DEBUG", "all")
             .env("XR_LOADER_DEBUG", "all")
@@ -494,8 +501,9 @@ impl Loaders {
         for (k, v) in extra {
             cmd.env(k, v);
         }
-        let out = run_with_timeout(cmd, Duration::from_secs(60));
-        let probe = Probe { label: format!("{} {mode} {env:?} {extra:?}", self.label), out };
+        let out = run_with_timeout(cmd, &dir, Duration::from_secs(60));
+        let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
+        let probe = Probe { label: format!("{} {mode} {env:?} {extra:?}", self.label), out, log };
         // The loaders in the process are this set's, not whatever the system has.
         let ours: Vec<PathBuf> = [self.vulkan(), self.openxr()].iter().filter_map(|p| std::fs::canonicalize(p).ok()).collect();
         let loaders = probe.values("loader");
@@ -509,10 +517,9 @@ impl Loaders {
     }
 }
 
-fn run_with_timeout(mut cmd: Command, limit: Duration) -> String {
+/// Runs `cmd` with its output in `dir`, killing it after `limit`.
+fn run_with_timeout(mut cmd: Command, dir: &Path, limit: Duration) -> String {
     use std::process::Stdio;
-    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let dir = common::output_dir(&format!("manifests-probe-{}", N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)));
     let (o, e) = (dir.join("stdout"), dir.join("stderr"));
     cmd.stdout(Stdio::from(std::fs::File::create(&o).unwrap())).stderr(Stdio::from(std::fs::File::create(&e).unwrap()));
     let mut child = cmd.spawn().expect("spawn the probe");
@@ -529,7 +536,6 @@ fn run_with_timeout(mut cmd: Command, limit: Duration) -> String {
         std::thread::sleep(Duration::from_millis(50));
     };
     let text = std::fs::read_to_string(&o).unwrap_or_default() + &std::fs::read_to_string(&e).unwrap_or_default();
-    let _ = std::fs::remove_dir_all(&dir);
     match status {
         None => panic!("the probe hung for {limit:?} (killed):\n{text}"),
         Some(s) if !s.success() => panic!("the probe failed ({s}):\n{text}"),
@@ -540,6 +546,8 @@ fn run_with_timeout(mut cmd: Command, limit: Duration) -> String {
 struct Probe {
     label: String,
     out: String,
+    /// The layer's log file in the probe (empty: the layer's code never ran).
+    log: String,
 }
 
 impl Probe {
@@ -577,10 +585,12 @@ impl Probe {
         self.out.lines().find_map(|l| l.split_once("Vulkan Loader Version ").map(|(_, v)| v.trim().to_string()))
     }
     fn assert_mapped(&self, library: &Path) {
+        assert!(self.log.contains("stereoshim loaded"), "{}: the layer wrote no log:\n{}", self.label, self.out);
         let mapped = self.values("mapped");
         assert!(mapped.contains(&library.to_str().unwrap()), "{}: {} not mapped (mapped: {mapped:?}):\n{}", self.label, library.display(), self.out);
     }
     fn assert_not_mapped(&self) {
+        assert!(self.log.is_empty(), "{}: the layer ran:\n{}", self.label, self.log);
         assert!(self.values("mapped").is_empty(), "{}: the layer was loaded:\n{}", self.label, self.out);
     }
     /// None of the loaders' complaints (their wording in loader.c and manifest_file.cpp) about our
@@ -725,7 +735,7 @@ fn check_loaders(loaders: &Loaders) {
         run.wrapper = loaders.wrapper();
         let out = run.run();
         out.assert_ok();
-        let p = Probe { label: name.clone(), out: out.stderr.clone() };
+        let p = Probe { label: name.clone(), out: out.stderr.clone(), log: out.log.clone() };
         assert_eq!(p.vulkan_loader_version().as_deref(), Some(vulkan_version.as_str()), "{name}: another Vulkan loader:\n{}", out.stderr);
         p.assert_inserted(&lib);
         p.assert_no_loader_complaint();
