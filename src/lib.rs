@@ -10,6 +10,7 @@ pub mod log;
 pub mod manifest;
 pub mod mask;
 pub mod mask_source;
+pub mod notices;
 pub mod rdm;
 pub mod vrs;
 pub mod registry;

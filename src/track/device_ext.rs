@@ -59,6 +59,31 @@ pub fn foveation_wants_fsr(method: &str) -> bool {
     matches!(method, "auto" | "vrs")
 }
 
+pub const PROPERTIES_2: &str = "VK_KHR_get_physical_device_properties2";
+
+/// The instance extensions the layer adds to an app's `VkInstanceCreateInfo` (`XR_KHR_vulkan_enable2`
+/// passes it through the OpenXR half): `VK_KHR_get_physical_device_properties2` on a Vulkan 1.0
+/// instance when shading rate may be wanted, since `VK_KHR_fragment_shading_rate` needs it (or
+/// 1.1) and the layer can only query the rate features through it. Only what the loader lists.
+pub fn instance_additions(api_version: u32, requested: &[String], available: &[String], fsr_wanted: bool) -> Vec<&'static str> {
+    let needed = fsr_wanted && api_version < ash::vk::API_VERSION_1_1 && !has(requested, PROPERTIES_2);
+    if needed && has(available, PROPERTIES_2) {
+        vec![PROPERTIES_2]
+    } else {
+        Vec::new()
+    }
+}
+
+/// Whether the configuration may want fragment shading rate on the app's devices
+/// (`vulkan.fragment_shading_rate` on, or auto with foveation method auto/vrs).
+pub fn config_wants_fsr(fsr_mode: &str, foveation_method: &str) -> bool {
+    match fsr_mode {
+        "off" => false,
+        "on" => true,
+        _ => foveation_wants_fsr(foveation_method),
+    }
+}
+
 fn has(list: &[String], name: &str) -> bool {
     list.iter().any(|e| e == name)
 }
@@ -138,6 +163,19 @@ mod tests {
             feature_wants_fsr: false,
             fsr_support: Some(FsrSupport { pipeline: true, primitive: true, attachment: true }),
         }
+    }
+
+    #[test]
+    fn instance_gets_properties2_only_when_needed_and_listed() {
+        let avail = strings(&[PROPERTIES_2]);
+        let none = strings(&[]);
+        assert_eq!(instance_additions(vk::API_VERSION_1_0, &none, &avail, true), vec![PROPERTIES_2]);
+        assert!(instance_additions(vk::API_VERSION_1_1, &none, &avail, true).is_empty(), "core in 1.1");
+        assert!(instance_additions(vk::API_VERSION_1_0, &avail, &avail, true).is_empty(), "app enables it");
+        assert!(instance_additions(vk::API_VERSION_1_0, &none, &none, true).is_empty(), "loader lacks it");
+        assert!(instance_additions(vk::API_VERSION_1_0, &none, &avail, false).is_empty(), "no shading rate wanted");
+        assert!(config_wants_fsr("auto", "auto") && config_wants_fsr("on", "rdm") && !config_wants_fsr("off", "vrs"));
+        assert!(!config_wants_fsr("auto", "rdm"));
     }
 
     #[test]

@@ -6,7 +6,7 @@
 //! handle, which the loader shares between an instance and its physical devices, and between a
 //! device and its queues and command buffers), so any handle finds its instance or device state.
 
-mod convert;
+pub(crate) mod convert;
 mod hooks;
 pub mod loader;
 mod mask;
