@@ -26,8 +26,20 @@ impl Feature {
     }
 }
 
-/// What the user can do about a reason a pass was left alone (reason names as in `stats.file`).
-pub fn hint(reason: &str) -> &'static str {
+/// What the user can do about a reason `feature` left a pass alone (reason names as in
+/// `stats.file`).
+pub fn hint(feature: Feature, reason: &str) -> &'static str {
+    match (feature, reason) {
+        (Feature::Vrs, "unsupported") => {
+            "the device has no attachment fragment shading rate enabled by the layer (the GPU lacks it, or the layer could not \
+             enable it at vkCreateDevice: see \"vulkan device created\" in this log): use foveation.method = \"auto\" or \"rdm\""
+        }
+        (Feature::Vrs, "secondary") => "VRS does not reach passes whose contents are secondary command buffers: use foveation.method = \"rdm\"",
+        _ => hint_for(reason),
+    }
+}
+
+fn hint_for(reason: &str) -> &'static str {
     match reason {
         "eye_unknown" => {
             "the pass renders into an image the layer cannot tie to an eye (not a swapchain image, nor copied into one 1:1); \
@@ -109,7 +121,7 @@ impl Summary {
                     warnings.push(format!(
                         "{} not applied to a pass: {reason} — {} (logged once per reason; counted per frame in stats.file)",
                         feature.name(),
-                        hint(reason)
+                        hint(feature, reason)
                     ));
                 }
             }
@@ -179,9 +191,15 @@ mod tests {
     }
 
     #[test]
+    fn vrs_reasons_have_their_own_hints() {
+        assert!(hint(Feature::Vrs, "unsupported").contains("fragment shading rate"));
+        assert_ne!(hint(Feature::Vrs, "unsupported"), hint(Feature::Mask, "unsupported"));
+    }
+
+    #[test]
     fn every_reason_has_a_specific_hint() {
         for r in crate::mask::NotMasked::ALL.iter().filter(|r| **r != crate::mask::NotMasked::NotEyePass) {
-            assert_ne!(hint(r.name()), hint("?"), "{}", r.name());
+            assert_ne!(hint(Feature::Mask, r.name()), hint(Feature::Mask, "?"), "{}", r.name());
         }
     }
 }

@@ -310,6 +310,9 @@ unsafe fn modify_device_create_info(ci: &vk::DeviceCreateInfo<'_>, d: &device_ex
     for e in &d.add_extensions {
         names.push(match *e {
             device_ext::FRAGMENT_SHADING_RATE => c"VK_KHR_fragment_shading_rate".as_ptr(),
+            device_ext::CREATE_RENDERPASS_2 => c"VK_KHR_create_renderpass2".as_ptr(),
+            "VK_KHR_multiview" => c"VK_KHR_multiview".as_ptr(),
+            "VK_KHR_maintenance2" => c"VK_KHR_maintenance2".as_ptr(),
             other => return Err(format!("no static name for {other}")),
         });
     }
