@@ -406,7 +406,13 @@ fn vulkan_validation_errors(text: &str) -> Vec<String> {
     let mut out = Vec::new();
     for (i, l) in lines.iter().enumerate() {
         if l.starts_with("Validation Error:") {
-            out.push(format!("{l} {}", lines.get(i + 1).unwrap_or(&"").trim()));
+            // The record's message: the lines up to the spec quote (or the next record).
+            let msg: Vec<&str> = lines[i + 1..]
+                .iter()
+                .take_while(|m| !m.starts_with("The Vulkan spec states") && !m.starts_with("Validation "))
+                .map(|m| m.trim())
+                .collect();
+            out.push(format!("{l} {}", msg.join(" ")));
         }
     }
     out
