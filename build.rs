@@ -36,9 +36,13 @@ fn main() {
     println!("cargo:rerun-if-changed={}", shader_dir.join("rdm_rule.glsl").display());
 }
 
+/// Every shader is SPIR-V 1.0 (`--target-env vulkan1.0`): the layer's modules are created on the
+/// app's device, which may be a Vulkan 1.0 device; a module may only use what that device has
+/// (VUID-VkShaderModuleCreateInfo-pCode-08737). The multiview variants additionally declare the
+/// `MultiView` capability and are only created on devices that enabled `multiview`.
 fn compile(src: &Path, dst: &Path, extra: &[&str]) {
     let result = Command::new("glslangValidator")
-        .args(["-V", "--target-env", "vulkan1.1"])
+        .args(["-V", "--target-env", "vulkan1.0"])
         .args(extra)
         .arg("-o")
         .arg(dst)

@@ -22,6 +22,9 @@ pub struct FrameRecord {
     pub fovea: Vec<crate::shared::FoveaView>,
     /// Where the fovea centres came from: "Fixed", "Gaze" or "Held" (None when off).
     pub fovea_source: Option<String>,
+    /// Whether the layer's Vulkan half tracks the session's device (None: no session known).
+    /// False means nothing enabled can be applied.
+    pub vulkan_half: Option<bool>,
 }
 
 impl FrameRecord {
@@ -47,6 +50,7 @@ impl FrameRecord {
                 "view": f.view, "center": f.center, "inner_deg": f.inner_deg, "middle_deg": f.middle_deg,
             })).collect::<Vec<_>>(),
             "fovea_source": self.fovea_source,
+            "vulkan_half": self.vulkan_half,
             "rdm": {
                 "passes": rdm.passes,
                 "quads_skipped": per_view(&rdm.quads_skipped),
@@ -108,9 +112,10 @@ mod tests {
             rdm: crate::rdm::RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() },
             vrs: crate::vrs::VrsFrameStats { passes: 3, ..Default::default() },
         };
-        let r = FrameRecord { frame: 7, mask_enabled: true, foveation_enabled: true, mask, fovea: Vec::new(), fovea_source: None };
+        let r = FrameRecord { frame: 7, mask_enabled: true, foveation_enabled: true, mask, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true) };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
         assert_eq!(v["frame"], 7);
+        assert_eq!(v["vulkan_half"], true);
         assert_eq!(v["passes_masked"], 2);
         assert_eq!(v["not_masked"]["no_depth_attachment"], 1);
         assert_eq!(v["pixels_masked"]["0"], 1234);

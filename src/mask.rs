@@ -179,10 +179,14 @@ pub enum NotMasked {
     IntermediateOff,
     /// The layer could not create its pipeline or vertex buffer.
     LayerError,
+    /// The app's device was created without what the layer's draw needs for this pass (e.g.
+    /// `multiview`, `dynamicRendering`): the layer never creates an object the device cannot
+    /// legally have.
+    DeviceLacks,
 }
 
 impl NotMasked {
-    pub const ALL: [NotMasked; 10] = [
+    pub const ALL: [NotMasked; 11] = [
         NotMasked::NotEyePass,
         NotMasked::EyeUnknown,
         NotMasked::NoDepthAttachment,
@@ -193,6 +197,7 @@ impl NotMasked {
         NotMasked::Unsupported,
         NotMasked::IntermediateOff,
         NotMasked::LayerError,
+        NotMasked::DeviceLacks,
     ];
     pub fn name(&self) -> &'static str {
         match self {
@@ -206,6 +211,7 @@ impl NotMasked {
             NotMasked::Unsupported => "unsupported",
             NotMasked::IntermediateOff => "intermediate_off",
             NotMasked::LayerError => "layer_error",
+            NotMasked::DeviceLacks => "device_lacks",
         }
     }
 }

@@ -173,6 +173,9 @@ pub enum NotApplied {
     NotOneToOne,
     /// The swapchain image lacks TRANSFER_SRC / COLOR_ATTACHMENT usage for the reconstruction.
     SwapchainUsage,
+    /// The app's device was created without what the layer's draw needs for this pass (e.g.
+    /// `multiview`): the layer never creates an object the device cannot legally have.
+    DeviceLacks,
 }
 
 impl NotApplied {
@@ -182,6 +185,7 @@ impl NotApplied {
             NotApplied::LayerError => "layer_error",
             NotApplied::NotOneToOne => "not_one_to_one",
             NotApplied::SwapchainUsage => "swapchain_usage",
+            NotApplied::DeviceLacks => "device_lacks",
         }
     }
 }

@@ -45,11 +45,13 @@ pub fn add_layer_path(current: Option<&str>, dir: &Path) -> Option<String> {
     }
 }
 
-/// `VK_INSTANCE_LAYERS` with the layer added, unless it is already there.
+/// `VK_INSTANCE_LAYERS` with the layer added first (the loader puts the first-named layer closest
+/// to the app, so layers the user listed, which may wrap handles, sit below it), unless it is
+/// already there.
 pub fn add_instance_layer(current: Option<&str>) -> Option<String> {
     match current.filter(|c| !c.is_empty()) {
         Some(c) if c.split(':').any(|p| p == VK_LAYER_NAME) => None,
-        Some(c) => Some(format!("{c}:{VK_LAYER_NAME}")),
+        Some(c) => Some(format!("{VK_LAYER_NAME}:{c}")),
         None => Some(VK_LAYER_NAME.to_string()),
     }
 }
@@ -90,7 +92,7 @@ mod tests {
         assert_eq!(add_layer_path(None, d).as_deref(), Some("/run/s"));
         assert_eq!(add_layer_path(Some("/a"), d).as_deref(), Some("/run/s:/a"));
         assert_eq!(add_layer_path(Some("/a:/run/s"), d), None);
-        assert_eq!(add_instance_layer(Some("VK_LAYER_KHRONOS_validation")).as_deref(), Some("VK_LAYER_KHRONOS_validation:VK_LAYER_STEREOSHIM_stereoshim"));
+        assert_eq!(add_instance_layer(Some("VK_LAYER_KHRONOS_validation")).as_deref(), Some("VK_LAYER_STEREOSHIM_stereoshim:VK_LAYER_KHRONOS_validation"));
         assert_eq!(add_instance_layer(Some(VK_LAYER_NAME)), None);
     }
 

@@ -214,3 +214,28 @@ fn intermediate_off_leaves_offscreen_passes_alone() {
     let line = out.log_lines("vulkan device stats:").join("\n");
     assert!(line.contains("masked_passes=0") && line.contains("not_masked.intermediate_off="), "{line}");
 }
+
+// Vulkan validation enabled the way most developers do, through `VK_INSTANCE_LAYERS` (every other
+// test enables it through the app's create info). With `enable2` the loader puts it above the
+// layers the app's create info names, stereoshim included, and it wraps every non-dispatchable
+// handle: the swapchain images the runtime reports are then the validation layer's wrapped
+// handles, and the layer must still recognise its eye passes (it identifies the images at their
+// creation) and mask exactly as without it. With `enable`, stereoshim puts itself first in
+// `VK_INSTANCE_LAYERS`, above the user's layers.
+macro_rules! wrapped_tests {
+    ($($name:ident: [$($arg:literal),*];)*) => {$(
+        #[test]
+        fn $name() {
+            check_env(stringify!($name), &[$($arg),*], false, &[("VK_INSTANCE_LAYERS", "VK_LAYER_KHRONOS_validation")]);
+        }
+    )*};
+}
+
+wrapped_tests! {
+    validation_env_per_eye_enable2: ["--layout", "per-eye", "--rendering", "render-pass"];
+    validation_env_side_by_side_enable2: ["--layout", "side-by-side", "--rendering", "dynamic"];
+    validation_env_multiview_enable2: ["--layout", "multiview", "--rendering", "render-pass2"];
+    validation_env_per_eye_enable: ["--layout", "per-eye", "--rendering", "dynamic", "--vulkan", "enable"];
+    validation_env_side_by_side_enable: ["--layout", "side-by-side", "--rendering", "render-pass2", "--vulkan", "enable"];
+    validation_env_multiview_enable: ["--layout", "multiview", "--rendering", "render-pass", "--vulkan", "enable"];
+}

@@ -5,6 +5,8 @@
 
 pub const FRAGMENT_SHADING_RATE: &str = "VK_KHR_fragment_shading_rate";
 pub const CREATE_RENDERPASS_2: &str = "VK_KHR_create_renderpass2";
+/// `VK_KHR_create_renderpass2`'s own dependencies on a Vulkan 1.0 device (core in 1.1).
+pub const RENDERPASS_2_DEPENDENCIES_1_0: &[&str] = &["VK_KHR_multiview", "VK_KHR_maintenance2"];
 /// Extensions whose features must not be enabled together with `pipelineFragmentShadingRate` /
 /// `attachmentFragmentShadingRate` (VUIDs of `VkDeviceCreateInfo`: shadingRateImage-04478..,
 /// fragmentDensityMap-04481..): if the app uses one, we never add shading rate.
@@ -57,6 +59,31 @@ pub fn foveation_wants_fsr(method: &str) -> bool {
     matches!(method, "auto" | "vrs")
 }
 
+pub const PROPERTIES_2: &str = "VK_KHR_get_physical_device_properties2";
+
+/// The instance extensions the layer adds to an app's `VkInstanceCreateInfo` (`XR_KHR_vulkan_enable2`
+/// passes it through the OpenXR half): `VK_KHR_get_physical_device_properties2` on a Vulkan 1.0
+/// instance when shading rate may be wanted, since `VK_KHR_fragment_shading_rate` needs it (or
+/// 1.1) and the layer can only query the rate features through it. Only what the loader lists.
+pub fn instance_additions(api_version: u32, requested: &[String], available: &[String], fsr_wanted: bool) -> Vec<&'static str> {
+    let needed = fsr_wanted && api_version < ash::vk::API_VERSION_1_1 && !has(requested, PROPERTIES_2);
+    if needed && has(available, PROPERTIES_2) {
+        vec![PROPERTIES_2]
+    } else {
+        Vec::new()
+    }
+}
+
+/// Whether the configuration may want fragment shading rate on the app's devices
+/// (`vulkan.fragment_shading_rate` on, or auto with foveation method auto/vrs).
+pub fn config_wants_fsr(fsr_mode: &str, foveation_method: &str) -> bool {
+    match fsr_mode {
+        "off" => false,
+        "on" => true,
+        _ => foveation_wants_fsr(foveation_method),
+    }
+}
+
 fn has(list: &[String], name: &str) -> bool {
     list.iter().any(|e| e == name)
 }
@@ -77,13 +104,23 @@ pub fn decide(i: &Inputs<'_>) -> Decision {
     if let Some(c) = CONFLICTING.iter().find(|c| has(i.requested, c)) {
         return no(format!("fragment shading rate: app enables {c}, which conflicts"));
     }
-    let v12 = i.api_version >= ash::vk::API_VERSION_1_2;
-    if !v12 && !has(i.requested, CREATE_RENDERPASS_2) {
-        return no(format!("fragment shading rate: needs Vulkan 1.2 or the app's {CREATE_RENDERPASS_2}"));
-    }
     if i.api_version < ash::vk::API_VERSION_1_1 && !i.instance_has_properties2 {
         return no("fragment shading rate: instance lacks VK_KHR_get_physical_device_properties2".into());
     }
+    // VK_KHR_fragment_shading_rate requires VK_KHR_create_renderpass2 (core in 1.2), which on a
+    // 1.0 device requires VK_KHR_multiview and VK_KHR_maintenance2 (core in 1.1). A Vulkan 1.0 or
+    // 1.1 app rarely enables them itself, so the layer adds whichever the device offers.
+    let mut deps: Vec<&'static str> = Vec::new();
+    if i.api_version < ash::vk::API_VERSION_1_2 {
+        deps.push(CREATE_RENDERPASS_2);
+        if i.api_version < ash::vk::API_VERSION_1_1 {
+            deps.extend_from_slice(RENDERPASS_2_DEPENDENCIES_1_0);
+        }
+    }
+    if let Some(lacking) = deps.iter().find(|e| !has(i.requested, e) && !has(i.available, e)) {
+        return no(format!("fragment shading rate: device lacks {lacking}, which {FRAGMENT_SHADING_RATE} needs below Vulkan 1.2"));
+    }
+    deps.retain(|e| !has(i.requested, e));
     let Some(support) = i.fsr_support else {
         return no("fragment shading rate: features could not be queried".into());
     };
@@ -92,8 +129,12 @@ pub fn decide(i: &Inputs<'_>) -> Decision {
     }
     let enable = FsrSupport { pipeline: support.pipeline, primitive: false, attachment: true };
     let already = has(i.requested, FRAGMENT_SHADING_RATE);
+    let mut add_extensions = deps;
+    if !already {
+        add_extensions.push(FRAGMENT_SHADING_RATE);
+    }
     Decision {
-        add_extensions: if already { vec![] } else { vec![FRAGMENT_SHADING_RATE] },
+        add_extensions,
         enable_fsr: Some(enable),
         reason: format!(
             "fragment shading rate: {} {FRAGMENT_SHADING_RATE}, enabling attachment{} rates",
@@ -122,6 +163,19 @@ mod tests {
             feature_wants_fsr: false,
             fsr_support: Some(FsrSupport { pipeline: true, primitive: true, attachment: true }),
         }
+    }
+
+    #[test]
+    fn instance_gets_properties2_only_when_needed_and_listed() {
+        let avail = strings(&[PROPERTIES_2]);
+        let none = strings(&[]);
+        assert_eq!(instance_additions(vk::API_VERSION_1_0, &none, &avail, true), vec![PROPERTIES_2]);
+        assert!(instance_additions(vk::API_VERSION_1_1, &none, &avail, true).is_empty(), "core in 1.1");
+        assert!(instance_additions(vk::API_VERSION_1_0, &avail, &avail, true).is_empty(), "app enables it");
+        assert!(instance_additions(vk::API_VERSION_1_0, &none, &none, true).is_empty(), "loader lacks it");
+        assert!(instance_additions(vk::API_VERSION_1_0, &none, &avail, false).is_empty(), "no shading rate wanted");
+        assert!(config_wants_fsr("auto", "auto") && config_wants_fsr("on", "rdm") && !config_wants_fsr("off", "vrs"));
+        assert!(!config_wants_fsr("auto", "rdm"));
     }
 
     #[test]
@@ -181,13 +235,25 @@ mod tests {
     fn dependencies_and_conflicts_decline() {
         let avail = strings(&[FRAGMENT_SHADING_RATE, CREATE_RENDERPASS_2]);
         let req = strings(&[]);
-        // 1.1 device without the app's create_renderpass2.
+        // 1.1 device without the app's create_renderpass2: the layer adds it.
         let d = decide(&Inputs { api_version: vk::API_VERSION_1_1, ..inputs(&avail, &req, "on") });
-        assert!(d.enable_fsr.is_none(), "{d:?}");
-        // ... with it, fine.
+        assert!(d.enable_fsr.is_some(), "{d:?}");
+        assert_eq!(d.add_extensions, vec![CREATE_RENDERPASS_2, FRAGMENT_SHADING_RATE]);
+        // ... with it, only shading rate is added.
         let req2 = strings(&[CREATE_RENDERPASS_2]);
         let d = decide(&Inputs { api_version: vk::API_VERSION_1_1, ..inputs(&avail, &req2, "on") });
-        assert!(d.enable_fsr.is_some(), "{d:?}");
+        assert_eq!(d.add_extensions, vec![FRAGMENT_SHADING_RATE]);
+        // A device that does not offer create_renderpass2 below 1.2: declined.
+        let only_fsr = strings(&[FRAGMENT_SHADING_RATE]);
+        let d = decide(&Inputs { api_version: vk::API_VERSION_1_1, ..inputs(&only_fsr, &req, "on") });
+        assert!(d.enable_fsr.is_none() && d.add_extensions.is_empty(), "{d:?}");
+        assert!(d.reason.contains(CREATE_RENDERPASS_2), "{}", d.reason);
+        // Vulkan 1.0 (a 1.0 app on any GPU): create_renderpass2 and its 1.1 dependencies too.
+        let all = strings(&[FRAGMENT_SHADING_RATE, CREATE_RENDERPASS_2, "VK_KHR_multiview", "VK_KHR_maintenance2"]);
+        let d = decide(&Inputs { api_version: vk::API_VERSION_1_0, ..inputs(&all, &req, "on") });
+        assert_eq!(d.add_extensions, vec![CREATE_RENDERPASS_2, "VK_KHR_multiview", "VK_KHR_maintenance2", FRAGMENT_SHADING_RATE]);
+        let d = decide(&Inputs { api_version: vk::API_VERSION_1_0, ..inputs(&avail, &req, "on") });
+        assert!(d.enable_fsr.is_none(), "1.0 device without VK_KHR_multiview: {d:?}");
         // 1.0 instance without properties2.
         let d = decide(&Inputs {
             api_version: vk::API_VERSION_1_0,

@@ -2,6 +2,7 @@
 //! safe: the FFI shell (`crate::vk`) converts the app's create infos into the owned descriptions of
 //! `resources` and reports recorded commands here, so all of it is unit-tested without a GPU.
 
+pub mod caps;
 pub mod cmd;
 pub mod device_ext;
 pub mod eye_pass;

@@ -415,3 +415,27 @@ pub unsafe fn names(names: *const *const std::ffi::c_char, n: u32) -> Vec<String
         .map(|&p| unsafe { std::ffi::CStr::from_ptr(p) }.to_string_lossy().into_owned())
         .collect()
 }
+
+/// The features of `VkDeviceCreateInfo::pNext` that decide which layer objects the device may see.
+///
+/// # Safety
+/// `p_next` must be a valid `VkDeviceCreateInfo` structure chain.
+pub unsafe fn device_features(p_next: *const c_void) -> crate::track::caps::ChainedFeatures {
+    let mut f = crate::track::caps::ChainedFeatures::default();
+    // SAFETY (each lookup): a valid chain per the contract; each sType names its struct.
+    unsafe {
+        if let Some(s) = find_in_chain::<vk::PhysicalDeviceMultiviewFeatures<'_>>(p_next, vk::StructureType::PHYSICAL_DEVICE_MULTIVIEW_FEATURES) {
+            f.multiview |= (*s).multiview != 0;
+        }
+        if let Some(s) = find_in_chain::<vk::PhysicalDeviceVulkan11Features<'_>>(p_next, vk::StructureType::PHYSICAL_DEVICE_VULKAN_1_1_FEATURES) {
+            f.multiview |= (*s).multiview != 0;
+        }
+        if let Some(s) = find_in_chain::<vk::PhysicalDeviceDynamicRenderingFeatures<'_>>(p_next, vk::StructureType::PHYSICAL_DEVICE_DYNAMIC_RENDERING_FEATURES) {
+            f.dynamic_rendering |= (*s).dynamic_rendering != 0;
+        }
+        if let Some(s) = find_in_chain::<vk::PhysicalDeviceVulkan13Features<'_>>(p_next, vk::StructureType::PHYSICAL_DEVICE_VULKAN_1_3_FEATURES) {
+            f.dynamic_rendering |= (*s).dynamic_rendering != 0;
+        }
+    }
+    f
+}

@@ -8,7 +8,7 @@ use super::mask::{self, Trigger};
 use super::{check_fault, convert, device_of, dispatch_key, instance_of, layer, loader, DeviceState, ExtFns, InstanceState};
 use crate::guard::{self, Fault, PassThrough};
 use crate::track::cmd::{PassKind, StateCmd};
-use crate::track::device_ext;
+use crate::track::{caps, device_ext};
 use ash::vk::{self, Handle};
 use std::ffi::{c_char, c_void, CStr};
 use std::sync::Arc;
@@ -220,12 +220,12 @@ fn device_inputs(inst: &InstanceState, pd: vk::PhysicalDevice) -> (Vec<String>, 
     // SAFETY: as above.
     let props = unsafe { inst.fns.get_physical_device_properties(pd) };
     let api_version = props.api_version.min(inst.api_version);
-    let has_props2 = api_version >= vk::API_VERSION_1_1;
-    let fsr = if has_props2 && available.iter().any(|e| e == device_ext::FRAGMENT_SHADING_RATE) {
+    let query = available.iter().any(|e| e == device_ext::FRAGMENT_SHADING_RATE).then(|| properties2_fns(inst, pd)).flatten();
+    let fsr = if let Some((features2, _)) = query {
         let mut f = vk::PhysicalDeviceFragmentShadingRateFeaturesKHR::default();
         let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f);
-        // SAFETY: as above; a correctly chained output struct.
-        unsafe { inst.fns.get_physical_device_features2(pd, &mut f2) };
+        // SAFETY: a physical device of this instance; a correctly chained output struct.
+        unsafe { features2(pd, &mut f2) };
         Some(device_ext::FsrSupport {
             pipeline: f.pipeline_fragment_shading_rate != 0,
             primitive: f.primitive_fragment_shading_rate != 0,
@@ -235,6 +235,33 @@ fn device_inputs(inst: &InstanceState, pd: vk::PhysicalDevice) -> (Vec<String>, 
         None
     };
     (available, api_version, fsr)
+}
+
+/// `vkGetPhysicalDeviceFeatures2` / `vkGetPhysicalDeviceProperties2` as this instance may call
+/// them: the core commands on a 1.1 instance and device, the KHR commands where the instance
+/// enabled `VK_KHR_get_physical_device_properties2` (a Vulkan 1.0 app), else none.
+fn properties2_fns(
+    inst: &InstanceState,
+    pd: vk::PhysicalDevice,
+) -> Option<(vk::PFN_vkGetPhysicalDeviceFeatures2, vk::PFN_vkGetPhysicalDeviceProperties2)> {
+    // SAFETY: a physical device of this instance; the next layer's instance functions.
+    let device_version = unsafe { inst.fns.get_physical_device_properties(pd) }.api_version;
+    if inst.api_version.min(device_version) >= vk::API_VERSION_1_1 {
+        let f = inst.fns.fp_v1_1();
+        return Some((f.get_physical_device_features2, f.get_physical_device_properties2));
+    }
+    if !inst.extensions.iter().any(|e| e == "VK_KHR_get_physical_device_properties2") {
+        return None;
+    }
+    // SAFETY: the next layer's gipa for our instance, with NUL-terminated names.
+    let (f, p) = unsafe {
+        (
+            (inst.next_gipa)(inst.handle, c"vkGetPhysicalDeviceFeatures2KHR".as_ptr())?,
+            (inst.next_gipa)(inst.handle, c"vkGetPhysicalDeviceProperties2KHR".as_ptr())?,
+        )
+    };
+    // SAFETY: the pointers returned for these names have the (alias-identical) core types.
+    Some(unsafe { (std::mem::transmute(f), std::mem::transmute(p)) })
 }
 
 /// A copy of the app's `VkDeviceCreateInfo` with our extensions and features; owns everything the
@@ -438,7 +465,20 @@ pub(super) unsafe extern "system" fn create_device(
         if let Some(r) = rates {
             tracing::info!(texel_width = r.texel_width, texel_height = r.texel_height, layered = r.layered, "fragment shading rate attachment available for foveation");
         }
+        // What the device may be asked to do: the app's features and extensions plus the layer's.
+        let caps = {
+            // SAFETY: the app's names array is valid with its count; a valid pNext chain.
+            let (mut enabled, features) = unsafe {
+                (convert::names(ci_ref.pp_enabled_extension_names, ci_ref.enabled_extension_count), convert::device_features(ci_ref.p_next))
+            };
+            enabled.extend(decision.add_extensions.iter().map(|e| e.to_string()));
+            // SAFETY: a physical device of this instance; the next layer's instance functions.
+            let device_version = unsafe { inst.fns.get_physical_device_properties(pd) }.api_version;
+            caps::from_create_info(device_version.min(inst.api_version), &enabled, features, fsr_attachment)
+        };
+        tracing::info!(?caps, "vulkan device capabilities the layer's objects are checked against");
         let state = DeviceState {
+            caps,
             handle: device,
             next_gdpa,
             fns,
@@ -459,15 +499,11 @@ pub(super) unsafe extern "system" fn create_device(
 /// `VkPhysicalDeviceFragmentShadingRatePropertiesKHR`: the finest rate-map texel and whether
 /// multiview passes can have one layer per view. None when the instance cannot query it.
 fn fsr_rates(inst: &InstanceState, pd: vk::PhysicalDevice) -> Option<crate::vrs::DeviceRates> {
-    // SAFETY: a physical device of this instance; the next layer's instance functions.
-    let props = unsafe { inst.fns.get_physical_device_properties(pd) };
-    if props.api_version.min(inst.api_version) < vk::API_VERSION_1_1 {
-        return None;
-    }
+    let (_, properties2) = properties2_fns(inst, pd)?;
     let mut fsr = vk::PhysicalDeviceFragmentShadingRatePropertiesKHR::default();
     let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut fsr);
-    // SAFETY: as above; a correctly chained output struct (1.1 instance and device).
-    unsafe { inst.fns.get_physical_device_properties2(pd, &mut p2) };
+    // SAFETY: a physical device of this instance; a correctly chained output struct.
+    unsafe { properties2(pd, &mut p2) };
     let t = fsr.min_fragment_shading_rate_attachment_texel_size;
     (t.width > 0 && t.height > 0).then_some(crate::vrs::DeviceRates {
         texel_width: t.width,
@@ -567,7 +603,41 @@ macro_rules! destroy_hook {
     };
 }
 
-create_hook!(create_image, "vkCreateImage", vk::ImageCreateInfo<'_>, vk::Image, fp_v1_0.create_image, images, |h, ci| convert::image(h, ci));
+/// Like the other create hooks, and also notes the image for `swapchain_images`: a runtime creating
+/// swapchain images inside `xrCreateSwapchain` is recognised by the handle seen here, whatever
+/// layer above wraps it.
+pub(super) unsafe extern "system" fn create_image(
+    device: vk::Device,
+    ci: *const vk::ImageCreateInfo<'_>,
+    allocator: *const vk::AllocationCallbacks<'_>,
+    out: *mut vk::Image,
+) -> vk::Result {
+    hook(
+        "vkCreateImage",
+        device,
+        vk::Result::ERROR_INITIALIZATION_FAILED,
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d| unsafe { (d.fns.fp_v1_0().create_image)(device, ci, allocator, out) },
+        |d, r| {
+            if r == vk::Result::SUCCESS {
+                // SAFETY: on success the handle was written; the create info is valid during the
+                // app's call.
+                let (h, ci) = unsafe { (*out, &*ci) };
+                crate::swapchain_images::note_created(crate::swapchain_images::CreatedImage {
+                    image: h.as_raw(),
+                    format: ci.format.as_raw(),
+                    width: ci.extent.width,
+                    height: ci.extent.height,
+                    array_layers: ci.array_layers,
+                    samples: ci.samples.as_raw(),
+                    mip_levels: ci.mip_levels,
+                });
+                d.track.images.insert(h.as_raw(), Arc::new(convert::image(h, ci)));
+            }
+            Ok(())
+        },
+    )
+}
 destroy_hook!(destroy_image, "vkDestroyImage", vk::Image, fp_v1_0.destroy_image, |d, h| {
     d.track.forget_image(h);
     super::rdm::forget_image(d, h)

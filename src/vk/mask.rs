@@ -9,6 +9,7 @@ use super::DeviceState;
 use crate::config::Config;
 use crate::mask::{self, MaskFrameStats, NotMasked, PixelRect};
 use crate::shared::{shared, Views};
+use crate::track::caps;
 use crate::track::cmd::{AttachmentUse, PassInstance, StateCmd};
 use crate::track::eye_pass::{self, EyeLayout, EyeSource, Eyes, Learned, MaskPlan};
 use ash::vk::{self, Handle};
@@ -74,6 +75,8 @@ struct Books {
     logged_kinds: HashSet<(EyeLayout, bool)>,
     logged_targets: HashSet<u64>,
     logged_reasons: HashSet<NotMasked>,
+    /// Device capabilities already reported missing (`log_device_lacks_once`).
+    logged_lacks: HashSet<&'static str>,
     /// Command buffers whose open pass loads its depth and was not masked at its beginning: it
     /// counts (masked or not) at its first depth clear (vkCmdClearAttachments), or as
     /// `depth_not_cleared` when it ends, so it is counted once either way.
@@ -418,9 +421,12 @@ fn record(d: &DeviceState, cb: vk::CommandBuffer, snap: &Snapshot, plan: &MaskPl
         return Err(NotMasked::NoMask);
     }
     let key = pipeline_key(d, &snap.pass, plan, debug, false).ok_or(NotMasked::Unsupported)?;
-    let pipeline = pipeline(d, &key).map_err(|e| {
-        tracing::warn!(?key, "mask pipeline: {e}");
-        NotMasked::LayerError
+    let pipeline = pipeline(d, &key).map_err(|e| match e {
+        PipelineError::DeviceLacks => NotMasked::DeviceLacks,
+        PipelineError::Vulkan(e) => {
+            tracing::warn!(?key, "mask pipeline: {e}");
+            NotMasked::LayerError
+        }
     })?;
     let fns = d.fns.fp_v1_0();
     let viewport = |r: PixelRect| fail_viewport(r, plan.fail_depth);
@@ -539,12 +545,16 @@ fn common(d: &DeviceState) -> Result<(vk::PipelineLayout, Modules), String> {
     // SAFETY: a valid, empty create info.
     let layout = unsafe { d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default(), None) }.map_err(|e| e.to_string())?;
     let (rv, rvm, rf) = super::rdm::draw_shaders();
+    // The multiview variants declare the MultiView capability: only a device that enabled
+    // `multiview` may see them (VUID-VkShaderModuleCreateInfo-pCode-08740). Elsewhere they stay
+    // null, and `pipeline` never asks for them (`PipelineKey::needs`).
+    let multiview_module = |bytes: &[u8]| if d.caps.multiview { module(bytes) } else { Ok(vk::ShaderModule::null()) };
     let modules = Modules {
         vert: module(VERT)?,
-        vert_mv: module(VERT_MV)?,
+        vert_mv: multiview_module(VERT_MV)?,
         frag: module(FRAG)?,
         rdm_vert: module(rv)?,
-        rdm_vert_mv: module(rvm)?,
+        rdm_vert_mv: multiview_module(rvm)?,
         rdm_frag: module(rf)?,
     };
     let mut o = lock(&d.mask.objects);
@@ -564,8 +574,51 @@ fn common(d: &DeviceState) -> Result<(vk::PipelineLayout, Modules), String> {
     Ok((layout, modules))
 }
 
-/// The cached pipeline for `key`, created on first use (never per draw).
-pub(super) fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, String> {
+impl PipelineKey {
+    /// What the device must have been created with for this pipeline (and its shader modules).
+    pub(super) fn needs(&self) -> caps::Needs {
+        match self {
+            PipelineKey::RenderPass { multiview, .. } => caps::Needs { multiview: *multiview, ..Default::default() },
+            PipelineKey::Dynamic { view_mask, .. } => {
+                caps::Needs { multiview: *view_mask != 0, dynamic_rendering: true, ..Default::default() }
+            }
+        }
+    }
+}
+
+/// Why the layer has no pipeline for a key.
+#[derive(Debug)]
+pub(super) enum PipelineError {
+    /// The device was created without a capability the pipeline needs (logged once, by name).
+    DeviceLacks,
+    /// A Vulkan call failed.
+    Vulkan(String),
+}
+
+impl From<String> for PipelineError {
+    fn from(e: String) -> PipelineError {
+        PipelineError::Vulkan(e)
+    }
+}
+
+/// Logs, once per device and capability, that a feature is not applied because the device lacks
+/// what its draw needs.
+pub(super) fn log_device_lacks_once(d: &DeviceState, what: &'static str) {
+    if lock(&d.mask.books).logged_lacks.insert(what) {
+        tracing::warn!(
+            "the app's device was created without {what}, which the layer's draw for this pass needs: \
+             the mask / foveation is not applied to such passes on this device (logged once)"
+        );
+    }
+}
+
+/// The cached pipeline for `key`, created on first use (never per draw) and only when the device
+/// has what it needs.
+pub(super) fn pipeline(d: &DeviceState, key: &PipelineKey) -> Result<vk::Pipeline, PipelineError> {
+    if let Some(lacking) = caps::missing(&d.caps, &key.needs()) {
+        log_device_lacks_once(d, lacking);
+        return Err(PipelineError::DeviceLacks);
+    }
     if let Some(p) = lock(&d.mask.objects).pipelines.get(key) {
         return Ok(*p);
     }

@@ -6,7 +6,7 @@
 //! handle, which the loader shares between an instance and its physical devices, and between a
 //! device and its queues and command buffers), so any handle finds its instance or device state.
 
-mod convert;
+pub(crate) mod convert;
 mod hooks;
 pub mod loader;
 mod mask;
@@ -52,6 +52,8 @@ pub(crate) struct ExtFns {
 /// What the layer keeps per `VkDevice`.
 pub(crate) struct DeviceState {
     pub handle: vk::Device,
+    /// What the device was created with: every layer object is checked against it.
+    pub caps: crate::track::caps::DeviceCaps,
     pub next_gdpa: vk::PFN_vkGetDeviceProcAddr,
     /// The next layer's device functions; core names fall back to their KHR/EXT aliases, so the
     /// table works on devices that offer a command only as an extension.

@@ -176,9 +176,12 @@ pub(super) fn record_draw(d: &DeviceState, cb: vk::CommandBuffer, key: &Pipeline
         tracing::warn!("rdm vertex buffer: {e}");
         NotApplied::LayerError
     })?;
-    let pipeline = mask::pipeline(d, key).map_err(|e| {
-        tracing::warn!(?key, "rdm pipeline: {e}");
-        NotApplied::LayerError
+    let pipeline = mask::pipeline(d, key).map_err(|e| match e {
+        mask::PipelineError::DeviceLacks => NotApplied::DeviceLacks,
+        mask::PipelineError::Vulkan(e) => {
+            tracing::warn!(?key, "rdm pipeline: {e}");
+            NotApplied::LayerError
+        }
     })?;
     let fns = d.fns.fp_v1_0();
     let viewport = |r: PixelRect| mask::fail_viewport(r, plan.fail_depth);

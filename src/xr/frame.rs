@@ -33,7 +33,7 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
 
 /// Closes the frame's statistics: what the Vulkan half did since the last `xrEndFrame`, under the
 /// configuration that was live while the frame was recorded (reloads apply after this).
-fn write_frame_stats(inst: &super::Instance, frame: u64) {
+fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>, frame: u64) {
     static WRITER: std::sync::OnceLock<crate::frame_stats::Writer> = std::sync::OnceLock::new();
     let mask = crate::vk::take_frame_stats();
     let live = shared::shared().config().unwrap_or_else(|| inst.config.clone());
@@ -49,7 +49,30 @@ fn write_frame_stats(inst: &super::Instance, frame: u64) {
             .or(Some(crate::foveation::CenterSource::Fixed))
             .map(|src| format!("{src:?}"))
     };
-    let record = crate::frame_stats::FrameRecord { frame, mask_enabled: live.bool("mask.enabled"), foveation_enabled: live.bool("foveation.enabled"), mask, fovea, fovea_source };
+    let vulkan_half = session.map(|s| s.vulkan_half);
+    let record = crate::frame_stats::FrameRecord {
+        frame,
+        mask_enabled: live.bool("mask.enabled"),
+        foveation_enabled: live.bool("foveation.enabled"),
+        mask,
+        fovea,
+        fovea_source,
+        vulkan_half,
+    };
+    if let Some(s) = session {
+        let foveation = record.foveation_enabled;
+        // `auto` is VRS on devices that have it: the method in effect shows in what VRS counted.
+        let vrs_active = record.mask.vrs.passes > 0 || !record.mask.vrs.not_applied.is_empty();
+        let method = live.choice("foveation.method");
+        let enabled = crate::notices::Enabled {
+            mask: record.mask_enabled,
+            rdm: foveation && (method == "rdm" || (method == "auto" && !vrs_active)),
+            vrs: foveation && (method == "vrs" || (method == "auto" && vrs_active)),
+        };
+        for w in s.summary.lock().unwrap_or_else(|e| e.into_inner()).add_frame(enabled, &record.mask) {
+            tracing::warn!("{w}");
+        }
+    }
     if frame == 0 || record.mask.passes_masked > 0 || !record.mask.not_masked.is_empty() || !record.mask.vrs.is_empty() {
         tracing::debug!("frame stats: {}", record.to_json());
     }
@@ -176,7 +199,7 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
             return Ok(r);
         }
         let frame = inst.stats.frames_ended.fetch_add(1, Ordering::Relaxed);
-        write_frame_stats(&inst, frame);
+        write_frame_stats(&inst, session::lookup(session).ok().as_deref(), frame);
         reload_config(&inst);
         let shared = shared::shared();
         if let (Some(fovs), Ok(s)) = (fovs, session::lookup(session)) {

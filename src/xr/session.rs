@@ -42,6 +42,11 @@ pub(crate) struct Session {
     pub gaze_centers: Mutex<Vec<crate::foveation::Tangent>>,
     /// The layer's own eye-gaze action objects and policy state.
     pub gaze: super::gaze::Gaze,
+    /// Whether the Vulkan half tracks the session's device (it can act on nothing otherwise).
+    pub vulkan_half: bool,
+    /// What the enabled features did over the session (`notices`): warnings once per reason, and a
+    /// summary when the session ends.
+    pub summary: Mutex<crate::notices::Summary>,
 }
 
 /// Views of `XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO`, the only configuration masks are kept for.
@@ -188,6 +193,8 @@ pub(super) unsafe extern "system" fn create_session(
         }
         // SAFETY: success means the runtime wrote the new handle.
         let handle = unsafe { *session };
+        // The runtime validated the binding (the call succeeded), so the device is live.
+        let vulkan_half = binding.as_ref().is_some_and(|b| crate::vk::device_is_tracked(b.device));
         match &binding {
             Some(b) => tracing::info!(
                 "session {:#x} renders on VkDevice {:#x} (queue family {}, index {}); the Vulkan half {}",
@@ -195,10 +202,19 @@ pub(super) unsafe extern "system" fn create_session(
                 b.device,
                 b.queue_family_index,
                 b.queue_index,
-                // The runtime validated the binding (the call succeeded), so the device is live.
-                if crate::vk::device_is_tracked(b.device) { "tracks this device" } else { "does NOT see this device" }
+                if vulkan_half { "tracks this device" } else { "does NOT see this device" }
             ),
             None => tracing::warn!("session {:#x} has no Vulkan binding: nothing to do for it", handle.into_raw()),
+        }
+        let config = crate::shared::shared().config().unwrap_or_else(|| inst.config.clone());
+        if binding.is_some() && !vulkan_half && (config.bool("mask.enabled") || config.bool("foveation.enabled")) {
+            tracing::warn!(
+                "the hidden-area mask / foveation is enabled, but stereoshim's Vulkan layer is not in the app's Vulkan \
+                 device, so nothing will be applied. Likely causes: the app created its VkInstance before asking the \
+                 runtime for its Vulkan extensions (XR_KHR_vulkan_enable), or the Vulkan loader did not load \
+                 {} (run with VK_LOADER_DEBUG=layer; `stereoshim status` shows what is registered)",
+                crate::vk::VK_LAYER_NAME
+            );
         }
         let s = Session {
             handle,
@@ -209,6 +225,8 @@ pub(super) unsafe extern "system" fn create_session(
             fov_submitted: AtomicBool::new(false),
             gaze_centers: Mutex::new(Vec::new()),
             gaze: Default::default(),
+            vulkan_half,
+            summary: Default::default(),
         };
         state().sessions.insert(handle.into_raw(), Arc::new(s));
         Ok(r)
@@ -230,6 +248,9 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
             let st = state();
             if let Some(s) = st.sessions.get(session.into_raw()) {
                 tracing::info!("session {:#x} destroyed (binding {:?})", session.into_raw(), s.binding);
+                for w in s.summary.lock().unwrap_or_else(|e| e.into_inner()).end() {
+                    tracing::warn!("{w}");
+                }
             }
             for (handle, _) in st.swapchains.values().into_iter().filter(|(_, s)| s.session.handle == session) {
                 crate::shared::shared().remove_swapchain(handle);

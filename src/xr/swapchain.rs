@@ -5,6 +5,7 @@ use super::session::{self, Session};
 use super::{state, Instance};
 use crate::guard;
 use crate::shared::{self, SwapchainDesc};
+use crate::swapchain_images;
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::collections::VecDeque;
@@ -14,6 +15,10 @@ use std::sync::{Arc, Mutex};
 pub(crate) struct Swapchain {
     pub session: Arc<Session>,
     pub desc: SwapchainDesc,
+    /// What `xrCreateSwapchain` asked for, and the images the Vulkan half saw created meanwhile
+    /// (`swapchain_images`): how the reported images are recognised under a wrapping layer.
+    pub wanted: swapchain_images::Wanted,
+    pub created_images: Vec<swapchain_images::CreatedImage>,
     /// Acquired, not yet released image indices, oldest first (the spec's acquire order).
     pub acquired: Mutex<VecDeque<u32>>,
 }
@@ -53,7 +58,7 @@ pub(super) unsafe extern "system" fn create_swapchain(
         // Colour swapchains also get TRANSFER_SRC: radial density masking reconstructs skipped
         // quads from a copy of the image. An extra usage bit changes nothing the app can see.
         // SAFETY: the app's create info, valid for this call (null goes down unchanged).
-        let r = match unsafe { create_info.as_ref() } {
+        let (r, created_images) = swapchain_images::capture(|| match unsafe { create_info.as_ref() } {
             Some(ci) if ci.usage_flags.contains(xr::SwapchainUsageFlags::COLOR_ATTACHMENT)
                 && !ci.usage_flags.contains(xr::SwapchainUsageFlags::TRANSFER_SRC) =>
             {
@@ -63,7 +68,7 @@ pub(super) unsafe extern "system" fn create_swapchain(
                 down.call(|| unsafe { next(session, &with, swapchain) })
             }
             _ => down.call(plain),
-        };
+        });
         let (Some(sess), true) = (sess.clone(), r == xr::Result::SUCCESS) else { return Ok(r) };
         // SAFETY: success means the create info was valid and the handle was written.
         let (ci, handle) = unsafe { (&*create_info, *swapchain) };
@@ -77,7 +82,15 @@ pub(super) unsafe extern "system" fn create_swapchain(
         };
         tracing::info!("swapchain {:#x}: {desc:?}", handle.into_raw());
         inst.stats.swapchains_created.fetch_add(1, Ordering::Relaxed);
-        let sc = Swapchain { session: sess, desc, acquired: Mutex::new(VecDeque::new()) };
+        let wanted = swapchain_images::Wanted {
+            format: ci.format,
+            width: ci.width,
+            height: ci.height,
+            array_size: ci.array_size,
+            sample_count: ci.sample_count,
+            mip_count: ci.mip_count,
+        };
+        let sc = Swapchain { session: sess, desc, wanted, created_images, acquired: Mutex::new(VecDeque::new()) };
         state().swapchains.insert(handle.into_raw(), Arc::new(sc));
         Ok(r)
     }, plain)
@@ -123,8 +136,17 @@ pub(super) unsafe extern "system" fn enumerate_swapchain_images(
         }
         // SAFETY: the array holds `count` XrSwapchainImageVulkanKHR (checked `ty` above).
         let vk = unsafe { std::slice::from_raw_parts(images as *const xr::SwapchainImageVulkanKHR, count) };
-        let handles: Vec<u64> = vk.iter().map(|i| i.image).collect();
-        tracing::info!("swapchain {:#x} images {handles:#x?}", swapchain.into_raw());
+        let reported: Vec<u64> = vk.iter().map(|i| i.image).collect();
+        let handles = match swapchain_images::match_images(&sc.wanted, &sc.created_images, &reported) {
+            swapchain_images::Match::Created(created) => {
+                tracing::info!("swapchain {:#x} images {created:x?} (created during xrCreateSwapchain; reported as {reported:x?})", swapchain.into_raw());
+                created
+            }
+            swapchain_images::Match::Reported(reported, why) => {
+                tracing::info!("swapchain {:#x} images {reported:x?} as reported ({why}): recognised only if no layer above wraps handles", swapchain.into_raw());
+                reported
+            }
+        };
         inst.stats.swapchain_images.fetch_add(count as u64, Ordering::Relaxed);
         shared::shared().add_swapchain(Arc::new(shared::Swapchain::new(swapchain.into_raw(), sc.desc.clone(), handles)));
         Ok(r)

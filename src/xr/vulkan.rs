@@ -5,6 +5,7 @@
 //! `VK_INSTANCE_LAYERS`. Either way the loader finds the layer through `VK_ADD_LAYER_PATH`.
 
 use crate::guard;
+use crate::track::device_ext;
 use crate::vk_manifest::{self, VK_LAYER_NAME};
 use ash::vk;
 use openxr_sys as xr;
@@ -67,6 +68,31 @@ unsafe fn layer_available(gipa: xr::platform::VkGetInstanceProcAddr) -> bool {
     props.iter().take(count as usize).any(|p| p.layer_name_as_c_str().is_ok_and(|n| n.to_bytes() == VK_LAYER_NAME.as_bytes()))
 }
 
+/// The instance extensions the loader behind `gipa` lists (empty when it cannot be asked).
+///
+/// # Safety
+/// `gipa` must be a valid `vkGetInstanceProcAddr`.
+unsafe fn instance_extensions(gipa: xr::platform::VkGetInstanceProcAddr) -> Vec<String> {
+    // SAFETY: global commands are queried with a null instance (Vulkan spec).
+    let Some(f) = (unsafe { gipa(std::ptr::null(), c"vkEnumerateInstanceExtensionProperties".as_ptr()) }) else {
+        return Vec::new();
+    };
+    // SAFETY: the function for this name has this type.
+    let enumerate: vk::PFN_vkEnumerateInstanceExtensionProperties = unsafe { std::mem::transmute(f) };
+    let mut count = 0u32;
+    // SAFETY: two-call idiom with valid pointers; a null layer name asks for the implementation's.
+    if unsafe { enumerate(std::ptr::null(), &mut count, std::ptr::null_mut()) } != vk::Result::SUCCESS {
+        return Vec::new();
+    }
+    let mut props = vec![vk::ExtensionProperties::default(); count as usize];
+    // SAFETY: `props` holds `count` elements.
+    let r = unsafe { enumerate(std::ptr::null(), &mut count, props.as_mut_ptr()) };
+    if r != vk::Result::SUCCESS && r != vk::Result::INCOMPLETE {
+        return Vec::new();
+    }
+    props.iter().take(count as usize).filter_map(|p| p.extension_name_as_c_str().ok().map(|n| n.to_string_lossy().into_owned())).collect()
+}
+
 pub(super) unsafe extern "system" fn create_vulkan_instance(
     instance: xr::Instance,
     create_info: *const xr::VulkanInstanceCreateInfoKHR,
@@ -112,9 +138,32 @@ pub(super) unsafe extern "system" fn create_vulkan_instance(
             layers.push(ours.as_ptr());
         }
         layers.extend(app_layers);
+        // A Vulkan 1.0 app: the instance extension shading rate depends on, when it may be wanted.
+        // SAFETY: the app's names are valid for this call; `gipa` is the app's loader entry point.
+        let (app_extensions, available) = unsafe {
+            (crate::vk::convert::names(vk_ci.pp_enabled_extension_names, vk_ci.enabled_extension_count), instance_extensions(gipa))
+        };
+        let api_version = vk_ci.p_application_info.is_null().then_some(vk::API_VERSION_1_0).unwrap_or_else(|| {
+            // SAFETY: non-null, the app's application info.
+            unsafe { (*vk_ci.p_application_info).api_version }
+        });
+        let config = &inst.config;
+        let fsr_wanted = device_ext::config_wants_fsr(config.choice("vulkan.fragment_shading_rate"), config.choice("foveation.method"));
+        let added: Vec<CString> = device_ext::instance_additions(api_version, &app_extensions, &available, fsr_wanted)
+            .into_iter()
+            .filter_map(|e| CString::new(e).ok())
+            .collect();
+        // SAFETY: as above.
+        let mut extensions: Vec<*const c_char> = unsafe { crate::vk::convert::slice(vk_ci.pp_enabled_extension_names, vk_ci.enabled_extension_count) }.to_vec();
+        extensions.extend(added.iter().map(|e| e.as_ptr()));
+        if !added.is_empty() {
+            tracing::info!("adding {added:?} to the app's Vulkan 1.0 instance (fragment shading rate depends on it)");
+        }
         let mut vk_ci2 = *vk_ci;
         vk_ci2.enabled_layer_count = layers.len() as u32;
         vk_ci2.pp_enabled_layer_names = layers.as_ptr();
+        vk_ci2.enabled_extension_count = extensions.len() as u32;
+        vk_ci2.pp_enabled_extension_names = extensions.as_ptr();
         let mut ci2 = *ci;
         ci2.vulkan_create_info = &vk_ci2 as *const vk::InstanceCreateInfo as *const _;
         // SAFETY: the modified copies live until the call returns; everything else is the app's.
