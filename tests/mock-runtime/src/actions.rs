@@ -12,6 +12,7 @@ use openxr_sys as xr;
 use xr::Handle as _;
 
 use crate::handles::Registry;
+use crate::profiles::{Avail, Kind, PROFILES};
 use crate::instance::{self, Event, Instance};
 use crate::session::{self, Session};
 use crate::space::{head_pose, Pose};
@@ -53,30 +54,71 @@ enum Source {
     Haptic,
 }
 
-/// Canonical binding paths of a profile, and their kind (short forms are resolved by `canonical`).
-fn profile_paths(profile: &str, inst: &Instance) -> Option<Vec<String>> {
-    match profile {
-        SIMPLE_CONTROLLER => Some(
-            ["left", "right"]
-                .iter()
-                .flat_map(|h| {
-                    ["input/select/click", "input/menu/click", "input/grip/pose", "input/aim/pose", "output/haptic"]
-                        .iter()
-                        .map(move |c| format!("/user/hand/{h}/{c}"))
-                })
-                .collect(),
-        ),
-        EYE_GAZE_PROFILE if inst.extension_enabled(EXT_EYE_GAZE) => Some(vec![GAZE_POSE.to_string()]),
-        _ => None,
+/// Whether `a` holds on `inst` (its apiVersion, its enabled extensions).
+fn avail_ok(inst: &Instance, a: &Avail) -> bool {
+    match *a {
+        Avail::Core(major, minor) => {
+            let v = inst.api_version;
+            (v.major(), v.minor()) >= (major, minor)
+        }
+        Avail::Ext(e) => inst.extension_enabled(e),
     }
 }
 
-/// `/input/select` means `/input/select/click`, `/input/grip` means `/input/grip/pose` etc.
-fn canonical(path: &str, allowed: &[String]) -> Option<String> {
-    if allowed.iter().any(|a| a == path) {
+/// The valid binding paths of `profile` on `inst` (top-level user path + component subpath) and
+/// their kinds; None when the profile does not exist there (`XR_ERROR_PATH_UNSUPPORTED`).
+fn profile_paths(profile: &str, inst: &Instance) -> Option<Vec<(String, Kind)>> {
+    if profile == EYE_GAZE_PROFILE {
+        return inst.extension_enabled(EXT_EYE_GAZE).then(|| vec![(GAZE_POSE.to_string(), Kind::Pose)]);
+    }
+    let p = PROFILES.iter().find(|p| p.path == profile)?;
+    if !p.avail.iter().any(|a| avail_ok(inst, a)) {
+        return None;
+    }
+    let mut out = Vec::new();
+    for up in p.user_paths {
+        for c in p.components {
+            if c.user_path.is_some_and(|u| u != *up) || !(c.extra.is_empty() || c.extra.iter().any(|a| avail_ok(inst, a))) {
+                continue;
+            }
+            out.push((format!("{up}{}", c.subpath), c.kind));
+        }
+    }
+    Some(out)
+}
+
+/// Profiles whose bindings this runtime drives; bindings to every other profile are accepted but
+/// stay inactive (the spec lets a runtime ignore any suggested binding).
+fn driven(profile: &str) -> bool {
+    profile == SIMPLE_CONTROLLER || profile == EYE_GAZE_PROFILE
+}
+
+/// The component a binding path names: the path itself when it is a component of the profile;
+/// for an identifier given without its component (`/input/select`, `/input/trigger`), the
+/// component the action's type reads (boolean: click, then value; float: value, then click;
+/// pose: pose), else its first component.
+fn canonical(path: &str, allowed: &[(String, Kind)], ty: xr::ActionType) -> Option<String> {
+    if allowed.iter().any(|(a, _)| a == path) {
         return Some(path.to_string());
     }
-    ["/click", "/pose"].iter().map(|s| format!("{path}{s}")).find(|p| allowed.contains(p))
+    // Only `…/input/<identifier>` (or `/output/`) may leave its component out.
+    let parent = path.rsplit_once('/').map_or("", |(p, _)| p);
+    if !(parent.ends_with("/input") || parent.ends_with("/output")) {
+        return None;
+    }
+    let children: Vec<&str> = allowed.iter().map(|(a, _)| a.as_str()).filter(|a| a.strip_prefix(path).is_some_and(|r| r.starts_with('/') && !r[1..].contains('/'))).collect();
+    use xr::ActionType as T;
+    let preferred: &[&str] = match ty {
+        T::BOOLEAN_INPUT => &["/click", "/value"],
+        T::FLOAT_INPUT => &["/value", "/click"],
+        T::POSE_INPUT => &["/pose"],
+        _ => &[],
+    };
+    preferred
+        .iter()
+        .map(|s| format!("{path}{s}"))
+        .find(|p| children.contains(&p.as_str()))
+        .or_else(|| children.first().map(|c| c.to_string()))
 }
 
 fn source_value(s: &Session, path: &str, frame: u64) -> Source {
@@ -310,7 +352,7 @@ pub unsafe extern "system" fn xr_suggest_interaction_profile_bindings(
                 return Err(xr::Result::ERROR_ACTIONSETS_ALREADY_ATTACHED);
             }
             let path = inst.path_str(b.binding)?;
-            let c = canonical(&path, &allowed).ok_or_else(|| {
+            let c = canonical(&path, &allowed, a.ty).ok_or_else(|| {
                 crate::log!("binding {path} not in {profile}");
                 xr::Result::ERROR_PATH_UNSUPPORTED
             })?;
@@ -348,6 +390,7 @@ pub unsafe extern "system" fn xr_attach_session_action_sets(session: xr::Session
         let bindings = s.instance.bindings.lock().unwrap();
         sa.profiles = bindings
             .iter()
+            .filter(|(p, _)| s.instance.path_str(xr::Path::from_raw(**p)).is_ok_and(|p| driven(&p)))
             .filter(|(_, bs)| bs.iter().any(|(a, _)| ACTIONS.get(*a).is_ok_and(|a| handles.contains(&a.set))))
             .map(|(p, _)| *p)
             .collect();
@@ -594,10 +637,74 @@ mod tests {
 
     #[test]
     fn short_binding_paths() {
-        let allowed = vec!["/user/hand/left/input/select/click".to_string(), "/user/hand/left/input/grip/pose".to_string()];
-        assert_eq!(canonical("/user/hand/left/input/select", &allowed).as_deref(), Some("/user/hand/left/input/select/click"));
-        assert_eq!(canonical("/user/hand/left/input/grip", &allowed).as_deref(), Some("/user/hand/left/input/grip/pose"));
-        assert_eq!(canonical("/user/hand/left/input/trigger/value", &allowed), None);
+        use xr::ActionType as T;
+        let allowed: Vec<(String, Kind)> = [
+            ("/user/hand/left/input/select/click", Kind::Boolean),
+            ("/user/hand/left/input/grip/pose", Kind::Pose),
+            ("/user/hand/left/input/trigger/value", Kind::Float),
+            ("/user/hand/left/input/trigger/click", Kind::Boolean),
+            ("/user/hand/left/input/thumbstick", Kind::Vector2f),
+            ("/user/hand/left/input/thumbstick/x", Kind::Float),
+        ]
+        .iter()
+        .map(|(p, k)| (p.to_string(), *k))
+        .collect();
+        let c = |p: &str, t| canonical(p, &allowed, t);
+        assert_eq!(c("/user/hand/left/input/select", T::BOOLEAN_INPUT).as_deref(), Some("/user/hand/left/input/select/click"));
+        assert_eq!(c("/user/hand/left/input/grip", T::POSE_INPUT).as_deref(), Some("/user/hand/left/input/grip/pose"));
+        assert_eq!(c("/user/hand/left/input/trigger", T::BOOLEAN_INPUT).as_deref(), Some("/user/hand/left/input/trigger/click"));
+        assert_eq!(c("/user/hand/left/input/trigger", T::FLOAT_INPUT).as_deref(), Some("/user/hand/left/input/trigger/value"));
+        assert_eq!(c("/user/hand/left/input/thumbstick", T::VECTOR2F_INPUT).as_deref(), Some("/user/hand/left/input/thumbstick"));
+        assert_eq!(c("/user/hand/left/input/squeeze/value", T::FLOAT_INPUT), None);
+        assert_eq!(c("/user/hand/left/input/trig", T::FLOAT_INPUT), None);
+        assert_eq!(c("/user/hand/left/input", T::FLOAT_INPUT), None);
+        assert_eq!(c("/user/hand/right/input/select/click", T::BOOLEAN_INPUT), None);
         assert!(name_ok("menu_click-1.x") && !name_ok("Menu") && !name_ok(""));
+    }
+
+    #[test]
+    fn profile_table_covers_the_spec() {
+        let core_1_0 = [
+            "khr/simple_controller",
+            "google/daydream_controller",
+            "htc/vive_controller",
+            "htc/vive_pro",
+            "microsoft/motion_controller",
+            "microsoft/xbox_controller",
+            "oculus/go_controller",
+            "oculus/touch_controller",
+            "valve/index_controller",
+        ];
+        for name in core_1_0 {
+            let p = PROFILES.iter().find(|p| p.path == format!("/interaction_profiles/{name}")).unwrap_or_else(|| panic!("{name} missing"));
+            assert!(p.avail.contains(&Avail::Core(1, 0)), "{name}");
+        }
+        let core_1_1 = PROFILES.iter().filter(|p| p.avail.contains(&Avail::Core(1, 1))).count();
+        assert_eq!(core_1_1, 13, "{core_1_1} profiles promoted to 1.1");
+        for p in PROFILES {
+            assert!(!p.components.is_empty(), "{}", p.path);
+            for up in p.user_paths {
+                assert!(TOP_LEVEL.contains(up), "{}: {up}", p.path);
+            }
+            for a in p.avail.iter().chain(p.components.iter().flat_map(|c| c.extra)) {
+                if let Avail::Ext(e) = a {
+                    assert!(crate::EXTENSIONS.iter().any(|(x, _)| x == e), "{}: {e} not offered", p.path);
+                }
+            }
+            let mut seen = std::collections::HashSet::new();
+            for c in p.components {
+                assert!(c.subpath.starts_with("/input/") || c.subpath.starts_with("/output/"), "{}: {}", p.path, c.subpath);
+                assert!(c.user_path.is_none_or(|u| p.user_paths.contains(&u)), "{}", p.path);
+                assert!(seen.insert((c.user_path, c.subpath)), "{}: {} twice", p.path, c.subpath);
+            }
+        }
+        // The simple controller keeps exactly the components it always had (plus 1.1's grip_surface).
+        let simple = PROFILES.iter().find(|p| p.path == SIMPLE_CONTROLLER).unwrap();
+        let subs: Vec<&str> = simple.components.iter().filter(|c| c.extra.is_empty()).map(|c| c.subpath).collect();
+        assert_eq!(subs, ["/input/select/click", "/input/menu/click", "/input/grip/pose", "/input/aim/pose", "/output/haptic"]);
+        // Touch: x/y only on the left hand, a/b only on the right.
+        let touch = PROFILES.iter().find(|p| p.path == "/interaction_profiles/oculus/touch_controller").unwrap();
+        let x = touch.components.iter().find(|c| c.subpath == "/input/x/click").unwrap();
+        assert_eq!(x.user_path, Some("/user/hand/left"));
     }
 }

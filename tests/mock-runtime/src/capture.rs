@@ -359,7 +359,7 @@ pub fn capture_frame(s: &Session, frame: u64, display_time: i64, blend: i32, lay
         "frame": frame, "display_time": display_time, "environment_blend_mode": blend, "layers": layers_json,
         "visibility_masks": masks,
     }));
-    let doc = json!({ "hmd": cfg.hmd.name, "frames": st.frames });
+    let doc = json!({ "hmd": cfg.hmd.name, "lens": cfg.hmd.lens_source, "frames": st.frames });
     let text = serde_json::to_vec_pretty(&doc).expect("json");
     write_atomic(&dir.join("frames.json"), &text).map_err(io_err)?;
     crate::log!("captured frame {frame} ({} regions)", jobs.len());

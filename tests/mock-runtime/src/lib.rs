@@ -20,6 +20,7 @@ pub mod frame;
 pub mod handles;
 pub mod hmd;
 pub mod instance;
+pub mod profiles;
 pub mod session;
 pub mod space;
 pub mod swapchain;
@@ -46,6 +47,20 @@ pub const EXTENSIONS: &[(&str, u32)] = &[
     (EXT_VISIBILITY_MASK, 2),
     (EXT_DEPTH, 6),
     (EXT_EYE_GAZE, 2),
+    // Controller-interaction extensions: each only adds an interaction profile (profiles.rs).
+    ("XR_EXT_hp_mixed_reality_controller", 1),
+    ("XR_EXT_samsung_odyssey_controller", 1),
+    ("XR_HTC_vive_cosmos_controller_interaction", 1),
+    ("XR_HTC_vive_focus3_controller_interaction", 2),
+    ("XR_HUAWEI_controller_interaction", 1),
+    ("XR_FB_touch_controller_pro", 1),
+    ("XR_META_touch_controller_plus", 1),
+    ("XR_BD_controller_interaction", 2),
+    ("XR_ML_ml2_controller_interaction", 1),
+    ("XR_VARJO_xr4_controller_interaction", 2),
+    ("XR_YVR_controller_interaction", 1),
+    ("XR_OPPO_controller_interaction", 1),
+    ("XR_LOGITECH_mx_ink_stylus_interaction", 1),
 ];
 
 /// One exported function: its name, the extension that must be enabled for it (None: core),

@@ -1,5 +1,6 @@
 //! XR_KHR_visibility_mask: hidden / visible triangle meshes and the line loop of each view,
-//! built from the profile's lens outline, so a layer that trims rendering by the mask can be
+//! built from the profile's lens outline (a published line loop, or an approximating ellipse:
+//! hmd.rs), so a layer that trims rendering by the mask can be
 //! checked against geometry with a known area.
 //!
 //! Geometry lives in the view's z = −1 tangent plane (x = tan of the horizontal angle, y = tan
@@ -68,7 +69,7 @@ fn seg_intersection(p: V2, q: V2, a: V2, b: V2) -> Option<V2> {
 
 /// The lens outline of `view` in the tangent plane.
 pub fn outline_tangent(hmd: &HmdProfile, view: usize, scale: f32) -> Vec<V2> {
-    hmd.lens_outline_angles(view, scale, 64).into_iter().map(|[x, y]| [x.tan(), y.tan()]).collect()
+    hmd.lens_outline_tangent(view, scale, 64)
 }
 
 pub fn fov_rect(hmd: &HmdProfile, view: usize) -> [V2; 4] {
@@ -286,5 +287,40 @@ mod tests {
         let (_, vis, _) = build(hmd, 0, 1.0);
         let max_x = vis.vertices.iter().map(|p| p[0]).fold(0.0f32, f32::max);
         assert!((max_x - 1.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn index_masks_follow_the_published_line_loop() {
+        use crate::hmd::INDEX_LINE_LOOP_LEFT;
+        let hmd = HmdProfile::by_name("index").unwrap();
+        for view in 0..2 {
+            let rect = fov_rect(hmd, view);
+            let (hid, vis, line) = build(hmd, view, 1.0);
+            // Every published point inside the frustum is on the returned line loop and on the
+            // visible mesh (the right eye mirrored); the ones above the top edge are clipped to it.
+            for p in INDEX_LINE_LOOP_LEFT {
+                let p = if view == 0 { p } else { [-p[0], p[1]] };
+                let near = |m: &Mesh| m.vertices.iter().any(|v| (v[0] - p[0]).abs() < 1e-5 && (v[1] - p[1]).abs() < 1e-5);
+                if p[1] <= rect[2][1] {
+                    assert!(near(&line) && near(&vis), "view {view}: {p:?} not on the masks");
+                } else {
+                    assert!(p[1] - rect[2][1] < 0.004, "{p:?}");
+                }
+            }
+            // The visible area is the published polygon's (shoelace), less the sliver above the
+            // frustum's top edge.
+            let n = INDEX_LINE_LOOP_LEFT.len();
+            let poly: f32 = (0..n).map(|i| cross(INDEX_LINE_LOOP_LEFT[i], INDEX_LINE_LOOP_LEFT[(i + 1) % n]) / 2.0).sum();
+            let v = mesh_area(&vis);
+            assert!(v < poly && v > poly * 0.998, "view {view}: visible {v}, polygon {poly}");
+            let r = rect_area(&rect);
+            let hidden_fraction = mesh_area(&hid) / r;
+            // SteamVR's Index mask hides a quarter of the frustum (25.0 % of the tangent plane).
+            assert!((0.245..0.255).contains(&hidden_fraction), "view {view}: {hidden_fraction}");
+        }
+        // Mirror images.
+        let (h0, _, _) = build(hmd, 0, 1.0);
+        let (h1, _, _) = build(hmd, 1, 1.0);
+        assert!((mesh_area(&h0) - mesh_area(&h1)).abs() < 1e-4);
     }
 }

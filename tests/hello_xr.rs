@@ -1,0 +1,336 @@
+//! A real, unmodified OpenXR app through the layer: Debian bookworm's own Khronos `hello_xr`
+//! 1.0.20 (package `libopenxr-utils`, installed by scripts/setup) on the mock runtime with
+//! capture, with both Vulkan graphics plugins (`-g Vulkan2`: XR_KHR_vulkan_enable2, the runtime
+//! creates instance and device; `-g Vulkan`: XR_KHR_vulkan_enable, the app does).
+//!
+//! hello_xr links libvulkan at build time (the symbol-interposition case of issue 8), asks for a
+//! Vulkan 1.0 device, enables `VK_LAYER_KHRONOS_validation` itself when it is installed, and
+//! renders one per-eye render pass per view (depth cleared by the pass's load op) into a
+//! 1024 × 1024 swapchain image per eye (the `simple` HMD's recommended size).
+//!
+//! Determinism: hello_xr draws cubes at fixed reference-space poses and at the hand action
+//! spaces, all of which the mock runtime reports without time dependence, and it clears to a
+//! constant colour; so its frames are bit-identical frame to frame and between the two plugins.
+//! `plain_runs_are_deterministic` checks exactly that, which is what lets the masked run be
+//! compared with a run without the layer pixel by pixel.
+//!
+//! hello_xr waits on stdin for a key to quit: the harness keeps a pipe to it open (closed stdin
+//! would quit it at once) and ends it with `MOCK_XR_EXIT_AFTER`. A run that does not finish in
+//! time is killed and fails the test with a backtrace of every thread (gdb, when installed).
+
+mod common;
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::image::{self, Image};
+use common::{hidden_pixels, mask_edge_pixels, RunOutput};
+
+/// Frames each run submits (frame 0 is never masked: the eye use of the images is not yet known).
+const FRAMES: u64 = 3;
+/// A run on lavapipe takes a few seconds; anything near this is a hang (`HELLO_XR_TIMEOUT_S`
+/// overrides it).
+fn timeout() -> Duration {
+    let s = std::env::var("HELLO_XR_TIMEOUT_S").ok().and_then(|v| v.parse().ok()).unwrap_or(120);
+    Duration::from_secs(s)
+}
+/// Pixels this close to the mask outline may go either way (vertex snapping, f32 vs f64 mapping).
+const EDGE_MARGIN_PX: f64 = 1.0;
+
+fn hello_xr_exe() -> PathBuf {
+    let found = std::env::var_os("PATH")
+        .into_iter()
+        .flat_map(|p| std::env::split_paths(&p).collect::<Vec<_>>())
+        .map(|d| d.join("hello_xr"))
+        .find(|p| p.is_file());
+    found.unwrap_or_else(|| panic!("hello_xr not found: install Debian's libopenxr-utils (scripts/setup does)"))
+}
+
+struct HelloRun {
+    out: RunOutput,
+    /// The layer's `stats.file` records (one JSON object per frame); empty without the layer.
+    stats: Vec<serde_json::Value>,
+    /// Lines of hello_xr's output reporting a Vulkan validation error.
+    validation_errors: Vec<String>,
+}
+
+/// Runs hello_xr with graphics plugin `plugin` through the mock runtime, capturing every frame;
+/// `layer`: stereoshim as an explicit API layer with the hidden-area mask on.
+fn run(name: &str, plugin: &str, layer: bool, env: &[(&str, &str)]) -> HelloRun {
+    let dir = common::output_dir(name);
+    let capture = dir.join("capture");
+    let stats_file = dir.join("layer-stats.jsonl");
+    let mut cmd = Command::new(hello_xr_exe());
+    cmd.args(["-g", plugin])
+        // Runtime diagnostics: every OpenXR call the mock refuses is logged ("xrFunc -> ERROR_…").
+        .env("MOCK_XR_LOG", "1")
+        .env("XR_RUNTIME_JSON", common::runtime_manifest())
+        .env("MOCK_XR_CAPTURE", &capture)
+        .env("MOCK_XR_EXIT_AFTER", FRAMES.to_string())
+        // Nothing from the developer's own setup may leak into a test.
+        .env_remove("XR_ENABLE_API_LAYERS")
+        .env_remove("XR_API_LAYER_PATH")
+        .env_remove("VK_INSTANCE_LAYERS")
+        .env_remove("VK_ADD_LAYER_PATH")
+        .env_remove("STEREOSHIM_CONFIG")
+        .env("XDG_RUNTIME_DIR", dir.join("run"))
+        .env("XDG_DATA_HOME", dir.join("data"))
+        .env("XDG_CONFIG_HOME", dir.join("config"))
+        .env("XDG_STATE_HOME", dir.join("state"))
+        // hello_xr writes its validation layer's cache here.
+        .env("HOME", &dir)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    if layer {
+        cmd.env("XR_API_LAYER_PATH", common::layer_manifest_dir())
+            .env("XR_ENABLE_API_LAYERS", common::XR_LAYER_NAME)
+            .env("STEREOSHIM_MASK_ENABLED", "1")
+            .env("STEREOSHIM_STATS_FILE", &stats_file);
+    }
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let started = Instant::now();
+    let mut child = cmd.spawn().expect("spawn hello_xr");
+    // Kept open until hello_xr exits: end of input would be its "key pressed, quit".
+    let stdin = child.stdin.take();
+    let readers = [child.stdout.take().map(drain), child.stderr.take().map(drain)];
+    let status = loop {
+        if let Some(s) = child.try_wait().expect("wait for hello_xr") {
+            break s;
+        }
+        if started.elapsed() > timeout() {
+            let backtrace = all_thread_backtraces(child.id());
+            let _ = child.kill();
+            let _ = child.wait();
+            let output: String = readers.into_iter().flatten().map(|r| r.join().unwrap_or_default()).collect();
+            std::fs::write(dir.join("output.txt"), &output).ok();
+            panic!(
+                "{name}: hello_xr -g {plugin} did not finish within {:?} (hang); killed.\n\
+                 backtrace of every thread:\n{backtrace}\noutput (last 4000 bytes):\n{}",
+                timeout(),
+                tail(&output, 4000)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    drop(stdin);
+    let output: String = readers.into_iter().flatten().map(|r| r.join().unwrap_or_default()).collect();
+    std::fs::write(dir.join("output.txt"), &output).ok();
+    let frames = std::fs::read(capture.join("frames.json")).ok().map(|b| serde_json::from_slice(&b).expect("frames.json parses"));
+    let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
+    let stats = std::fs::read_to_string(&stats_file)
+        .map(|t| t.lines().map(|l| serde_json::from_str(l).expect("stats line parses")).collect())
+        .unwrap_or_default();
+    let validation_errors = output.lines().filter(|l| l.contains("Validation Error")).map(str::to_string).collect();
+    let out = RunOutput { name: name.to_string(), code: status.code(), stderr: output, capture, frames, stats: None, elapsed: started.elapsed(), log };
+    HelloRun { out, stats, validation_errors }
+}
+
+fn drain(mut r: impl Read + Send + 'static) -> std::thread::JoinHandle<String> {
+    std::thread::spawn(move || {
+        let mut buf = Vec::new();
+        let _ = r.read_to_end(&mut buf);
+        String::from_utf8_lossy(&buf).into_owned()
+    })
+}
+
+fn tail(s: &str, n: usize) -> &str {
+    let mut start = s.len().saturating_sub(n);
+    while !s.is_char_boundary(start) {
+        start += 1;
+    }
+    &s[start..]
+}
+
+/// `thread apply all bt` of a live process through gdb (attached in batch mode), or why not.
+fn all_thread_backtraces(pid: u32) -> String {
+    match Command::new("gdb").args(["-p", &pid.to_string(), "-batch", "-nx", "-ex", "thread apply all bt"]).output() {
+        Ok(o) => format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)),
+        Err(e) => format!("(no backtrace: gdb not runnable: {e})"),
+    }
+}
+
+impl HelloRun {
+    fn assert_clean_exit(&self) {
+        assert_eq!(self.out.code, Some(0), "{}: hello_xr failed; output:\n{}", self.out.name, tail(&self.out.stderr, 6000));
+        let n = self.out.frames().frames.len() as u64;
+        assert_eq!(n, FRAMES, "{}: {n} frames captured", self.out.name);
+    }
+}
+
+fn assert_same_frames(label: &str, a: &RunOutput, fa: u64, b: &RunOutput, fb: u64) {
+    for (va, vb) in a.views(fa).iter().zip(b.views(fb)) {
+        image::assert_identical(&format!("{label}-view{}", va.view), &a.image(&va.file), &b.image(&vb.file));
+    }
+}
+
+/// The plain runs are bit-identical frame to frame and between the two plugins, and silent under
+/// the validation layer hello_xr enables itself.
+#[test]
+fn plain_runs_are_deterministic() {
+    let v2 = run("hello-xr-plain-vulkan2", "Vulkan2", false, &[]);
+    v2.assert_clean_exit();
+    let v1 = run("hello-xr-plain-vulkan", "Vulkan", false, &[]);
+    v1.assert_clean_exit();
+    for r in [&v2, &v1] {
+        assert!(r.validation_errors.is_empty(), "{}: {:#?}", r.out.name, r.validation_errors);
+        // hello_xr's every OpenXR call succeeds on the mock (interaction profiles, action spaces,
+        // reference spaces, the frame loop).
+        let refused: Vec<&str> = r.out.stderr.lines().filter(|l| l.contains("[mock-runtime]") && l.contains("-> ERROR_")).collect();
+        assert!(refused.is_empty(), "{}: the runtime refused calls:\n{}", r.out.name, refused.join("\n"));
+        for f in 1..FRAMES {
+            assert_same_frames(&format!("{}-f0-f{f}", r.out.name), &r.out, 0, &r.out, f);
+        }
+    }
+    assert_same_frames("hello-xr-plain-vulkan-vs-vulkan2", &v1.out, 1, &v2.out, 1);
+}
+
+/// hello_xr's input reaches it through the mock's interaction profiles: of the five profiles it
+/// suggests, the simple controller's menu click (`MOCK_XR_MENU_CLICK_AT`) fires its quit action,
+/// and it ends the session itself long before the runtime would.
+#[test]
+fn menu_click_quits_hello_xr() {
+    let r = run("hello-xr-menu-click", "Vulkan2", false, &[("MOCK_XR_EXIT_AFTER", "1000"), ("MOCK_XR_MENU_CLICK_AT", "2")]);
+    assert_eq!(r.out.code, Some(0), "{}", tail(&r.out.stderr, 6000));
+    assert!(r.out.stderr.contains("Quit action is bound to 'Mock /user/hand/left/input/menu/click'"), "{}", tail(&r.out.stderr, 6000));
+    let frames = r.out.frames().frames.len();
+    assert!((3..10).contains(&frames), "hello_xr submitted {frames} frames after a menu click at frame 2");
+}
+
+/// With the layer and `mask.enabled`: from frame 1 on, pixels outside the runtime's hidden mesh
+/// (frames.json, rasterized by the harness) are bit-identical to the run without the layer;
+/// inside it every pixel is hello_xr's clear colour (the app's fragments there fail the depth
+/// test against the mask); the mask hides some of what the app draws (the hand cubes reach into
+/// the lens corners); the layer's stats show both eye passes of every frame after the first
+/// masked, with its masked-pixel counts matching the harness's within the outline.
+fn check_masked(plugin: &str, hmd: &str) {
+    let tag = format!("hello-xr-{}-{hmd}", plugin.to_lowercase());
+    let env = [("MOCK_XR_HMD", hmd)];
+    let plain = run(&format!("{tag}-plain"), plugin, false, &env);
+    plain.assert_clean_exit();
+    let masked = run(&format!("{tag}-masked"), plugin, true, &env);
+    masked.assert_clean_exit();
+    let name = &masked.out.name;
+    assert!(masked.out.log_lines("internal failure").is_empty(), "{name}: {}", masked.out.log);
+    // hello_xr's own validation layer (in its create info, below the layer) stays silent about
+    // what the layer creates on its Vulkan 1.0 device.
+    assert!(masked.validation_errors.is_empty(), "{name}: {} validation errors:\n{}", masked.validation_errors.len(), masked.validation_errors.join("\n"));
+
+    // Frame 0: eye uses unknown, nothing masked.
+    assert_same_frames(&format!("{tag}-f0"), &masked.out, 0, &plain.out, 0);
+    for f in 1..FRAMES {
+        let frame = masked.out.frame(f);
+        assert_eq!(frame.visibility_masks.len(), 2, "{name}: frames.json has no visibility_masks");
+        let record = masked.stats.iter().find(|r| r["frame"] == f).unwrap_or_else(|| panic!("{name}: no stats for frame {f}: {:?}", masked.stats));
+        assert_eq!(record["mask_enabled"], true, "{name} frame {f}: {record}");
+        assert_eq!(record["passes_masked"], 2, "{name} frame {f}: both eye passes masked: {record}");
+        assert!(record["not_masked"].as_object().is_some_and(|o| o.is_empty()), "{name} frame {f}: {record}");
+        let mut hidden_by_mask = 0;
+        for (a, b) in masked.out.views(f).iter().zip(plain.out.views(f)) {
+            let mask = &frame.visibility_masks.iter().find(|m| m.view == a.view).expect("mask of view").hidden_triangles;
+            let (w, h) = (a.image_rect.width, a.image_rect.height);
+            let hidden = hidden_pixels(mask, &a.fov, w, h);
+            let edge = mask_edge_pixels(mask, &a.fov, w, h, EDGE_MARGIN_PX);
+            let (got, want) = (masked.out.image(&a.file), plain.out.image(&b.file));
+            // hello_xr's clear colour: the top-left corner is hidden on every profile and hello_xr
+            // draws nothing there.
+            assert!(hidden[0], "{name}: corner not hidden");
+            let clear = want.pixel(0, 0).to_vec();
+            let mut bad = Vec::new();
+            for y in 0..h {
+                for x in 0..w {
+                    let i = (y * w + x) as usize;
+                    let g = got.pixel(x, y);
+                    if edge[i] {
+                        if g != want.pixel(x, y) && g != clear.as_slice() {
+                            bad.push((x, y, "edge"));
+                        }
+                    } else if hidden[i] {
+                        if g != clear.as_slice() {
+                            bad.push((x, y, "inside"));
+                        }
+                        if want.pixel(x, y) != clear.as_slice() {
+                            hidden_by_mask += 1;
+                        }
+                    } else if g != want.pixel(x, y) {
+                        bad.push((x, y, "outside"));
+                    }
+                }
+            }
+            if !bad.is_empty() {
+                let dir = image::artifacts_dir(&format!("{tag}-f{f}-view{}", a.view));
+                got.save(&dir.join("actual.png"));
+                want.save(&dir.join("expected.png"));
+                image::difference(&got, &want).save(&dir.join("difference.png"));
+                save_coverage(&hidden, w, h, &dir.join("hidden.png"));
+                panic!("{name} frame {f} view {}: {} wrong pixels, first {:?}; artifacts in {}", a.view, bad.len(), &bad[..bad.len().min(8)], dir.display());
+            }
+            let hidden_count = hidden.iter().filter(|&&b| b).count() as u64;
+            let layer_count = record["pixels_masked"][a.view.to_string()].as_u64().unwrap_or_else(|| panic!("{name}: {record}"));
+            assert!(hidden_count.abs_diff(layer_count) * 100 <= hidden_count, "{name} frame {f} view {}: layer masked {layer_count}, harness {hidden_count}", a.view);
+            eprintln!("{name} frame {f} view {}: {hidden_count} px hidden ({:.1} %)", a.view, 100.0 * hidden_count as f64 / (w * h) as f64);
+        }
+        assert!(hidden_by_mask > 0, "{name} frame {f}: the mask hid nothing hello_xr drew");
+    }
+}
+
+fn save_coverage(c: &[bool], w: u32, h: u32, path: &Path) {
+    let data = c.iter().flat_map(|&b| if b { [255u16; 3] } else { [0; 3] }).collect();
+    Image { width: w, height: h, channels: 3, bit_depth: 8, data }.save(path);
+}
+
+#[test]
+fn vulkan2_masked_outside_bit_identical() {
+    check_masked("Vulkan2", "simple");
+}
+
+#[test]
+fn vulkan_masked_outside_bit_identical() {
+    check_masked("Vulkan", "simple");
+}
+
+/// The Index profile: the published SteamVR hidden-area mesh, asymmetric FOV, 2016 × 2240.
+#[test]
+fn vulkan2_masked_index_hmd() {
+    check_masked("Vulkan2", "index");
+}
+
+/// Mask and radial density masking together, both plugins: from frame 1 on both eye passes are
+/// masked and RDM-applied (one reconstruction per view), and validation stays silent.
+#[test]
+fn mask_and_rdm_apply_validation_clean() {
+    for plugin in ["Vulkan2", "Vulkan"] {
+        let env = [("STEREOSHIM_FOVEATION_ENABLED", "1"), ("STEREOSHIM_FOVEATION_METHOD", "rdm")];
+        let r = run(&format!("hello-xr-mask-rdm-{}", plugin.to_lowercase()), plugin, true, &env);
+        r.assert_clean_exit();
+        assert!(r.validation_errors.is_empty(), "{}: {} validation errors:\n{}", r.out.name, r.validation_errors.len(), r.validation_errors.join("\n"));
+        for f in 1..FRAMES {
+            let record = r.stats.iter().find(|x| x["frame"] == f).unwrap_or_else(|| panic!("{}: no stats for frame {f}", r.out.name));
+            assert_eq!(record["passes_masked"], 2, "{} frame {f}: {record}", r.out.name);
+            assert_eq!(record["rdm"]["passes"], 2, "{} frame {f}: {record}", r.out.name);
+            for view in ["0", "1"] {
+                assert_eq!(record["rdm"]["reconstructed"][view], 1, "{} frame {f}: {record}", r.out.name);
+                assert!(record["rdm"]["pixels_skipped"][view].as_u64().is_some_and(|n| n > 0), "{} frame {f}: {record}", r.out.name);
+            }
+        }
+    }
+}
+
+/// Validation enabled the usual way, through `VK_INSTANCE_LAYERS` (a handle-wrapping layer that
+/// may sit above the layer): the eye passes are still recognised and masked, both plugins.
+#[test]
+fn masked_under_validation_from_vk_instance_layers() {
+    for plugin in ["Vulkan2", "Vulkan"] {
+        let r = run(&format!("hello-xr-vk-instance-layers-{}", plugin.to_lowercase()), plugin, true, &[("VK_INSTANCE_LAYERS", "VK_LAYER_KHRONOS_validation")]);
+        r.assert_clean_exit();
+        assert!(r.validation_errors.is_empty(), "{}: {} validation errors:\n{}", r.out.name, r.validation_errors.len(), r.validation_errors.join("\n"));
+        for f in 1..FRAMES {
+            let record = r.stats.iter().find(|x| x["frame"] == f).unwrap_or_else(|| panic!("{}: no stats for frame {f}", r.out.name));
+            assert_eq!(record["passes_masked"], 2, "{} frame {f}: {record}", r.out.name);
+        }
+    }
+}
