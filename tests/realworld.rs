@@ -280,7 +280,7 @@ fn run(root: &Path, spec: &Spec) -> Outcome {
         layers.push(LAYER);
         let manifest_dir = dir.join("xr-layers");
         std::fs::create_dir_all(&manifest_dir).unwrap();
-        let json = stereoshim::install::xr_manifest_json(Path::new("/opt/libstereoshim.so"), false);
+        let json = stereoshim::manifest::json(stereoshim::manifest::Kind::OpenXr, Path::new("/opt/libstereoshim.so"));
         std::fs::write(manifest_dir.join("stereoshim.json"), json).unwrap();
         env.push(("XR_API_LAYER_PATH".into(), "/tmp/xr-layers:/usr/share/openxr/1/api_layers/explicit.d".into()));
     }
