@@ -67,7 +67,7 @@ fn root() -> Option<PathBuf> {
         Err(why) => {
             eprintln!("\n################ SKIPPED: real-world test (trixie root + Monado) NOT RUN ################");
             eprintln!("# {why}");
-            eprintln!("# (set STEREOSHIM_REALWORLD_REQUIRED=1 to make this a failure; CI always does)");
+            eprintln!("# (with CI or STEREOSHIM_REALWORLD_REQUIRED=1 set in the environment this is a failure)");
             eprintln!("##########################################################################################\n");
             None
         }
