@@ -1,0 +1,780 @@
+//! Real apps on a real runtime: Khronos `hello_xr` on Monado (simulated HMD, null compositor,
+//! lavapipe) inside a Debian trixie root (`tests/realworld/trixie-root`), each run in a private
+//! mount + PID namespace (`tests/realworld/run`, `tests/realworld/driver`). See docs/testing.md,
+//! "Real-world test ground".
+//!
+//! Every run: Vulkan validation (`VK_LAYER_KHRONOS_validation`, log to a file), the OpenXR
+//! `core_validation` layer below stereoshim and `api_dump` above it (frames are counted from its
+//! `xrEndFrame` records: runtime- and layer-independent). hello_xr gets its "any key" on stdin after
+//! `DURATION_S` and must then exit 0; a run past `LIMIT_S` is a hang (backtrace of every thread in
+//! the failure message).
+
+use serde_json::Value;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::{Mutex, OnceLock};
+use std::time::{Duration, Instant};
+
+/// Seconds hello_xr runs before it is asked to quit.
+const DURATION_S: u64 = 10;
+/// Hard limit of one app run inside the root (then: backtrace, kill, failure).
+const LIMIT_S: u64 = 60;
+/// Frames compared: rendered frames whose `displayTime` lies in [first + SKIP, first + SKIP + WINDOW].
+/// SKIP leaves out the start-up transient: with mask + RDM the layer creates its pipelines at the
+/// first eye passes, which on lavapipe stalls frames 2–9 by up to ~1.3 s in all (reported as
+/// `worst gap` in each run's summary line, not judged).
+const WINDOW_SKIP_NS: i64 = 2_000_000_000;
+const WINDOW_NS: i64 = 5_000_000_000;
+/// The layer may cost at most 5 % of the frames of a run without it.
+const MIN_FRAME_RATIO: f64 = 0.95;
+/// Eye passes hello_xr records per rendered frame: one render pass per view, two views.
+const EYE_PASSES: u64 = 2;
+
+/// core_validation errors hello_xr 1.1.47 itself causes, with no other layer loaded (it passes
+/// `XR_TYPE_GRAPHICS_BINDING_VULKAN_KHR` and `XR_TYPE_VULKAN_INSTANCE_CREATE_INFO_KHR` to
+/// `xrStructureTypeToString` on an instance without `XR_KHR_vulkan_enable`): the `plain` cases
+/// prove they occur without stereoshim; they are not counted against the layer.
+const APP_OWN_CORE_VALIDATION_ERRORS: &[&str] = &["VUID-xrStructureTypeToString-value-parameter"];
+
+const LAYER: &str = "XR_APILAYER_STEREOSHIM_stereoshim";
+const API_DUMP: &str = "XR_APILAYER_LUNARG_api_dump";
+const CORE_VALIDATION: &str = "XR_APILAYER_LUNARG_core_validation";
+
+fn realworld_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/realworld")
+}
+
+/// `target/<profile>/`, from the running test executable (`target/<profile>/deps/<test>`).
+fn target_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    exe.parent().and_then(Path::parent).expect("target/<profile>/deps/<exe>").to_path_buf()
+}
+
+/// CI (or anyone setting STEREOSHIM_REALWORLD_REQUIRED=1) must run these tests: no skipping.
+fn required() -> bool {
+    std::env::var_os("CI").is_some() || std::env::var("STEREOSHIM_REALWORLD_REQUIRED").is_ok_and(|v| v == "1")
+}
+
+/// The trixie root, built on first use (cached across runs by the script). `None`: the package
+/// source is unreachable or this is not root; the test then says so loudly and passes, unless
+/// `required()`.
+fn root() -> Option<PathBuf> {
+    static ROOT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+    match ROOT.get_or_init(build_root) {
+        Ok(p) => Some(p.clone()),
+        Err(why) if required() => panic!("real-world tests required (CI) but cannot run: {why}"),
+        Err(why) => {
+            eprintln!("\n################ SKIPPED: real-world test (trixie root + Monado) NOT RUN ################");
+            eprintln!("# {why}");
+            eprintln!("# (with CI or STEREOSHIM_REALWORLD_REQUIRED=1 set in the environment this is a failure)");
+            eprintln!("##########################################################################################\n");
+            None
+        }
+    }
+}
+
+fn build_root() -> Result<PathBuf, String> {
+    let uid = Command::new("id").arg("-u").output().map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    if uid.ok().as_deref() != Some("0") {
+        return Err("needs root (mount namespaces, chroot); run the suite as root".into());
+    }
+    let start = Instant::now();
+    let mut cmd = Command::new(realworld_dir().join("trixie-root"));
+    cmd.stdout(Stdio::piped()).stderr(Stdio::piped());
+    let out = run_with_backstop(cmd, Duration::from_secs(30 * 60), "trixie-root");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    match out.status.code() {
+        Some(0) => {
+            let path = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
+            eprintln!("trixie root {} ready in {:.1} s", path.display(), start.elapsed().as_secs_f64());
+            Ok(path)
+        }
+        Some(2) => Err(format!("the trixie root cannot be built: {}", stderr.trim())),
+        _ => panic!("tests/realworld/trixie-root failed ({}):\n{stderr}", out.status),
+    }
+}
+
+/// Runs `cmd` in its own process group; past `limit` the group is killed (by its id) and the test
+/// fails with what the command printed.
+fn run_with_backstop(mut cmd: Command, limit: Duration, what: &str) -> std::process::Output {
+    use std::os::unix::process::CommandExt;
+    cmd.process_group(0);
+    let child = cmd.spawn().unwrap_or_else(|e| panic!("{what}: {e}"));
+    let pid = child.id();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(child.wait_with_output());
+    });
+    match rx.recv_timeout(limit) {
+        Ok(out) => out.unwrap_or_else(|e| panic!("{what}: {e}")),
+        Err(_) => {
+            let _ = Command::new("kill").args(["-KILL", "--", &format!("-{pid}")]).status();
+            let out = rx.recv_timeout(Duration::from_secs(30)).ok().and_then(|o| o.ok());
+            let text = out.map(|o| format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)));
+            panic!("{what}: still running after {} s (backstop), killed process group {pid}:\n{}", limit.as_secs(), text.unwrap_or_default());
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Layer {
+    /// stereoshim not loaded.
+    None,
+    /// Explicit API layer: `XR_API_LAYER_PATH` + `XR_ENABLE_API_LAYERS`, between api_dump and
+    /// core_validation.
+    Explicit,
+    /// Whatever `stereoshim install --user` registered (nothing stereoshim-specific in the env).
+    Installed,
+}
+
+#[derive(Clone, Debug)]
+struct Spec {
+    name: String,
+    /// hello_xr's `-g`: `Vulkan2` (XR_KHR_vulkan_enable2) or `Vulkan` (XR_KHR_vulkan_enable).
+    graphics: &'static str,
+    layer: Layer,
+    /// mask + RDM foveation through STEREOSHIM_* variables.
+    features: bool,
+    /// `VK_INSTANCE_LAYERS=VK_LAYER_KHRONOS_validation` (validation above stereoshim). Without
+    /// it validation still runs: hello_xr enables it in its own `VkInstanceCreateInfo`.
+    vk_instance_layers: bool,
+    /// Run on the mock runtime (tests/mock-runtime) instead of Monado.
+    mock_runtime: bool,
+    env: Vec<(String, String)>,
+    pre: Option<String>,
+    post: Option<String>,
+    /// Keep the run directory of an earlier run (HOME persists: install, then run).
+    reuse_dir: bool,
+}
+
+impl Spec {
+    fn new(name: &str, graphics: &'static str) -> Spec {
+        Spec {
+            name: name.into(),
+            graphics,
+            layer: Layer::None,
+            features: false,
+            vk_instance_layers: true,
+            mock_runtime: false,
+            env: Vec::new(),
+            pre: None,
+            post: None,
+            reuse_dir: false,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct EndFrame {
+    display_time: i64,
+    layer_count: u32,
+}
+
+#[derive(Debug)]
+struct Outcome {
+    name: String,
+    dir: PathBuf,
+    status: Option<i32>,
+    result: HashMap<String, String>,
+    /// What the runner and driver printed (hang backtraces included).
+    runner: String,
+    app_log: String,
+    frames: Vec<EndFrame>,
+    vk_errors: Vec<String>,
+    cv_errors: Vec<String>,
+    /// core_validation's "INTERNAL VALIDATION LAYER ERROR" lines (stdout): its own diagnostics,
+    /// not VALID_ERROR records. 1.1.47 prints one when the layer above it calls its
+    /// xrGetInstanceProcAddr with XR_NULL_HANDLE for xrEnumerateInstanceExtensionProperties,
+    /// which the spec allows; reported, not counted.
+    cv_internal: Vec<String>,
+    stats: Vec<Value>,
+    /// Ran on the mock runtime, whose frame clock advances one period per frame, not with time.
+    mock: bool,
+}
+
+impl Outcome {
+    fn rendered(&self) -> usize {
+        self.frames.iter().filter(|f| f.layer_count > 0).count()
+    }
+
+    /// Rendered frames with `displayTime` in the comparison window, or None when the run did
+    /// not last past the window.
+    fn window_frames(&self) -> Option<usize> {
+        if self.mock {
+            // The mock runtime's displayTime counts frames, not time: compare whole runs of
+            // the same wall-clock length instead.
+            return Some(self.rendered());
+        }
+        let first = self.frames.iter().find(|f| f.layer_count > 0)?.display_time;
+        let (lo, hi) = (first + WINDOW_SKIP_NS, first + WINDOW_SKIP_NS + WINDOW_NS);
+        if self.frames.last()?.display_time < hi {
+            return None;
+        }
+        Some(self.frames.iter().filter(|f| f.layer_count > 0 && (lo..hi).contains(&f.display_time)).count())
+    }
+
+    /// The longest `displayTime` step between rendered frames, in ms, and the frame it ends at.
+    fn worst_gap(&self) -> (i64, usize) {
+        let rendered: Vec<(usize, i64)> = self.frames.iter().enumerate().filter(|(_, f)| f.layer_count > 0).map(|(i, f)| (i, f.display_time)).collect();
+        rendered.windows(2).map(|w| ((w[1].1 - w[0].1) / 1_000_000, w[1].0)).max().unwrap_or((0, 0))
+    }
+
+    fn summary(&self) -> String {
+        let (gap, at) = self.worst_gap();
+        format!(
+            "{}: exit {:?}, xrEndFrame {} (rendered {}, in window {:?}, worst gap {gap} ms at frame {at}), Vulkan validation errors {}, core_validation errors {} (+{} internal), layer stats lines {}",
+            self.name,
+            self.result.get("app_rc"),
+            self.frames.len(),
+            self.rendered(),
+            self.window_frames(),
+            self.vk_errors.len(),
+            self.cv_errors.len(),
+            self.cv_internal.len(),
+            self.stats.len()
+        )
+    }
+
+    fn details(&self) -> String {
+        let tail = |s: &str, n: usize| s.lines().rev().take(n).collect::<Vec<_>>().into_iter().rev().collect::<Vec<_>>().join("\n");
+        format!(
+            "{}\n--- run dir: {}\n--- runner output:\n{}\n--- hello_xr log (last 25 lines):\n{}\n--- Vulkan validation errors (first 10):\n{}\n--- core_validation errors:\n{}",
+            self.summary(),
+            self.dir.display(),
+            self.runner,
+            tail(&self.app_log, 25),
+            self.vk_errors.iter().take(10).cloned().collect::<Vec<_>>().join("\n"),
+            self.cv_errors.join("\n"),
+        )
+    }
+}
+
+/// One run at a time: frame rates are compared across runs, and the machine has 2 cores.
+static RUN_LOCK: Mutex<()> = Mutex::new(());
+
+fn run(root: &Path, spec: &Spec) -> Outcome {
+    let _one = RUN_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = target_dir().join("test-output").join("realworld").join(&spec.name);
+    if !spec.reuse_dir {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    std::fs::create_dir_all(&dir).unwrap();
+    for f in ["apidump.txt", "core_validation.txt", "vk_validation.txt", "stats.jsonl", "app.log", "result", "pre.sh", "post.sh"] {
+        let _ = std::fs::remove_file(dir.join(f));
+    }
+
+    // Paths below are as seen inside the root: the run dir is /tmp, target/<profile> is /opt.
+    let mut env: Vec<(String, String)> = vec![
+        ("XR_ENABLE_API_LAYERS".into(), String::new()),
+        ("XR_API_DUMP_EXPORT_TYPE".into(), "text".into()),
+        ("XR_API_DUMP_FILE_NAME".into(), "/tmp/apidump.txt".into()),
+        ("XR_CORE_VALIDATION_EXPORT_TYPE".into(), "text".into()),
+        ("XR_CORE_VALIDATION_FILE_NAME".into(), "/tmp/core_validation.txt".into()),
+        ("VK_KHRONOS_VALIDATION_DEBUG_ACTION".into(), "VK_DBG_LAYER_ACTION_LOG_MSG".into()),
+        ("VK_KHRONOS_VALIDATION_LOG_FILENAME".into(), "/tmp/vk_validation.txt".into()),
+        ("VK_KHRONOS_VALIDATION_REPORT_FLAGS".into(), "error,warn".into()),
+    ];
+    let mut layers = vec![API_DUMP];
+    if spec.layer == Layer::Explicit {
+        layers.push(LAYER);
+        let manifest_dir = dir.join("xr-layers");
+        std::fs::create_dir_all(&manifest_dir).unwrap();
+        let json = stereoshim::manifest::json(stereoshim::manifest::Kind::OpenXr, Path::new("/opt/libstereoshim.so"));
+        std::fs::write(manifest_dir.join("stereoshim.json"), json).unwrap();
+        env.push(("XR_API_LAYER_PATH".into(), "/tmp/xr-layers:/usr/share/openxr/1/api_layers/explicit.d".into()));
+    }
+    layers.push(CORE_VALIDATION);
+    env[0].1 = layers.join(":");
+    if spec.vk_instance_layers {
+        env.push(("VK_INSTANCE_LAYERS".into(), "VK_LAYER_KHRONOS_validation".into()));
+    }
+    if spec.layer == Layer::Explicit {
+        env.push(("STEREOSHIM_STATS_FILE".into(), "/tmp/stats.jsonl".into()));
+        if spec.features {
+            env.push(("STEREOSHIM_MASK_ENABLED".into(), "true".into()));
+            env.push(("STEREOSHIM_FOVEATION_ENABLED".into(), "true".into()));
+            env.push(("STEREOSHIM_FOVEATION_METHOD".into(), "rdm".into()));
+        }
+    }
+    if spec.mock_runtime {
+        let json = serde_json::json!({ "file_format_version": "1.0.0",
+            "runtime": { "name": "stereoshim mock runtime", "library_path": "/opt/libmock_runtime.so" } });
+        std::fs::write(dir.join("mock-runtime.json"), json.to_string()).unwrap();
+        env.push(("XR_RUNTIME_JSON".into(), "/tmp/mock-runtime.json".into()));
+        env.push(("MOCK_XR_HMD".into(), "index".into()));
+    }
+    env.extend(spec.env.iter().cloned());
+    let text: String = env.iter().map(|(k, v)| format!("{k}={v}\n")).collect();
+    std::fs::write(dir.join("app.env"), text).unwrap();
+    if let Some(pre) = &spec.pre {
+        std::fs::write(dir.join("pre.sh"), pre).unwrap();
+    }
+    if let Some(post) = &spec.post {
+        std::fs::write(dir.join("post.sh"), post).unwrap();
+    }
+
+    let mut cmd = Command::new(realworld_dir().join("run"));
+    cmd.arg(root).arg(&dir).arg(target_dir()).args(["--", "hello_xr", "-g", spec.graphics]);
+    cmd.env("RW_DURATION", DURATION_S.to_string()).env("RW_TIMEOUT", LIMIT_S.to_string());
+    if spec.mock_runtime {
+        cmd.env("RW_NO_MONADO", "1");
+    }
+    cmd.stdout(Stdio::piped()).stderr(Stdio::piped());
+    let started = Instant::now();
+    // The driver's own limits (app LIMIT_S, pre/post 60 s, Monado 30 + 15 s, gdb 90 s each) come
+    // first; this backstop only catches the driver itself hanging.
+    let out = run_with_backstop(cmd, Duration::from_secs(LIMIT_S + 420), &format!("realworld run {}", spec.name));
+    let runner = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap_or_default();
+    let result = read("result")
+        .lines()
+        .filter_map(|l| l.split_once('=').map(|(k, v)| (k.to_string(), v.to_string())))
+        .collect();
+    let app_log = read("app.log");
+    let cv_errors: Vec<String> = core_validation_errors(&read("core_validation.txt"));
+    let cv_internal: Vec<String> = app_log.lines().filter(|l| l.contains("INTERNAL VALIDATION LAYER ERROR")).map(str::to_string).collect();
+    let mut vk_errors = vulkan_validation_errors(&read("vk_validation.txt"));
+    // hello_xr's debug messenger also prints what validation reports; errors there count too
+    // (deduplicated against the file).
+    for l in app_log.lines().filter(|l| l.contains("Validation Error")) {
+        if !vk_errors.iter().any(|e| l.contains(e.as_str())) {
+            vk_errors.push(l.to_string());
+        }
+    }
+    let outcome = Outcome {
+        name: spec.name.clone(),
+        status: out.status.code(),
+        result,
+        runner,
+        frames: end_frames(&read("apidump.txt")),
+        vk_errors,
+        cv_errors,
+        cv_internal,
+        stats: read("stats.jsonl").lines().filter_map(|l| serde_json::from_str(l).ok()).collect(),
+        app_log,
+        dir,
+        mock: spec.mock_runtime,
+    };
+    eprintln!("[{:.1} s] {}", started.elapsed().as_secs_f64(), outcome.summary());
+    outcome
+}
+
+/// `xrEndFrame` records of api_dump's text output, in call order.
+fn end_frames(dump: &str) -> Vec<EndFrame> {
+    let mut frames = Vec::new();
+    let mut current: Option<EndFrame> = None;
+    for line in dump.lines() {
+        if !line.starts_with(' ') {
+            if let Some(f) = current.take() {
+                frames.push(f);
+            }
+            if line.starts_with("XrResult xrEndFrame") {
+                current = Some(EndFrame { display_time: 0, layer_count: 0 });
+            }
+            continue;
+        }
+        if let Some(f) = current.as_mut() {
+            let value = line.rsplit_once("= ").map(|(_, v)| v.trim());
+            if line.contains("frameEndInfo->displayTime =") {
+                f.display_time = value.and_then(|v| v.parse().ok()).unwrap_or(0);
+            } else if line.contains("frameEndInfo->layerCount =") {
+                f.layer_count = value
+                    .and_then(|v| v.strip_prefix("0x").map_or_else(|| v.parse().ok(), |h| u32::from_str_radix(h, 16).ok()))
+                    .unwrap_or(0);
+            }
+        }
+    }
+    frames.extend(current);
+    frames
+}
+
+/// `[time][VALID_ERROR | VUID | function] : message` records (with their object lines folded in).
+fn core_validation_errors(text: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    let mut in_error = false;
+    for line in text.lines() {
+        if line.starts_with('[') {
+            in_error = line.contains("VALID_ERROR");
+            if in_error {
+                out.push(line.to_string());
+            }
+        } else if in_error {
+            if let Some(last) = out.last_mut() {
+                last.push_str(" | ");
+                last.push_str(line.trim());
+            }
+        }
+    }
+    out
+}
+
+/// `Validation Error: [ VUID ] ...` records of the validation layer's log file, each with the
+/// message line that follows.
+fn vulkan_validation_errors(text: &str) -> Vec<String> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    for (i, l) in lines.iter().enumerate() {
+        if l.starts_with("Validation Error:") {
+            // The record's message: the lines up to the spec quote (or the next record).
+            let msg: Vec<&str> = lines[i + 1..]
+                .iter()
+                .take_while(|m| !m.starts_with("The Vulkan spec states") && !m.starts_with("Validation "))
+                .map(|m| m.trim())
+                .collect();
+            out.push(format!("{l} {}", msg.join(" ")));
+        }
+    }
+    out
+}
+
+fn layer_caused_cv_errors(o: &Outcome) -> Vec<&String> {
+    o.cv_errors.iter().filter(|e| !APP_OWN_CORE_VALIDATION_ERRORS.iter().any(|a| e.contains(a))).collect()
+}
+
+/// The run without the layer (per graphics binding), shared by the cases that compare with it.
+fn baseline(root: &Path, graphics: &'static str) -> &'static Outcome {
+    static VULKAN2: OnceLock<Outcome> = OnceLock::new();
+    static VULKAN: OnceLock<Outcome> = OnceLock::new();
+    let cell = if graphics == "Vulkan2" { &VULKAN2 } else { &VULKAN };
+    cell.get_or_init(|| run(root, &Spec::new(&format!("{}-plain", graphics.to_lowercase()), graphics)))
+}
+
+/// Failed checks of one case, all reported together (the lead wants every symptom of a run, not
+/// only the first).
+#[derive(Default)]
+struct Checks(Vec<String>);
+
+impl Checks {
+    fn check(&mut self, ok: bool, what: impl FnOnce() -> String) {
+        if !ok {
+            self.0.push(what());
+        }
+    }
+
+    fn finish(self, runs: &[&Outcome]) {
+        if self.0.is_empty() {
+            return;
+        }
+        let details: Vec<String> = runs.iter().map(|o| o.details()).collect();
+        panic!(
+            "{} check(s) failed:\n  - {}\n\n{}",
+            self.0.len(),
+            self.0.join("\n  - "),
+            details.join("\n\n==========\n")
+        );
+    }
+}
+
+fn check_clean_exit(c: &mut Checks, o: &Outcome) {
+    let hang = o.result.get("app_hang").map(String::as_str) != Some("0");
+    if hang {
+        // Loud, first, with the backtrace right in the message.
+        panic!("{}: hello_xr HUNG (backtrace of every thread below):\n{}", o.name, o.details());
+    }
+    c.check(o.result.get("app_rc").map(String::as_str) == Some("0"), || {
+        format!("{}: hello_xr did not exit cleanly (exit {:?})", o.name, o.result.get("app_rc"))
+    });
+    c.check(o.status == Some(0), || format!("{}: run status {:?} (see runner output)", o.name, o.status));
+}
+
+fn check_validation(c: &mut Checks, o: &Outcome) {
+    c.check(o.vk_errors.is_empty(), || {
+        format!("{}: {} Vulkan validation errors, first: {}", o.name, o.vk_errors.len(), o.vk_errors.first().map_or("", |s| s.as_str()))
+    });
+    let cv = layer_caused_cv_errors(o);
+    c.check(cv.is_empty(), || format!("{}: {} core_validation errors, first: {}", o.name, cv.len(), cv[0]));
+}
+
+/// Frame rate with the layer ≥ MIN_FRAME_RATIO of the plain run's (same window of display time).
+fn check_frames_kept(c: &mut Checks, root: &Path, base: &Outcome, o: &Outcome, spec: &Spec) {
+    let ratio = |b: &Outcome, o: &Outcome| -> (Option<usize>, Option<usize>, f64) {
+        let (bw, ow) = (b.window_frames(), o.window_frames());
+        (bw, ow, ow.unwrap_or(0) as f64 / bw.unwrap_or(1).max(1) as f64)
+    };
+    let (bw, ow, r) = ratio(base, o);
+    eprintln!("{}: frames in the window: {ow:?} with the layer, {bw:?} without ({:.1} %)", o.name, r * 100.0);
+    if bw.is_none_or(|n| n == 0) {
+        c.check(false, || format!("{}: the plain run rendered no frames in the window: cannot compare", base.name));
+        return;
+    }
+    if r >= MIN_FRAME_RATIO {
+        return;
+    }
+    // The machine is shared: one retry of the pair, back to back, before calling it a loss.
+    let plain = Spec { name: format!("{}-plain-retry", o.name), layer: Layer::None, features: false, vk_instance_layers: true, ..spec.clone() };
+    let base2 = run(root, &plain);
+    let o2 = run(root, &Spec { name: format!("{}-retry", o.name), ..spec.clone() });
+    let (bw2, ow2, r2) = ratio(&base2, &o2);
+    eprintln!("{}: retry: {ow2:?} with the layer, {bw2:?} without ({:.1} %)", o.name, r2 * 100.0);
+    c.check(r2 >= MIN_FRAME_RATIO, || {
+        format!(
+            "{}: frames with the layer below {:.0} % of without, twice: {ow:?}/{bw:?} ({:.1} %), then {ow2:?}/{bw2:?} ({:.1} %)",
+            o.name,
+            MIN_FRAME_RATIO * 100.0,
+            r * 100.0,
+            r2 * 100.0
+        )
+    });
+}
+
+/// Every eye pass of every rendered frame after the first rendered one (the layer learns which
+/// swapchain image shows which eye from that frame's `xrEndFrame`): masked and RDM applied,
+/// nothing reported as not applied.
+fn check_features_applied(c: &mut Checks, o: &Outcome) {
+    if o.stats.is_empty() {
+        c.check(false, || format!("{}: no layer stats written", o.name));
+        return;
+    }
+    let first_rendered = o.frames.iter().position(|f| f.layer_count > 0).unwrap_or(usize::MAX);
+    let mut bad = Vec::new();
+    let mut judged = 0;
+    for s in &o.stats {
+        let n = s["frame"].as_u64().unwrap_or(u64::MAX) as usize;
+        if n <= first_rendered {
+            continue;
+        }
+        let Some(f) = o.frames.get(n) else { continue };
+        judged += 1;
+        let expect = if f.layer_count > 0 { EYE_PASSES } else { 0 };
+        let masked = s["passes_masked"].as_u64().unwrap_or(0);
+        let rdm = s["rdm"]["passes"].as_u64().unwrap_or(0);
+        let not_masked = s["not_masked"].as_object().is_some_and(|m| !m.is_empty());
+        let not_rdm = s["rdm"]["not_applied"].as_object().is_some_and(|m| !m.is_empty());
+        if masked != expect || rdm != expect || not_masked || not_rdm {
+            bad.push(format!(
+                "frame {n}: {expect} eye passes, masked {masked} (not masked: {}), RDM {rdm} (not applied: {})",
+                s["not_masked"], s["rdm"]["not_applied"]
+            ));
+        }
+    }
+    c.check(judged > 0, || format!("{}: no frame after the first rendered one to judge", o.name));
+    c.check(bad.is_empty(), || {
+        format!("{}: {} of {judged} frames have eye passes not masked / not RDM-applied; first: {}", o.name, bad.len(), bad[0])
+    });
+}
+
+fn plain_case(graphics: &'static str) {
+    let Some(root) = root() else { return };
+    let base = baseline(&root, graphics);
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, base);
+    c.check(base.rendered() > 0, || format!("{}: no frame rendered", base.name));
+    check_validation(&mut c, base);
+    c.finish(&[base]);
+}
+
+fn layer_case(name: &str, graphics: &'static str, features: bool, vk_instance_layers: bool) {
+    let Some(root) = root() else { return };
+    let base = baseline(&root, graphics);
+    let spec = Spec { layer: Layer::Explicit, features, vk_instance_layers, ..Spec::new(name, graphics) };
+    let o = run(&root, &spec);
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, base);
+    check_clean_exit(&mut c, &o);
+    c.check(o.stats.len() == o.frames.len(), || {
+        format!("{}: {} layer stats lines for {} xrEndFrame calls (is the layer loaded?)", o.name, o.stats.len(), o.frames.len())
+    });
+    check_validation(&mut c, &o);
+    if features {
+        check_features_applied(&mut c, &o);
+    } else {
+        let applied: u64 = o.stats.iter().map(|s| s["passes_masked"].as_u64().unwrap_or(0) + s["rdm"]["passes"].as_u64().unwrap_or(0)).sum();
+        c.check(applied == 0, || format!("{}: pass-through applied {applied} mask/RDM passes", o.name));
+    }
+    check_frames_kept(&mut c, &root, base, &o, &spec);
+    c.finish(&[&o, base]);
+}
+
+// --- XR_KHR_vulkan_enable2 on Monado ---
+
+#[test]
+fn vulkan2_plain() {
+    plain_case("Vulkan2");
+}
+
+#[test]
+fn vulkan2_layer_passthrough() {
+    layer_case("vulkan2-passthrough", "Vulkan2", false, true);
+}
+
+/// Validation only where hello_xr itself enables it (its VkInstanceCreateInfo): stereoshim puts
+/// itself above it.
+#[test]
+fn vulkan2_layer_mask_rdm() {
+    layer_case("vulkan2-mask-rdm", "Vulkan2", true, false);
+}
+
+/// Validation also through VK_INSTANCE_LAYERS: the loader puts it above stereoshim, wrapping
+/// handles.
+#[test]
+fn vulkan2_layer_mask_rdm_vk_instance_layers() {
+    layer_case("vulkan2-mask-rdm-vkil", "Vulkan2", true, true);
+}
+
+// --- XR_KHR_vulkan_enable (v1) ---
+
+/// hello_xr `-g Vulkan` cannot run on Monado with lavapipe, layer or not: Monado's
+/// `xrGetVulkanDeviceExtensionsKHR` requires `VK_KHR_external_semaphore_fd`, which lavapipe does
+/// not expose, so the app's own `vkCreateDevice` fails (ERROR_EXTENSION_NOT_PRESENT). This test
+/// pins that down (it fails, asking for the v1 cases to move to Monado, once it runs); v1 is
+/// covered on the mock runtime below.
+#[test]
+fn vulkan1_on_monado_lavapipe_is_not_possible() {
+    let Some(root) = root() else { return };
+    let o = run(&root, &Spec::new("vulkan1-monado", "Vulkan"));
+    assert_eq!(o.result.get("app_hang").map(String::as_str), Some("0"), "hello_xr HUNG:\n{}", o.details());
+    assert!(
+        o.result.get("app_rc").map(String::as_str) == Some("1")
+            && o.app_log.contains("VK_KHR_external_semaphore_fd")
+            && o.app_log.contains("ERROR_EXTENSION_NOT_PRESENT"),
+        "hello_xr -g Vulkan on Monado no longer fails the known way; move the v1 cases to Monado:\n{}",
+        o.details()
+    );
+}
+
+fn mock_layer_case(name: &str, features: bool, vk_instance_layers: bool) {
+    let Some(root) = root() else { return };
+    let base = {
+        static BASE: OnceLock<Outcome> = OnceLock::new();
+        BASE.get_or_init(|| run(&root, &Spec { mock_runtime: true, ..Spec::new("vulkan1-mock-plain", "Vulkan") }))
+    };
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, base);
+    check_validation(&mut c, base);
+    if name.is_empty() {
+        c.check(base.rendered() > 0, || format!("{}: no frame rendered", base.name));
+        return c.finish(&[base]);
+    }
+    let spec = Spec { layer: Layer::Explicit, features, vk_instance_layers, mock_runtime: true, ..Spec::new(name, "Vulkan") };
+    let o = run(&root, &spec);
+    check_clean_exit(&mut c, &o);
+    check_validation(&mut c, &o);
+    if features {
+        check_features_applied(&mut c, &o);
+    }
+    check_frames_kept(&mut c, &root, base, &o, &spec);
+    c.finish(&[&o, base]);
+}
+
+#[test]
+fn vulkan1_mock_plain() {
+    mock_layer_case("", false, true);
+}
+
+#[test]
+fn vulkan1_mock_layer_passthrough() {
+    mock_layer_case("vulkan1-mock-passthrough", false, true);
+}
+
+#[test]
+fn vulkan1_mock_layer_mask_rdm() {
+    mock_layer_case("vulkan1-mock-mask-rdm", true, false);
+}
+
+#[test]
+fn vulkan1_mock_layer_mask_rdm_vk_instance_layers() {
+    mock_layer_case("vulkan1-mock-mask-rdm-vkil", true, true);
+}
+
+// --- the implicit layer: `stereoshim install --user` inside the root ---
+
+const CONFIG: &str = "mask.enabled = true\nfoveation.enabled = true\nfoveation.method = \"rdm\"\nstats.file = \"/tmp/stats.jsonl\"\n";
+const INSTALL: &str = "set -e\nmkdir -p /tmp/config/stereoshim\ncp /tmp/config.toml /tmp/config/stereoshim/config.toml\n/opt/stereoshim install --user\n";
+
+/// An installed layer's run: nothing stereoshim-specific in the environment, the api_dump /
+/// validation layers as everywhere else, the config from `$XDG_CONFIG_HOME/stereoshim/config.toml`.
+fn implicit_spec(name: &str) -> Spec {
+    Spec { layer: Layer::Installed, vk_instance_layers: false, pre: Some(INSTALL.into()), ..Spec::new(name, "Vulkan2") }
+}
+
+fn prepare_implicit_dir(name: &str) {
+    let dir = target_dir().join("test-output").join("realworld").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("config.toml"), CONFIG).unwrap();
+}
+
+#[test]
+fn implicit_install_picks_up_layer() {
+    let Some(root) = root() else { return };
+    let name = "implicit-install";
+    prepare_implicit_dir(name);
+    let o = run(&root, &Spec { reuse_dir: true, ..implicit_spec(name) });
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, &o);
+    c.check(o.runner.contains("step pre: exit 0"), || format!("{name}: stereoshim install --user failed (pre.log)"));
+    c.check(!o.stats.is_empty(), || format!("{name}: the installed layer was not picked up (no stats)"));
+    check_validation(&mut c, &o);
+    check_features_applied(&mut c, &o);
+    c.finish(&[&o]);
+}
+
+#[test]
+fn implicit_disable_keeps_it_out() {
+    let Some(root) = root() else { return };
+    let name = "implicit-disable";
+    prepare_implicit_dir(name);
+    let spec = Spec { reuse_dir: true, env: vec![("STEREOSHIM_DISABLE".into(), "1".into())], ..implicit_spec(name) };
+    let o = run(&root, &spec);
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, &o);
+    c.check(o.runner.contains("step pre: exit 0"), || format!("{name}: stereoshim install --user failed (pre.log)"));
+    c.check(o.rendered() > 0, || format!("{name}: no frames"));
+    c.check(o.stats.is_empty(), || format!("{name}: STEREOSHIM_DISABLE=1 but the layer wrote stats"));
+    c.check(!o.dir.join("state/stereoshim/stereoshim.log").exists(), || format!("{name}: STEREOSHIM_DISABLE=1 but the layer logged"));
+    c.finish(&[&o]);
+}
+
+#[test]
+fn implicit_uninstall_removes_it() {
+    let Some(root) = root() else { return };
+    let name = "implicit-uninstall";
+    prepare_implicit_dir(name);
+    let pre = format!("{INSTALL}/opt/stereoshim uninstall --user\n");
+    let o = run(&root, &Spec { reuse_dir: true, pre: Some(pre), ..implicit_spec(name) });
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, &o);
+    c.check(o.runner.contains("step pre: exit 0"), || format!("{name}: stereoshim install/uninstall failed (pre.log)"));
+    c.check(o.rendered() > 0, || format!("{name}: no frames"));
+    c.check(o.stats.is_empty(), || format!("{name}: uninstalled, but the layer still wrote stats"));
+    // Files only: uninstall leaves the (then empty) folder it installed into.
+    let leftovers: Vec<_> = walk(&o.dir.join("data")).into_iter().filter(|p| p.is_file() && p.to_string_lossy().contains("stereoshim")).collect();
+    c.check(leftovers.is_empty(), || format!("{name}: uninstall left {leftovers:?}"));
+    c.finish(&[&o]);
+}
+
+fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    if let Ok(rd) = std::fs::read_dir(dir) {
+        for e in rd.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                out.extend(walk(&p));
+            }
+            out.push(p);
+        }
+    }
+    out
+}
+
+// --- the harness itself ---
+
+/// A hang fails loudly: a process past its limit gets every thread's backtrace printed, then is
+/// killed, and the run reports it (here `sleep` stands in for a hung app).
+#[test]
+fn harness_reports_hang_with_backtrace() {
+    let Some(root) = root() else { return };
+    let _one = RUN_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = target_dir().join("test-output").join("realworld").join("harness-hang");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut cmd = Command::new(realworld_dir().join("run"));
+    cmd.arg(&root).arg(&dir).arg(target_dir()).args(["--", "sleep", "600"]);
+    cmd.env("RW_DURATION", "0").env("RW_TIMEOUT", "3").env("RW_NO_MONADO", "1");
+    cmd.stdout(Stdio::piped()).stderr(Stdio::piped());
+    let out = run_with_backstop(cmd, Duration::from_secs(180), "harness-hang");
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert_eq!(out.status.code(), Some(124), "{text}");
+    assert!(text.contains("=== HANG: app") && text.contains("Thread 1") && text.contains("#0 "), "no backtrace:\n{text}");
+}
