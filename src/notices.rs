@@ -50,7 +50,7 @@ fn hint_for(reason: &str) -> &'static str {
         "depth_not_cleared" => "the app loads depth instead of clearing it: the layer cannot know the depth to fail against",
         "depth_clear_not_0_1" => "the app clears depth to a value other than 0 or 1: not supported",
         "secondary" => "the pass's contents are in secondary command buffers the layer could not reach",
-        "no_mask" => "the runtime has no hidden-area mask for the view: set mask.source = \"synthesized\" (or \"auto\")",
+        "no_mask" => "the runtime offers no visibility mask for the view: set mask.source = \"synthesized\" (or \"auto\")",
         "unsupported" => "a pass shape the layer does not handle (e.g. per-view rects differing in one multiview pass)",
         "intermediate_off" => "the pass renders to an offscreen target: set mask.intermediate = \"on\" to include such passes",
         "layer_error" => "the layer could not create its objects on this device: see the errors above in this log",
