@@ -303,6 +303,9 @@ fn run(root: &Path, spec: &Spec) -> Outcome {
         std::fs::write(dir.join("mock-runtime.json"), json.to_string()).unwrap();
         env.push(("XR_RUNTIME_JSON".into(), "/tmp/mock-runtime.json".into()));
         env.push(("MOCK_XR_HMD".into(), "index".into()));
+        // Paced like Monado (20 Hz): the frame rule then asks "keeps up with the display", as on
+        // Monado, instead of comparing raw throughput on a machine shared with other test runs.
+        env.push(("MOCK_XR_PACE_HZ".into(), "20".into()));
     }
     env.extend(spec.env.iter().cloned());
     let text: String = env.iter().map(|(k, v)| format!("{k}={v}\n")).collect();
@@ -652,13 +655,12 @@ fn mock_layer_case(name: &str, features: bool, vk_instance_layers: bool) {
     check_validation(&mut c, &o);
     if features {
         check_features_applied(&mut c, &o);
-        // The mock runtime does not pace frames, so a frame count there is raw throughput, not
-        // "keeps up with the display" as on Monado. With RDM on lavapipe at the Index's
-        // 2016×2240 per eye, hello_xr's trivially shaded cubes save nothing while the
-        // reconstruction pass costs ~40 ns per eye pixel on the CPU: reported, not asserted (the
-        // frame-rate rule holds on Monado, which paces, and for pass-through here).
+        // With RDM on lavapipe at the Index's 2016×2240 per eye, hello_xr's trivially shaded
+        // cubes save nothing while the reconstruction pass costs ~40 ns per eye pixel on the CPU,
+        // so even 20 Hz is out of reach: reported, not asserted (the frame rule holds on Monado,
+        // at its 320×240 views, and for pass-through here).
         let (bw, ow) = (base.window_frames(), o.window_frames());
-        eprintln!("{}: throughput with mask + RDM on the unpaced mock runtime: {ow:?} frames in the window, {bw:?} without", o.name);
+        eprintln!("{}: frames with mask + RDM at 20 Hz pacing: {ow:?} in the window, {bw:?} without", o.name);
         c.check(o.rendered() > 2, || format!("{}: only {} frames rendered", o.name, o.rendered()));
     } else {
         check_frames_kept(&mut c, &root, base, &o, &spec);

@@ -7,6 +7,7 @@
 //! device and its queues and command buffers), so any handle finds its instance or device state.
 
 pub(crate) mod convert;
+mod chain;
 mod hooks;
 pub mod loader;
 mod mask;
@@ -179,10 +180,10 @@ macro_rules! intercepts {
 }
 
 intercepts! {
-    Instance "vkCreateInstance" => hooks::create_instance as vk::PFN_vkCreateInstance;
-    Instance "vkDestroyInstance" => hooks::destroy_instance as vk::PFN_vkDestroyInstance;
-    Instance "vkCreateDevice" => hooks::create_device as vk::PFN_vkCreateDevice;
-    Device "vkDestroyDevice" => hooks::destroy_device as vk::PFN_vkDestroyDevice;
+    Instance "vkCreateInstance" => chain::create_instance as vk::PFN_vkCreateInstance;
+    Instance "vkDestroyInstance" => chain::destroy_instance as vk::PFN_vkDestroyInstance;
+    Instance "vkCreateDevice" => chain::create_device as vk::PFN_vkCreateDevice;
+    Device "vkDestroyDevice" => chain::destroy_device as vk::PFN_vkDestroyDevice;
     Device "vkCreateImage" => hooks::create_image as vk::PFN_vkCreateImage;
     Device "vkDestroyImage" => hooks::destroy_image as vk::PFN_vkDestroyImage;
     Device "vkCreateImageView" => hooks::create_image_view as vk::PFN_vkCreateImageView;

@@ -78,6 +78,9 @@ pub struct Config {
     pub menu_click_at: Option<u64>,
     pub fail: FailSpec,
     pub log: bool,
+    /// `MOCK_XR_PACE_HZ`: xrWaitFrame blocks like a compositor's vsync at this rate (unset: no
+    /// sleeping, the display clock only advances per call).
+    pub pace: Option<std::time::Duration>,
 }
 
 fn var(name: &str) -> Option<String> {
@@ -124,6 +127,9 @@ impl Config {
             menu_click_at: parse_u64("MOCK_XR_MENU_CLICK_AT")?,
             fail: var("MOCK_XR_FAIL").map(|s| FailSpec::parse(&s)).transpose()?.unwrap_or_default(),
             log: log_enabled(),
+            pace: parse_u64("MOCK_XR_PACE_HZ")?
+                .filter(|&hz| hz > 0)
+                .map(|hz| std::time::Duration::from_nanos(1_000_000_000 / hz)),
         })
     }
 

@@ -24,11 +24,23 @@ pub unsafe extern "system" fn xr_wait_frame(
         s.fail_point("xrWaitFrame")?;
         // SAFETY: app pointers (the wait info may be NULL).
         let (_, out) = unsafe { (input_opt(info)?, output(state)?) };
+        if let Some(period) = s.instance.cfg.pace {
+            // Paced like a compositor: return at the next vsync; an app that falls behind gets
+            // the next one after now (a missed frame), never a burst to catch up.
+            let wake = {
+                let mut core = s.core.lock().unwrap();
+                let now = std::time::Instant::now();
+                let wake = core.next_wake.filter(|w| *w > now).unwrap_or(now);
+                core.next_wake = Some(wake + period);
+                wake
+            };
+            std::thread::sleep(wake.saturating_duration_since(std::time::Instant::now()));
+        }
         let mut core = s.core.lock().unwrap();
         if !core.running {
             return Err(xr::Result::ERROR_SESSION_NOT_RUNNING);
         }
-        // No real sleeping: the display clock advances one period per xrWaitFrame.
+        // The display clock advances one period per xrWaitFrame (wall-clock pacing is separate).
         let t = s.now(&core);
         core.waits += 1;
         core.waited = Some(t);

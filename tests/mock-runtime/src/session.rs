@@ -33,6 +33,8 @@ pub struct Core {
     pub frames_ended: u64,
     /// Whether the lens masks have switched to their shrunk version.
     pub mask_changed: bool,
+    /// `MOCK_XR_PACE_HZ`: the wall-clock instant the next xrWaitFrame may return at.
+    pub next_wake: Option<std::time::Instant>,
 }
 
 pub struct Session {
@@ -152,6 +154,7 @@ pub unsafe extern "system" fn xr_create_session(
                 waits: 0,
                 frames_ended: 0,
                 mask_changed: false,
+                next_wake: None,
             }),
             capture: Mutex::new(CaptureState::default()),
             actions: Mutex::default(),
