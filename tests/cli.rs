@@ -55,6 +55,7 @@ fn install_status_disable_uninstall() {
     let (code, text) = stereoshim(&["uninstall", "--user"], &data, &config);
     assert_eq!(code, 0, "{text}");
     assert!(!manifest.exists() && !data.join("stereoshim/libstereoshim.so").exists());
+    assert!(!data.join("stereoshim").exists(), "the library folder is left behind");
     let (_, text) = stereoshim(&["status"], &data, &config);
     assert!(text.contains("none (not installed"), "{text}");
 }

@@ -100,6 +100,13 @@ fn uninstall_cmd(args: &[String]) -> Result<(), String> {
             Err(e) => return Err(format!("{}: {e}", path.display())),
         }
     }
+    // The library's folder is stereoshim's own (`…/stereoshim/`): gone with its last file. The
+    // manifest's folder is the loader's, shared with other layers, and stays.
+    if let Some(dir) = layout.library.parent() {
+        if std::fs::remove_dir(dir).is_ok() {
+            println!("removed {}", dir.display());
+        }
+    }
     Ok(())
 }
 
