@@ -58,3 +58,30 @@ fn auto_falls_back_to_rdm_on_lavapipe() {
     assert_eq!(f1["vrs"]["passes"], 0, "{f1}");
     assert!(f1["vrs"]["not_applied"].as_object().is_none_or(|m| m.is_empty()), "{f1}");
 }
+
+/// A Vulkan 1.0 app on a runtime that does not list `VK_KHR_get_physical_device_properties2`
+/// (which shading rate needs on a 1.0 instance): with `enable2` the layer adds it to the app's
+/// create info, with `enable` it lists it in `xrGetVulkanInstanceExtensionsKHR`'s answer, which the
+/// app enables. Either way the app runs as before (validation silent, captures identical).
+#[test]
+fn vulkan_1_0_instances_get_what_shading_rate_needs() {
+    for (binding, logged) in [("enable2", "adding [\"VK_KHR_get_physical_device_properties2\"]"), ("enable", "listing VK_KHR_get_physical_device_properties2")] {
+        let args = ["--layout", "per-eye", "--rendering", "render-pass", "--vulkan-api", "1.0", "--vulkan", binding];
+        // The mock's external-memory instance and device extensions go too: they need properties2
+        // on a 1.0 instance themselves.
+        let omit = (
+            "MOCK_XR_DISABLE_EXTENSIONS",
+            "VK_KHR_get_physical_device_properties2,VK_KHR_external_memory_capabilities,VK_KHR_external_semaphore_capabilities,\
+             VK_KHR_external_fence_capabilities,VK_KHR_external_memory,VK_KHR_external_memory_fd,VK_KHR_external_semaphore,VK_KHR_external_fence",
+        );
+        let plain = Run::new(&format!("props2-plain-{binding}")).args(args).env(omit.0, omit.1).run();
+        plain.assert_ok();
+        let mut layered = Run::new(&format!("props2-layer-{binding}")).args(args).env(omit.0, omit.1).with_layer();
+        layered = layered.env("STEREOSHIM_FOVEATION_METHOD", "vrs");
+        let out = layered.run();
+        out.assert_ok();
+        assert!(!out.log_lines("vulkan instance created").is_empty(), "{binding}: the layer did not load:\n{}", out.log);
+        assert_eq!(out.log_lines(logged).len(), 1, "{binding}:\n{}", out.log);
+        common::assert_same_captures(&out.name, &out, &plain);
+    }
+}

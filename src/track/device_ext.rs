@@ -74,6 +74,17 @@ pub fn instance_additions(api_version: u32, requested: &[String], available: &[S
     }
 }
 
+/// `XR_KHR_vulkan_enable`: the runtime's space-separated instance-extension list with `ext`
+/// appended (the app enables what that call lists before creating its own instance), or None when
+/// it is already there.
+pub fn with_listed_extension(list: &str, ext: &str) -> Option<String> {
+    if list.split(' ').any(|e| e == ext) {
+        return None;
+    }
+    let list = list.trim_end_matches(' ');
+    Some(if list.is_empty() { ext.to_string() } else { format!("{list} {ext}") })
+}
+
 /// Whether the configuration may want fragment shading rate on the app's devices
 /// (`vulkan.fragment_shading_rate` on, or auto with foveation method auto/vrs).
 pub fn config_wants_fsr(fsr_mode: &str, foveation_method: &str) -> bool {
@@ -176,6 +187,15 @@ mod tests {
         assert!(instance_additions(vk::API_VERSION_1_0, &none, &avail, false).is_empty(), "no shading rate wanted");
         assert!(config_wants_fsr("auto", "auto") && config_wants_fsr("on", "rdm") && !config_wants_fsr("off", "vrs"));
         assert!(!config_wants_fsr("auto", "rdm"));
+    }
+
+    #[test]
+    fn listed_extension_is_appended_once() {
+        assert_eq!(with_listed_extension("VK_KHR_a VK_KHR_b", PROPERTIES_2).as_deref(), Some("VK_KHR_a VK_KHR_b VK_KHR_get_physical_device_properties2"));
+        assert_eq!(with_listed_extension("", PROPERTIES_2).as_deref(), Some(PROPERTIES_2));
+        assert_eq!(with_listed_extension("VK_KHR_a ", PROPERTIES_2).as_deref(), Some("VK_KHR_a VK_KHR_get_physical_device_properties2"));
+        assert_eq!(with_listed_extension("VK_KHR_get_physical_device_properties2 VK_KHR_a", PROPERTIES_2), None);
+        assert!(with_listed_extension("VK_KHR_get_physical_device_properties2x", PROPERTIES_2).is_some());
     }
 
     #[test]

@@ -226,8 +226,79 @@ pub(super) unsafe extern "system" fn get_vulkan_instance_extensions(
                 tracing::info!("app creates its own VkInstance (XR_KHR_vulkan_enable): {VK_LAYER_NAME} added to VK_INSTANCE_LAYERS");
             }
         });
-        Ok(down.call(plain))
+        // Shading rate on a Vulkan 1.0 app's device needs VK_KHR_get_physical_device_properties2
+        // on its instance; the app enables what this call lists, so the layer lists it too (when
+        // the machine's Vulkan loader offers it).
+        let config = &inst.config;
+        let fsr_wanted = device_ext::config_wants_fsr(config.choice("vulkan.fragment_shading_rate"), config.choice("foveation.method"));
+        if !fsr_wanted || !loader_offers(device_ext::PROPERTIES_2) {
+            return Ok(down.call(plain));
+        }
+        // The runtime's list first (its size, then its text), then the app's call answered with
+        // the longer list by the two-call idiom.
+        let mut needed = 0u32;
+        // SAFETY: a size query with a valid output pointer.
+        let r = unsafe { next(instance, system_id, 0, &mut needed, std::ptr::null_mut()) };
+        if r != xr::Result::SUCCESS {
+            return Ok(down.call(plain));
+        }
+        let mut runtime = vec![0u8; needed as usize];
+        let mut written = 0u32;
+        // SAFETY: `runtime` holds `needed` bytes.
+        let r = down.call(|| unsafe { next(instance, system_id, needed, &mut written, runtime.as_mut_ptr().cast()) });
+        if r != xr::Result::SUCCESS {
+            return Ok(r);
+        }
+        let list = CStr::from_bytes_until_nul(&runtime).map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
+        let answer = match device_ext::with_listed_extension(&list, device_ext::PROPERTIES_2) {
+            Some(longer) => {
+                static LOGGED: OnceLock<()> = OnceLock::new();
+                LOGGED.get_or_init(|| tracing::info!("listing {} for the app's own VkInstance (fragment shading rate depends on it on Vulkan 1.0)", device_ext::PROPERTIES_2));
+                longer
+            }
+            None => list,
+        };
+        let bytes = CString::new(answer)?.into_bytes_with_nul();
+        if buffer_count_output.is_null() {
+            return Ok(xr::Result::ERROR_VALIDATION_FAILURE);
+        }
+        // SAFETY: checked non-null; the app's output.
+        unsafe { *buffer_count_output = bytes.len() as u32 };
+        if buffer_capacity_input == 0 {
+            return Ok(xr::Result::SUCCESS);
+        }
+        if (buffer_capacity_input as usize) < bytes.len() || buffer.is_null() {
+            return Ok(xr::Result::ERROR_SIZE_INSUFFICIENT);
+        }
+        // SAFETY: the app's buffer holds `buffer_capacity_input` ≥ `bytes.len()` bytes.
+        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr().cast::<c_char>(), buffer, bytes.len()) };
+        Ok(xr::Result::SUCCESS)
     }, plain)
+}
+
+/// Whether the machine's Vulkan loader lists an instance extension (asked once per process: the
+/// loader is loaded, or found already loaded, for that).
+fn loader_offers(extension: &str) -> bool {
+    static EXTENSIONS: OnceLock<Vec<String>> = OnceLock::new();
+    EXTENSIONS
+        .get_or_init(|| {
+            // SAFETY: loads libvulkan.so.1 (the same image when the app links it); its global
+            // command is called as the spec allows, outside any loader call.
+            let listed = unsafe { ash::Entry::load() }
+                .map_err(|e| e.to_string())
+                // SAFETY: a global command of the loader just loaded.
+                .and_then(|e| unsafe { e.enumerate_instance_extension_properties(None) }.map_err(|e| e.to_string()));
+            if let Err(e) = &listed {
+                tracing::warn!("cannot ask the Vulkan loader for its instance extensions ({e}): nothing added for XR_KHR_vulkan_enable apps");
+            }
+            listed
+                .unwrap_or_default()
+                .iter()
+                .filter_map(|p| p.extension_name_as_c_str().ok().map(|n| n.to_string_lossy().into_owned()))
+                .collect()
+        })
+        .iter()
+        .any(|e| e == extension)
 }
 
 pub(super) unsafe extern "system" fn get_vulkan_device_extensions(

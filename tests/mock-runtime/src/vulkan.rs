@@ -24,6 +24,17 @@ pub const INSTANCE_EXTENSIONS: &[&str] = &[
     "VK_KHR_get_physical_device_properties2",
 ];
 
+/// `INSTANCE_EXTENSIONS` less those `MOCK_XR_DISABLE_EXTENSIONS` names (a runtime that lists
+/// fewer, so an app or layer has to bring the rest itself).
+fn instance_extensions(inst: &Instance) -> Vec<&'static str> {
+    INSTANCE_EXTENSIONS.iter().copied().filter(|e| !inst.cfg.disabled_extensions.contains(*e)).collect()
+}
+
+/// `DEVICE_EXTENSIONS` likewise.
+fn device_extensions(inst: &Instance) -> Vec<&'static str> {
+    DEVICE_EXTENSIONS.iter().copied().filter(|e| !inst.cfg.disabled_extensions.contains(*e)).collect()
+}
+
 /// Device extensions likewise.
 pub const DEVICE_EXTENSIONS: &[&str] = &[
     "VK_KHR_external_memory",
@@ -243,7 +254,7 @@ pub unsafe extern "system" fn xr_get_vulkan_instance_extensions_khr(
         let inst = instance::get(instance)?;
         check_vk_ext(&inst, system_id, "xrGetVulkanInstanceExtensionsKHR")?;
         // SAFETY: app buffer of `capacity` chars.
-        unsafe { two_call_str(capacity, count_out, buffer, &INSTANCE_EXTENSIONS.join(" ")) }?;
+        unsafe { two_call_str(capacity, count_out, buffer, &instance_extensions(&inst).join(" ")) }?;
         Ok(xr::Result::SUCCESS)
     })
 }
@@ -259,7 +270,7 @@ pub unsafe extern "system" fn xr_get_vulkan_device_extensions_khr(
         let inst = instance::get(instance)?;
         check_vk_ext(&inst, system_id, "xrGetVulkanDeviceExtensionsKHR")?;
         // SAFETY: app buffer of `capacity` chars.
-        unsafe { two_call_str(capacity, count_out, buffer, &DEVICE_EXTENSIONS.join(" ")) }?;
+        unsafe { two_call_str(capacity, count_out, buffer, &device_extensions(&inst).join(" ")) }?;
         Ok(xr::Result::SUCCESS)
     })
 }
@@ -351,7 +362,7 @@ pub unsafe extern "system" fn xr_create_vulkan_instance_khr(
             return Err(xr::Result::ERROR_VALIDATION_FAILURE);
         }
         // SAFETY: the app's extension array.
-        let (_keep, names) = unsafe { merged_extensions(app_ci.pp_enabled_extension_names, app_ci.enabled_extension_count, INSTANCE_EXTENSIONS) }?;
+        let (_keep, names) = unsafe { merged_extensions(app_ci.pp_enabled_extension_names, app_ci.enabled_extension_count, &instance_extensions(&inst)) }?;
         let mut ci = app_ci;
         ci.enabled_extension_count = names.len() as u32;
         ci.pp_enabled_extension_names = names.as_ptr();
@@ -410,9 +421,8 @@ pub unsafe extern "system" fn xr_create_vulkan_device_khr(
         let pd = vk::PhysicalDevice::from_raw(phys as u64);
         // SAFETY: valid physical device of that instance.
         let available = unsafe { ash_inst.enumerate_device_extension_properties(pd) }.map_err(vk_err("vkEnumerateDeviceExtensionProperties"))?;
-        let wanted: Vec<&str> = DEVICE_EXTENSIONS
-            .iter()
-            .copied()
+        let wanted: Vec<&str> = device_extensions(&inst)
+            .into_iter()
             .filter(|e| available.iter().any(|a| a.extension_name_as_c_str().is_ok_and(|n| n.to_str() == Ok(*e))))
             .collect();
         // SAFETY: the app's extension array.
