@@ -15,6 +15,7 @@
 //!   target/release/examples/fovea_check [--layouts per-eye,side-by-side,multiview]
 //!     [--renderings dynamic,render-pass,render-pass2] [--methods vrs,rdm] [--preset balanced]
 //!     [--texel 16] [--hmd index] [--scale 1.0] [--depth standard|reverse] [--no-validation]
+//!     [--app-args "--vulkan-api 1.0 --secondary"] [--app hello_xr:Vulkan2]
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -32,6 +33,12 @@ struct Args {
     /// xr-scene `--depth`: standard or reverse.
     depth: String,
     validation: bool,
+    /// More xr-scene arguments for every run (`--app-args "--vulkan-api 1.0 --secondary"`).
+    app_args: Vec<String>,
+    /// `--app hello_xr:Vulkan2` (or `:Vulkan`): run Khronos hello_xr (from PATH; a Vulkan 1.0
+    /// app that links libvulkan) with that graphics plugin instead of xr-scene. Layouts and
+    /// renderings do not apply: hello_xr renders one per-eye render pass per view.
+    hello_xr: Option<String>,
 }
 
 fn parse_args() -> Args {
@@ -45,6 +52,8 @@ fn parse_args() -> Args {
         scale: "1.0".into(),
         depth: "standard".into(),
         validation: true,
+        app_args: Vec::new(),
+        hello_xr: None,
     };
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
@@ -65,6 +74,8 @@ fn parse_args() -> Args {
             "--hmd" => a.hmd = v,
             "--scale" => a.scale = v,
             "--depth" => a.depth = v,
+            "--app-args" => a.app_args = v.split_whitespace().map(String::from).collect(),
+            "--app" => a.hello_xr = Some(v.strip_prefix("hello_xr:").expect("--app hello_xr:PLUGIN").to_string()),
             other => panic!("unknown argument {other}"),
         }
         i += 2;
@@ -122,9 +133,13 @@ fn main() {
     let mut failures = Vec::new();
     println!("| layout | rendering | method | view | inner px | inner differing | periphery PSNR dB | shaded off | shaded on | saved | layer stats (frame {FRAME}) |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
-    for layout in &a.layouts {
-        for rendering in &a.renderings {
-            let name = format!("fovea-check-{layout}-{rendering}-{}", a.depth);
+    let (layouts, renderings) = match a.hello_xr {
+        Some(_) => (vec!["per-eye".to_string()], vec!["render-pass".to_string()]),
+        None => (a.layouts.clone(), a.renderings.clone()),
+    };
+    for layout in &layouts {
+        for rendering in &renderings {
+            let name = format!("fovea-check-{layout}-{rendering}-{}{}", a.depth, a.app_args.concat());
             let mut base = Run::new(&name).env("MOCK_XR_HMD", &a.hmd).env("MOCK_XR_EXIT_AFTER", &(FRAME + 1).to_string()).env("MOCK_XR_EYE_TRACKER", "0");
             base.args = vec![
                 "--scale".into(),
@@ -136,8 +151,16 @@ fn main() {
                 "--depth".into(),
                 a.depth.clone(),
             ];
+            base.args.extend(a.app_args.iter().cloned());
             base.validation = a.validation;
-            let plain = base.clone().run();
+            if a.hello_xr.is_some() {
+                base.name = format!("fovea-check-hello_xr-{}", a.hello_xr.as_deref().unwrap_or_default());
+            }
+            let run_app = |r: &Run| match &a.hello_xr {
+                Some(plugin) => run_hello_xr(r, plugin),
+                None => r.run(),
+            };
+            let plain = run_app(&base);
             if plain.code != Some(0) {
                 failures.push(format!("{name}: plain run failed: {}", plain.stderr));
                 continue;
@@ -153,8 +176,8 @@ fn main() {
                     .env("STEREOSHIM_FOVEATION_PRESET", &a.preset)
                     .env("STEREOSHIM_FOVEATION_EYE_TRACKING", "off")
                     .env("STEREOSHIM_STATS_FILE", stats_path.to_str().unwrap());
-                run.name = format!("{name}-{method}");
-                let out = run.run();
+                run.name = format!("{}-{method}", base.name);
+                let out = run_app(&run);
                 if out.code != Some(0) {
                     failures.push(format!("{}: run failed (validation?): {}", run.name, out.stderr));
                     continue;
@@ -214,4 +237,45 @@ fn main() {
         }
         std::process::exit(1);
     }
+}
+
+/// Runs hello_xr (from PATH) with graphics plugin `plugin` under `r`'s environment (runtime,
+/// capture, layer and its settings), as `Run::run` runs xr-scene. hello_xr quits on a key press,
+/// so its stdin stays an open pipe; `MOCK_XR_EXIT_AFTER` ends the session. Its own validation
+/// layer (enabled by hello_xr when installed) reports on its output: any "Validation Error" fails
+/// the run (exit code 3, like xr-scene's `--validation`).
+fn run_hello_xr(r: &Run, plugin: &str) -> RunOutput {
+    use std::process::{Command, Stdio};
+    let dir = common::output_dir(&r.name);
+    let capture = dir.join("capture");
+    let mut cmd = Command::new("hello_xr");
+    cmd.args(["-g", plugin])
+        .env("XR_RUNTIME_JSON", common::runtime_manifest())
+        .env("MOCK_XR_CAPTURE", &capture)
+        .env_remove("XR_ENABLE_API_LAYERS")
+        .env_remove("XR_API_LAYER_PATH")
+        .env("XDG_RUNTIME_DIR", dir.join("run"))
+        .env("XDG_CONFIG_HOME", dir.join("config"))
+        .env("XDG_STATE_HOME", dir.join("state"))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    if r.layer {
+        cmd.env("XR_API_LAYER_PATH", common::layer_manifest_dir()).env("XR_ENABLE_API_LAYERS", common::XR_LAYER_NAME);
+    }
+    for (k, v) in &r.env {
+        cmd.env(k, v);
+    }
+    let started = std::time::Instant::now();
+    let mut child = cmd.spawn().expect("spawn hello_xr (is it on PATH?)");
+    let stdin = child.stdin.take();
+    let out = child.wait_with_output().expect("wait for hello_xr");
+    drop(stdin);
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    std::fs::write(dir.join("output.txt"), &text).ok();
+    let errors = text.lines().filter(|l| l.contains("Validation Error")).count();
+    let code = if errors > 0 { Some(3) } else { out.status.code() };
+    let frames = std::fs::read(capture.join("frames.json")).ok().map(|b| serde_json::from_slice(&b).expect("frames.json parses"));
+    let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
+    RunOutput { name: r.name.clone(), code, stderr: text, capture, frames, stats: None, elapsed: started.elapsed(), log }
 }

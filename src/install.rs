@@ -4,11 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-/// The OpenXR API layer's name, as in `manifest/openxr*/stereoshim.json`.
-pub const XR_LAYER_NAME: &str = "XR_APILAYER_STEREOSHIM_stereoshim";
-/// Setting this variable (to anything) keeps the implicit layer out of a process.
-pub const DISABLE_ENV: &str = "STEREOSHIM_DISABLE";
-pub const MANIFEST_FILE: &str = "stereoshim.json";
+pub use crate::manifest::{DISABLE_ENV, MANIFEST_FILE, XR_LAYER_NAME};
 
 pub type Env<'a> = &'a dyn Fn(&str) -> Option<String>;
 
@@ -51,22 +47,6 @@ pub fn layout(scope: Scope, env: Env<'_>) -> Option<Layout> {
             manifest: PathBuf::from("/usr/local/share/openxr/1/api_layers/implicit.d").join(MANIFEST_FILE),
         }),
     }
-}
-
-/// An OpenXR layer manifest for `library`. Implicit manifests must name a disable variable
-/// (loader rule), so a user can always get a misbehaving layer out of the way.
-pub fn xr_manifest_json(library: &Path, implicit: bool) -> String {
-    let mut layer = serde_json::json!({
-        "name": XR_LAYER_NAME,
-        "library_path": library,
-        "api_version": "1.0",
-        "implementation_version": "1",
-        "description": "stereoshim: makes unmodified Vulkan VR apps render less",
-    });
-    if implicit {
-        layer["disable_environment"] = DISABLE_ENV.into();
-    }
-    serde_json::to_string_pretty(&serde_json::json!({ "file_format_version": "1.0.0", "api_layer": layer })).unwrap_or_default()
 }
 
 /// Folders the OpenXR loader searches for layer manifests on Linux, in its order, each with
@@ -135,15 +115,6 @@ mod tests {
         let e = env(&[("XDG_DATA_HOME", "/d")]);
         assert_eq!(layout(Scope::User, &e).unwrap().manifest, PathBuf::from("/d/openxr/1/api_layers/implicit.d/stereoshim.json"));
         assert!(layout(Scope::User, &env(&[])).is_none());
-    }
-
-    #[test]
-    fn implicit_manifest_has_disable_variable() {
-        let v: serde_json::Value = serde_json::from_str(&xr_manifest_json(Path::new("/l/libstereoshim.so"), true)).unwrap();
-        assert_eq!(v["api_layer"]["name"], XR_LAYER_NAME);
-        assert_eq!(v["api_layer"]["disable_environment"], DISABLE_ENV);
-        let v: serde_json::Value = serde_json::from_str(&xr_manifest_json(Path::new("/l/x.so"), false)).unwrap();
-        assert!(v["api_layer"].get("disable_environment").is_none());
     }
 
     #[test]

@@ -7,6 +7,7 @@ pub mod foveation;
 pub mod frame_stats;
 pub mod guard;
 pub mod log;
+pub mod manifest;
 pub mod mask;
 pub mod mask_source;
 pub mod notices;

@@ -56,6 +56,9 @@ pub fn hint(reason: &str) -> &'static str {
     }
 }
 
+/// Reasons a feature left passes alone in one frame, with their counts.
+type Reasons = Vec<(&'static str, u64)>;
+
 /// Accumulates one session's frames; tells what to log.
 #[derive(Clone, Debug, Default)]
 pub struct Summary {
@@ -88,7 +91,7 @@ impl Summary {
     pub fn add_frame(&mut self, enabled: Enabled, s: &MaskFrameStats) -> Vec<String> {
         self.frames += 1;
         let first = self.frames == 1;
-        let features: [(Feature, bool, u64, Vec<(&'static str, u64)>); 3] = [
+        let features: [(Feature, bool, u64, Reasons); 3] = [
             (Feature::Mask, enabled.mask, s.passes_masked, s.not_masked.iter().map(|(k, v)| (*k, *v)).collect()),
             (Feature::Rdm, enabled.rdm, s.rdm.passes, s.rdm.not_applied.iter().map(|(k, v)| (*k, *v)).collect()),
             (Feature::Vrs, enabled.vrs, s.vrs.passes, s.vrs.not_applied.iter().map(|(k, v)| (*k, *v)).collect()),

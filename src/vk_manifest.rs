@@ -1,27 +1,16 @@
 //! Makes the Vulkan loader find stereoshim's Vulkan half without the user installing anything: the
 //! OpenXR half writes a layer manifest that points at the very library file it was loaded from
 //! (so both halves are one loaded image and share state) and adds its folder to
-//! `VK_ADD_LAYER_PATH`.
+//! `VK_ADD_LAYER_PATH`. The manifest text comes from `manifest`, like every other manifest.
 
+use crate::manifest::{self, Kind};
 use std::path::{Path, PathBuf};
 
-/// The Vulkan layer's name; the manifest, the OpenXR half and the tests all use this constant.
-pub const VK_LAYER_NAME: &str = "VK_LAYER_STEREOSHIM_stereoshim";
+pub use crate::manifest::VK_LAYER_NAME;
 
 /// The manifest text for a library at `library_path`.
 pub fn manifest_json(library_path: &Path) -> String {
-    let layer = serde_json::json!({
-        "file_format_version": "1.2.0",
-        "layer": {
-            "name": VK_LAYER_NAME,
-            "type": "GLOBAL",
-            "library_path": library_path,
-            "api_version": "1.3.0",
-            "implementation_version": "1",
-            "description": "stereoshim: renders less in unmodified VR apps",
-        }
-    });
-    serde_json::to_string_pretty(&layer).unwrap_or_default()
+    manifest::json(Kind::Vulkan, library_path)
 }
 
 /// The file a loaded code address belongs to, from `/proc/self/maps` text.
@@ -65,7 +54,7 @@ pub fn write_manifest(library: &Path) -> std::io::Result<PathBuf> {
     let tag = library.to_string_lossy().bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
     let dir = base.join(format!("stereoshim-{user}")).join(format!("vulkan-{tag:016x}"));
     std::fs::create_dir_all(&dir)?;
-    let path = dir.join("stereoshim.json");
+    let path = dir.join(manifest::MANIFEST_FILE);
     let tmp = dir.join(format!(".stereoshim.json.{}", std::process::id()));
     std::fs::write(&tmp, manifest_json(library))?;
     std::fs::rename(&tmp, &path)?;
@@ -94,12 +83,5 @@ mod tests {
         assert_eq!(add_layer_path(Some("/a:/run/s"), d), None);
         assert_eq!(add_instance_layer(Some("VK_LAYER_KHRONOS_validation")).as_deref(), Some("VK_LAYER_STEREOSHIM_stereoshim:VK_LAYER_KHRONOS_validation"));
         assert_eq!(add_instance_layer(Some(VK_LAYER_NAME)), None);
-    }
-
-    #[test]
-    fn manifest_names_layer_and_library() {
-        let json: serde_json::Value = serde_json::from_str(&manifest_json(Path::new("/x/lib s.so"))).unwrap();
-        assert_eq!(json["layer"]["name"], VK_LAYER_NAME);
-        assert_eq!(json["layer"]["library_path"], "/x/lib s.so");
     }
 }

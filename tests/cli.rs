@@ -81,3 +81,29 @@ fn bad_usage_is_reported() {
     assert_eq!(code, 2);
     assert!(text.contains("-- APP"), "{text}");
 }
+
+#[test]
+fn manifest_prints_and_regenerates() {
+    let home = common::output_dir("cli-manifest");
+    let (code, text) = stereoshim(&["manifest", "bogus"], &home, &home);
+    assert_eq!(code, 2);
+    assert!(text.contains("openxr, openxr-implicit, vulkan"), "{text}");
+    let (code, text) = stereoshim(&["manifest"], &home, &home);
+    assert_eq!(code, 2, "{text}");
+    // The printed manifest names the library next to the command.
+    let (code, text) = stereoshim(&["manifest", "openxr-implicit"], &home, &home);
+    assert_eq!(code, 0, "{text}");
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let lib = std::fs::canonicalize(target_dir().join("libstereoshim.so")).unwrap();
+    assert_eq!(json["api_layer"]["library_path"], lib.to_str().unwrap());
+    assert_eq!(json["api_layer"]["disable_environment"], "STEREOSHIM_DISABLE");
+    // --shipped writes the files of manifest/, byte for byte.
+    let out = home.join("shipped");
+    let (code, text) = stereoshim(&["manifest", "--shipped", out.to_str().unwrap()], &home, &home);
+    assert_eq!(code, 0, "{text}");
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("manifest");
+    for kind in ["openxr", "openxr-implicit", "vulkan"] {
+        let ours = std::fs::read(out.join(kind).join("stereoshim.json")).unwrap();
+        assert_eq!(ours, std::fs::read(repo.join(kind).join("stereoshim.json")).unwrap(), "{kind}");
+    }
+}

@@ -282,6 +282,16 @@ rdm_tests! {
     intermediate_multiview_copy: ["--layout", "multiview", "--rendering", "dynamic", "--intermediate", "--samples", "1"];
 }
 
+// Eye passes recorded into secondary command buffers (as engines do): the checkerboard goes into
+// the layer's own secondary, executed ahead of the app's. Vulkan 1.0 apps get RDM too.
+rdm_tests! {
+    secondary_per_eye_render_pass: ["--layout", "per-eye", "--rendering", "render-pass", "--secondary"];
+    secondary_multiview_dynamic: ["--layout", "multiview", "--rendering", "dynamic", "--secondary"];
+    secondary_side_by_side_render_pass2_reverse: ["--layout", "side-by-side", "--rendering", "render-pass2", "--depth", "reverse", "--secondary"];
+    vulkan_1_0_per_eye_render_pass: ["--layout", "per-eye", "--rendering", "render-pass", "--vulkan-api", "1.0"];
+    vulkan_1_0_side_by_side_secondary: ["--layout", "side-by-side", "--rendering", "render-pass2", "--vulkan-api", "1.0", "--secondary"];
+}
+
 /// Every preset on two layouts: the skipped fraction and periphery PSNR per preset (reported), PSNR
 /// ≥ 30 dB asserted for `balanced` only.
 #[test]

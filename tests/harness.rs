@@ -342,3 +342,145 @@ fn pixel_stats_sum_to_view_counts() {
         }
     }
 }
+
+/// xr-scene at `--vulkan-api 1.0` (a Vulkan 1.0 instance and device: no 1.1+ structs or entry
+/// points, SPIR-V 1.0 shaders, render pass 2 through VK_KHR_create_renderpass2) renders the same
+/// frames and shaded-fragment counts as the default 1.3 app, validation-clean: one layout, both
+/// ways of starting a pass a 1.0 device has × both depth conventions, and (standard depth) the
+/// XR_KHR_vulkan_enable binding, where the app creates instance and device itself.
+fn vulkan_api_1_0(layout: &str) {
+    for depth in ["standard", "reverse"] {
+        let run = |tag: &str, extra: &[&str]| {
+            let out = Run::new(&format!("vk10-{layout}-{depth}-{tag}"))
+                .args(["--layout", layout, "--depth", depth])
+                .args(extra.iter().copied())
+                .run();
+            out.assert_ok();
+            out
+        };
+        let baseline = run("baseline-1.3", &["--rendering", "render-pass"]);
+        let mut variants: Vec<(&str, &[&str])> =
+            vec![("render-pass", &["--rendering", "render-pass"]), ("render-pass2", &["--rendering", "render-pass2"])];
+        if depth == "standard" {
+            variants.push(("enable", &["--rendering", "render-pass", "--vulkan", "enable"]));
+        }
+        for (tag, extra) in variants {
+            let other = run(&format!("1.0-{tag}"), &[&["--vulkan-api", "1.0"][..], extra].concat());
+            check_scene(&other);
+            let label = format!("vk10-{layout}-{depth}-{tag}-vs-1.3");
+            assert_same_captures(&label, &other, &baseline);
+            assert_eq!(other.stats, baseline.stats, "{label}: shaded fragments differ");
+        }
+    }
+}
+
+#[test]
+fn vulkan_api_1_0_per_eye() {
+    vulkan_api_1_0("per-eye");
+}
+
+#[test]
+fn vulkan_api_1_0_side_by_side() {
+    vulkan_api_1_0("side-by-side");
+}
+
+/// `--vulkan-api 1.1` (multiview core; render pass 2 and dynamic rendering through their KHR
+/// extensions) gives the 1.3 frames in the multiview layout.
+#[test]
+fn vulkan_api_1_1_multiview() {
+    let run = |name: &str, extra: &[&str]| {
+        let out = Run::new(name).args(["--layout", "multiview"]).args(extra.iter().copied()).run();
+        out.assert_ok();
+        out
+    };
+    let baseline = run("vk11-multiview-baseline-1.3", &["--rendering", "render-pass"]);
+    for rendering in ["render-pass", "render-pass2", "dynamic"] {
+        let other = run(&format!("vk11-multiview-{rendering}"), &["--vulkan-api", "1.1", "--rendering", rendering]);
+        let label = format!("vk11-multiview-{rendering}-vs-1.3");
+        assert_same_captures(&label, &other, &baseline);
+        assert_eq!(other.stats, baseline.stats, "{label}: shaded fragments differ");
+    }
+}
+
+/// What a Vulkan 1.0 app cannot do is refused on the command line (exit 2) with a reason, before
+/// any OpenXR or Vulkan call.
+#[test]
+fn vulkan_api_1_0_refuses_multiview_and_dynamic() {
+    for (args, needle) in [
+        (&["--vulkan-api", "1.0", "--layout", "multiview"][..], "multiview needs Vulkan 1.1"),
+        (&["--vulkan-api", "1.0", "--rendering", "dynamic"][..], "dynamic needs Vulkan 1.1"),
+        (&["--vulkan-api", "1.2"][..], "unknown --vulkan-api"),
+        (&["--secondary", "--bind-before-pass"][..], "exclude each other"),
+    ] {
+        let out = std::process::Command::new(common::xr_scene_exe()).args(args).output().expect("spawn xr-scene");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: stderr:\n{stderr}");
+        assert!(stderr.contains(needle), "{args:?}: no {needle:?} in stderr:\n{stderr}");
+    }
+}
+
+/// `--secondary`: each eye pass's contents recorded into a secondary command buffer
+/// (SECONDARY_COMMAND_BUFFERS contents / CONTENTS_SECONDARY_COMMAND_BUFFERS_BIT with inheritance)
+/// give the primary-recorded frames and shaded-fragment counts in every way of starting a pass,
+/// validation-clean; plus one combination per layout with another habit (Vulkan 1.0 / 1.1, the
+/// depth clear inside the secondary, an intermediate target).
+fn secondary(layout: &str, combo: &[&str]) {
+    let run = |name: String, extra: &[&str]| {
+        let out = Run::new(&name).args(["--layout", layout]).args(extra.iter().copied()).run();
+        out.assert_ok();
+        out
+    };
+    let baseline = run(format!("secondary-{layout}-primary"), &["--rendering", "render-pass"]);
+    let mut variants: Vec<(String, Vec<&str>)> = ["render-pass", "render-pass2", "dynamic"]
+        .iter()
+        .map(|r| (r.to_string(), vec!["--secondary", "--rendering", r]))
+        .collect();
+    variants.push(("combo".into(), [&["--secondary"][..], combo].concat()));
+    for (tag, extra) in variants {
+        let other = run(format!("secondary-{layout}-{tag}"), &extra);
+        if tag == "dynamic" {
+            check_scene(&other);
+        }
+        let label = format!("secondary-{layout}-{tag}-vs-primary");
+        assert_same_captures(&label, &other, &baseline);
+        assert_eq!(other.stats, baseline.stats, "{label} ({extra:?}): shaded fragments differ");
+    }
+}
+
+#[test]
+fn secondary_per_eye() {
+    secondary("per-eye", &["--vulkan-api", "1.0", "--rendering", "render-pass2", "--depth-clear", "attachments"]);
+}
+
+#[test]
+fn secondary_multiview() {
+    secondary("multiview", &["--vulkan-api", "1.1", "--rendering", "dynamic", "--depth-clear", "attachments"]);
+}
+
+#[test]
+fn secondary_side_by_side() {
+    secondary("side-by-side", &["--vulkan-api", "1.0", "--vulkan", "enable", "--intermediate", "--samples", "1"]);
+}
+
+/// xr-scene links the Vulkan loader as C and C++ apps do (libvulkan.so.1 a DT_NEEDED entry,
+/// vkGetInstanceProcAddr an undefined dynamic symbol bound by the dynamic linker), so every test
+/// exercises symbol interposition between a layer and the loader.
+#[test]
+fn xr_scene_links_libvulkan() {
+    let exe = common::xr_scene_exe();
+    let readelf = |args: &[&str]| {
+        let out = std::process::Command::new("readelf").args(args).arg(&exe).output().expect("run readelf (binutils)");
+        assert!(out.status.success(), "readelf {args:?} failed");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let dynamic = readelf(&["-d", "-W"]);
+    assert!(
+        dynamic.lines().any(|l| l.contains("(NEEDED)") && l.contains("[libvulkan.so.1]")),
+        "xr-scene does not link libvulkan.so.1:\n{dynamic}"
+    );
+    let symbols = readelf(&["--dyn-syms", "-W"]);
+    assert!(
+        symbols.lines().any(|l| l.split_whitespace().last() == Some("vkGetInstanceProcAddr") && l.contains(" UND ")),
+        "vkGetInstanceProcAddr is not an undefined dynamic symbol of xr-scene:\n{symbols}"
+    );
+}

@@ -239,3 +239,28 @@ wrapped_tests! {
     validation_env_side_by_side_enable: ["--layout", "side-by-side", "--rendering", "render-pass2", "--vulkan", "enable"];
     validation_env_multiview_enable: ["--layout", "multiview", "--rendering", "render-pass", "--vulkan", "enable"];
 }
+
+// Eye passes recorded into secondary command buffers (`--secondary`: the app's passes have
+// secondary contents, its clears and draws are in its secondaries): the mask goes into the layer's
+// own secondary, executed ahead of the app's. And Vulkan 1.0 apps (no multiview, no dynamic
+// rendering, no 1.1 structs): everything the layer creates must be valid for that device.
+mask_tests! {
+    secondary_per_eye_render_pass: ["--layout", "per-eye", "--rendering", "render-pass", "--secondary"];
+    secondary_per_eye_dynamic_reverse: ["--layout", "per-eye", "--rendering", "dynamic", "--depth", "reverse", "--secondary"];
+    secondary_multiview_render_pass2: ["--layout", "multiview", "--rendering", "render-pass2", "--secondary"];
+    secondary_multiview_dynamic: ["--layout", "multiview", "--rendering", "dynamic", "--secondary"];
+    secondary_side_by_side_render_pass: ["--layout", "side-by-side", "--rendering", "render-pass", "--depth", "reverse", "--secondary"];
+    secondary_side_by_side_dynamic: ["--layout", "side-by-side", "--rendering", "dynamic", "--secondary"];
+    secondary_intermediate_side_by_side_copy: ["--layout", "side-by-side", "--rendering", "render-pass2", "--intermediate", "--samples", "1", "--secondary"];
+    vulkan_1_0_per_eye_render_pass: ["--layout", "per-eye", "--rendering", "render-pass", "--vulkan-api", "1.0"];
+    vulkan_1_0_per_eye_render_pass2_reverse: ["--layout", "per-eye", "--rendering", "render-pass2", "--depth", "reverse", "--vulkan-api", "1.0"];
+    vulkan_1_0_side_by_side_render_pass: ["--layout", "side-by-side", "--rendering", "render-pass", "--vulkan-api", "1.0"];
+    vulkan_1_0_side_by_side_render_pass2_enable: ["--layout", "side-by-side", "--rendering", "render-pass2", "--vulkan-api", "1.0", "--vulkan", "enable"];
+    vulkan_1_0_intermediate_per_eye_msaa: ["--layout", "per-eye", "--rendering", "render-pass", "--intermediate", "--vulkan-api", "1.0"];
+    vulkan_1_1_multiview_render_pass2: ["--layout", "multiview", "--rendering", "render-pass2", "--vulkan-api", "1.1"];
+}
+
+wrapped_tests! {
+    validation_env_vulkan_1_0_per_eye: ["--layout", "per-eye", "--rendering", "render-pass", "--vulkan-api", "1.0"];
+    validation_env_secondary_side_by_side: ["--layout", "side-by-side", "--rendering", "dynamic", "--secondary"];
+}

@@ -4,12 +4,15 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use stereoshim::install::{self, Scope};
+use stereoshim::manifest::{self, Kind};
 
 const USAGE: &str = "usage:
   stereoshim install [--user|--system] [--library PATH]   register the implicit OpenXR layer
   stereoshim uninstall [--user|--system]                  remove it
   stereoshim status [--app NAME]                          manifests, active runtime, effective config
-  stereoshim run [--library PATH] -- APP [ARGS...]        run one app with the layer";
+  stereoshim run [--library PATH] -- APP [ARGS...]        run one app with the layer
+  stereoshim manifest KIND [--library PATH]               print a manifest (KIND: openxr, openxr-implicit, vulkan)
+  stereoshim manifest --shipped DIR                       write the manifests shipped in manifest/ into DIR";
 
 fn env(key: &str) -> Option<String> {
     std::env::var(key).ok()
@@ -22,6 +25,7 @@ fn main() -> ExitCode {
         Some("uninstall") => uninstall_cmd(&args[1..]),
         Some("status") => status_cmd(&args[1..]),
         Some("run") => run_cmd(&args[1..]),
+        Some("manifest") => manifest_cmd(&args[1..]),
         Some("-h" | "--help") => {
             println!("{USAGE}");
             return ExitCode::SUCCESS;
@@ -80,7 +84,7 @@ fn install_cmd(args: &[String]) -> Result<(), String> {
     let library = find_library(args)?;
     let bytes = std::fs::read(&library).map_err(|e| format!("{}: {e}", library.display()))?;
     write_atomic(&layout.library, &bytes)?;
-    write_atomic(&layout.manifest, install::xr_manifest_json(&layout.library, true).as_bytes())?;
+    write_atomic(&layout.manifest, manifest::json(Kind::OpenXrImplicit, &layout.library).as_bytes())?;
     println!("installed {}", layout.library.display());
     println!("registered implicit OpenXR layer {}", layout.manifest.display());
     println!("every OpenXR app now loads stereoshim; set {}=1 to keep it out of one", install::DISABLE_ENV);
@@ -159,7 +163,7 @@ fn run_cmd(args: &[String]) -> Result<(), String> {
     // An explicit manifest of our own, so `run` needs no installation and always uses this library.
     let base = std::env::var_os("XDG_RUNTIME_DIR").map(PathBuf::from).unwrap_or_else(std::env::temp_dir);
     let dir = base.join(format!("stereoshim-{}", env("USER").unwrap_or_else(|| "user".into()))).join(format!("openxr-{}", std::process::id()));
-    write_atomic(&dir.join(install::MANIFEST_FILE), install::xr_manifest_json(&library, false).as_bytes())?;
+    write_atomic(&dir.join(install::MANIFEST_FILE), manifest::json(Kind::OpenXr, &library).as_bytes())?;
     let mut cmd = std::process::Command::new(program);
     cmd.args(&app[1..]);
     for (k, v) in install::run_environment(&env, &dir) {
@@ -168,4 +172,24 @@ fn run_cmd(args: &[String]) -> Result<(), String> {
     let status = cmd.status().map_err(|e| format!("{program}: {e}"))?;
     let _ = std::fs::remove_dir_all(&dir);
     std::process::exit(status.code().unwrap_or(1));
+}
+
+/// Prints one manifest for a library (the one `install`/`run` would use unless `--library`), or
+/// regenerates the files shipped under `manifest/` (their `library_path` is the debug build of
+/// the tree, relative to each file).
+fn manifest_cmd(args: &[String]) -> Result<(), String> {
+    if let Some(dir) = option(args, "--shipped") {
+        for (path, text) in manifest::shipped() {
+            let path = Path::new(&dir).join(path);
+            write_atomic(&path, text.as_bytes())?;
+            println!("wrote {}", path.display());
+        }
+        return Ok(());
+    }
+    let names: Vec<&str> = Kind::ALL.iter().map(|k| k.name()).collect();
+    let kind = args.first().ok_or_else(|| format!("manifest needs a KIND ({}) or --shipped DIR", names.join(", ")))?;
+    let kind = Kind::parse(kind).ok_or_else(|| format!("{kind}: not a manifest kind ({})", names.join(", ")))?;
+    let library = std::fs::canonicalize(find_library(args)?).map_err(|e| e.to_string())?;
+    print!("{}", manifest::json(kind, &library));
+    Ok(())
 }

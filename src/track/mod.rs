@@ -134,6 +134,11 @@ impl DeviceTracker {
         }
     }
 
+    /// The command buffers allocated from `pool`.
+    pub fn buffers_of_pool(&self, pool: u64) -> Vec<u64> {
+        self.command_buffers.values().into_iter().filter(|(_, cb)| cb.pool == pool).map(|(h, _)| h).collect()
+    }
+
     /// `vkResetCommandPool`: every buffer of the pool goes back to the initial state.
     pub fn reset_pool(&self, pool: u64) {
         for (_, cb) in self.command_buffers.values() {

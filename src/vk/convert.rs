@@ -422,7 +422,7 @@ pub unsafe fn names(names: *const *const std::ffi::c_char, n: u32) -> Vec<String
 /// `p_next` must be a valid `VkDeviceCreateInfo` structure chain.
 pub unsafe fn device_features(p_next: *const c_void) -> crate::track::caps::ChainedFeatures {
     let mut f = crate::track::caps::ChainedFeatures::default();
-    // SAFETY (each lookup): a valid chain per the contract; each sType names its struct.
+    // SAFETY: a valid chain per the contract; each sType names the struct it is read as.
     unsafe {
         if let Some(s) = find_in_chain::<vk::PhysicalDeviceMultiviewFeatures<'_>>(p_next, vk::StructureType::PHYSICAL_DEVICE_MULTIVIEW_FEATURES) {
             f.multiview |= (*s).multiview != 0;

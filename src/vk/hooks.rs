@@ -261,7 +261,10 @@ fn properties2_fns(
         )
     };
     // SAFETY: the pointers returned for these names have the (alias-identical) core types.
-    Some(unsafe { (std::mem::transmute(f), std::mem::transmute(p)) })
+    let features2 = unsafe { std::mem::transmute::<unsafe extern "system" fn(), vk::PFN_vkGetPhysicalDeviceFeatures2>(f) };
+    // SAFETY: as above.
+    let properties2 = unsafe { std::mem::transmute::<unsafe extern "system" fn(), vk::PFN_vkGetPhysicalDeviceProperties2>(p) };
+    Some((features2, properties2))
 }
 
 /// A copy of the app's `VkDeviceCreateInfo` with our extensions and features; owns everything the
@@ -490,6 +493,7 @@ pub(super) unsafe extern "system" fn create_device(
             mask: super::mask::MaskDevice::new(&inst.config, memory, rates.is_some()),
             vrs: super::vrs::VrsDevice::new(&inst.config, memory, rates),
             rdm: super::rdm::RdmDevice::new(memory, set_loader_data),
+            secondary: Default::default(),
         };
         layer().devices.insert(dispatch_key(device), Arc::new(state));
         r
@@ -542,6 +546,7 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
             // The app waited for the device to go idle before destroying it.
             super::mask::destroy(&dev);
             super::rdm::destroy(&dev);
+            super::secondary::destroy(&dev);
         } else {
             tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {}", dev.track.stats.summary());
         }
@@ -789,7 +794,10 @@ destroy_hook!(destroy_pipeline, "vkDestroyPipeline", vk::Pipeline, fp_v1_0.destr
 create_hook!(create_command_pool, "vkCreateCommandPool", vk::CommandPoolCreateInfo<'_>, vk::CommandPool, fp_v1_0.create_command_pool, pools, |h, ci| {
     crate::track::resources::CommandPool { handle: h.as_raw(), flags: ci.flags, queue_family_index: ci.queue_family_index }
 });
-destroy_hook!(destroy_command_pool, "vkDestroyCommandPool", vk::CommandPool, fp_v1_0.destroy_command_pool, |d, h| d.track.destroy_pool(h));
+destroy_hook!(destroy_command_pool, "vkDestroyCommandPool", vk::CommandPool, fp_v1_0.destroy_command_pool, |d, h| {
+    super::secondary::release(d, &d.track.buffers_of_pool(h));
+    d.track.destroy_pool(h)
+});
 
 pub(super) unsafe extern "system" fn create_graphics_pipelines(
     device: vk::Device,
@@ -844,6 +852,7 @@ pub(super) unsafe extern "system" fn reset_command_pool(device: vk::Device, pool
         |d| unsafe { (d.fns.fp_v1_0().reset_command_pool)(device, pool, flags) },
         |d, r| {
             if r == vk::Result::SUCCESS {
+                super::secondary::release(d, &d.track.buffers_of_pool(pool.as_raw()));
                 d.track.reset_pool(pool.as_raw());
             }
             Ok(())
@@ -888,6 +897,7 @@ pub(super) unsafe extern "system" fn free_command_buffers(device: vk::Device, po
         |d, _| {
             // SAFETY: `count` handles (some may be null, which match nothing).
             let handles: Vec<u64> = unsafe { convert::slice(cbs, count) }.iter().map(|c| c.as_raw()).collect();
+            super::secondary::release(d, &handles);
             d.track.free_command_buffers(&handles);
             Ok(())
         },
@@ -906,6 +916,8 @@ pub(super) unsafe extern "system" fn begin_command_buffer(cb: vk::CommandBuffer,
         |d| unsafe { (d.fns.fp_v1_0().begin_command_buffer)(cb, info) },
         |d, r| {
             if r == vk::Result::SUCCESS {
+                // Not pending (re-recording requires it): the layer's secondaries in it are free.
+                super::secondary::release(d, &[cb.as_raw()]);
                 // SAFETY: a valid begin info.
                 d.track.begin_command_buffer(cb.as_raw(), unsafe { (*info).flags });
             }
@@ -923,6 +935,7 @@ pub(super) unsafe extern "system" fn reset_command_buffer(cb: vk::CommandBuffer,
         |d| unsafe { (d.fns.fp_v1_0().reset_command_buffer)(cb, flags) },
         |d, r| {
             if r == vk::Result::SUCCESS {
+                super::secondary::release(d, &[cb.as_raw()]);
                 d.track.with_cb(cb.as_raw(), |s| s.reset());
             }
             Ok(())
@@ -931,10 +944,29 @@ pub(super) unsafe extern "system" fn reset_command_buffer(cb: vk::CommandBuffer,
 }
 
 pub(super) unsafe extern "system" fn cmd_execute_commands(cb: vk::CommandBuffer, n: u32, cbs: *const vk::CommandBuffer) {
-    // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdExecuteCommands", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_execute_commands)(cb, n, cbs) }, |d, cb| {
-        d.track.with_cb(cb, |s| s.forget_graphics_state());
-    })
+    hook_decided(
+        "vkCmdExecuteCommands",
+        cb,
+        (),
+        // An eye pass with secondary contents: the layer's draws, in its own secondary.
+        |d| mask::on_execute_commands(d, cb),
+        |d, ours| {
+            let execute = d.fns.fp_v1_0().cmd_execute_commands;
+            if let Some(Some(ours)) = ours {
+                let mut all = vec![*ours];
+                // SAFETY: `n` app handles, valid during its call.
+                all.extend_from_slice(unsafe { convert::slice(cbs, n) });
+                // SAFETY: the app's secondaries behind the layer's, which inherits the same pass.
+                return unsafe { execute(cb, all.len() as u32, all.as_ptr()) };
+            }
+            // SAFETY: forwarding the app's arguments unchanged.
+            unsafe { execute(cb, n, cbs) }
+        },
+        |d, ()| {
+            d.track.with_cb(cb.as_raw(), |s| s.forget_graphics_state());
+            Ok(())
+        },
+    )
 }
 
 pub(super) unsafe extern "system" fn cmd_bind_pipeline(cb: vk::CommandBuffer, bind_point: vk::PipelineBindPoint, pipeline: vk::Pipeline) {

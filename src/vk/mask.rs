@@ -81,6 +81,17 @@ struct Books {
     /// counts (masked or not) at its first depth clear (vkCmdClearAttachments), or as
     /// `depth_not_cleared` when it ends, so it is counted once either way.
     deferred: HashSet<u64>,
+    /// Primaries whose open eye pass has its contents in secondary command buffers: the draws go
+    /// into a secondary of the layer's, executed ahead of the app's at its next
+    /// vkCmdExecuteCommands (`on_execute_commands`).
+    pending: HashMap<u64, Pending>,
+}
+
+/// An injection waiting for the app's vkCmdExecuteCommands.
+struct Pending {
+    snap: Snapshot,
+    plan: MaskPlan,
+    counts: bool,
 }
 
 /// Per-device mask state. Locks are held only around bookkeeping, never while calling down.
@@ -226,12 +237,24 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
     });
     let Some(Some(snap)) = snap else { return };
     let resuming = snap.pass.rendering.as_ref().is_some_and(|r| r.resuming());
-    let secondary = match &trigger {
+    // A primary whose pass has its contents in secondaries gets the draws in a secondary of the
+    // layer's at the app's vkCmdExecuteCommands; the app's own secondary-level buffers are left
+    // alone (counted as `secondary`).
+    let secondary_contents = match &trigger {
         Trigger::Begin { secondary } | Trigger::NextSubpass { secondary } => *secondary,
         Trigger::Clear { .. } | Trigger::End => false,
-    } || snap.secondary_level;
+    };
+    if !matches!(trigger, Trigger::Clear { .. }) {
+        // A new subpass or the end: whatever was pending for the previous one was never executed.
+        lock(&d.mask.books).pending.remove(&key);
+    }
     let eyes = |a: &AttachmentUse| eyes_of(d, a, settings.intermediate);
-    let facts = eye_pass::Facts { secondary_contents: secondary, intermediate_enabled: settings.intermediate, eyes: &eyes, explicit_clear: snap.explicit_clear };
+    let facts = eye_pass::Facts {
+        secondary_contents: snap.secondary_level,
+        intermediate_enabled: settings.intermediate,
+        eyes: &eyes,
+        explicit_clear: snap.explicit_clear,
+    };
     let plan = eye_pass::classify(&snap.pass, &facts);
     // Only a pass's beginning counts as a pass; later subpasses and clears count when they mask.
     // A pass that loads its depth may still clear it (vkCmdClearAttachments) before it draws: it
@@ -257,15 +280,7 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
     let mut plan = match plan {
         Ok(p) => p,
         Err(why) => {
-            if counts {
-                if settings.enabled {
-                    d.mask.count(|s| s.count_not_masked(why));
-                }
-                if settings.rdm && why != NotMasked::NotEyePass {
-                    d.mask.count(|s| *s.rdm.not_applied.entry(why.name()).or_insert(0) += 1);
-                }
-                log_reason_once(d, why, &snap.pass);
-            }
+            count_not_applied(d, settings, counts, why, &snap.pass);
             return;
         }
     };
@@ -283,8 +298,72 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
             return;
         }
     }
+    if secondary_contents && !snap.secondary_level {
+        lock(&d.mask.books).pending.insert(key, Pending { snap, plan, counts });
+        return;
+    }
+    inject(d, cb, &snap, &plan, settings, counts, true);
+}
+
+/// The app executes secondaries in `cb`: if its open eye pass awaits the layer's draws, they are
+/// recorded into a secondary of the layer's, returned to be executed first.
+pub(crate) fn on_execute_commands(d: &DeviceState, cb: vk::CommandBuffer) -> Option<vk::CommandBuffer> {
+    let Pending { snap, plan, counts } = lock(&d.mask.books).pending.remove(&cb.as_raw())?;
+    let settings = d.mask.settings(&d.config);
+    let formats;
+    let inherit = match (&snap.pass.rendering, &snap.pass.render_pass, &snap.pass.framebuffer) {
+        (Some(r), _, _) => {
+            let Some(PipelineKey::Dynamic { colors, depth, stencil, samples, .. }) = pipeline_key(d, &snap.pass, &plan, false, false) else {
+                count_not_applied(d, settings, counts, NotMasked::Unsupported, &snap.pass);
+                return None;
+            };
+            formats = colors;
+            super::secondary::Inherit::Rendering {
+                flags: r.flags,
+                view_mask: r.view_mask,
+                colors: &formats,
+                depth,
+                stencil,
+                samples: vk::SampleCountFlags::from_raw(samples),
+            }
+        }
+        (None, Some(rp), Some(fb)) => super::secondary::Inherit::RenderPass { render_pass: rp.handle, subpass: snap.pass.subpass, framebuffer: fb.handle },
+        _ => {
+            count_not_applied(d, settings, counts, NotMasked::Unsupported, &snap.pass);
+            return None;
+        }
+    };
+    let recorded = super::secondary::record(d, cb.as_raw(), &inherit, |ours| inject(d, ours, &snap, &plan, settings, counts, false));
+    match recorded {
+        Ok(ours) => Some(ours),
+        Err(e) => {
+            tracing::warn!("layer secondary command buffer: {e}");
+            count_not_applied(d, settings, counts, NotMasked::LayerError, &snap.pass);
+            None
+        }
+    }
+}
+
+/// Counts (and logs once) a pass the enabled features leave alone.
+fn count_not_applied(d: &DeviceState, settings: Settings, counts: bool, why: NotMasked, pass: &PassInstance) {
+    if !counts {
+        return;
+    }
     if settings.enabled {
-        match record(d, cb, &snap, &plan, settings.debug) {
+        d.mask.count(|s| s.count_not_masked(why));
+    }
+    if settings.rdm && why != NotMasked::NotEyePass {
+        d.mask.count(|s| *s.rdm.not_applied.entry(why.name()).or_insert(0) += 1);
+    }
+    log_reason_once(d, why, pass);
+}
+
+/// Records the enabled features' draws for an eye pass into `cb` — the app's command buffer right
+/// after the depth clear (then the app's state is restored after them), or a secondary of the
+/// layer's inheriting the pass (nothing to restore: the app's secondaries set their own state).
+fn inject(d: &DeviceState, cb: vk::CommandBuffer, snap: &Snapshot, plan: &MaskPlan, settings: Settings, counts: bool, restore: bool) {
+    if settings.enabled {
+        match record(d, cb, snap, plan, settings.debug) {
             Ok(pixels) => {
                 d.mask.count(|s| {
                     s.passes_masked += 1;
@@ -292,7 +371,7 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
                         *s.pixels_masked.entry(*view).or_insert(0) += px;
                     }
                 });
-                log_kind_once(d, &plan, &pixels);
+                log_kind_once(d, plan, &pixels);
             }
             Err(why) => {
                 if counts {
@@ -304,8 +383,8 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
     }
     if settings.rdm {
         // After the mask (if any): the checkerboard goes over the same cleared depth.
-        let key = pipeline_key(d, &snap.pass, &plan, false, true);
-        match key.ok_or(crate::rdm::NotApplied::LayerError).and_then(|k| super::rdm::record_draw(d, cb, &k, &plan)) {
+        let key = pipeline_key(d, &snap.pass, plan, false, true);
+        match key.ok_or(crate::rdm::NotApplied::LayerError).and_then(|k| super::rdm::record_draw(d, cb, &k, plan)) {
             Ok(()) => {}
             Err(why) => {
                 if counts {
@@ -314,7 +393,7 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
             }
         }
     }
-    if settings.enabled || settings.rdm {
+    if restore && (settings.enabled || settings.rdm) {
         // SAFETY: `cb` is recording inside the pass; the commands replay the app's state, whose
         // handles are alive while it records.
         unsafe {

@@ -11,6 +11,7 @@ mod hooks;
 pub mod loader;
 mod mask;
 mod rdm;
+mod secondary;
 mod vrs;
 
 use crate::config::Config;
@@ -69,6 +70,8 @@ pub(crate) struct DeviceState {
     pub rdm: rdm::RdmDevice,
     /// Variable-rate shading's rate images (its statistics live with the mask's).
     pub vrs: vrs::VrsDevice,
+    /// The layer's secondary command buffers for eye passes with secondary contents.
+    pub secondary: secondary::SecondaryDevice,
 }
 
 impl DeviceState {

@@ -124,7 +124,7 @@ struct Slot {
 
 /// Per-device RDM state. Locks guard bookkeeping only, never a call down.
 pub(crate) struct RdmDevice {
-    set_loader_data: Option<PfnSetDeviceLoaderData>,
+    pub(super) set_loader_data: Option<PfnSetDeviceLoaderData>,
     memory: vk::PhysicalDeviceMemoryProperties,
     buffers: Mutex<Vec<DrawBuffer>>,
     books: Mutex<Books>,

@@ -143,10 +143,8 @@ pub(super) unsafe extern "system" fn create_vulkan_instance(
         let (app_extensions, available) = unsafe {
             (crate::vk::convert::names(vk_ci.pp_enabled_extension_names, vk_ci.enabled_extension_count), instance_extensions(gipa))
         };
-        let api_version = vk_ci.p_application_info.is_null().then_some(vk::API_VERSION_1_0).unwrap_or_else(|| {
-            // SAFETY: non-null, the app's application info.
-            unsafe { (*vk_ci.p_application_info).api_version }
-        });
+        // SAFETY: the app's application info, valid for this call, or null.
+        let api_version = unsafe { vk_ci.p_application_info.as_ref() }.map_or(vk::API_VERSION_1_0, |a| a.api_version);
         let config = &inst.config;
         let fsr_wanted = device_ext::config_wants_fsr(config.choice("vulkan.fragment_shading_rate"), config.choice("foveation.method"));
         let added: Vec<CString> = device_ext::instance_additions(api_version, &app_extensions, &available, fsr_wanted)

@@ -181,7 +181,7 @@ pub fn assert_same_captures(label: &str, a: &RunOutput, b: &RunOutput) {
     }
 }
 
-pub const XR_LAYER_NAME: &str = "XR_APILAYER_STEREOSHIM_stereoshim";
+pub const XR_LAYER_NAME: &str = stereoshim::manifest::XR_LAYER_NAME;
 
 /// A folder holding an explicit OpenXR layer manifest for the built `libstereoshim.so`.
 pub fn layer_manifest_dir() -> PathBuf {
@@ -189,16 +189,11 @@ pub fn layer_manifest_dir() -> PathBuf {
     assert!(lib.exists(), "{} missing: run `cargo build --workspace` first", lib.display());
     let dir = target_dir().join("test-output").join("openxr-layer");
     std::fs::create_dir_all(&dir).unwrap();
-    let json = serde_json::json!({
-        "file_format_version": "1.0.0",
-        "api_layer": {
-            "name": XR_LAYER_NAME, "library_path": lib, "api_version": "1.0",
-            "implementation_version": "1", "description": "stereoshim (tests)",
-        },
-    });
+    // The manifest `stereoshim run` writes (tests/manifests.rs checks it against both loaders).
+    let json = stereoshim::manifest::json(stereoshim::manifest::Kind::OpenXr, &lib);
     static N: AtomicUsize = AtomicUsize::new(0);
     let tmp = dir.join(format!(".m.{}.{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
-    std::fs::write(&tmp, serde_json::to_vec_pretty(&json).unwrap()).unwrap();
+    std::fs::write(&tmp, json).unwrap();
     std::fs::rename(&tmp, dir.join("stereoshim.json")).unwrap();
     dir
 }
@@ -536,20 +531,12 @@ pub fn vulkan_layer_dir(layer_name: &str) -> PathBuf {
     assert!(lib.exists(), "{} missing: run `cargo build --workspace` first", lib.display());
     let dir = target_dir().join("test-output").join("vulkan-layer-manifest");
     std::fs::create_dir_all(&dir).unwrap();
-    let json = serde_json::json!({
-        "file_format_version": "1.2.0",
-        "layer": {
-            "name": layer_name,
-            "type": "GLOBAL",
-            "library_path": lib,
-            "api_version": "1.3.0",
-            "implementation_version": "1",
-            "description": "stereoshim Vulkan half (test manifest)",
-        },
-    });
+    // The manifest the OpenXR half generates (tests/manifests.rs checks it against both loaders).
+    assert_eq!(layer_name, stereoshim::manifest::VK_LAYER_NAME, "the Vulkan manifest names stereoshim's layer");
+    let json = stereoshim::manifest::json(stereoshim::manifest::Kind::Vulkan, &lib);
     static N: AtomicUsize = AtomicUsize::new(0);
     let tmp = dir.join(format!(".stereoshim.{}.{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
-    std::fs::write(&tmp, serde_json::to_vec_pretty(&json).unwrap()).unwrap();
+    std::fs::write(&tmp, json).unwrap();
     std::fs::rename(&tmp, dir.join("stereoshim.json")).unwrap();
     dir
 }

@@ -3,13 +3,17 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// (source file, output name, extra glslang arguments). The multiview variants differ only in
-/// where the view index comes from (`gl_ViewIndex` instead of a push constant).
-const SHADERS: &[(&str, &str, &[&str])] = &[
-    ("scene.vert", "scene.vert.spv", &[]),
-    ("scene.frag", "scene.frag.spv", &[]),
-    ("scene.vert", "scene_mv.vert.spv", &["-DMULTIVIEW"]),
-    ("scene.frag", "scene_mv.frag.spv", &["-DMULTIVIEW"]),
+/// (source file, output name, glslang target environment, extra glslang arguments). The multiview
+/// variants differ only in where the view index comes from (`gl_ViewIndex` instead of a push
+/// constant). `--vulkan-api 1.0` gets SPIR-V 1.0 builds of the single-view shaders (a Vulkan 1.0
+/// device accepts no later SPIR-V); the others keep SPIR-V 1.3 (vulkan1.1).
+const SHADERS: &[(&str, &str, &str, &[&str])] = &[
+    ("scene.vert", "scene.vert.spv", "vulkan1.1", &[]),
+    ("scene.frag", "scene.frag.spv", "vulkan1.1", &[]),
+    ("scene.vert", "scene_mv.vert.spv", "vulkan1.1", &["-DMULTIVIEW"]),
+    ("scene.frag", "scene_mv.frag.spv", "vulkan1.1", &["-DMULTIVIEW"]),
+    ("scene.vert", "scene_vk10.vert.spv", "vulkan1.0", &[]),
+    ("scene.frag", "scene_vk10.frag.spv", "vulkan1.0", &[]),
 ];
 
 fn main() {
@@ -18,16 +22,16 @@ fn main() {
     let shader_dir = manifest.join("shaders");
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed={}", shader_dir.display());
-    for (src, dst, extra) in SHADERS {
+    for (src, dst, env, extra) in SHADERS {
         let src_path = shader_dir.join(src);
         println!("cargo:rerun-if-changed={}", src_path.display());
-        compile(&src_path, &out.join(dst), extra);
+        compile(&src_path, &out.join(dst), env, extra);
     }
 }
 
-fn compile(src: &Path, dst: &Path, extra: &[&str]) {
+fn compile(src: &Path, dst: &Path, env: &str, extra: &[&str]) {
     let result = Command::new("glslangValidator")
-        .args(["-V", "--target-env", "vulkan1.1"])
+        .args(["-V", "--target-env", env])
         .args(extra)
         .arg("-o")
         .arg(dst)

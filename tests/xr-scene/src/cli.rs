@@ -39,6 +39,28 @@ pub enum VulkanPath {
     Enable2,
 }
 
+/// The Vulkan version the app asks for in `VkApplicationInfo::apiVersion` (`--vulkan-api`), and so
+/// the API it may use on its instance and device.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum VulkanApi {
+    /// Vulkan 1.0: no multiview, no dynamic rendering, no 1.1+ structs; render pass 2 through
+    /// `VK_KHR_create_renderpass2`.
+    V1_0,
+    /// Vulkan 1.1: multiview core; render pass 2 and dynamic rendering through their KHR extensions.
+    V1_1,
+    V1_3,
+}
+
+impl VulkanApi {
+    pub fn minor(self) -> u32 {
+        match self {
+            VulkanApi::V1_0 => 0,
+            VulkanApi::V1_1 => 1,
+            VulkanApi::V1_3 => 3,
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ColorFamily {
     Srgb,
@@ -55,6 +77,10 @@ pub struct Options {
     pub samples: u32,
     pub submit_depth: bool,
     pub vulkan: VulkanPath,
+    /// `--vulkan-api`: the apiVersion of the app's instance and device.
+    pub vulkan_api: VulkanApi,
+    /// `--secondary`: every eye pass's contents are recorded into a secondary command buffer.
+    pub secondary: bool,
     pub frames: Option<u64>,
     pub scale: f32,
     pub color_format: ColorFamily,
@@ -83,6 +109,8 @@ impl Default for Options {
             samples: 4,
             submit_depth: false,
             vulkan: VulkanPath::Enable2,
+            vulkan_api: VulkanApi::V1_3,
+            secondary: false,
             frames: None,
             scale: 1.0,
             color_format: ColorFamily::Srgb,
@@ -108,6 +136,12 @@ usage: xr-scene [options]
   --samples N                               offscreen sample count with --intermediate (default 4)
   --submit-depth                            submit depth swapchains (XR_KHR_composition_layer_depth)
   --vulkan enable|enable2                   OpenXR Vulkan binding extension (default enable2)
+  --vulkan-api 1.0|1.1|1.3                  apiVersion of the app's VkInstance/VkDevice (default 1.3);
+                                            1.0: per-eye / side-by-side, render-pass / render-pass2
+                                            (VK_KHR_create_renderpass2); 1.1: dynamic rendering
+                                            through VK_KHR_dynamic_rendering
+  --secondary                               record each eye pass's contents into a secondary command
+                                            buffer run by vkCmdExecuteCommands
   --frames N                                request exit after N frames
   --scale F                                 render at F x the recommended size (default 1)
   --color-format srgb|unorm                 swapchain colour format family (default srgb)
@@ -179,6 +213,14 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                     v => return Err(format!("unknown --vulkan {v:?}")),
                 }
             }
+            "--vulkan-api" => {
+                o.vulkan_api = match value("--vulkan-api")?.as_str() {
+                    "1.0" => VulkanApi::V1_0,
+                    "1.1" => VulkanApi::V1_1,
+                    "1.3" => VulkanApi::V1_3,
+                    v => return Err(format!("unknown --vulkan-api {v:?} (1.0, 1.1 or 1.3)")),
+                }
+            }
             "--color-format" => {
                 o.color_format = match value("--color-format")?.as_str() {
                     "srgb" => ColorFamily::Srgb,
@@ -219,7 +261,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             }
             "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
             "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
-            "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" if inline.is_some() => {
+            "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary" if inline.is_some() => {
                 return Err(format!("{flag} takes no value"))
             }
             "--intermediate" => o.intermediate = true,
@@ -228,6 +270,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--bind-before-pass" => o.bind_before_pass = true,
             "--empty" => o.empty = true,
             "--validation" => o.validation = true,
+            "--secondary" => o.secondary = true,
             _ => return Err(format!("unknown argument {arg:?}")),
         }
     }
@@ -241,6 +284,18 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
     // VK_KHR_depth_stencil_resolve and a choice of resolve mode, which this app does not make.
     if o.submit_depth && o.samples > 1 {
         return Err("--submit-depth needs single-sampled depth: use --samples 1 with --intermediate".into());
+    }
+    if o.vulkan_api == VulkanApi::V1_0 {
+        if o.layout == Layout::Multiview {
+            return Err("--layout multiview needs Vulkan 1.1 (multiview); use --vulkan-api 1.1 or 1.3".into());
+        }
+        if o.rendering == Rendering::Dynamic {
+            return Err("--rendering dynamic needs Vulkan 1.1 (VK_KHR_dynamic_rendering) or 1.3".into());
+        }
+    }
+    // State bound in a primary command buffer is not inherited by secondaries.
+    if o.secondary && o.bind_before_pass {
+        return Err("--bind-before-pass and --secondary exclude each other: a secondary command buffer inherits no bound state".into());
     }
     Ok(Some(o))
 }
@@ -261,6 +316,22 @@ mod tests {
         assert_eq!(o.samples, 1, "no intermediate target means single-sampled");
         assert_eq!(o.color_format, ColorFamily::Srgb);
         assert_eq!(o.depth_clear, DepthClear::LoadOp);
+        assert_eq!(o.vulkan_api, VulkanApi::V1_3);
+        assert!(!o.secondary);
+    }
+
+    #[test]
+    fn vulkan_api_and_secondary() {
+        assert_eq!(p(&["--vulkan-api", "1.0"]).unwrap().unwrap().vulkan_api, VulkanApi::V1_0);
+        assert_eq!(p(&["--vulkan-api=1.1"]).unwrap().unwrap().vulkan_api, VulkanApi::V1_1);
+        assert!(p(&["--vulkan-api", "1.2"]).is_err());
+        assert!(p(&["--vulkan-api", "1.0", "--layout", "multiview"]).is_err());
+        assert!(p(&["--vulkan-api", "1.0", "--rendering", "dynamic"]).is_err());
+        assert!(p(&["--vulkan-api", "1.0", "--rendering", "render-pass2", "--layout", "side-by-side"]).is_ok());
+        assert!(p(&["--vulkan-api", "1.1", "--rendering", "dynamic", "--layout", "multiview"]).is_ok());
+        assert!(p(&["--secondary"]).unwrap().unwrap().secondary);
+        assert!(p(&["--secondary=1"]).is_err());
+        assert!(p(&["--secondary", "--bind-before-pass"]).is_err());
     }
 
     #[test]

@@ -1,13 +1,30 @@
 //! Vulkan instance and device creation, through the runtime (XR_KHR_vulkan_enable2) or by the app
 //! itself with the runtime's extension lists (XR_KHR_vulkan_enable), plus the validation messenger.
 
-use crate::cli::{Options, Rendering, VulkanPath};
+use crate::cli::{Layout, Options, Rendering, VulkanApi, VulkanPath};
 use crate::error::{fail, Ctx, Error, Result};
 use ash::vk::{self, Handle};
 use std::ffi::{c_void, CStr, CString};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+
+// The app links the Vulkan loader the way C and C++ apps do: `libvulkan.so.1` is a DT_NEEDED of
+// the executable and `vkGetInstanceProcAddr` is bound by the dynamic linker into the global
+// scope, where a layer exporting the same name could interpose on it (or be interposed on). This is
+// what ash's `linked` feature does; it is declared here instead because Cargo unifies features
+// across the workspace, so `ash/linked` would also link the loader into libstereoshim.so and the
+// mock runtime, and because `-lvulkan` needs the unversioned development symlink (libvulkan-dev)
+// while `+verbatim` names the runtime library itself.
+#[link(name = "libvulkan.so.1", kind = "dylib", modifiers = "+verbatim")]
+extern "system" {
+    fn vkGetInstanceProcAddr(instance: vk::Instance, name: *const std::ffi::c_char) -> vk::PFN_vkVoidFunction;
+}
+
+/// `vk::make_api_version(0, 1, minor, 0)` of the app's `--vulkan-api`.
+pub fn api_version(api: VulkanApi) -> u32 {
+    vk::make_api_version(0, 1, api.minor(), 0)
+}
 
 /// Validation errors seen so far, from any thread (the runtime's own Vulkan work included).
 static VALIDATION_ERRORS: AtomicU64 = AtomicU64::new(0);
@@ -81,16 +98,17 @@ impl Gpu {
         let reqs = xr
             .graphics_requirements::<openxr::Vulkan>(system)
             .ctx("xrGetVulkanGraphicsRequirements(2)KHR")?;
-        let want = openxr::Version::new(1, 3, 0);
+        let want = openxr::Version::new(1, opts.vulkan_api.minor() as u16, 0);
         if reqs.min_api_version_supported > want {
             return fail(format!(
-                "runtime needs Vulkan {} or newer; this app uses at most 1.3",
+                "runtime needs Vulkan {} or newer; this app asks for {want} (--vulkan-api)",
                 reqs.min_api_version_supported
             ));
         }
 
-        // SAFETY: loading the system Vulkan loader; its entry points are used per the spec.
-        let entry = unsafe { ash::Entry::load() }.ctx("loading libvulkan")?;
+        // SAFETY: vkGetInstanceProcAddr is the linked loader's (see its declaration above), which
+        // stays loaded for the whole process and follows Vulkan 1.0's semantics.
+        let entry = unsafe { ash::Entry::from_static_fn(ash::StaticFn { get_instance_proc_addr: vkGetInstanceProcAddr }) };
 
         let mut layers: Vec<*const i8> = Vec::new();
         let mut instance_exts: Vec<CString> = Vec::new();
@@ -129,10 +147,15 @@ impl Gpu {
             .application_version(1)
             .engine_name(app_name)
             .engine_version(1)
-            .api_version(vk::API_VERSION_1_3);
+            .api_version(api_version(opts.vulkan_api));
         let enabled_validation = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
-        let mut validation_features =
-            vk::ValidationFeaturesEXT::default().enabled_validation_features(&enabled_validation);
+        // The shader validation cache ($HOME/.cache/shader_validation_cache-*.bin) remembers a
+        // module as valid by its hash alone: one validated on a Vulkan 1.3 device would then pass
+        // unchecked on a 1.0 device (SPIR-V 1.3 on Vulkan 1.0), depending on earlier runs.
+        let disabled_validation = [vk::ValidationFeatureDisableEXT::SHADER_VALIDATION_CACHE];
+        let mut validation_features = vk::ValidationFeaturesEXT::default()
+            .enabled_validation_features(&enabled_validation)
+            .disabled_validation_features(&disabled_validation);
         let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
             .message_severity(
                 vk::DebugUtilsMessageSeverityFlagsEXT::ERROR | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
@@ -215,11 +238,16 @@ impl Gpu {
         // SAFETY: as above.
         self.mem_props = unsafe { inst.get_physical_device_memory_properties(physical) };
         self.props = props;
-        let dev_version = props.api_version;
-        if vk::api_version_major(dev_version) == 1 && vk::api_version_minor(dev_version) < 1 {
-            return fail("the runtime's Vulkan device only supports Vulkan 1.0; 1.1 is needed (multiview)");
+        // What the app may use: the lower of the version it asked for and the device's.
+        let api = opts.vulkan_api;
+        let dev_minor = if vk::api_version_major(props.api_version) > 1 { u32::MAX } else { vk::api_version_minor(props.api_version) };
+        if dev_minor < api.minor() {
+            return fail(format!(
+                "the runtime's Vulkan device supports Vulkan 1.{dev_minor} only; --vulkan-api asks for 1.{}",
+                api.minor()
+            ));
         }
-        let at_least = |minor: u32| vk::api_version_minor(dev_version) >= minor || vk::api_version_major(dev_version) > 1;
+        let at_least = |minor: u32| api.minor() >= minor;
 
         // SAFETY: as above.
         let families = unsafe { inst.get_physical_device_queue_family_properties(physical) };
@@ -242,13 +270,18 @@ impl Gpu {
                 push_unique(&mut exts, &e);
             }
         }
+        // Below 1.2, render pass 2 is VK_KHR_create_renderpass2, which needs VK_KHR_multiview and
+        // VK_KHR_maintenance2 (core in 1.1); VK_KHR_dynamic_rendering (1.1 only: refused at 1.0 by
+        // the command line) also needs VK_KHR_depth_stencil_resolve.
         let need_rp2 = matches!(opts.rendering, Rendering::RenderPass2 | Rendering::Dynamic);
         if need_rp2 && !at_least(2) {
-            // Dynamic rendering's extension depends on it (and on depth_stencil_resolve).
-            for e in [ash::khr::create_renderpass2::NAME, ash::khr::depth_stencil_resolve::NAME] {
-                if opts.rendering == Rendering::Dynamic || e == ash::khr::create_renderpass2::NAME {
-                    push_unique(&mut exts, e);
-                }
+            if !at_least(1) {
+                push_unique(&mut exts, ash::khr::multiview::NAME);
+                push_unique(&mut exts, ash::khr::maintenance2::NAME);
+            }
+            push_unique(&mut exts, ash::khr::create_renderpass2::NAME);
+            if opts.rendering == Rendering::Dynamic {
+                push_unique(&mut exts, ash::khr::depth_stencil_resolve::NAME);
             }
         }
         if opts.rendering == Rendering::Dynamic && !at_least(3) {
@@ -261,42 +294,55 @@ impl Gpu {
         }
         let ext_ptrs: Vec<*const i8> = exts.iter().map(|e| e.as_ptr()).collect();
 
-        // Check, then enable, the features the app needs.
-        let mut mv_q = vk::PhysicalDeviceMultiviewFeatures::default();
-        let mut dr_q = vk::PhysicalDeviceDynamicRenderingFeatures::default();
-        let mut f2_q = vk::PhysicalDeviceFeatures2::default().push_next(&mut mv_q);
-        if opts.rendering == Rendering::Dynamic {
-            f2_q = f2_q.push_next(&mut dr_q);
-        }
-        // SAFETY: valid chain of output structs.
-        unsafe { inst.get_physical_device_features2(physical, &mut f2_q) };
-        let frag_atomics = f2_q.features.fragment_stores_and_atomics;
-        if frag_atomics == vk::FALSE {
-            return fail("the device lacks fragmentStoresAndAtomics (needed for the shaded-fragment counter)");
-        }
-        if mv_q.multiview == vk::FALSE {
-            return fail("the device lacks the multiview feature");
-        }
-        if opts.rendering == Rendering::Dynamic && dr_q.dynamic_rendering == vk::FALSE {
-            return fail("the device lacks dynamic rendering");
+        // Check, then enable, the features the app needs: through VkPhysicalDeviceFeatures2 and its
+        // chain from 1.1 on, plain VkPhysicalDeviceFeatures at 1.0 (whose device has no multiview).
+        let dynamic = opts.rendering == Rendering::Dynamic;
+        if at_least(1) {
+            let mut mv_q = vk::PhysicalDeviceMultiviewFeatures::default();
+            let mut dr_q = vk::PhysicalDeviceDynamicRenderingFeatures::default();
+            let mut f2_q = vk::PhysicalDeviceFeatures2::default().push_next(&mut mv_q);
+            if dynamic {
+                f2_q = f2_q.push_next(&mut dr_q);
+            }
+            // SAFETY: valid chain of output structs; vkGetPhysicalDeviceFeatures2 is core in 1.1.
+            unsafe { inst.get_physical_device_features2(physical, &mut f2_q) };
+            if f2_q.features.fragment_stores_and_atomics == vk::FALSE {
+                return fail("the device lacks fragmentStoresAndAtomics (needed for the shaded-fragment counter)");
+            }
+            if mv_q.multiview == vk::FALSE {
+                return fail("the device lacks the multiview feature");
+            }
+            if dynamic && dr_q.dynamic_rendering == vk::FALSE {
+                return fail("the device lacks dynamic rendering");
+            }
+        } else {
+            debug_assert!(opts.layout != Layout::Multiview && !dynamic, "refused by the command line");
+            // SAFETY: valid physical device.
+            let f = unsafe { inst.get_physical_device_features(physical) };
+            if f.fragment_stores_and_atomics == vk::FALSE {
+                return fail("the device lacks fragmentStoresAndAtomics (needed for the shaded-fragment counter)");
+            }
         }
 
         let priorities = [1.0f32];
         let queue_info = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(self.queue_family)
             .queue_priorities(&priorities)];
+        let features = vk::PhysicalDeviceFeatures::default().fragment_stores_and_atomics(true);
         let mut mv = vk::PhysicalDeviceMultiviewFeatures::default().multiview(true);
         let mut dr = vk::PhysicalDeviceDynamicRenderingFeatures::default().dynamic_rendering(true);
-        let mut f2 = vk::PhysicalDeviceFeatures2::default()
-            .features(vk::PhysicalDeviceFeatures::default().fragment_stores_and_atomics(true))
-            .push_next(&mut mv);
-        if opts.rendering == Rendering::Dynamic {
+        let mut f2 = vk::PhysicalDeviceFeatures2::default().features(features).push_next(&mut mv);
+        if dynamic {
             f2 = f2.push_next(&mut dr);
         }
-        let device_info = vk::DeviceCreateInfo::default()
+        let mut device_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_info)
-            .enabled_extension_names(&ext_ptrs)
-            .push_next(&mut f2);
+            .enabled_extension_names(&ext_ptrs);
+        if at_least(1) {
+            device_info = device_info.push_next(&mut f2);
+        } else {
+            device_info = device_info.enabled_features(&features);
+        }
 
         let device = match opts.vulkan {
             VulkanPath::Enable2 => {
@@ -323,6 +369,7 @@ impl Gpu {
         };
         // SAFETY: family/index were requested in the create info.
         self.queue = unsafe { device.get_device_queue(self.queue_family, 0) };
+        // The 2-variants' entry points: core ones from 1.2 / 1.3, else the extensions'.
         self.dynamic_rendering = match (opts.rendering, at_least(3)) {
             (Rendering::Dynamic, true) => Some(DynamicRendering::Core),
             (Rendering::Dynamic, false) => {

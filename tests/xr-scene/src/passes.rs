@@ -158,8 +158,46 @@ impl Passes {
         Ok(fb)
     }
 
+    /// `--secondary`: begins `secondary` (a secondary command buffer) for the contents of the pass
+    /// that `begin` will open on `color`/`depth`: it continues that render pass instance, inheriting
+    /// render pass, subpass 0 and framebuffer (render pass objects) or the attachment formats,
+    /// view mask and sample count (dynamic rendering).
+    pub fn begin_secondary(
+        &mut self,
+        gpu: &Gpu,
+        secondary: vk::CommandBuffer,
+        color: vk::ImageView,
+        depth: vk::ImageView,
+        extent: vk::Extent2D,
+    ) -> Result<()> {
+        let color_formats = [self.format.color];
+        let mut rendering = vk::CommandBufferInheritanceRenderingInfo::default()
+            .view_mask(self.format.view_mask.unwrap_or(0))
+            .color_attachment_formats(&color_formats)
+            .depth_attachment_format(self.format.depth)
+            .stencil_attachment_format(if self.format.has_stencil { self.format.depth } else { vk::Format::UNDEFINED })
+            .rasterization_samples(self.format.samples);
+        let mut inheritance = vk::CommandBufferInheritanceInfo::default();
+        match self.mode {
+            Rendering::RenderPass | Rendering::RenderPass2 => {
+                let fb = self.framebuffer(color, depth, extent)?;
+                inheritance = inheritance.render_pass(self.render_pass).subpass(0).framebuffer(fb);
+            }
+            Rendering::Dynamic => inheritance = inheritance.push_next(&mut rendering),
+        }
+        let info = vk::CommandBufferBeginInfo::default()
+            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT | vk::CommandBufferUsageFlags::RENDER_PASS_CONTINUE)
+            .inheritance_info(&inheritance);
+        // SAFETY: the buffer is a secondary of a pool with RESET_COMMAND_BUFFER, not pending (one
+        // frame in flight, waited on); the inheritance matches the pass `begin` opens.
+        unsafe { gpu.device.begin_command_buffer(secondary, &info) }.ctx("vkBeginCommandBuffer(secondary)")
+    }
+
     /// Opens the pass on `color`/`depth`: colour cleared, depth cleared by the load op (or loaded,
-    /// with `load_depth`).
+    /// with `load_depth`). With `secondary` its contents are secondary command buffers (render
+    /// pass: `VK_SUBPASS_CONTENTS_SECONDARY_COMMAND_BUFFERS`; dynamic rendering:
+    /// `VK_RENDERING_CONTENTS_SECONDARY_COMMAND_BUFFERS_BIT`).
+    #[allow(clippy::too_many_arguments)]
     pub fn begin(
         &mut self,
         gpu: &Gpu,
@@ -168,7 +206,9 @@ impl Passes {
         depth: vk::ImageView,
         extent: vk::Extent2D,
         clear_depth: f32,
+        secondary: bool,
     ) -> Result<()> {
+        let contents = if secondary { vk::SubpassContents::SECONDARY_COMMAND_BUFFERS } else { vk::SubpassContents::INLINE };
         let area = vk::Rect2D { offset: vk::Offset2D::default(), extent };
         let clears = [
             vk::ClearValue { color: vk::ClearColorValue { float32: [0.0, 0.0, 0.0, 1.0] } },
@@ -185,9 +225,9 @@ impl Passes {
                 // SAFETY: recording state; the images are in the layouts the pass expects.
                 unsafe {
                     if self.mode == Rendering::RenderPass {
-                        gpu.device.cmd_begin_render_pass(cmd, &info, vk::SubpassContents::INLINE);
+                        gpu.device.cmd_begin_render_pass(cmd, &info, contents);
                     } else {
-                        let sb = vk::SubpassBeginInfo::default().contents(vk::SubpassContents::INLINE);
+                        let sb = vk::SubpassBeginInfo::default().contents(contents);
                         match gpu.render_pass2.as_ref().expect("render-pass2 loader") {
                             RenderPass2::Core => gpu.device.cmd_begin_render_pass2(cmd, &info, &sb),
                             RenderPass2::Khr(k) => k.cmd_begin_render_pass2(cmd, &info, &sb),
@@ -212,7 +252,9 @@ impl Passes {
                         vk::AttachmentStoreOp::DONT_CARE
                     })
                     .clear_value(clears[1]);
+                let flags = if secondary { vk::RenderingFlags::CONTENTS_SECONDARY_COMMAND_BUFFERS } else { vk::RenderingFlags::empty() };
                 let info = vk::RenderingInfo::default()
+                    .flags(flags)
                     .render_area(area)
                     .layer_count(1)
                     .view_mask(self.format.view_mask.unwrap_or(0))

@@ -15,6 +15,8 @@ const SCENE_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene.vert.s
 const SCENE_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene.frag.spv"));
 const SCENE_MV_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_mv.vert.spv"));
 const SCENE_MV_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_mv.frag.spv"));
+const SCENE_VK10_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_vk10.vert.spv"));
+const SCENE_VK10_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_vk10.frag.spv"));
 
 /// Uniform block `Frame` of the shaders (std140: mat4s and vec4s only, no padding surprises).
 #[repr(C)]
@@ -125,6 +127,9 @@ pub struct Renderer {
     pub pixels: Option<PixelCounters>,
     command_pool: vk::CommandPool,
     cmd: vk::CommandBuffer,
+    /// `--secondary`: one secondary command buffer per pass of a frame (per slot), recorded anew
+    /// every frame with the pass's contents; empty without the flag.
+    secondaries: Vec<vk::CommandBuffer>,
     fence: vk::Fence,
 }
 
@@ -188,13 +193,15 @@ impl Renderer {
             pixels,
             command_pool: vk::CommandPool::null(),
             cmd: vk::CommandBuffer::null(),
+            secondaries: Vec::new(),
             fence: vk::Fence::null(),
         };
-        r.init(opts, gpu)?;
+        r.init(opts, gpu, targets.slots.len() as u32)?;
         Ok(r)
     }
 
-    fn init(&mut self, opts: &Options, gpu: &Gpu) -> Result<()> {
+    /// `passes`: how many passes a frame has (the number of secondaries `--secondary` needs).
+    fn init(&mut self, opts: &Options, gpu: &Gpu, passes: u32) -> Result<()> {
         let d = &gpu.device;
         // SAFETY: plain object creation on a live device; everything is destroyed in Drop.
         unsafe {
@@ -214,6 +221,16 @@ impl Renderer {
                         .command_buffer_count(1),
                 )
                 .ctx("vkAllocateCommandBuffers")?[0];
+            if opts.secondary {
+                self.secondaries = d
+                    .allocate_command_buffers(
+                        &vk::CommandBufferAllocateInfo::default()
+                            .command_pool(self.command_pool)
+                            .level(vk::CommandBufferLevel::SECONDARY)
+                            .command_buffer_count(passes),
+                    )
+                    .ctx("vkAllocateCommandBuffers(secondary)")?;
+            }
             self.fence = d.create_fence(&vk::FenceCreateInfo::default(), None).ctx("vkCreateFence")?;
 
             let bindings = [
@@ -249,9 +266,13 @@ impl Renderer {
                 )
                 .ctx("vkCreatePipelineLayout")?;
 
-            let (vs, fs) = if self.multiview { (SCENE_MV_VERT, SCENE_MV_FRAG) } else { (SCENE_VERT, SCENE_FRAG) };
-            let vert = shader_module(d, vs)?;
-            let frag = match shader_module(d, fs) {
+            let (vs, fs) = match (self.multiview, opts.vulkan_api) {
+                (true, _) => (SCENE_MV_VERT, SCENE_MV_FRAG),
+                (false, crate::cli::VulkanApi::V1_0) => (SCENE_VK10_VERT, SCENE_VK10_FRAG),
+                (false, _) => (SCENE_VERT, SCENE_FRAG),
+            };
+            let vert = shader_module(d, vs, opts.vulkan_api)?;
+            let frag = match shader_module(d, fs, opts.vulkan_api) {
                 Ok(f) => f,
                 Err(e) => {
                     d.destroy_shader_module(vert, None);
@@ -417,16 +438,18 @@ impl Renderer {
                     Layout::SideBySide => vec![0, 1],
                     Layout::Multiview => vec![0],
                 };
+                // Where the pass's contents are recorded: its secondary, or the primary itself.
+                let rec = self.secondaries.get(slot_index).copied().unwrap_or(cmd);
                 let bind = |eye: u32, viewport: bool| {
                     let rect = targets.views[eye as usize];
                     let (x, w) = if self.multiview { (0, extent.width) } else { (rect.offset_x, rect.extent.width) };
                     let h = rect.extent.height;
                     if viewport {
-                        d.cmd_set_viewport(cmd, 0, &[vk::Viewport { x: x as f32, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
-                        d.cmd_set_scissor(cmd, 0, &[vk::Rect2D { offset: vk::Offset2D { x, y: 0 }, extent: vk::Extent2D { width: w, height: h } }]);
+                        d.cmd_set_viewport(rec, 0, &[vk::Viewport { x: x as f32, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
+                        d.cmd_set_scissor(rec, 0, &[vk::Rect2D { offset: vk::Offset2D { x, y: 0 }, extent: vk::Extent2D { width: w, height: h } }]);
                     }
                     d.cmd_bind_descriptor_sets(
-                        cmd,
+                        rec,
                         vk::PipelineBindPoint::GRAPHICS,
                         self.pipeline_layout,
                         0,
@@ -441,12 +464,12 @@ impl Renderer {
                     );
                     let pc = PushConstants { eye, pix_origin_x: x, pix_width: rect.extent.width, pix_height: h, ..self.push };
                     let bytes = std::slice::from_raw_parts(&pc as *const PushConstants as *const u8, std::mem::size_of::<PushConstants>());
-                    d.cmd_push_constants(cmd, self.pipeline_layout, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT, 0, bytes);
+                    d.cmd_push_constants(rec, self.pipeline_layout, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT, 0, bytes);
                 };
                 let bind_buffers = || {
-                    d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
-                    d.cmd_bind_vertex_buffers(cmd, 0, &[self.vertices.buffer], &[0]);
-                    d.cmd_bind_index_buffer(cmd, self.indices.buffer, 0, vk::IndexType::UINT32);
+                    d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+                    d.cmd_bind_vertex_buffers(rec, 0, &[self.vertices.buffer], &[0]);
+                    d.cmd_bind_index_buffer(rec, self.indices.buffer, 0, vk::IndexType::UINT32);
                 };
                 // `--bind-before-pass`: all draw state of a one-draw pass (pipeline and buffers of
                 // any pass) is set before the pass begins — legal, and what a layer that injects
@@ -459,10 +482,16 @@ impl Renderer {
                         bind(draws[0], true);
                     }
                 }
-                self.passes.begin(gpu, cmd, color_view, depth_view, extent, self.clear_depth)?;
+                // `--secondary`: the pass's contents (its clear, binds and draws) go into its own
+                // secondary command buffer, recorded first and executed inside the pass.
+                if let Some(&sec) = self.secondaries.get(slot_index) {
+                    self.passes.begin_secondary(gpu, sec, color_view, depth_view, extent)?;
+                } else {
+                    self.passes.begin(gpu, cmd, color_view, depth_view, extent, self.clear_depth, false)?;
+                }
                 // `--depth-clear attachments`: the pass loaded depth; clearing it is its first command.
                 if self.depth_clear == DepthClear::Attachments {
-                    self.passes.clear_depth_attachment(gpu, cmd, extent, self.clear_depth);
+                    self.passes.clear_depth_attachment(gpu, rec, extent, self.clear_depth);
                 }
                 if !early {
                     bind_buffers();
@@ -472,8 +501,13 @@ impl Renderer {
                         bind(eye, true);
                     }
                     if !self.empty {
-                        d.cmd_draw_indexed(cmd, self.index_count, 1, 0, 0, 0);
+                        d.cmd_draw_indexed(rec, self.index_count, 1, 0, 0, 0);
                     }
+                }
+                if rec != cmd {
+                    d.end_command_buffer(rec).ctx("vkEndCommandBuffer(secondary)")?;
+                    self.passes.begin(gpu, cmd, color_view, depth_view, extent, self.clear_depth, true)?;
+                    d.cmd_execute_commands(cmd, &[rec]);
                 }
                 self.passes.end(gpu, cmd);
             }
@@ -726,8 +760,24 @@ fn image_barrier(
         .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
 }
 
-fn shader_module(d: &ash::Device, bytes: &[u8]) -> Result<vk::ShaderModule> {
+/// The newest SPIR-V a device of this API version accepts (Vulkan 1.0: 1.0, 1.1: 1.3, 1.3: 1.6),
+/// as the header's version word.
+fn max_spirv(api: crate::cli::VulkanApi) -> u32 {
+    match api {
+        crate::cli::VulkanApi::V1_0 => 0x0001_0000,
+        crate::cli::VulkanApi::V1_1 => 0x0001_0300,
+        crate::cli::VulkanApi::V1_3 => 0x0001_0600,
+    }
+}
+
+fn shader_module(d: &ash::Device, bytes: &[u8], api: crate::cli::VulkanApi) -> Result<vk::ShaderModule> {
     let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes)).ctx("reading SPIR-V")?;
+    // Checked here too, so that a run without `--validation` fails as well (the validation layer
+    // reports it as UNASSIGNED-CoreValidation-Shader-InconsistentSpirv).
+    let version = words.get(1).copied().unwrap_or(u32::MAX);
+    if version > max_spirv(api) {
+        return Err(Error(format!("internal: a shader's SPIR-V version {version:#x} is too new for Vulkan 1.{}", api.minor())));
+    }
     // SAFETY: valid SPIR-V produced by glslangValidator at build time.
     unsafe { d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }.ctx("vkCreateShaderModule")
 }
