@@ -299,6 +299,11 @@ fn vulkan2_masked_index_hmd() {
     check_masked("Vulkan2", "index");
 }
 
+#[test]
+fn vulkan_masked_index_hmd() {
+    check_masked("Vulkan", "index");
+}
+
 /// Mask and radial density masking together, both plugins: from frame 1 on both eye passes are
 /// masked and RDM-applied (one reconstruction per view), and validation stays silent.
 #[test]

@@ -1,6 +1,9 @@
 //! Minimal action system: enough of xrCreateActionSet … xrSyncActions … xrGetActionState* and
 //! action spaces for an app's menu button and eye gaze (XR_EXT_eye_gaze_interaction), with the
 //! spec's errors for misuse. Input is scripted by MOCK_XR_MENU_CLICK_AT and MOCK_XR_GAZE.
+//! Suggested bindings are checked against every interaction profile of the spec (profiles.rs),
+//! so real apps that suggest several profiles run; only the simple controller and eye gaze are
+//! driven, bindings to the others are accepted and stay inactive.
 
 use std::collections::HashMap;
 use std::ffi::c_char;
@@ -54,31 +57,41 @@ enum Source {
     Haptic,
 }
 
-/// Whether `a` holds on `inst` (its apiVersion, its enabled extensions).
-fn avail_ok(inst: &Instance, a: &Avail) -> bool {
-    match *a {
-        Avail::Core(major, minor) => {
-            let v = inst.api_version;
-            (v.major(), v.minor()) >= (major, minor)
+/// What decides which profiles and components exist: the instance's apiVersion (major, minor)
+/// and its enabled extensions.
+struct Has<'a> {
+    version: (u16, u16),
+    extension: &'a dyn Fn(&str) -> bool,
+}
+
+impl Has<'_> {
+    fn ok(&self, a: &Avail) -> bool {
+        match *a {
+            Avail::Core(major, minor) => self.version >= (major, minor),
+            Avail::Ext(e) => (self.extension)(e),
         }
-        Avail::Ext(e) => inst.extension_enabled(e),
     }
 }
 
 /// The valid binding paths of `profile` on `inst` (top-level user path + component subpath) and
 /// their kinds; None when the profile does not exist there (`XR_ERROR_PATH_UNSUPPORTED`).
 fn profile_paths(profile: &str, inst: &Instance) -> Option<Vec<(String, Kind)>> {
+    let v = inst.api_version;
+    profile_paths_with(profile, &Has { version: (v.major(), v.minor()), extension: &|e| inst.extension_enabled(e) })
+}
+
+fn profile_paths_with(profile: &str, has: &Has) -> Option<Vec<(String, Kind)>> {
     if profile == EYE_GAZE_PROFILE {
-        return inst.extension_enabled(EXT_EYE_GAZE).then(|| vec![(GAZE_POSE.to_string(), Kind::Pose)]);
+        return (has.extension)(EXT_EYE_GAZE).then(|| vec![(GAZE_POSE.to_string(), Kind::Pose)]);
     }
     let p = PROFILES.iter().find(|p| p.path == profile)?;
-    if !p.avail.iter().any(|a| avail_ok(inst, a)) {
+    if !p.avail.iter().any(|a| has.ok(a)) {
         return None;
     }
     let mut out = Vec::new();
     for up in p.user_paths {
         for c in p.components {
-            if c.user_path.is_some_and(|u| u != *up) || !(c.extra.is_empty() || c.extra.iter().any(|a| avail_ok(inst, a))) {
+            if c.user_path.is_some_and(|u| u != *up) || !(c.extra.is_empty() || c.extra.iter().any(|a| has.ok(a))) {
                 continue;
             }
             out.push((format!("{up}{}", c.subpath), c.kind));
@@ -706,5 +719,32 @@ mod tests {
         let touch = PROFILES.iter().find(|p| p.path == "/interaction_profiles/oculus/touch_controller").unwrap();
         let x = touch.components.iter().find(|c| c.subpath == "/input/x/click").unwrap();
         assert_eq!(x.user_path, Some("/user/hand/left"));
+    }
+
+    #[test]
+    fn profiles_by_version_and_extension() {
+        let none = |_: &str| false;
+        let hp = |e: &str| e == "XR_EXT_hp_mixed_reality_controller";
+        let v10 = Has { version: (1, 0), extension: &none };
+        let v11 = Has { version: (1, 1), extension: &none };
+        let v10_hp = Has { version: (1, 0), extension: &hp };
+        let paths = |p: &str, h: &Has| profile_paths_with(&format!("/interaction_profiles/{p}"), h).map(|v| v.into_iter().map(|(p, _)| p).collect::<Vec<_>>());
+        let index = paths("valve/index_controller", &v10).unwrap();
+        assert_eq!(index.len(), 2 * 24);
+        assert!(!index.iter().any(|p| p.ends_with("grip_surface/pose")));
+        let index = paths("valve/index_controller", &v11).unwrap();
+        assert!(index.contains(&"/user/hand/right/input/grip_surface/pose".to_string()));
+        assert_eq!(paths("meta/touch_controller_quest_2", &v10), None);
+        assert!(paths("meta/touch_controller_quest_2", &v11).unwrap().contains(&"/user/hand/left/input/x/click".to_string()));
+        assert_eq!(paths("hp/mixed_reality_controller", &v10), None);
+        let hp10 = paths("hp/mixed_reality_controller", &v10_hp).unwrap();
+        // Through the extension on a 1.0 instance: without 1.1's grip_surface.
+        assert!(hp10.contains(&"/user/hand/left/input/x/click".to_string()) && !hp10.iter().any(|p| p.ends_with("grip_surface/pose")));
+        assert!(paths("hp/mixed_reality_controller", &v11).unwrap().iter().any(|p| p.ends_with("grip_surface/pose")));
+        assert_eq!(paths("facebook/touch_controller_pro", &v11), None);
+        assert_eq!(paths("ext/eye_gaze_interaction", &v11), None);
+        assert_eq!(paths("ext/eye_gaze_interaction", &Has { version: (1, 0), extension: &|e: &str| e == EXT_EYE_GAZE }).unwrap(), [GAZE_POSE]);
+        let vive_pro = paths("htc/vive_pro", &v10).unwrap();
+        assert_eq!(vive_pro, ["/user/head/input/system/click", "/user/head/input/volume_up/click", "/user/head/input/volume_down/click", "/user/head/input/mute_mic/click"]);
     }
 }
