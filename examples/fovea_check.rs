@@ -250,20 +250,13 @@ fn run_hello_xr(r: &Run, plugin: &str) -> RunOutput {
     let dir = common::output_dir(&r.name);
     let capture = dir.join("capture");
     let mut cmd = Command::new("hello_xr");
+    common::isolate(&mut cmd, &dir, &capture, r.layer);
     cmd.args(["-g", plugin])
-        .env("XR_RUNTIME_JSON", common::runtime_manifest())
-        .env("MOCK_XR_CAPTURE", &capture)
-        .env_remove("XR_ENABLE_API_LAYERS")
-        .env_remove("XR_API_LAYER_PATH")
-        .env("XDG_RUNTIME_DIR", dir.join("run"))
-        .env("XDG_CONFIG_HOME", dir.join("config"))
-        .env("XDG_STATE_HOME", dir.join("state"))
+        // hello_xr writes its validation layer's cache here (a stale cache hides errors).
+        .env("HOME", &dir)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
-    if r.layer {
-        cmd.env("XR_API_LAYER_PATH", common::layer_manifest_dir()).env("XR_ENABLE_API_LAYERS", common::XR_LAYER_NAME);
-    }
     for (k, v) in &r.env {
         cmd.env(k, v);
     }

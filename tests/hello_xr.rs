@@ -63,31 +63,18 @@ fn run(name: &str, plugin: &str, layer: bool, env: &[(&str, &str)]) -> HelloRun 
     let capture = dir.join("capture");
     let stats_file = dir.join("layer-stats.jsonl");
     let mut cmd = Command::new(hello_xr_exe());
+    common::isolate(&mut cmd, &dir, &capture, layer);
     cmd.args(["-g", plugin])
         // Runtime diagnostics: every OpenXR call the mock refuses is logged ("xrFunc -> ERROR_…").
         .env("MOCK_XR_LOG", "1")
-        .env("XR_RUNTIME_JSON", common::runtime_manifest())
-        .env("MOCK_XR_CAPTURE", &capture)
         .env("MOCK_XR_EXIT_AFTER", FRAMES.to_string())
-        // Nothing from the developer's own setup may leak into a test.
-        .env_remove("XR_ENABLE_API_LAYERS")
-        .env_remove("XR_API_LAYER_PATH")
-        .env_remove("VK_INSTANCE_LAYERS")
-        .env_remove("VK_ADD_LAYER_PATH")
-        .env_remove("STEREOSHIM_CONFIG")
-        .env("XDG_RUNTIME_DIR", dir.join("run"))
-        .env("XDG_DATA_HOME", dir.join("data"))
-        .env("XDG_CONFIG_HOME", dir.join("config"))
-        .env("XDG_STATE_HOME", dir.join("state"))
         // hello_xr writes its validation layer's cache here.
         .env("HOME", &dir)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
     if layer {
-        cmd.env("XR_API_LAYER_PATH", common::layer_manifest_dir())
-            .env("XR_ENABLE_API_LAYERS", common::XR_LAYER_NAME)
-            .env("STEREOSHIM_MASK_ENABLED", "1")
+        cmd.env("STEREOSHIM_MASK_ENABLED", "1")
             .env("STEREOSHIM_STATS_FILE", &stats_file);
     }
     for (k, v) in env {

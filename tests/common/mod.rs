@@ -130,22 +130,7 @@ impl Run {
         if self.pixel_stats {
             cmd.arg("--pixel-stats").arg(dir.join("pixel-stats"));
         }
-        cmd.env("XR_RUNTIME_JSON", runtime_manifest())
-            .env("MOCK_XR_CAPTURE", &capture)
-            // Nothing from the developer's own setup may leak into a test.
-            .env_remove("XR_ENABLE_API_LAYERS")
-            .env_remove("XR_API_LAYER_PATH")
-            .env_remove("VK_INSTANCE_LAYERS")
-            .env_remove("VK_ADD_LAYER_PATH")
-            .env_remove("STEREOSHIM_CONFIG")
-            // Per-run folders: the generated Vulkan manifest goes to $XDG_RUNTIME_DIR.
-            .env("XDG_RUNTIME_DIR", dir.join("run"))
-            .env("XDG_DATA_HOME", dir.join("data"))
-            .env("XDG_CONFIG_HOME", dir.join("config"))
-            .env("XDG_STATE_HOME", dir.join("state"));
-        if self.layer {
-            cmd.env("XR_API_LAYER_PATH", layer_manifest_dir()).env("XR_ENABLE_API_LAYERS", XR_LAYER_NAME);
-        }
+        isolate(&mut cmd, &dir, &capture, self.layer);
         for (k, v) in &self.env {
             cmd.env(k, v);
         }
@@ -162,6 +147,28 @@ impl Run {
             .map(|b| serde_json::from_slice::<Stats>(&b).expect("stats.json parses"));
         let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
         RunOutput { name: self.name.clone(), code: out.status.code(), stderr, capture, frames, stats, elapsed, log }
+    }
+}
+
+/// Prepares an app's command for one run in `dir`: the mock runtime capturing into `capture`,
+/// nothing from the developer's own setup (layers, layer paths, config) leaking in, per-run XDG
+/// folders (the generated Vulkan manifest goes to `$XDG_RUNTIME_DIR`, the layer's log to
+/// `$XDG_STATE_HOME`), and stereoshim as an explicit API layer when `layer`. Shared by every
+/// launcher (xr-scene's `Run`, hello_xr's), so none can drift.
+pub fn isolate(cmd: &mut Command, dir: &Path, capture: &Path, layer: bool) {
+    cmd.env("XR_RUNTIME_JSON", runtime_manifest())
+        .env("MOCK_XR_CAPTURE", capture)
+        .env_remove("XR_ENABLE_API_LAYERS")
+        .env_remove("XR_API_LAYER_PATH")
+        .env_remove("VK_INSTANCE_LAYERS")
+        .env_remove("VK_ADD_LAYER_PATH")
+        .env_remove("STEREOSHIM_CONFIG")
+        .env("XDG_RUNTIME_DIR", dir.join("run"))
+        .env("XDG_DATA_HOME", dir.join("data"))
+        .env("XDG_CONFIG_HOME", dir.join("config"))
+        .env("XDG_STATE_HOME", dir.join("state"));
+    if layer {
+        cmd.env("XR_API_LAYER_PATH", layer_manifest_dir()).env("XR_ENABLE_API_LAYERS", XR_LAYER_NAME);
     }
 }
 
