@@ -19,8 +19,8 @@ mod common;
 
 use common::image;
 use common::{Fov, Run, RunOutput};
-use stereoshim::mask::PixelRect;
-use stereoshim::rdm::RdmParams;
+use stereoshim::core::rect::PixelRect;
+use stereoshim::features::foveation::rdm::rules::RdmParams;
 use stereoshim::shared::{FoveaView, ViewFov};
 
 /// With the hidden-area mask: how far from its outline the periphery PSNR starts (the filter reads

@@ -4,7 +4,8 @@
 //! gaze each frame where the app locates its views. The app's own actions are untouched.
 
 use super::session::{self, Session};
-use crate::foveation::{self, CenterSource, GazeFilter};
+use crate::core::fovea;
+use crate::features::foveation::rules::{CenterSource, GazeFilter};
 use crate::guard;
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
@@ -39,10 +40,8 @@ fn fixed<const N: usize>(s: &str) -> [c_char; N] {
 /// and the config at attach time asks for eye-tracked foveation.
 fn wanted(s: &Session) -> bool {
     let inst = &s.instance;
-    let config = crate::shared::shared().config().unwrap_or_else(|| inst.config.clone());
-    inst.layer_extensions.iter().any(|e| e == super::EYE_GAZE_EXT)
-        && config.bool("foveation.enabled")
-        && config.choice("foveation.eye_tracking") == "auto"
+    let settings = super::settings(inst);
+    inst.layer_extensions.iter().any(|e| e == super::EYE_GAZE_EXT) && settings.foveation.enabled && settings.foveation.eye_tracking
 }
 
 /// Creates the action set, the pose action, its binding suggestion and its space. Any failure
@@ -220,8 +219,8 @@ pub(super) unsafe extern "system" fn sync_actions(session: xr::Session, sync_inf
 /// view's gaze policy. Views without a usable sample run the policy with `None` (hold, then the
 /// optical axis).
 pub(crate) fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
-    let config = crate::shared::shared().config().unwrap_or_else(|| s.instance.config.clone());
-    let tracked = config.bool("foveation.enabled") && config.choice("foveation.eye_tracking") == "auto";
+    let settings = super::settings(&s.instance);
+    let tracked = settings.foveation.enabled && settings.foveation.eye_tracking;
     let space = s.gaze.actions.lock().unwrap_or_else(|e| e.into_inner()).as_ref().map(|g| g.space);
     let direction = match (tracked, space, s.instance.next.locate_space) {
         (true, Some(space), Some(locate)) => {
@@ -236,7 +235,7 @@ pub(crate) fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View])
             let valid = xr::SpaceLocationFlags::ORIENTATION_VALID | xr::SpaceLocationFlags::ORIENTATION_TRACKED;
             (r == xr::Result::SUCCESS && loc.location_flags.contains(valid)).then(|| {
                 let q = loc.pose.orientation;
-                foveation::forward([q.x, q.y, q.z, q.w])
+                fovea::forward([q.x, q.y, q.z, q.w])
             })
         }
         _ => None,
@@ -244,12 +243,12 @@ pub(crate) fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View])
     let mut filters = s.gaze.filters.lock().unwrap_or_else(|e| e.into_inner());
     filters.resize_with(views.len(), GazeFilter::default);
     let mut source = CenterSource::Fixed;
-    let centers: Vec<foveation::Tangent> = views
+    let centers: Vec<fovea::Tangent> = views
         .iter()
         .zip(filters.iter_mut())
         .map(|(v, f)| {
             let q = v.pose.orientation;
-            let sample = direction.and_then(|d| foveation::gaze_in_view([q.x, q.y, q.z, q.w], d));
+            let sample = direction.and_then(|d| fovea::gaze_in_view([q.x, q.y, q.z, q.w], d));
             let (c, src) = f.update(sample, info.display_time.as_nanos());
             source = src;
             c

@@ -179,6 +179,12 @@ pub(crate) struct XrState {
     pub swapchains: HandleMap<u64, swapchain::Swapchain>,
 }
 
+/// The live settings (published with the config at instance creation and on every reload), else
+/// those of the instance's own config.
+pub(crate) fn settings(inst: &Instance) -> std::sync::Arc<crate::settings::Settings> {
+    crate::settings::current().unwrap_or_else(|| std::sync::Arc::new(crate::settings::Settings::from_config(&inst.config)))
+}
+
 pub(crate) fn state() -> &'static XrState {
     static STATE: OnceLock<XrState> = OnceLock::new();
     STATE.get_or_init(XrState::default)

@@ -39,7 +39,7 @@ pub(crate) struct Session {
     /// before that from located views.
     pub fov_submitted: AtomicBool,
     /// Fovea centre per view from the gaze policy (empty: optical axis).
-    pub gaze_centers: Mutex<Vec<crate::foveation::Tangent>>,
+    pub gaze_centers: Mutex<Vec<crate::core::fovea::Tangent>>,
     /// The layer's own eye-gaze action objects and policy state.
     pub gaze: super::gaze::Gaze,
     /// Whether the Vulkan half tracks the session's device (it can act on nothing otherwise).
@@ -107,28 +107,32 @@ fn runtime_mask(s: &Session, view: u32) -> Option<Vec<[f32; 2]>> {
 /// Publishes this frame's foveation from the live config: rings from the preset or angles, centres
 /// from the gaze policy (the optical axis without eye tracking). An empty list when it is off.
 pub(crate) fn refresh_foveation(s: &Session) {
-    let config = crate::shared::shared().config().unwrap_or_else(|| s.instance.config.clone());
-    if !config.bool("foveation.enabled") {
+    let settings = super::settings(&s.instance);
+    if !settings.foveation.enabled {
         crate::shared::shared().update_foveation(Vec::new());
         return;
     }
-    let rings = crate::foveation::Rings::from_config(&config);
+    let rings = settings.foveation.rings;
     let centers = s.gaze_centers.lock().unwrap_or_else(|e| e.into_inner()).clone();
     let centers = if centers.len() == STEREO_VIEWS as usize { centers } else { vec![[0.0, 0.0]; STEREO_VIEWS as usize] };
-    if crate::shared::shared().update_foveation(crate::foveation::fovea_views(&centers, rings)) {
+    if crate::shared::shared().update_foveation(crate::features::foveation::rules::fovea_views(&centers, rings)) {
         tracing::debug!("foveation: centres {centers:?}, rings {rings:?}");
     }
 }
 
 /// (Re)publishes the hidden-area masks of all views when they are due.
 pub(crate) fn refresh_masks(s: &Session) {
-    let config = crate::shared::shared().config().unwrap_or_else(|| s.instance.config.clone());
-    if !config.bool("mask.enabled") || !s.masks_dirty.swap(false, Ordering::AcqRel) {
+    let settings = super::settings(&s.instance);
+    if !settings.mask.enabled || !s.masks_dirty.swap(false, Ordering::AcqRel) {
         return;
     }
-    let policy = SourcePolicy::from_config(config.choice("mask.source"));
-    let radius = config.float("mask.synthesized.radius_deg");
-    let lens = LensShape { horizontal_deg: radius, vertical_deg: (radius * config.float("mask.synthesized.aspect")).min(89.0) };
+    let policy = match settings.mask.source {
+        crate::features::mask::SourceSetting::Runtime => SourcePolicy::Runtime,
+        crate::features::mask::SourceSetting::Synthesized => SourcePolicy::Synthesized,
+        crate::features::mask::SourceSetting::Auto => SourcePolicy::Auto,
+    };
+    let radius = settings.mask.synthesized_radius_deg;
+    let lens = LensShape { horizontal_deg: radius, vertical_deg: (radius * settings.mask.synthesized_aspect).min(89.0) };
     let mut masks = Vec::new();
     for view in 0..STEREO_VIEWS {
         match mask_source::choose(policy, runtime_mask(s, view), &lens) {
@@ -206,8 +210,8 @@ pub(super) unsafe extern "system" fn create_session(
             ),
             None => tracing::warn!("session {:#x} has no Vulkan binding: nothing to do for it", handle.into_raw()),
         }
-        let config = crate::shared::shared().config().unwrap_or_else(|| inst.config.clone());
-        if binding.is_some() && !vulkan_half && (config.bool("mask.enabled") || config.bool("foveation.enabled")) {
+        let settings = super::settings(&inst);
+        if binding.is_some() && !vulkan_half && (settings.mask.enabled || settings.foveation.enabled) {
             tracing::warn!(
                 "the hidden-area mask / foveation is enabled, but stereoshim's Vulkan layer is not in the app's Vulkan \
                  device, so nothing will be applied. Likely causes: the app created its VkInstance before asking the \
