@@ -9,7 +9,6 @@ pub mod frame_stats;
 pub mod guard;
 pub mod log;
 pub mod manifest;
-pub mod mask_source;
 pub mod notices;
 pub mod registry;
 pub mod settings;

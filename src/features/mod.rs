@@ -17,7 +17,16 @@ use crate::core::stats::FrameStats;
 /// `VkFeature` and `Plugin`. Generates the per-device feature set, the config keys and the empty
 /// statistics of a frame.
 macro_rules! registry {
-    ($($field:ident: $ty:ty,)*) => {
+    (vulkan { $($field:ident: $ty:ty,)* } openxr { $($xfield:ident: $xty:path => $xsession:ty,)* }) => {
+        /// Every OpenXR feature object, in registry order.
+        pub(crate) static XR_FEATURES: &[&dyn crate::xr::feature::XrFeature] = &[$(&$xty,)*];
+
+        /// One session's per-feature state (OpenXR side).
+        #[derive(Debug, Default)]
+        pub(crate) struct XrSessionFeatures {
+            $(pub(crate) $xfield: $xsession,)*
+        }
+
         /// One device's feature objects, in registry order.
         pub(crate) struct DeviceFeatures {
             $(pub(crate) $field: $ty,)*
@@ -53,7 +62,13 @@ macro_rules! registry {
 }
 
 registry! {
-    mask: mask::vk::MaskDevice,
-    rdm: foveation::rdm::vk::RdmDevice,
-    vrs: foveation::vrs::vk::VrsDevice,
+    vulkan {
+        mask: mask::vk::MaskDevice,
+        rdm: foveation::rdm::vk::RdmDevice,
+        vrs: foveation::vrs::vk::VrsDevice,
+    }
+    openxr {
+        mask: mask::xr::MaskXr => mask::xr::MaskSession,
+        foveation: foveation::xr::FoveationXr => foveation::xr::FoveationSession,
+    }
 }

@@ -50,6 +50,11 @@ pub(crate) fn hold(d: &DeviceState, cb: u64, h: Hold) {
     lock(&d.lifetime.lifetimes).hold(cb, h);
 }
 
+/// Whether a submission of `cb`'s current recording may still be executing.
+pub(crate) fn in_flight(d: &DeviceState, cb: u64) -> bool {
+    lock(&d.lifetime.lifetimes).in_flight(cb)
+}
+
 /// Runs `f` over the holds of `cb`'s current recording (in recording order).
 pub(crate) fn with_holds(d: &DeviceState, cb: u64, f: impl FnOnce(&[Hold])) {
     let holds: Vec<Hold> = lock(&d.lifetime.lifetimes).holds_of(cb).to_vec();

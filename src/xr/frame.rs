@@ -24,8 +24,9 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
         let r = down.call(plain);
         // The app records its eye passes after this; masks must be there by then.
         if let (Some(s), true) = (&sess, r.into_raw() >= 0) {
-            session::refresh_masks(s);
-            session::refresh_foveation(s);
+            for f in crate::features::XR_FEATURES {
+                f.frame_begun(s);
+            }
         }
         Ok(r)
     }, plain)
@@ -45,7 +46,7 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
             .sessions
             .values()
             .into_iter()
-            .find_map(|(_, s)| *s.gaze.source.lock().unwrap_or_else(|e| e.into_inner()))
+            .find_map(|(_, s)| *s.features.foveation.gaze.source.lock().unwrap_or_else(|e| e.into_inner()))
             .or(Some(crate::features::foveation::rules::CenterSource::Fixed))
             .map(|src| format!("{src:?}"))
     };
@@ -85,9 +86,9 @@ fn reload_config(inst: &super::Instance) {
         return;
     }
     tracing::info!("config reloaded, changed: {changed:?} (features apply from the next frame; `enabled` and `log.level` only at start)");
-    if changed.iter().any(|k| k.starts_with("mask.")) {
-        for (_, s) in super::state().sessions.values() {
-            s.masks_dirty.store(true, Ordering::Release);
+    for (_, s) in super::state().sessions.values() {
+        for f in crate::features::XR_FEATURES {
+            f.config_reloaded(&s, &changed);
         }
     }
     shared.set_config(std::sync::Arc::new(config));

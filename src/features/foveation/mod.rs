@@ -5,6 +5,7 @@
 pub mod rdm;
 pub mod rules;
 pub mod vrs;
+pub(crate) mod xr;
 
 use crate::config::{Config, Kind, KeySpec};
 pub use rules::Rings;

@@ -2,7 +2,9 @@
 //! the pure geometry and statistics; `vk` draws the mask's depth at the chassis' injection point.
 
 pub mod rules;
+pub mod source;
 pub(crate) mod vk;
+pub(crate) mod xr;
 
 use crate::config::{Config, Kind, KeySpec};
 

@@ -54,8 +54,6 @@ fn vertex_layout() -> (u32, Vec<vk::VertexInputAttributeDescription>) {
     )
 }
 
-/// (foveation generation, views generation, the eyes (view, rect) in draw order).
-type BufferKey = (u64, u64, Vec<(u32, PixelRect)>);
 
 
 /// One eye of an image whose skipped quads await reconstruction.
@@ -71,8 +69,6 @@ pub(crate) struct Pending {
 pub(super) struct Books {
     frame: RdmFrameStats,
     total: RdmFrameStats,
-    /// Draw buffers of the current generations, by key (recordings hold them too).
-    buffers: Vec<(BufferKey, Arc<HostBuffer>)>,
     /// Image (swapchain or intermediate) → eyes drawn with RDM since it was last released / copied.
     pub(super) pending: HashMap<u64, Vec<Pending>>,
     counts: HashMap<(u64, u64, u32, PixelRect, PixelRect), SkipCount>,
@@ -125,13 +121,83 @@ impl RdmDevice {
     }
 }
 
-/// What a recording did that reconstruction depends on, applied to the pending books when the
-/// command buffer is submitted (in recording order).
-enum Recorded {
-    /// The checkerboard was drawn on these eyes of `image`.
-    Drawn { image: u64, eyes: Vec<Pending> },
-    /// The app transferred `src` into `dst`.
-    Transfer { src: u64, dst: u64, regions: Vec<TransferRegion> },
+/// The app transferred `src` into `dst` in a recording: applied to the pending books when the
+/// command buffer is submitted, in recording order with the draws.
+struct Transfer {
+    src: u64,
+    dst: u64,
+    regions: Vec<TransferRegion>,
+}
+
+/// One recorded checkerboard draw: its vertex buffer (the rule's parameters per eye) and the eyes
+/// of `image` it leaves to reconstruct. Refilled for the current fovea before a submission when
+/// the recording is idle, so a command buffer recorded once follows the gaze.
+struct Drawn {
+    buffer: Option<HostBuffer>,
+    image: u64,
+    eyes: Vec<EyeDraw>,
+    /// (foveation generation, views generation) the buffer holds, and its eyes' parameters.
+    state: Mutex<((u64, u64), Vec<Pending>)>,
+    pool: Arc<Mutex<Vec<HostBuffer>>>,
+}
+
+impl Drop for Drawn {
+    fn drop(&mut self) {
+        if let Some(b) = self.buffer.take() {
+            b.recycle(&self.pool);
+        }
+    }
+}
+
+/// (foveation generation, views generation) and every eye's rule parameters under them.
+type EyeParams = ((u64, u64), Vec<(EyeDraw, RdmParams)>);
+
+/// The rule's parameters of `eyes` under the current fovea and FOVs.
+fn params_now(eyes: &[EyeDraw]) -> Result<EyeParams, NotApplied> {
+    let fovea = shared().foveation();
+    let views = shared().views();
+    let mut out = Vec::new();
+    for dr in eyes {
+        let f = fovea.views.iter().find(|f| f.view == dr.view).ok_or(NotApplied::NoFovea)?;
+        let fov = views.fovs.get(dr.view as usize).ok_or(NotApplied::NoFovea)?;
+        out.push((*dr, RdmParams::new(fov, f, dr.viewport).ok_or(NotApplied::NoFovea)?));
+    }
+    if out.is_empty() {
+        return Err(NotApplied::NoFovea);
+    }
+    Ok(((fovea.generation, views.generation), out))
+}
+
+/// One full-viewport triangle per eye, carrying the eye's parameters.
+fn vertices(eyes: &[(EyeDraw, RdmParams)]) -> Vec<Vertex> {
+    let tri = [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]];
+    eyes.iter()
+        .flat_map(|(dr, p)| {
+            tri.iter().map(move |&pos| Vertex {
+                pos,
+                view: dr.view,
+                origin: [p.rect.x, p.rect.y],
+                tan: [p.tan_left, p.tan_up, p.step_x, p.step_y],
+                fovea: [p.center[0], p.center[1], p.k_inner, p.k_middle],
+            })
+        })
+        .collect()
+}
+
+impl Drawn {
+    /// Refills the buffer for the current generations when it holds older ones (the recording
+    /// must be idle); keeps what it has when the fovea is momentarily unknown.
+    fn refresh(&self) {
+        let mut st = lock(&self.state);
+        let now = (shared().foveation().generation, shared().views().generation);
+        if st.0 == now {
+            return;
+        }
+        let (Ok((generations, eyes)), Some(buffer)) = (params_now(&self.eyes), &self.buffer) else { return };
+        if buffer.write(0, &vertices(&eyes)) {
+            *st = (generations, eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect());
+        }
+    }
 }
 
 impl VkFeature for RdmDevice {
@@ -165,7 +231,7 @@ impl VkFeature for RdmDevice {
     }
     fn transfer(&self, d: &DeviceState, cb: vk::CommandBuffer, src: u64, dst: u64, regions: &[TransferRegion]) {
         if self.injects(&d.settings()) {
-            lifetime::hold(d, ash::vk::Handle::as_raw(cb), Arc::new(Recorded::Transfer { src, dst, regions: regions.to_vec() }));
+            lifetime::hold(d, ash::vk::Handle::as_raw(cb), Arc::new(Transfer { src, dst, regions: regions.to_vec() }));
         }
     }
     fn destroyed(&self, _d: &DeviceState, what: Destroyed) {
@@ -175,19 +241,22 @@ impl VkFeature for RdmDevice {
     }
     fn before_submit(&self, d: &DeviceState, cbs: &[u64]) {
         for &cb in cbs {
+            let idle = !lifetime::in_flight(d, cb);
             lifetime::with_holds(d, cb, |holds| {
                 for h in holds {
-                    match h.downcast_ref::<Recorded>() {
-                        Some(Recorded::Drawn { image, eyes }) => {
-                            let mut books = lock(&self.books);
-                            let list = books.pending.entry(*image).or_default();
-                            for p in eyes {
-                                list.retain(|x| !(x.layer == p.layer && x.params.rect == p.params.rect));
-                                list.push(*p);
-                            }
+                    if let Some(drawn) = h.downcast_ref::<Drawn>() {
+                        if idle {
+                            drawn.refresh();
                         }
-                        Some(Recorded::Transfer { src, dst, regions }) => on_transfer(self, d, *src, *dst, regions),
-                        None => {}
+                        let eyes = lock(&drawn.state).1.clone();
+                        let mut books = lock(&self.books);
+                        let list = books.pending.entry(drawn.image).or_default();
+                        for p in eyes {
+                            list.retain(|x| !(x.layer == p.layer && x.params.rect == p.params.rect));
+                            list.push(p);
+                        }
+                    } else if let Some(t) = h.downcast_ref::<Transfer>() {
+                        on_transfer(self, d, t.src, t.dst, &t.regions);
                     }
                 }
             });
@@ -197,7 +266,6 @@ impl VkFeature for RdmDevice {
         super::reconstruct::before_release(self, d, family, queue_index, swapchain, image_index);
     }
     fn destroy(&self, d: &DeviceState) {
-        lock(&self.books).buffers.clear();
         self.reconstruct.destroy(d);
     }
 }
@@ -212,17 +280,7 @@ pub(super) fn log_once(me: &RdmDevice, key: String, f: impl FnOnce()) {
 /// restores the app's state); which eyes await reconstruction is applied at submission.
 fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<(), NotApplied> {
     let plan = at.plan;
-    let fovea = shared().foveation();
-    let views = shared().views();
-    let mut eyes: Vec<(EyeDraw, RdmParams)> = Vec::new();
-    for dr in &plan.draws {
-        let f = fovea.views.iter().find(|f| f.view == dr.view).ok_or(NotApplied::NoFovea)?;
-        let fov = views.fovs.get(dr.view as usize).ok_or(NotApplied::NoFovea)?;
-        eyes.push((*dr, RdmParams::new(fov, f, dr.viewport).ok_or(NotApplied::NoFovea)?));
-    }
-    if eyes.is_empty() {
-        return Err(NotApplied::NoFovea);
-    }
+    let ((fovea_generation, views_generation), eyes) = params_now(&plan.draws)?;
     let pass = pipeline::pass_key(d, at.pass, plan).ok_or(NotApplied::LayerError)?;
     let key = pipeline::PipelineKey { feature: me.id(), variant: 0, pass };
     let p = pipeline::get(d, &key, || {
@@ -237,11 +295,21 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
             NotApplied::LayerError
         }
     })?;
-    let bkey: BufferKey = (fovea.generation, views.generation, eyes.iter().map(|(dr, _)| (dr.view, dr.viewport)).collect());
-    let buffer = draw_buffer(me, d, &bkey, &eyes).map_err(|e| {
+    let vertices = vertices(&eyes);
+    let buffer = HostBuffer::take(d, std::mem::size_of_val(&vertices[..]) as u64, &me.memory).map_err(|e| {
         tracing::warn!("rdm vertex buffer: {e}");
         NotApplied::LayerError
     })?;
+    buffer.write(0, &vertices);
+    let pending = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
+    let drawn = Arc::new(Drawn {
+        image: plan.image,
+        eyes: plan.draws.clone(),
+        state: Mutex::new(((fovea_generation, views_generation), pending)),
+        buffer: Some(buffer),
+        pool: d.lifetime.buffers.clone(),
+    });
+    let vk_buffer = drawn.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
     let cb = at.cb;
     let fns = d.fns.fp_v1_0();
     let viewport = |r: PixelRect| inject::fail_viewport(r, plan.fail_depth);
@@ -250,7 +318,7 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     // and its submissions complete.
     unsafe {
         (fns.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::GRAPHICS, p);
-        (fns.cmd_bind_vertex_buffers)(cb, 0, 1, &buffer.buffer, &0);
+        (fns.cmd_bind_vertex_buffers)(cb, 0, 1, &vk_buffer, &0);
         if plan.layout == EyeLayout::Multiview {
             let dr = plan.draws[0];
             (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
@@ -264,10 +332,8 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
             }
         }
     }
-    lifetime::hold(d, at.owner, buffer);
-    let drawn = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
-    lifetime::hold(d, at.owner, Arc::new(Recorded::Drawn { image: plan.image, eyes: drawn }));
-    let counts: Vec<(u32, SkipCount)> = eyes.iter().map(|(dr, p)| (dr.view, count(me, fovea.generation, views.generation, dr, p))).collect();
+    lifetime::hold(d, at.owner, drawn);
+    let counts: Vec<(u32, SkipCount)> = eyes.iter().map(|(dr, p)| (dr.view, count(me, fovea_generation, views_generation, dr, p))).collect();
     me.count(|s| {
         s.passes += 1;
         for (view, c) in &counts {
@@ -302,40 +368,6 @@ fn count(me: &RdmDevice, fovea_gen: u64, views_gen: u64, dr: &EyeDraw, p: &RdmPa
     }
     books.counts.insert(k, c);
     c
-}
-
-/// The vertex buffer for these eyes under the current generations, built on first use. The cache
-/// keeps those of the current generations only; recordings hold theirs as long as they need them.
-fn draw_buffer(me: &RdmDevice, d: &DeviceState, key: &BufferKey, eyes: &[(EyeDraw, RdmParams)]) -> Result<Arc<HostBuffer>, String> {
-    {
-        let mut books = lock(&me.books);
-        if let Some((_, b)) = books.buffers.iter().find(|(k, _)| k == key) {
-            return Ok(b.clone());
-        }
-        books.buffers.retain(|(k, _)| (k.0, k.1) == (key.0, key.1));
-        if books.buffers.len() >= 8 {
-            books.buffers.remove(0);
-        }
-    }
-    let tri = [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]];
-    let vertices: Vec<Vertex> = eyes
-        .iter()
-        .flat_map(|(dr, p)| {
-            tri.iter().map(move |&pos| Vertex {
-                pos,
-                view: dr.view,
-                origin: [p.rect.x, p.rect.y],
-                tan: [p.tan_left, p.tan_up, p.step_x, p.step_y],
-                fovea: [p.center[0], p.center[1], p.k_inner, p.k_middle],
-            })
-        })
-        .collect();
-    let buffer = HostBuffer::take(d, std::mem::size_of_val(&vertices[..]) as u64, &me.memory)?;
-    buffer.write(0, &vertices);
-    let buffer = Arc::new(buffer);
-    lock(&me.books).buffers.push((key.clone(), buffer.clone()));
-    tracing::debug!(?key, "rdm vertex buffer built");
-    Ok(buffer)
 }
 
 /// The app transfers `src` into `dst`: eyes of `src` awaiting reconstruction move to `dst` when a
