@@ -162,11 +162,18 @@ pub fn isolate(cmd: &mut Command, dir: &Path, capture: &Path, layer: bool) {
         .env_remove("XR_API_LAYER_PATH")
         .env_remove("VK_INSTANCE_LAYERS")
         .env_remove("VK_ADD_LAYER_PATH")
-        .env_remove("STEREOSHIM_CONFIG")
         .env("XDG_RUNTIME_DIR", dir.join("run"))
         .env("XDG_DATA_HOME", dir.join("data"))
         .env("XDG_CONFIG_HOME", dir.join("config"))
         .env("XDG_STATE_HOME", dir.join("state"));
+    // The developer's own STEREOSHIM_* settings (STEREOSHIM_CONFIG, STEREOSHIM_ENABLED=0, a
+    // feature switched on, STEREOSHIM_DISABLE, …) would change what every run tests, or let a
+    // check pass because the layer did nothing: a run sets the ones it wants after this.
+    for (key, _) in std::env::vars_os() {
+        if key.to_string_lossy().starts_with("STEREOSHIM_") {
+            cmd.env_remove(key);
+        }
+    }
     if layer {
         cmd.env("XR_API_LAYER_PATH", layer_manifest_dir()).env("XR_ENABLE_API_LAYERS", XR_LAYER_NAME);
     }
