@@ -186,6 +186,7 @@ fn views_is_never_empty() {
 
 const XR_LINE: &str = "2026-01-01T00:00:00Z  INFO ThreadId(01) xrCreateApiLayerInstance{app=xr-scene}: stereoshim::xr::instance: instance 0x1 for app \"xr-scene\" enabled=true exe=\"xr-scene\"";
 const VK_LINE: &str = "2026-01-01T00:00:00Z  INFO ThreadId(01) stereoshim::vk::chain: vulkan device created decision=x pass_through=false";
+const VK_QUOTED: &str = "2026-01-01T00:00:00Z  WARN ThreadId(01) stereoshim::features::foveation::vrs::rules: vrs unsupported (see \"vulkan device created\" in this log)";
 const FAILURE: &str = "2026-01-01T00:00:00Z ERROR ThreadId(01) stereoshim::guard: internal failure: boom call=\"xrEndFrame\"";
 
 #[test]
@@ -199,6 +200,9 @@ fn absence_needs_the_layer_loaded() {
     assert!(err(log_lacks(&xr_only, Half::Vulkan, "internal failure")).contains("the Vulkan half"));
     assert!(err(log_lacks(&xr_only, Half::Both, "internal failure")).contains("the Vulkan half"));
     assert!(err(log_lacks(VK_LINE, Half::OpenXr, "internal failure")).contains("the OpenXR half"));
+    // A line that only mentions the Vulkan half's message is no proof.
+    let quoted = format!("{XR_LINE}\n{VK_QUOTED}\n");
+    assert!(err(log_lacks(&quoted, Half::Vulkan, "internal failure")).contains("the Vulkan half"));
     let both = format!("{XR_LINE}\n{VK_LINE}\n");
     assert!(log_lacks(&both, Half::Both, "internal failure").is_ok());
     // Loaded, and the line is there.

@@ -330,13 +330,17 @@ pub enum Half {
 }
 
 /// The line the OpenXR half writes when `xrCreateApiLayerInstance` succeeded:
-/// `instance 0x… for app "…"` (src/xr/instance.rs), also when disabled by config.
+/// `<target>: instance 0x… for app "…"` (src/xr/instance.rs), also when disabled by config. The
+/// message is matched where the log format puts it, right after `<target>: `, so a line that only
+/// mentions it does not count.
 fn xr_half_loaded(line: &str) -> bool {
-    line.contains(" instance 0x") && line.contains(" for app ")
+    line.contains(": instance 0x") && line.contains(" for app ")
 }
 
-/// The line the Vulkan half writes for every device it is in the chain of (src/vk/chain.rs).
-const VK_HALF_LOADED: &str = "vulkan device created";
+/// The message the Vulkan half logs for every device it is in the chain of (src/vk/chain.rs), as
+/// it starts after `<target>: ` (a warning that quotes it, `see "vulkan device created"`, does
+/// not count).
+const VK_HALF_LOADED: &str = ": vulkan device created";
 
 /// `Ok` when `log` (a run's layer log) shows that `half` loaded; else why not. An assertion that a
 /// line is absent from the log means nothing unless this holds: a run the layer never loaded into
