@@ -18,7 +18,7 @@
 mod common;
 
 use common::image;
-use common::{Fov, Run, RunOutput};
+use common::{Fov, Half, Run, RunOutput};
 use stereoshim::core::rect::PixelRect;
 use stereoshim::features::foveation::rdm::rules::RdmParams;
 use stereoshim::shared::{FoveaView, ViewFov};
@@ -127,12 +127,10 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
     layered = layered.env("STEREOSHIM_STATS_FILE", stats_path.to_str().unwrap());
     let rdm = layered.run();
     rdm.assert_ok();
-    assert!(rdm.log_lines("internal failure").is_empty(), "{name}: {}", rdm.log);
+    rdm.assert_log_lacks(Half::Both, "internal failure");
     assert!(!rdm.log_lines("radial density masking ").is_empty(), "{name}: the layer never applied RDM:\n{}", rdm.log);
     // Frame 0: eye uses unknown, nothing skipped.
-    for (a, b) in rdm.views(0).iter().zip(plain.views(0)) {
-        image::assert_identical(&format!("{name}-f0-view{}", a.view), &rdm.image(&a.file), &plain.image(&b.file));
-    }
+    common::assert_same_frame(&format!("{name}-f0"), &rdm, 0, &plain, 0);
     let (mut inner_deg, mut middle_deg) = preset(preset_name);
     // Explicit angles override the preset (as the layer's config does).
     for (k, v) in extra_env {
@@ -144,7 +142,7 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
     }
     let stats1 = layer_stats(&rdm, &stats_path, 1);
     let mut out = Vec::new();
-    for (a, b) in rdm.views(1).iter().zip(plain.views(1)) {
+    for (a, b) in common::views_to_compare(name, &rdm, 1, &plain, 1) {
         let (w, h) = (a.image_rect.width, a.image_rect.height);
         // The gaze direction of the mock runtime (yaw right, pitch up) as a tangent-plane point of
         // these parallel views: (tan yaw, tan pitch / cos yaw).
@@ -352,6 +350,6 @@ fn off_by_default() {
     let out = run.run();
     out.assert_ok();
     common::assert_same_captures("rdm-off", &out, &plain);
-    assert_eq!(out.stats, plain.stats);
-    assert!(out.log_lines("radial density masking").is_empty(), "{}", out.log);
+    common::assert_same_stats("rdm-off", &out, &plain);
+    out.assert_log_lacks(Half::Vulkan, "radial density masking");
 }
