@@ -1,6 +1,7 @@
 //! The layer's own per-frame statistics (`stats.file`): one JSON line per `xrEndFrame`, so that a
 //! benchmark or a test can check what the layer did in each frame against what the app measured
 //! (shaded fragments, GPU time) for the same frame number.
+#![forbid(unsafe_code)]
 
 use crate::core::stats::FrameStats;
 use std::fs::File;

@@ -3,6 +3,7 @@
 //! enabled feature applied to no pass at all ends with a WARN summary. The rules are pure: the
 //! OpenXR half feeds every frame's statistics in at `xrEndFrame` and logs what comes out. Features
 //! are known only through their statistics (`FeatureStats`: label, reasons, hints).
+#![forbid(unsafe_code)]
 
 use crate::core::stats::FrameStats;
 use std::collections::{BTreeMap, BTreeSet};

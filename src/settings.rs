@@ -5,6 +5,7 @@
 //! The OpenXR half publishes the live settings (`publish`) when it resolves or reloads the
 //! configuration; `current` costs one atomic load per call and reads a per-thread copy that is
 //! refreshed only after a publish.
+#![forbid(unsafe_code)]
 
 use crate::config::Config;
 use crate::features::foveation::FoveationSettings;

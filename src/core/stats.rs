@@ -12,6 +12,11 @@ pub trait FeatureStats: Any + Debug + Send + Sync {
     fn id(&self) -> &'static str;
     /// What the user calls the feature in warnings.
     fn label(&self) -> &'static str;
+    /// Features of one group are alternatives: a device uses at most one of them (e.g. the two
+    /// foveation methods, chosen per device by `auto`).
+    fn group(&self) -> Option<&'static str> {
+        None
+    }
     /// Adds another frame's (or device's) counters of the same feature; others are ignored.
     fn add(&mut self, other: &dyn FeatureStats);
     fn is_empty(&self) -> bool;

@@ -2,6 +2,7 @@
 //! hidden-area mask depends on, kept pure so every shape (per-eye, side-by-side, multiview,
 //! intermediate targets copied into swapchain images) is unit-tested without a GPU. The FFI shell
 //! feeds it the tracked pass and draws what it plans; nothing here touches Vulkan.
+#![forbid(unsafe_code)]
 
 use super::cmd::{AttachmentUse, PassInstance};
 use crate::core::pass::NotMasked;

@@ -1,6 +1,7 @@
 //! Where the fovea is and how large: ring sizes from presets or explicit angles, and the gaze
 //! policy (smoothing, blinks, loss of tracking) that turns raw eye-tracker samples into a centre
 //! the rate maps can follow without flicker. Pure; the OpenXR shell feeds it samples.
+#![forbid(unsafe_code)]
 
 use crate::config::Config;
 use crate::core::fovea::{angle_between_deg, Tangent};

@@ -2,6 +2,7 @@
 //! pass (tangent plane → NDC through the view's FOV) and how many pixels they cover in a viewport,
 //! counted the way the rasterizer does (fixed-point vertices, pixel centres, top-left rule), so the
 //! layer's "pixels masked" statistics and the tests' predicted savings match what the GPU rejects.
+#![forbid(unsafe_code)]
 
 use crate::core::rect::{PixelRect, ViewportRect};
 use crate::core::pass::NotMasked;

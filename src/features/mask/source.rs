@@ -1,6 +1,7 @@
 //! Where each view's hidden-area mask comes from: the runtime's `XR_KHR_visibility_mask` mesh, or,
 //! when the runtime has none, a lens shape synthesized from configuration in angular terms (so one
 //! config means the same on every HMD). Pure; the OpenXR shell fetches and publishes.
+#![forbid(unsafe_code)]
 
 use crate::shared::MaskSource;
 use std::f64::consts::PI;

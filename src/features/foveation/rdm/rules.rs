@@ -3,6 +3,7 @@
 //! reconstruction later fills. The rule is written once here in f32 operations that the shaders
 //! (`shaders/rdm_rule.glsl`) repeat in the same order without fused multiply-adds, so the layer's
 //! statistics and the tests' predictions match what the GPU skips exactly.
+#![forbid(unsafe_code)]
 
 pub use crate::core::fovea::Ring;
 use crate::core::rect::PixelRect;
@@ -236,6 +237,9 @@ impl FeatureStats for RdmFrameStats {
     }
     fn label(&self) -> &'static str {
         "foveation (radial density masking)"
+    }
+    fn group(&self) -> Option<&'static str> {
+        Some("foveation")
     }
     fn add(&mut self, other: &dyn FeatureStats) {
         if let Some(o) = other.as_any().downcast_ref::<RdmFrameStats>() {

@@ -106,9 +106,10 @@ impl Plugin for RdmDevice {
     fn empty_stats() -> Box<dyn FeatureStats> {
         Box::new(RdmFrameStats::default())
     }
-    /// On with RDM as the method in effect: `rdm`, or `auto` where VRS did not act this frame.
+    /// On with RDM as the method in effect: `rdm`, or `auto` where no other foveation method
+    /// acted this frame.
     fn enabled(s: &Settings, frame: &crate::core::stats::FrameStats) -> bool {
-        let vrs_active = frame.get::<crate::features::foveation::vrs::rules::VrsFrameStats>().is_some_and(|v| !v.is_empty());
+        let vrs_active = frame.iter().any(|f| f.group() == Some("foveation") && f.id() != "rdm" && !f.is_empty());
         s.foveation.enabled && (s.foveation.method == crate::features::foveation::Method::Rdm || (s.foveation.method == crate::features::foveation::Method::Auto && !vrs_active))
     }
 }

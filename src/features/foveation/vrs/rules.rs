@@ -1,6 +1,6 @@
 //! Variable-rate shading (foveation method 1): the rate map a `VK_KHR_fragment_shading_rate`
 //! attachment holds for an eye pass, the encoding of its texels, which passes get one and the
-//! per-frame counters. Pure; `vk::vrs` turns a map into a layer-owned image and chains it into the
+//! per-frame counters. Pure; `vrs::vk` turns a map into a layer-owned image and chains it into the
 //! app's pass.
 //!
 //! Rates: full (1×1) within `inner_deg` of the fovea centre, half in the middle ring, quarter
@@ -15,6 +15,7 @@
 //! inside the eye's rect, with the smallest angle to the fovea centre), so no pixel inside the
 //! inner ring is ever shaded at less than full rate. Texels that hold no pixel of any eye get full
 //! rate (nothing is saved there, nothing can go wrong).
+#![forbid(unsafe_code)]
 
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
@@ -303,6 +304,9 @@ impl FeatureStats for VrsFrameStats {
     }
     fn label(&self) -> &'static str {
         "foveation (variable-rate shading)"
+    }
+    fn group(&self) -> Option<&'static str> {
+        Some("foveation")
     }
     fn add(&mut self, other: &dyn FeatureStats) {
         if let Some(o) = other.as_any().downcast_ref::<VrsFrameStats>() {
