@@ -204,13 +204,8 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
     Ok((att, sources, intermediate))
 }
 
-/// Decides whether the open pass gets a mask, and where.
-pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotMasked> {
-    // Eyes first: a pass that shows no eye is not an eye pass, whatever its depth does.
-    let (att, sources, intermediate) = find_eyes(pass, facts)?;
-    if facts.secondary_contents {
-        return Err(NotMasked::Secondary);
-    }
+/// The fail depth of a pass whose depth starts cleared to 0 or 1 here, else why not.
+fn cleared_depth(pass: &PassInstance, facts: &Facts<'_>) -> Result<f32, NotMasked> {
     let Some((depth, starts, layout)) = depth_attachment(pass) else {
         return Err(NotMasked::NoDepthAttachment);
     };
@@ -230,7 +225,31 @@ pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotM
         },
         None => return Err(NotMasked::DepthNotCleared),
     };
-    let fail_depth = fail_depth(clear).ok_or(NotMasked::DepthClearNot01)?;
+    fail_depth(clear).ok_or(NotMasked::DepthClearNot01)
+}
+
+/// A pass that renders into a swapchain image whose eye uses the OpenXR half has not seen yet
+/// (they are learned at the first `xrEndFrame`), with its depth freshly cleared: it may become an
+/// eye pass by the time the command buffer is submitted. Some(fail depth) for such a pass.
+pub fn awaiting_eyes(pass: &PassInstance, facts: &Facts<'_>) -> Option<f32> {
+    if facts.secondary_contents || find_eyes(pass, facts) != Err(NotMasked::EyeUnknown) {
+        return None;
+    }
+    let swapchain_unknown = eye_candidates(pass).iter().any(|a| matches!((facts.eyes)(a), Eyes::Swapchain(s) if s.is_empty()));
+    if !swapchain_unknown {
+        return None;
+    }
+    cleared_depth(pass, facts).ok()
+}
+
+/// Decides whether the open pass gets a mask, and where.
+pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotMasked> {
+    // Eyes first: a pass that shows no eye is not an eye pass, whatever its depth does.
+    let (att, sources, intermediate) = find_eyes(pass, facts)?;
+    if facts.secondary_contents {
+        return Err(NotMasked::Secondary);
+    }
+    let fail_depth = cleared_depth(pass, facts)?;
 
     let base_layer = att.image_view.as_ref().map_or(0, |v| v.range.base_array_layer);
     let area = PixelRect { x: pass.render_area.x, y: pass.render_area.y, width: pass.render_area.width, height: pass.render_area.height };

@@ -16,7 +16,7 @@
 //! - OpenXR side: `before_release` (`xrReleaseSwapchainImage`, before it goes down);
 //! - `take_frame` at every `xrEndFrame`, `destroy` at `vkDestroyDevice`.
 
-use super::inject::Injection;
+use super::inject::{Awaiting, Injection};
 use super::DeviceState;
 use crate::config::KeySpec;
 use crate::core::pass::NotMasked;
@@ -130,6 +130,9 @@ pub(crate) trait VkFeature: Send + Sync {
     /// Records the feature's draws into `at.cb` inside the app's pass (the chassis restores the
     /// app's state afterwards). Counts its own success and failure (`at.counts`).
     fn inject(&self, _d: &DeviceState, _at: &Injection<'_>) {}
+    /// Like `inject`, for a pass whose eyes are not known yet: record draws that do nothing until
+    /// `before_submit` fills them for the eyes known then.
+    fn inject_awaiting(&self, _d: &DeviceState, _at: &Awaiting<'_>) {}
     /// An eye-pass candidate got no injection for `why` (counted when the feature injects).
     fn not_injected(&self, _d: &DeviceState, _s: &Settings, _why: NotMasked) {}
     /// The app transferred `src` into `dst` in `cb`.

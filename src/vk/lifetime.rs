@@ -61,18 +61,6 @@ pub(crate) fn with_holds(d: &DeviceState, cb: u64, f: impl FnOnce(&[Hold])) {
     f(&holds);
 }
 
-/// Runs `f` over the holds of `cb`'s current recording, when no submission of it is in flight.
-pub(crate) fn with_idle_holds(d: &DeviceState, cb: u64, f: impl FnOnce(&[Hold])) {
-    let holds: Vec<Hold> = {
-        let l = lock(&d.lifetime.lifetimes);
-        if l.in_flight(cb) {
-            return;
-        }
-        l.holds_of(cb).to_vec()
-    };
-    f(&holds);
-}
-
 /// The app begins, resets or frees these command buffers: their recordings close.
 pub(crate) fn close(d: &DeviceState, cbs: &[u64]) {
     let released: Vec<Hold> = {

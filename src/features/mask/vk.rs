@@ -14,9 +14,10 @@ use crate::core::stats::FeatureStats;
 use crate::features::mask::rules::{self, MaskFrameStats};
 use crate::settings::Settings;
 use crate::shared::{shared, Views};
-use crate::track::eye_pass::{EyeLayout, MaskPlan};
+use crate::track::cmd::PassInstance;
+use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan};
 use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
-use crate::vk::inject::{self, pipeline, Injection};
+use crate::vk::inject::{self, pipeline, Awaiting, Injection};
 use crate::vk::lifetime::{self, HostBuffer};
 use crate::vk::DeviceState;
 use ash::vk;
@@ -61,20 +62,31 @@ impl Geometry {
     }
 }
 
-/// The draws of one injection: which views, one indirect draw each (one in all for multiview).
-#[derive(Clone, Debug, PartialEq)]
-struct DrawShape {
-    views: Vec<u32>,
-    multiview: bool,
+/// What a recording's mask draws are for.
+enum Target {
+    /// A known eye pass: one indirect draw per eye (one in all for multiview), each recorded with
+    /// its eye's viewport and scissor.
+    Eyes { draws: Vec<EyeDraw>, multiview: bool },
+    /// A pass whose eyes were unknown when it was recorded: one indirect draw over the render
+    /// area, into which the eyes' geometry is mapped once they are known.
+    Awaiting { pass: Box<PassInstance>, fail_depth: f32, area: PixelRect },
 }
 
 /// A recording's mask data: indirect arguments first, then the vertices.
 struct MaskData {
     buffer: Option<HostBuffer>,
-    shape: DrawShape,
-    /// The mask generation the buffer holds.
-    generation: Mutex<u64>,
+    target: Target,
+    /// What the buffer holds now.
+    filled: Mutex<Filled>,
     pool: Arc<Mutex<Vec<HostBuffer>>>,
+}
+
+/// The content of a recording's buffer: for which mask generation and eyes, and the pixels each
+/// view's draw covers (counted per submission).
+#[derive(Default)]
+struct Filled {
+    key: Option<(u64, Vec<EyeDraw>)>,
+    pixels: Vec<(u32, u64)>,
 }
 
 impl Drop for MaskData {
@@ -87,36 +99,64 @@ impl Drop for MaskData {
 
 const ARGS: u64 = std::mem::size_of::<vk::DrawIndirectCommand>() as u64;
 
+/// Maps NDC of `from` (a viewport) into NDC of `to` (another viewport of the same framebuffer).
+fn remap(p: [f32; 2], from: PixelRect, to: PixelRect) -> [f32; 2] {
+    let px = from.x as f32 + (p[0] + 1.0) * 0.5 * from.width as f32;
+    let py = from.y as f32 + (p[1] + 1.0) * 0.5 * from.height as f32;
+    [(px - to.x as f32) / to.width as f32 * 2.0 - 1.0, (py - to.y as f32) / to.height as f32 * 2.0 - 1.0]
+}
+
 impl MaskData {
-    fn vertex_offset(&self) -> u64 {
-        ARGS * self.shape.views.len().max(1) as u64
+    fn draw_slots(&self) -> usize {
+        match &self.target {
+            Target::Eyes { draws, multiview: false } => draws.len().max(1),
+            _ => 1,
+        }
     }
-    /// Writes `g`'s geometry for the shape; false when a view has no mask or it does not fit
-    /// (then every draw is made empty: no mask is always correct output).
-    fn fill(&self, g: &Geometry) -> bool {
-        let Some(buf) = &self.buffer else { return false };
+    fn vertex_offset(&self) -> u64 {
+        ARGS * self.draw_slots() as u64
+    }
+    fn clear(&self, f: &mut Filled) {
+        if let Some(buf) = &self.buffer {
+            buf.write(0, &vec![vk::DrawIndirectCommand::default(); self.draw_slots()]);
+        }
+        *f = Filled::default();
+    }
+    /// Makes the buffer hold `g`'s mask for the target's eyes (`plan`: the eyes known now, for an
+    /// awaiting target), or nothing when `g` lacks a view's mask or it does not fit (no mask is
+    /// always correct output). Only called while no submission of the recording executes.
+    fn refresh(&self, me: &MaskDevice, g: &Geometry, plan: Option<&MaskPlan>) {
+        let mut f = lock(&self.filled);
+        let (draws, multiview, area) = match (&self.target, plan) {
+            (Target::Eyes { draws, multiview }, _) => (draws.clone(), *multiview, None),
+            (Target::Awaiting { area, .. }, Some(p)) => (p.draws.clone(), p.layout == EyeLayout::Multiview, Some(*area)),
+            (Target::Awaiting { .. }, None) => return self.clear(&mut f),
+        };
+        let key = (g.generation, draws.clone());
+        if f.key.as_ref() == Some(&key) {
+            return;
+        }
+        let Some(buf) = &self.buffer else { return };
         let mut vertices = Vec::new();
         let mut args = Vec::new();
-        for v in &self.shape.views {
-            let Some(t) = g.ndc.get(v) else {
-                args.clear();
-                break;
-            };
+        for dr in &draws {
+            let Some(t) = g.ndc.get(&dr.view) else { return self.clear(&mut f) };
             args.push(vk::DrawIndirectCommand { vertex_count: t.len() as u32, instance_count: 1, first_vertex: vertices.len() as u32, first_instance: 0 });
-            vertices.extend(t.iter().map(|&pos| Vertex { pos, view: *v }));
+            match area {
+                Some(area) => vertices.extend(t.iter().map(|&p| Vertex { pos: remap(p, dr.viewport, area), view: dr.view })),
+                None => vertices.extend(t.iter().map(|&pos| Vertex { pos, view: dr.view })),
+            }
         }
-        if self.shape.multiview && !args.is_empty() {
+        if (multiview || area.is_some()) && !args.is_empty() {
             args = vec![vk::DrawIndirectCommand { vertex_count: vertices.len() as u32, instance_count: 1, first_vertex: 0, first_instance: 0 }];
         }
-        let fits = !args.is_empty() && buf.write(self.vertex_offset(), &vertices);
-        if !fits {
-            let empty = vec![vk::DrawIndirectCommand { vertex_count: 0, instance_count: 0, first_vertex: 0, first_instance: 0 }; self.shape.views.len().max(1)];
-            buf.write(0, &empty);
-        } else {
-            buf.write(0, &args);
+        if args.is_empty() || !buf.write(self.vertex_offset(), &vertices) {
+            tracing::debug!("a recorded mask draw does not fit the current mask: drawn empty");
+            return self.clear(&mut f);
         }
-        *lock(&self.generation) = g.generation;
-        fits
+        buf.write(0, &args);
+        let pixels = draws.iter().map(|dr| (dr.view, me.coverage(g, dr.view, dr.viewport, dr.scissor))).collect();
+        *f = Filled { key: Some(key), pixels };
     }
 }
 
@@ -188,17 +228,11 @@ impl MaskDevice {
         n
     }
 
-    /// Records the mask draw(s); returns pixels masked per view.
-    fn record(&self, d: &DeviceState, at: &Injection<'_>) -> Result<Vec<(u32, u64)>, NotMasked> {
-        let plan = at.plan;
-        let g = self.geometry();
-        if g.ndc.is_empty() || plan.draws.iter().any(|dr| !g.ndc.contains_key(&dr.view)) {
-            return Err(NotMasked::NoMask);
-        }
-        let pass = pipeline::pass_key(d, at.pass, plan).ok_or(NotMasked::Unsupported)?;
-        let debug = at.settings.mask.debug;
+    /// The mask pipeline for a pass (made once per pass compatibility).
+    fn pipeline(&self, d: &DeviceState, pass: &PassInstance, plan: &MaskPlan, debug: bool) -> Result<vk::Pipeline, NotMasked> {
+        let pass = pipeline::pass_key(d, pass, plan).ok_or(NotMasked::Unsupported)?;
         let key = pipeline::PipelineKey { feature: self.id(), variant: debug as u32, pass };
-        let p = pipeline::get(d, &key, || pipeline::PipelineDesc {
+        pipeline::get(d, &key, || pipeline::PipelineDesc {
             vert: VERT,
             vert_multiview: VERT_MV,
             // Without the debug tint the draw is depth-only: no fragment shader at all.
@@ -216,21 +250,34 @@ impl MaskDevice {
                 tracing::warn!(?key, "mask pipeline: {e}");
                 NotMasked::LayerError
             }
-        })?;
-        let multiview = plan.layout == EyeLayout::Multiview;
-        let draws: Vec<_> = if multiview { plan.draws.iter().take(1).copied().collect() } else { plan.draws.iter().filter(|dr| dr.scissor.area() > 0).copied().collect() };
-        let shape = DrawShape { views: if multiview { plan.draws.iter().map(|dr| dr.view).collect() } else { draws.iter().map(|dr| dr.view).collect() }, multiview };
-        // Room for masks up to twice this one's size: a changed mask usually fits when refilled.
-        let vertices: usize = shape.views.iter().map(|v| g.ndc[v].len()).sum();
-        let size = ARGS * shape.views.len().max(1) as u64 + 2 * (vertices * std::mem::size_of::<Vertex>()) as u64;
+        })
+    }
+
+    /// A recording's buffer, with room for masks up to twice the current one's size (a changed
+    /// mask usually fits when refilled).
+    fn data(&self, d: &DeviceState, g: &Geometry, target: Target) -> Result<Arc<MaskData>, NotMasked> {
+        let vertices: usize = g.ndc.values().map(Vec::len).sum();
+        let size = ARGS * 4 + 2 * (vertices * std::mem::size_of::<Vertex>()) as u64;
         let buffer = HostBuffer::take(d, size, &self.memory).map_err(|e| {
             tracing::warn!("mask buffer: {e}");
             NotMasked::LayerError
         })?;
-        let data = Arc::new(MaskData { buffer: Some(buffer), shape, generation: Mutex::new(0), pool: d.lifetime.buffers.clone() });
-        if !data.fill(&g) {
-            return Err(NotMasked::LayerError);
+        Ok(Arc::new(MaskData { buffer: Some(buffer), target, filled: Mutex::default(), pool: d.lifetime.buffers.clone() }))
+    }
+
+    /// Records the mask draw(s) of a known eye pass; returns the pixels they cover per view.
+    fn record(&self, d: &DeviceState, at: &Injection<'_>) -> Result<Vec<(u32, u64)>, NotMasked> {
+        let plan = at.plan;
+        let g = self.geometry();
+        if g.ndc.is_empty() || plan.draws.iter().any(|dr| !g.ndc.contains_key(&dr.view)) {
+            return Err(NotMasked::NoMask);
         }
+        let p = self.pipeline(d, at.pass, plan, at.settings.mask.debug)?;
+        let multiview = plan.layout == EyeLayout::Multiview;
+        let draws: Vec<EyeDraw> = if multiview { plan.draws.clone() } else { plan.draws.iter().filter(|dr| dr.scissor.area() > 0).copied().collect() };
+        let recorded: Vec<EyeDraw> = if multiview { draws.iter().take(1).copied().collect() } else { draws.clone() };
+        let data = self.data(d, &g, Target::Eyes { draws, multiview })?;
+        data.refresh(self, &g, None);
         let vk_buffer = data.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
         let fns = d.fns.fp_v1_0();
         // SAFETY: `at.cb` is recording inside the pass the plan was made for (the chassis just
@@ -239,14 +286,15 @@ impl MaskDevice {
         unsafe {
             (fns.cmd_bind_pipeline)(at.cb, vk::PipelineBindPoint::GRAPHICS, p);
             (fns.cmd_bind_vertex_buffers)(at.cb, 0, 1, &vk_buffer, &data.vertex_offset());
-            for (i, dr) in draws.iter().enumerate() {
+            for (i, dr) in recorded.iter().enumerate() {
                 (fns.cmd_set_viewport)(at.cb, 0, 1, &inject::fail_viewport(dr.viewport, plan.fail_depth));
                 (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(dr.scissor));
                 (fns.cmd_draw_indirect)(at.cb, vk_buffer, ARGS * i as u64, 1, ARGS as u32);
             }
         }
+        let pixels = plan.draws.iter().map(|dr| (dr.view, self.coverage(&g, dr.view, dr.viewport, dr.scissor))).collect();
         lifetime::hold(d, at.owner, data);
-        Ok(plan.draws.iter().map(|dr| (dr.view, self.coverage(&g, dr.view, dr.viewport, dr.scissor))).collect())
+        Ok(pixels)
     }
 
     fn log_kind_once(&self, plan: &MaskPlan, pixels: &[(u32, u64)]) {
@@ -284,17 +332,11 @@ impl VkFeature for MaskDevice {
         }
         on
     }
+    /// Draws and counts go by submission (`before_submit`): a command buffer recorded once and
+    /// resubmitted is masked and counted every time.
     fn inject(&self, d: &DeviceState, at: &Injection<'_>) {
         match self.record(d, at) {
-            Ok(pixels) => {
-                self.count(|s| {
-                    s.passes_masked += 1;
-                    for (view, px) in &pixels {
-                        *s.pixels_masked.entry(*view).or_insert(0) += px;
-                    }
-                });
-                self.log_kind_once(at.plan, &pixels);
-            }
+            Ok(pixels) => self.log_kind_once(at.plan, &pixels),
             Err(why) => {
                 if at.counts {
                     self.count(|s| s.count_not_masked(why));
@@ -308,18 +350,66 @@ impl VkFeature for MaskDevice {
     fn not_injected(&self, _d: &DeviceState, _s: &Settings, why: NotMasked) {
         self.count(|s| s.count_not_masked(why));
     }
+    /// A pass whose eyes are not known yet: one draw over the render area, empty until a
+    /// submission finds its eyes.
+    fn inject_awaiting(&self, d: &DeviceState, at: &Awaiting<'_>) {
+        let g = self.geometry();
+        if g.ndc.is_empty() {
+            return;
+        }
+        let area = inject::render_area(at.pass);
+        // Any plan with this pass's shape makes the same pipeline (render pass + subpass or
+        // formats; multiview from the pass itself).
+        let layout = if at.pass.view_mask() != 0 { EyeLayout::Multiview } else { EyeLayout::PerEye };
+        let plan = MaskPlan { fail_depth: at.fail_depth, layout, intermediate: false, image: 0, view_mask: at.pass.view_mask(), draws: Vec::new() };
+        let Ok(p) = self.pipeline(d, at.pass, &plan, at.settings.mask.debug) else { return };
+        let Ok(data) = self.data(d, &g, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area }) else { return };
+        data.refresh(self, &g, None);
+        let vk_buffer = data.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
+        let fns = d.fns.fp_v1_0();
+        // SAFETY: `at.cb` is recording inside the pass (the chassis just recorded its begin /
+        // clear); the pipeline is compatible with it; the buffer (empty draw arguments until
+        // filled) is held by the app's command buffer.
+        unsafe {
+            (fns.cmd_bind_pipeline)(at.cb, vk::PipelineBindPoint::GRAPHICS, p);
+            (fns.cmd_bind_vertex_buffers)(at.cb, 0, 1, &vk_buffer, &data.vertex_offset());
+            (fns.cmd_set_viewport)(at.cb, 0, 1, &inject::fail_viewport(area, at.fail_depth));
+            (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(area));
+            (fns.cmd_draw_indirect)(at.cb, vk_buffer, 0, 1, ARGS as u32);
+        }
+        lifetime::hold(d, at.owner, data);
+    }
+    /// Refreshes idle recordings for the live mask and settings, then counts what each submitted
+    /// recording draws.
     fn before_submit(&self, d: &DeviceState, cbs: &[u64]) {
+        let settings = d.settings();
+        let on = self.layer_enabled && settings.mask.enabled;
         let mut g: Option<Arc<Geometry>> = None;
         for &cb in cbs {
-            lifetime::with_idle_holds(d, cb, |holds| {
+            let idle = !lifetime::in_flight(d, cb);
+            lifetime::with_holds(d, cb, |holds| {
                 for h in holds {
                     let Some(data) = h.downcast_ref::<MaskData>() else { continue };
-                    let views_generation = shared().views().generation;
-                    if *lock(&data.generation) != views_generation {
-                        let g = g.get_or_insert_with(|| self.geometry());
-                        if !data.fill(g) {
-                            tracing::debug!("a recorded mask draw no longer fits the changed mask: drawn empty");
+                    if idle {
+                        if !on {
+                            data.clear(&mut lock(&data.filled));
+                        } else {
+                            let g = g.get_or_insert_with(|| self.geometry());
+                            let plan = match &data.target {
+                                Target::Awaiting { pass, fail_depth, .. } => inject::plan_now(d, pass, *fail_depth, settings.intermediate).ok(),
+                                Target::Eyes { .. } => None,
+                            };
+                            data.refresh(self, g, plan.as_ref());
                         }
+                    }
+                    let pixels = lock(&data.filled).pixels.clone();
+                    if !pixels.is_empty() {
+                        self.count(|s| {
+                            s.passes_masked += 1;
+                            for (view, px) in &pixels {
+                                *s.pixels_masked.entry(*view).or_insert(0) += px;
+                            }
+                        });
                     }
                 }
             });

@@ -47,6 +47,33 @@ pub(crate) struct Injection<'a> {
     pub bound_sets: std::cell::Cell<bool>,
 }
 
+/// A pass that renders into a swapchain image whose eye uses are not known yet (the session's
+/// first frame), with its depth freshly cleared: features record draws whose data they fill at
+/// submission, once the eyes are known (`plan_now`), so a command buffer recorded that early and
+/// resubmitted later is still masked / foveated.
+pub(crate) struct Awaiting<'a> {
+    pub cb: vk::CommandBuffer,
+    pub owner: u64,
+    pub pass: &'a PassInstance,
+    pub fail_depth: f32,
+    pub settings: &'a Settings,
+}
+
+/// The plan for a pass recorded earlier, with the eyes known now.
+pub(crate) fn plan_now(d: &DeviceState, pass: &PassInstance, fail_depth: f32, intermediate: bool) -> Result<MaskPlan, NotMasked> {
+    let eyes = |a: &AttachmentUse| eyes_of(d, a, intermediate);
+    // The clear that makes `fail_depth` fail.
+    let clear = 1.0 - fail_depth;
+    let facts = eye_pass::Facts { secondary_contents: false, intermediate_enabled: intermediate, eyes: &eyes, explicit_clear: Some(clear) };
+    eye_pass::classify(pass, &facts)
+}
+
+/// The render area of a pass as a rect.
+pub(crate) fn render_area(pass: &PassInstance) -> PixelRect {
+    let a = pass.render_area;
+    PixelRect { x: a.x, y: a.y, width: a.width, height: a.height }
+}
+
 /// An injection waiting for the app's vkCmdExecuteCommands.
 struct Pending {
     snap: Snapshot,
@@ -149,6 +176,18 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
         Ok(p) => p,
         Err(why) => {
             count_not_injected(d, &settings, decision.counts, why, &snap.pass);
+            if why == NotMasked::EyeUnknown && trigger != Trigger::End && snap.veto.is_none() && !trigger.secondary_contents() {
+                if let Some(fail_depth) = eye_pass::awaiting_eyes(&snap.pass, &facts) {
+                    let at = Awaiting { cb, owner: key, pass: &snap.pass, fail_depth, settings: &settings };
+                    let bound_sets = Default::default();
+                    let _restore = restore::Restore::new(d, cb, &snap.restore, &snap.sets, &bound_sets);
+                    for f in d.features.all() {
+                        if f.injects(&settings) {
+                            f.inject_awaiting(d, &at);
+                        }
+                    }
+                }
+            }
             return;
         }
     };

@@ -11,9 +11,9 @@ use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
 use crate::settings::Settings;
 use crate::shared::shared;
-use crate::track::eye_pass::{EyeDraw, EyeLayout, TransferRegion};
+use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan, TransferRegion};
 use crate::vk::feature::{Destroyed, DeviceInit, Plugin, VkFeature};
-use crate::vk::inject::{self, pipeline, Injection};
+use crate::vk::inject::{self, pipeline, Awaiting, Injection};
 use crate::vk::lifetime::{self, HostBuffer};
 use crate::vk::DeviceState;
 use crate::core::pass::NotMasked;
@@ -130,16 +130,34 @@ struct Transfer {
     regions: Vec<TransferRegion>,
 }
 
-/// One recorded checkerboard draw: its vertex buffer (the rule's parameters per eye) and the eyes
-/// of `image` it leaves to reconstruct. Refilled for the current fovea before a submission when
-/// the recording is idle, so a command buffer recorded once follows the gaze.
+/// What a recording's checkerboard draws are for.
+enum Target {
+    /// A known eye pass: one indirect draw per eye (one in all for multiview), recorded with the
+    /// eye's viewport and scissor; a full-viewport triangle per eye.
+    Eyes { draws: Vec<EyeDraw>, multiview: bool, image: u64 },
+    /// A pass whose eyes were unknown when recorded: one indirect draw over the render area, a
+    /// quad per eye (its scissor rect) once the eyes are known.
+    Awaiting { pass: Box<crate::track::cmd::PassInstance>, fail_depth: f32, area: PixelRect },
+}
+
+/// One recorded checkerboard injection: its buffer (indirect arguments, then the vertices with
+/// the rule's parameters per eye) and what it holds. Refilled for the current fovea before a
+/// submission when the recording is idle, so a command buffer recorded once follows the gaze.
 struct Drawn {
     buffer: Option<HostBuffer>,
-    image: u64,
-    eyes: Vec<EyeDraw>,
-    /// (foveation generation, views generation) the buffer holds, and its eyes' parameters.
-    state: Mutex<((u64, u64), Vec<Pending>)>,
+    target: Target,
+    filled: Mutex<Filled>,
     pool: Arc<Mutex<Vec<HostBuffer>>>,
+}
+
+/// What a recording's buffer holds: for which generations and eyes, the eyes of which image it
+/// leaves to reconstruct, and what it skips per view.
+#[derive(Default)]
+struct Filled {
+    key: Option<((u64, u64), Vec<EyeDraw>)>,
+    image: u64,
+    pending: Vec<Pending>,
+    skipped: Vec<(u32, SkipCount)>,
 }
 
 impl Drop for Drawn {
@@ -149,6 +167,8 @@ impl Drop for Drawn {
         }
     }
 }
+
+const ARGS: u64 = std::mem::size_of::<vk::DrawIndirectCommand>() as u64;
 
 /// (foveation generation, views generation) and every eye's rule parameters under them.
 type EyeParams = ((u64, u64), Vec<(EyeDraw, RdmParams)>);
@@ -169,35 +189,76 @@ fn params_now(eyes: &[EyeDraw]) -> Result<EyeParams, NotApplied> {
     Ok(((fovea.generation, views.generation), out))
 }
 
-/// One full-viewport triangle per eye, carrying the eye's parameters.
-fn vertices(eyes: &[(EyeDraw, RdmParams)]) -> Vec<Vertex> {
-    let tri = [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]];
-    eyes.iter()
-        .flat_map(|(dr, p)| {
-            tri.iter().map(move |&pos| Vertex {
-                pos,
-                view: dr.view,
-                origin: [p.rect.x, p.rect.y],
-                tan: [p.tan_left, p.tan_up, p.step_x, p.step_y],
-                fovea: [p.center[0], p.center[1], p.k_inner, p.k_middle],
-            })
-        })
-        .collect()
+fn vertex(pos: [f32; 2], dr: &EyeDraw, p: &RdmParams) -> Vertex {
+    Vertex { pos, view: dr.view, origin: [p.rect.x, p.rect.y], tan: [p.tan_left, p.tan_up, p.step_x, p.step_y], fovea: [p.center[0], p.center[1], p.k_inner, p.k_middle] }
+}
+
+/// A full-viewport triangle per eye (drawn with the eye's viewport), or, over `area`, a quad per
+/// eye covering its scissor rect.
+fn vertices(eyes: &[(EyeDraw, RdmParams)], area: Option<PixelRect>) -> Vec<Vertex> {
+    let mut out = Vec::new();
+    for (dr, p) in eyes {
+        match area {
+            None => out.extend([[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]].iter().map(|&pos| vertex(pos, dr, p))),
+            Some(a) => {
+                let r = dr.scissor;
+                let x = |px: i32| (px - a.x) as f32 / a.width as f32 * 2.0 - 1.0;
+                let y = |py: i32| (py - a.y) as f32 / a.height as f32 * 2.0 - 1.0;
+                let (x0, x1, y0, y1) = (x(r.x), x(r.x + r.width as i32), y(r.y), y(r.y + r.height as i32));
+                out.extend([[x0, y0], [x1, y0], [x0, y1], [x1, y0], [x1, y1], [x0, y1]].iter().map(|&pos| vertex(pos, dr, p)));
+            }
+        }
+    }
+    out
 }
 
 impl Drawn {
-    /// Refills the buffer for the current generations when it holds older ones (the recording
-    /// must be idle); keeps what it has when the fovea is momentarily unknown.
-    fn refresh(&self) {
-        let mut st = lock(&self.state);
-        let now = (shared().foveation().generation, shared().views().generation);
-        if st.0 == now {
+    fn draw_slots(&self) -> usize {
+        match &self.target {
+            Target::Eyes { draws, multiview: false, .. } => draws.len().max(1),
+            _ => 1,
+        }
+    }
+    fn vertex_offset(&self) -> u64 {
+        ARGS * self.draw_slots() as u64
+    }
+    /// Draws nothing, leaves nothing to reconstruct.
+    fn clear(&self, f: &mut Filled) {
+        if let Some(buf) = &self.buffer {
+            buf.write(0, &vec![vk::DrawIndirectCommand::default(); self.draw_slots()]);
+        }
+        *f = Filled::default();
+    }
+    /// Makes the buffer hold the rule for the current fovea (`plan`: the eyes known now, for an
+    /// awaiting target). Keeps what it has when the fovea is momentarily unknown. Only called while
+    /// no submission of the recording executes.
+    fn refresh(&self, me: &RdmDevice, plan: Option<&MaskPlan>) {
+        let mut f = lock(&self.filled);
+        let (draws, multiview, area, image) = match (&self.target, plan) {
+            (Target::Eyes { draws, multiview, image }, _) => (draws.clone(), *multiview, None, *image),
+            (Target::Awaiting { area, .. }, Some(p)) => (p.draws.clone(), p.layout == EyeLayout::Multiview, Some(*area), p.image),
+            (Target::Awaiting { .. }, None) => return self.clear(&mut f),
+        };
+        let Ok((generations, eyes)) = params_now(&draws) else { return };
+        let key = (generations, draws);
+        if f.key.as_ref() == Some(&key) {
             return;
         }
-        let (Ok((generations, eyes)), Some(buffer)) = (params_now(&self.eyes), &self.buffer) else { return };
-        if buffer.write(0, &vertices(&eyes)) {
-            *st = (generations, eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect());
+        let Some(buf) = &self.buffer else { return };
+        let vertices = vertices(&eyes, area);
+        let per = if area.is_some() { 6 } else { 3 };
+        let args: Vec<vk::DrawIndirectCommand> = if multiview || area.is_some() {
+            vec![vk::DrawIndirectCommand { vertex_count: vertices.len() as u32, instance_count: 1, first_vertex: 0, first_instance: 0 }]
+        } else {
+            (0..eyes.len()).map(|i| vk::DrawIndirectCommand { vertex_count: per, instance_count: 1, first_vertex: per * i as u32, first_instance: 0 }).collect()
+        };
+        if !buf.write(self.vertex_offset(), &vertices) {
+            return self.clear(&mut f);
         }
+        buf.write(0, &args);
+        let skipped = eyes.iter().map(|(dr, p)| (dr.view, count(me, generations.0, generations.1, dr, p))).collect();
+        let pending = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
+        *f = Filled { key: Some(key), image, pending, skipped };
     }
 }
 
@@ -225,6 +286,11 @@ impl VkFeature for RdmDevice {
             }
         }
     }
+    fn inject_awaiting(&self, d: &DeviceState, at: &Awaiting<'_>) {
+        if let Err(why) = record_awaiting(self, d, at) {
+            tracing::debug!("radial density masking: no draw for a pass awaiting its eyes: {}", why.name());
+        }
+    }
     fn not_injected(&self, _d: &DeviceState, _s: &Settings, why: NotMasked) {
         if why != NotMasked::NotEyePass {
             self.count(|s| *s.not_applied.entry(why.name()).or_insert(0) += 1);
@@ -240,21 +306,42 @@ impl VkFeature for RdmDevice {
             lock(&self.books).pending.remove(&image);
         }
     }
+    /// Refreshes idle recordings for the live fovea and settings, then applies what each
+    /// submitted recording does, in recording order: its eyes await reconstruction (counted as
+    /// this submission's), the app's transfers carry them on.
     fn before_submit(&self, d: &DeviceState, cbs: &[u64]) {
+        let settings = d.settings();
+        let on = self.injects(&settings);
         for &cb in cbs {
             let idle = !lifetime::in_flight(d, cb);
             lifetime::with_holds(d, cb, |holds| {
                 for h in holds {
                     if let Some(drawn) = h.downcast_ref::<Drawn>() {
-                        if idle {
-                            drawn.refresh();
+                        if idle && !on {
+                            drawn.clear(&mut lock(&drawn.filled));
+                        } else if idle {
+                            let plan = match &drawn.target {
+                                Target::Awaiting { pass, fail_depth, .. } => inject::plan_now(d, pass, *fail_depth, settings.intermediate).ok(),
+                                Target::Eyes { .. } => None,
+                            };
+                            drawn.refresh(self, plan.as_ref());
                         }
-                        let eyes = lock(&drawn.state).1.clone();
+                        let f = lock(&drawn.filled);
+                        if f.pending.is_empty() {
+                            continue;
+                        }
+                        self.count(|s| {
+                            s.passes += 1;
+                            for (view, c) in &f.skipped {
+                                *s.quads_skipped.entry(*view).or_insert(0) += c.quads_skipped;
+                                *s.pixels_skipped.entry(*view).or_insert(0) += c.pixels_skipped;
+                            }
+                        });
                         let mut books = lock(&self.books);
-                        let list = books.pending.entry(drawn.image).or_default();
-                        for p in eyes {
+                        let list = books.pending.entry(f.image).or_default();
+                        for p in &f.pending {
                             list.retain(|x| !(x.layer == p.layer && x.params.rect == p.params.rect));
-                            list.push(p);
+                            list.push(*p);
                         }
                     } else if let Some(t) = h.downcast_ref::<Transfer>() {
                         on_transfer(self, d, t.src, t.dst, &t.regions);
@@ -277,14 +364,11 @@ pub(super) fn log_once(me: &RdmDevice, key: String, f: impl FnOnce()) {
     }
 }
 
-/// Records the checkerboard depth draw into the open pass (after the mask, before the chassis
-/// restores the app's state); which eyes await reconstruction is applied at submission.
-fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<(), NotApplied> {
-    let plan = at.plan;
-    let ((fovea_generation, views_generation), eyes) = params_now(&plan.draws)?;
-    let pass = pipeline::pass_key(d, at.pass, plan).ok_or(NotApplied::LayerError)?;
+/// The checkerboard pipeline for a pass.
+fn pipeline(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInstance, plan: &MaskPlan) -> Result<vk::Pipeline, NotApplied> {
+    let pass = pipeline::pass_key(d, pass, plan).ok_or(NotApplied::LayerError)?;
     let key = pipeline::PipelineKey { feature: me.id(), variant: 0, pass };
-    let p = pipeline::get(d, &key, || {
+    pipeline::get(d, &key, || {
         let (stride, attributes) = vertex_layout();
         // A fragment shader that discards kept quads; colour writes stay off.
         pipeline::PipelineDesc { vert: VERT, vert_multiview: VERT_MV, frag: Some(FRAG), stride, attributes, write_first_color: false }
@@ -295,23 +379,30 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
             tracing::warn!(?key, "rdm pipeline: {e}");
             NotApplied::LayerError
         }
-    })?;
-    let vertices = vertices(&eyes);
-    let buffer = HostBuffer::take(d, std::mem::size_of_val(&vertices[..]) as u64, &me.memory).map_err(|e| {
+    })
+}
+
+/// A recording's buffer: room for a quad per eye of two eyes.
+fn drawn(me: &RdmDevice, d: &DeviceState, target: Target) -> Result<Arc<Drawn>, NotApplied> {
+    let size = ARGS * 2 + 12 * std::mem::size_of::<Vertex>() as u64;
+    let buffer = HostBuffer::take(d, size, &me.memory).map_err(|e| {
         tracing::warn!("rdm vertex buffer: {e}");
         NotApplied::LayerError
     })?;
-    buffer.write(0, &vertices);
-    let pending = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
-    let drawn = Arc::new(Drawn {
-        image: plan.image,
-        eyes: plan.draws.clone(),
-        state: Mutex::new(((fovea_generation, views_generation), pending)),
-        buffer: Some(buffer),
-        pool: d.lifetime.buffers.clone(),
-    });
-    let vk_buffer = drawn.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
+    Ok(Arc::new(Drawn { buffer: Some(buffer), target, filled: Mutex::default(), pool: d.lifetime.buffers.clone() }))
+}
+
+/// Records the checkerboard depth draw into the open pass (after the mask, before the chassis
+/// restores the app's state); what it skips and leaves to reconstruct goes by submission.
+fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<(), NotApplied> {
+    let plan = at.plan;
+    let ((fovea_generation, views_generation), eyes) = params_now(&plan.draws)?;
+    let p = pipeline(me, d, at.pass, plan)?;
+    let multiview = plan.layout == EyeLayout::Multiview;
+    let data = drawn(me, d, Target::Eyes { draws: plan.draws.clone(), multiview, image: plan.image })?;
+    data.refresh(me, None);
     let cb = at.cb;
+    let vk_buffer = data.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
     let fns = d.fns.fp_v1_0();
     let viewport = |r: PixelRect| inject::fail_viewport(r, plan.fail_depth);
     // SAFETY: `cb` is recording inside the pass the plan was made for; the pipeline is compatible
@@ -319,29 +410,22 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     // and its submissions complete.
     unsafe {
         (fns.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::GRAPHICS, p);
-        (fns.cmd_bind_vertex_buffers)(cb, 0, 1, &vk_buffer, &0);
-        if plan.layout == EyeLayout::Multiview {
+        (fns.cmd_bind_vertex_buffers)(cb, 0, 1, &vk_buffer, &data.vertex_offset());
+        if multiview {
             let dr = plan.draws[0];
             (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
             (fns.cmd_set_scissor)(cb, 0, 1, &inject::rect2d(dr.scissor));
-            (fns.cmd_draw)(cb, 3 * eyes.len() as u32, 1, 0, 0);
+            (fns.cmd_draw_indirect)(cb, vk_buffer, 0, 1, ARGS as u32);
         } else {
-            for (i, (dr, _)) in eyes.iter().enumerate().filter(|(_, (dr, _))| dr.scissor.area() > 0) {
+            for (i, dr) in plan.draws.iter().enumerate().filter(|(_, dr)| dr.scissor.area() > 0) {
                 (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
                 (fns.cmd_set_scissor)(cb, 0, 1, &inject::rect2d(dr.scissor));
-                (fns.cmd_draw)(cb, 3, 1, 3 * i as u32, 0);
+                (fns.cmd_draw_indirect)(cb, vk_buffer, ARGS * i as u64, 1, ARGS as u32);
             }
         }
     }
-    lifetime::hold(d, at.owner, drawn);
+    lifetime::hold(d, at.owner, data);
     let counts: Vec<(u32, SkipCount)> = eyes.iter().map(|(dr, p)| (dr.view, count(me, fovea_generation, views_generation, dr, p))).collect();
-    me.count(|s| {
-        s.passes += 1;
-        for (view, c) in &counts {
-            *s.quads_skipped.entry(*view).or_insert(0) += c.quads_skipped;
-            *s.pixels_skipped.entry(*view).or_insert(0) += c.pixels_skipped;
-        }
-    });
     log_once(me, format!("draw {:?} {}", plan.layout, plan.intermediate), || {
         let what: Vec<String> = eyes
             .iter()
@@ -354,6 +438,30 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
         let target = if plan.intermediate { "intermediate image" } else { "swapchain image" };
         tracing::info!("radial density masking {} pass on {target} {:#x}: {}", plan.layout.name(), plan.image, what.join("; "));
     });
+    Ok(())
+}
+
+/// A pass whose eyes are not known yet: one draw over the render area, empty until a submission
+/// finds its eyes.
+fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result<(), NotApplied> {
+    let area = inject::render_area(at.pass);
+    let layout = if at.pass.view_mask() != 0 { EyeLayout::Multiview } else { EyeLayout::PerEye };
+    let plan = MaskPlan { fail_depth: at.fail_depth, layout, intermediate: false, image: 0, view_mask: at.pass.view_mask(), draws: Vec::new() };
+    let p = pipeline(me, d, at.pass, &plan)?;
+    let data = drawn(me, d, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area })?;
+    data.refresh(me, None);
+    let vk_buffer = data.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
+    let fns = d.fns.fp_v1_0();
+    // SAFETY: `at.cb` is recording inside the pass; the pipeline is compatible with it; the
+    // buffer (empty draw arguments until filled) is held by the app's command buffer.
+    unsafe {
+        (fns.cmd_bind_pipeline)(at.cb, vk::PipelineBindPoint::GRAPHICS, p);
+        (fns.cmd_bind_vertex_buffers)(at.cb, 0, 1, &vk_buffer, &data.vertex_offset());
+        (fns.cmd_set_viewport)(at.cb, 0, 1, &inject::fail_viewport(area, at.fail_depth));
+        (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(area));
+        (fns.cmd_draw_indirect)(at.cb, vk_buffer, 0, 1, ARGS as u32);
+    }
+    lifetime::hold(d, at.owner, data);
     Ok(())
 }
 
