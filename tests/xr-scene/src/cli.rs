@@ -100,6 +100,10 @@ pub struct Options {
     /// recorded the first time it is needed and resubmitted unchanged ever after; per-frame data
     /// reaches them only through memory they read.
     pub record_once: bool,
+    /// `--rerecord-every N` (with `--record-once`): every N-th frame (N, 2N, …) re-records the
+    /// frame set it submits, as engines do that re-record when something changed; the other sets
+    /// keep running what they were recorded with.
+    pub rerecord_every: Option<u64>,
     /// `--sync-hazard`: leave out the barrier between the counters' fill and the fragment shader's
     /// atomics, a hazard only synchronization validation reports (proves that it is on).
     pub sync_hazard: bool,
@@ -129,6 +133,7 @@ impl Default for Options {
             pixel_stats: None,
             validation: false,
             record_once: false,
+            rerecord_every: None,
             sync_hazard: false,
         }
     }
@@ -166,6 +171,8 @@ usage: xr-scene [options]
   --record-once                             record each combination of acquired swapchain images'
                                             command buffers once and resubmit them every frame
                                             (per-frame data in per-frame-in-flight buffers)
+  --rerecord-every N                        with --record-once: every N-th frame re-records the
+                                            command buffers it submits (the others stay as recorded)
   --sync-hazard                             leave out one barrier (counters' fill -> fragment shader):
                                             a hazard only synchronization validation reports
   --help                                    show this text";
@@ -274,6 +281,15 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                     .parse::<u32>()
                     .map_err(|_| format!("--shading-cost must be a non-negative integer, got {v:?}"))?;
             }
+            "--rerecord-every" => {
+                let v = value("--rerecord-every")?;
+                o.rerecord_every = Some(
+                    v.parse::<u64>()
+                        .ok()
+                        .filter(|n| *n > 0)
+                        .ok_or_else(|| format!("--rerecord-every must be a positive integer, got {v:?}"))?,
+                );
+            }
             "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
             "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
             "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary"
@@ -316,6 +332,10 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
     // State bound in a primary command buffer is not inherited by secondaries.
     if o.secondary && o.bind_before_pass {
         return Err("--bind-before-pass and --secondary exclude each other: a secondary command buffer inherits no bound state".into());
+    }
+    // Without --record-once every frame is re-recorded anyway.
+    if o.rerecord_every.is_some() && !o.record_once {
+        return Err("--rerecord-every only applies with --record-once".into());
     }
     // The left-out barrier guards the fragment shader's counter writes: without draws there is
     // no hazard to report, and the flag would prove nothing.
@@ -376,6 +396,12 @@ mod tests {
         }
         assert!(p(&["--record-once", "--vulkan-api", "1.0", "--secondary"]).unwrap().unwrap().record_once);
         assert!(p(&["--record-once=1"]).is_err());
+        assert_eq!(p(&["--record-once", "--rerecord-every", "7"]).unwrap().unwrap().rerecord_every, Some(7));
+        assert_eq!(p(&["--record-once"]).unwrap().unwrap().rerecord_every, None);
+        let e = p(&["--rerecord-every", "7"]).unwrap_err();
+        assert!(e.contains("--record-once"), "{e}");
+        assert!(p(&["--record-once", "--rerecord-every", "0"]).is_err());
+        assert!(p(&["--record-once", "--rerecord-every"]).is_err());
     }
 
     #[test]

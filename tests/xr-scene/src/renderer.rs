@@ -166,8 +166,10 @@ pub struct Renderer {
     empty: bool,
     /// `--sync-hazard`: leave out the counters' fill → fragment shader barrier.
     sync_hazard: bool,
-    /// `--record-once`: one frame set per combination of acquired images, never re-recorded.
+    /// `--record-once`: one frame set per combination of acquired images, never re-recorded...
     record_once: bool,
+    /// ... except every N-th frame's (`--rerecord-every N`).
+    rerecord_every: Option<u64>,
     /// `--pixel-stats DIR`: where a finished frame's per-pixel counts go.
     pixel_stats: Option<PathBuf>,
     /// Each view's image rect size (the per-pixel counters' regions).
@@ -233,6 +235,7 @@ impl Renderer {
             empty: opts.empty,
             sync_hazard: opts.sync_hazard,
             record_once: opts.record_once,
+            rerecord_every: opts.rerecord_every,
             pixel_stats: opts.pixel_stats.clone(),
             view_sizes,
             secondary: opts.secondary,
@@ -486,7 +489,8 @@ impl Renderer {
     }
 
     /// Renders one frame: writes `uniforms` for the GPU, records (normal mode: anew every frame;
-    /// `--record-once`: only the first time this combination of acquired images occurs) and
+    /// `--record-once`: only the first time this combination of acquired images occurs, and in
+    /// every N-th frame with `--rerecord-every N`) and
     /// submits. Returns the measurements of every frame whose GPU work is known to be finished
     /// now: normal mode waits for this frame; `--record-once` waits only when it reuses a set, for
     /// the frame that set held before (the others stay in flight; [`Renderer::finish`] collects them).
@@ -510,7 +514,8 @@ impl Renderer {
         // SAFETY: the set's previous submission is complete (above), so the GPU reads nothing of
         // its uniform buffer, which is host-coherent and mapped for the set's lifetime.
         unsafe { set.uniforms_mapped.write(*uniforms) };
-        let record_us = if self.record_once && set.recorded {
+        let rerecord = self.rerecord_every.is_some_and(|n| frame > 0 && frame.is_multiple_of(n));
+        let record_us = if self.record_once && set.recorded && !rerecord {
             0.0
         } else {
             self.record(gpu, index, targets, acquired)?;

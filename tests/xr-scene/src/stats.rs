@@ -388,9 +388,15 @@ impl StatsLog {
         self.write()
     }
 
+    /// Written beside the file and renamed over it, so a crash in the middle (a driver fault in
+    /// another thread) leaves the previous complete file, never a truncated one.
     pub fn write(&self) -> Result<()> {
         let json = to_json(&self.frames);
-        std::fs::write(&self.path, json).map_err(|e| Error(format!("writing {}: {e}", self.path.display())))
+        let mut tmp = self.path.clone().into_os_string();
+        tmp.push(".new");
+        let err = |e: std::io::Error| Error(format!("writing {}: {e}", self.path.display()));
+        std::fs::write(&tmp, json).map_err(err)?;
+        std::fs::rename(&tmp, &self.path).map_err(err)
     }
 }
 
