@@ -34,7 +34,8 @@ impl KeySpec {
 }
 
 /// Every key the layer reads. Features add their keys here.
-pub const KEYS: &[KeySpec] = &[
+/// The chassis' own keys; each feature declares its own (`crate::features::KEYS`).
+const CORE_KEYS: &[KeySpec] = &[
     KeySpec {
         key: "enabled",
         kind: Kind::Bool,
@@ -54,76 +55,10 @@ pub const KEYS: &[KeySpec] = &[
         doc: "enable VK_KHR_fragment_shading_rate on the app's device: auto = only when an enabled feature uses it and the device has it; on = whenever the device has it",
     },
     KeySpec {
-        key: "mask.enabled",
-        kind: Kind::Bool,
-        default: "false",
-        doc: "hidden-area mask: reject the pixels the lens never shows by early depth test in every eye pass",
-    },
-    KeySpec {
-        key: "mask.source",
-        kind: Kind::Choice(&["auto", "runtime", "synthesized"]),
-        default: "auto",
-        doc: "auto: the runtime's XR_KHR_visibility_mask when it has one, else synthesized; runtime: only the runtime's; synthesized: always the configured lens shape",
-    },
-    KeySpec {
-        key: "mask.synthesized.radius_deg",
-        kind: Kind::Float { min: 10.0, max: 89.0 },
-        default: "55",
-        doc: "synthesized lens: horizontal half-angle of the visible ellipse around the view's optical axis, degrees",
-    },
-    KeySpec {
-        key: "mask.synthesized.aspect",
-        kind: Kind::Float { min: 0.25, max: 4.0 },
-        default: "1",
-        doc: "synthesized lens: vertical / horizontal half-angle of the visible ellipse",
-    },
-    KeySpec {
         key: "mask.intermediate",
         kind: Kind::Choice(&["auto", "off"]),
         default: "auto",
         doc: "auto: also mask passes that render into an intermediate image the app later copies / resolves / blits 1:1 into a swapchain image; off: only passes rendering into swapchain images",
-    },
-    KeySpec {
-        key: "mask.debug",
-        kind: Kind::Bool,
-        default: "false",
-        doc: "paint the masked area in a tint instead of leaving it at the clear colour (to see it in the headset and in captures)",
-    },
-    KeySpec {
-        key: "foveation.enabled",
-        kind: Kind::Bool,
-        default: "false",
-        doc: "foveated shading: lower shading rate in the periphery of every eye pass",
-    },
-    KeySpec {
-        key: "foveation.method",
-        kind: Kind::Choice(&["auto", "vrs", "rdm"]),
-        default: "auto",
-        doc: "vrs: VK_KHR_fragment_shading_rate attachment; rdm: radial density masking with reconstruction; auto: vrs where the GPU has it, else rdm",
-    },
-    KeySpec {
-        key: "foveation.preset",
-        kind: Kind::Choice(&["subtle", "balanced", "aggressive"]),
-        default: "balanced",
-        doc: "ring sizes: subtle (full rate within 30°, half to 45°), balanced (20°, 35°), aggressive (12°, 25°)",
-    },
-    KeySpec {
-        key: "foveation.inner_deg",
-        kind: Kind::Float { min: 0.0, max: 90.0 },
-        default: "0",
-        doc: "full-rate radius around the centre, degrees (0: from the preset)",
-    },
-    KeySpec {
-        key: "foveation.middle_deg",
-        kind: Kind::Float { min: 0.0, max: 90.0 },
-        default: "0",
-        doc: "half-rate ring's outer radius, degrees; quarter rate beyond (0: from the preset)",
-    },
-    KeySpec {
-        key: "foveation.eye_tracking",
-        kind: Kind::Choice(&["auto", "off"]),
-        default: "auto",
-        doc: "auto: follow the gaze when the runtime has XR_EXT_eye_gaze_interaction and a valid gaze, else the optical axis; off: always the optical axis",
     },
     KeySpec {
         key: "stats.file",
@@ -138,6 +73,21 @@ pub const KEYS: &[KeySpec] = &[
         doc: "names of intercepted calls (comma separated) whose layer logic fails on purpose, to prove the fallback to pass-through",
     },
 ];
+
+/// Every key: the chassis' and every registered feature's, in that order.
+pub fn keys() -> &'static [KeySpec] {
+    static ALL: std::sync::OnceLock<Vec<KeySpec>> = std::sync::OnceLock::new();
+    ALL.get_or_init(|| {
+        let mut all: Vec<KeySpec> = Vec::new();
+        // Features sharing a folder (both foveation methods) declare the folder's keys each.
+        for spec in CORE_KEYS.iter().chain(crate::features::KEYS.iter().flat_map(|k| k.iter())) {
+            if !all.iter().any(|k| k.key == spec.key) {
+                all.push(*spec);
+            }
+        }
+        all
+    })
+}
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum Value {
@@ -198,7 +148,7 @@ pub struct Inputs<'a> {
 impl Config {
     /// All defaults, as the layer runs when nothing is configured.
     pub fn defaults() -> Config {
-        let values = KEYS
+        let values = keys()
             .iter()
             .map(|k| (k.key, (parse_value(k, &RawValue::Text(k.default.into())).expect("valid default"), Source::Default)))
             .collect();
@@ -231,7 +181,7 @@ impl Config {
                 }
             }
         }
-        for spec in KEYS {
+        for spec in keys() {
             let var = spec.env_var();
             if let Some(text) = (inputs.env)(&var) {
                 match parse_value(spec, &RawValue::Text(text.clone())) {
@@ -246,7 +196,7 @@ impl Config {
     }
 
     fn apply(&mut self, entry: &Entry, source: Source, path: &Path, diagnostics: &mut Vec<String>) {
-        let Some(spec) = KEYS.iter().find(|k| k.key == entry.key) else {
+        let Some(spec) = keys().iter().find(|k| k.key == entry.key) else {
             diagnostics.push(format!("{}:{}: unknown key `{}` ignored", path.display(), entry.line, entry.key));
             return;
         };
@@ -265,11 +215,11 @@ impl Config {
     }
 
     pub fn value(&self, key: &str) -> &Value {
-        &self.values.get(key).unwrap_or_else(|| panic!("config key `{key}` is not in KEYS")).0
+        &self.values.get(key).unwrap_or_else(|| panic!("config key `{key}` is not in config::keys()")).0
     }
 
     pub fn source(&self, key: &str) -> &Source {
-        &self.values.get(key).unwrap_or_else(|| panic!("config key `{key}` is not in KEYS")).1
+        &self.values.get(key).unwrap_or_else(|| panic!("config key `{key}` is not in config::keys()")).1
     }
 
     pub fn bool(&self, key: &str) -> bool {
@@ -523,7 +473,7 @@ mod tests {
 
     #[test]
     fn env_var_names_follow_keys() {
-        let names: Vec<String> = KEYS.iter().map(KeySpec::env_var).collect();
+        let names: Vec<String> = keys().iter().map(KeySpec::env_var).collect();
         assert!(names.contains(&"STEREOSHIM_LOG_LEVEL".to_string()));
         assert!(names.contains(&"STEREOSHIM_VULKAN_FRAGMENT_SHADING_RATE".to_string()));
         assert!(names.contains(&"STEREOSHIM_ENABLED".to_string()));
@@ -661,7 +611,7 @@ mod docs_tests {
     #[test]
     fn every_key_is_documented() {
         let doc = include_str!("../docs/configuration.md");
-        for spec in super::KEYS {
+        for spec in super::keys() {
             let row = doc
                 .lines()
                 .find(|l| l.starts_with(&format!("| `{}` |", spec.key)))
@@ -722,5 +672,5 @@ impl Watch {
 
 /// Keys whose values differ between two configurations (for the reload log line).
 pub fn changed_keys(a: &Config, b: &Config) -> Vec<&'static str> {
-    KEYS.iter().map(|k| k.key).filter(|k| a.value(k) != b.value(k)).collect()
+    keys().iter().map(|k| k.key).filter(|k| a.value(k) != b.value(k)).collect()
 }

@@ -2,14 +2,14 @@
 //! benchmark or a test can check what the layer did in each frame against what the app measured
 //! (shaded fragments, GPU time) for the same frame number.
 
-use crate::mask::MaskFrameStats;
+use crate::core::stats::FrameStats;
 use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// One frame as written to the file.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct FrameRecord {
     /// 0-based number of the frame (count of successful `xrEndFrame`s before it).
     pub frame: u64,
@@ -17,7 +17,8 @@ pub struct FrameRecord {
     pub mask_enabled: bool,
     /// The live `foveation.enabled` (benchmarks switch it as `{feature}_enabled`).
     pub foveation_enabled: bool,
-    pub mask: MaskFrameStats,
+    /// Every feature's counters (each writes its own fields).
+    pub stats: FrameStats,
     /// The foveation the frame was recorded with (empty when off).
     pub fovea: Vec<crate::shared::FoveaView>,
     /// Where the fovea centres came from: "Fixed", "Gaze" or "Held" (None when off).
@@ -29,42 +30,18 @@ pub struct FrameRecord {
 
 impl FrameRecord {
     pub fn to_json(&self) -> String {
-        let not_masked: serde_json::Map<String, serde_json::Value> =
-            self.mask.not_masked.iter().map(|(k, v)| (k.to_string(), (*v).into())).collect();
-        let pixels: serde_json::Map<String, serde_json::Value> =
-            self.mask.pixels_masked.iter().map(|(k, v)| (k.to_string(), (*v).into())).collect();
-        // Radial density masking, per OpenXR view index where per view.
-        let per_view = |m: &std::collections::BTreeMap<u32, u64>| -> serde_json::Map<String, serde_json::Value> {
-            m.iter().map(|(k, v)| (k.to_string(), (*v).into())).collect()
-        };
-        let rdm = &self.mask.rdm;
-        let rdm_not_applied: serde_json::Map<String, serde_json::Value> = rdm.not_applied.iter().map(|(k, v)| (k.to_string(), (*v).into())).collect();
-        serde_json::json!({
-            "frame": self.frame,
-            "mask_enabled": self.mask_enabled,
-            "foveation_enabled": self.foveation_enabled,
-            "passes_masked": self.mask.passes_masked,
-            "not_masked": not_masked,
-            "pixels_masked": pixels,
-            "fovea": self.fovea.iter().map(|f| serde_json::json!({
-                "view": f.view, "center": f.center, "inner_deg": f.inner_deg, "middle_deg": f.middle_deg,
-            })).collect::<Vec<_>>(),
-            "fovea_source": self.fovea_source,
-            "vulkan_half": self.vulkan_half,
-            "rdm": {
-                "passes": rdm.passes,
-                "quads_skipped": per_view(&rdm.quads_skipped),
-                "pixels_skipped": per_view(&rdm.pixels_skipped),
-                "reconstructed": per_view(&rdm.reconstructed),
-                "not_applied": rdm_not_applied,
-            },
-            "vrs": {
-                "passes": self.mask.vrs.passes,
-                "maps_built": self.mask.vrs.maps_built,
-                "not_applied": self.mask.vrs.not_applied.iter().map(|(k, v)| (k.to_string(), serde_json::Value::from(*v))).collect::<serde_json::Map<_, _>>(),
-            },
-        })
-        .to_string()
+        let mut record = serde_json::Map::new();
+        record.insert("frame".into(), self.frame.into());
+        record.insert("mask_enabled".into(), self.mask_enabled.into());
+        record.insert("foveation_enabled".into(), self.foveation_enabled.into());
+        record.insert(
+            "fovea".into(),
+            self.fovea.iter().map(|f| serde_json::json!({"view": f.view, "center": f.center, "inner_deg": f.inner_deg, "middle_deg": f.middle_deg})).collect::<Vec<_>>().into(),
+        );
+        record.insert("fovea_source".into(), self.fovea_source.clone().into());
+        record.insert("vulkan_half".into(), self.vulkan_half.into());
+        self.stats.write_json(&mut record);
+        serde_json::Value::Object(record).to_string()
     }
 }
 
@@ -105,14 +82,17 @@ mod tests {
 
     #[test]
     fn records_are_json_lines() {
-        let mask = MaskFrameStats {
+        use crate::features::foveation::{rdm::rules::RdmFrameStats, vrs::rules::VrsFrameStats};
+        use crate::features::mask::rules::MaskFrameStats;
+        let mut stats = crate::features::empty_stats();
+        *stats.get_mut::<MaskFrameStats>().unwrap() = MaskFrameStats {
             passes_masked: 2,
             not_masked: [("no_depth_attachment", 1)].into_iter().collect(),
             pixels_masked: [(0, 1234)].into_iter().collect(),
-            rdm: crate::rdm::RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() },
-            vrs: crate::vrs::VrsFrameStats { passes: 3, ..Default::default() },
         };
-        let r = FrameRecord { frame: 7, mask_enabled: true, foveation_enabled: true, mask, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true) };
+        *stats.get_mut::<RdmFrameStats>().unwrap() = RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() };
+        *stats.get_mut::<VrsFrameStats>().unwrap() = VrsFrameStats { passes: 3, ..Default::default() };
+        let r = FrameRecord { frame: 7, mask_enabled: true, foveation_enabled: true, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true) };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
         assert_eq!(v["frame"], 7);
         assert_eq!(v["vulkan_half"], true);

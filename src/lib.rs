@@ -3,17 +3,15 @@
 //! that needs no GPU and is unit-tested.
 
 pub mod config;
-pub mod foveation;
+pub mod core;
+pub mod features;
 pub mod frame_stats;
 pub mod guard;
 pub mod log;
 pub mod manifest;
-pub mod mask;
-pub mod mask_source;
 pub mod notices;
-pub mod rdm;
-pub mod vrs;
 pub mod registry;
+pub mod settings;
 pub mod shared;
 pub mod submission;
 pub mod swapchain_images;

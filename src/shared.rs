@@ -153,7 +153,10 @@ impl Shared {
     pub fn config(&self) -> Option<Arc<crate::config::Config>> {
         self.config.read().unwrap_or_else(|e| e.into_inner()).clone()
     }
+    /// Makes `config` the live configuration, and its typed settings the live settings
+    /// (`crate::settings::current`).
     pub fn set_config(&self, config: Arc<crate::config::Config>) {
+        crate::settings::publish(crate::settings::Settings::from_config(&config));
         *self.config.write().unwrap_or_else(|e| e.into_inner()) = Some(config);
     }
     pub fn views(&self) -> Arc<Views> {

@@ -281,6 +281,10 @@ pub struct CmdState {
     /// attachment in this command buffer: image → depth. A later pass that loads the image starts
     /// from that clear.
     pub depth_image_clears: Vec<(u64, f32)>,
+    /// The first command the app recorded whose state the layer cannot restore after an injected
+    /// draw (shader objects, vertex input, shading rate, extended dynamic state 3): injections
+    /// into this command buffer are vetoed (`vk::inject`).
+    pub veto: Option<&'static str>,
 }
 
 const MAX_PUSHES: usize = 64;
@@ -395,7 +399,9 @@ impl CmdState {
     pub fn forget_graphics_state(&mut self) {
         let (recording, usage, pass) = (self.recording, self.usage, self.pass.take());
         let depth_image_clears = std::mem::take(&mut self.depth_image_clears);
-        *self = CmdState { recording, usage, pass, depth_image_clears, ..CmdState::default() };
+        // Secondaries may use state the layer cannot restore; the veto stays as it was.
+        let veto = self.veto;
+        *self = CmdState { recording, usage, pass, depth_image_clears, veto, ..CmdState::default() };
     }
 
     /// Commands that re-establish this state after an injected draw changed it: the pipeline

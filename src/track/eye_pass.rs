@@ -4,7 +4,8 @@
 //! feeds it the tracked pass and draws what it plans; nothing here touches Vulkan.
 
 use super::cmd::{AttachmentUse, PassInstance};
-use crate::mask::{NotMasked, PixelRect};
+use crate::core::pass::NotMasked;
+use crate::core::rect::PixelRect;
 use crate::shared::{EyeUse, ImageRect};
 use ash::vk;
 

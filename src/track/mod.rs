@@ -451,7 +451,7 @@ mod tests {
         use crate::shared::{EyeUse, ImageRect};
         let (t, shared) = tracker_with_pass();
         // Image 101 (64×64) copied 1:1 into swapchain image 100: eyes known once uses are.
-        let whole = crate::mask::PixelRect { x: 0, y: 0, width: 64, height: 64 };
+        let whole = crate::core::rect::PixelRect { x: 0, y: 0, width: 64, height: 64 };
         let region = eye_pass::TransferRegion { src_layer: 0, dst_layer: 0, layer_count: 2, src: whole, dst: whole };
         t.record_transfer(&shared, 101, 100, &[region]);
         t.record_transfer(&shared, 101, 100, &[region]);

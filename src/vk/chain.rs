@@ -36,7 +36,7 @@ unsafe fn link_info<T>(mut p_next: *const c_void, s_type: vk::StructureType, fun
 ///
 /// # Safety
 /// `p_next` must be a valid structure chain.
-unsafe fn loader_data_callback(mut p_next: *const c_void) -> Option<super::rdm::PfnSetDeviceLoaderData> {
+unsafe fn loader_data_callback(mut p_next: *const c_void) -> Option<super::PfnSetDeviceLoaderData> {
     while !p_next.is_null() {
         // SAFETY: every struct in a valid chain starts with sType, pNext.
         let base = unsafe { &*(p_next as *const vk::BaseInStructure<'_>) };
@@ -46,7 +46,7 @@ unsafe fn loader_data_callback(mut p_next: *const c_void) -> Option<super::rdm::
             let info = unsafe { &*(p_next as *const loader::LayerDeviceCreateInfo) };
             if info.function == loader::LayerFunction::LOADER_DATA_CALLBACK && !info.p_layer_info.is_null() {
                 // SAFETY: the union member is `PFN_vkSetDeviceLoaderData` for this function value.
-                return Some(unsafe { std::mem::transmute::<*mut loader::LayerDeviceLink, super::rdm::PfnSetDeviceLoaderData>(info.p_layer_info) });
+                return Some(unsafe { std::mem::transmute::<*mut loader::LayerDeviceLink, super::PfnSetDeviceLoaderData>(info.p_layer_info) });
             }
         }
         p_next = base.p_next as *const c_void;
@@ -423,6 +423,7 @@ pub(super) unsafe extern "system" fn create_device(
             caps::from_create_info(device_version.min(inst.api_version), &enabled, features, fsr_attachment)
         };
         tracing::info!(?caps, "vulkan device capabilities the layer's objects are checked against");
+        let device_settings = Arc::new(crate::settings::Settings::from_config(&inst.config));
         let state = DeviceState {
             caps,
             handle: device,
@@ -430,12 +431,13 @@ pub(super) unsafe extern "system" fn create_device(
             fns,
             ext,
             pass_through: inst.pass_through.clone(),
-            config: inst.config.clone(),
             track: Default::default(),
             extension_decision: decision,
-            mask: super::mask::MaskDevice::new(&inst.config, memory, rates.is_some()),
-            vrs: super::vrs::VrsDevice::new(&inst.config, memory, rates),
-            rdm: super::rdm::RdmDevice::new(memory, set_loader_data),
+            features: crate::features::DeviceFeatures::new(&super::feature::DeviceInit { settings: &device_settings, memory, rates, set_loader_data }),
+            settings: device_settings.clone(),
+            set_loader_data,
+            inject: Default::default(),
+            lifetime: Default::default(),
             secondary: Default::default(),
         };
         layer().devices.insert(dispatch_key(device), Arc::new(state));
@@ -445,14 +447,14 @@ pub(super) unsafe extern "system" fn create_device(
 
 /// `VkPhysicalDeviceFragmentShadingRatePropertiesKHR`: the finest rate-map texel and whether
 /// multiview passes can have one layer per view. None when the instance cannot query it.
-fn fsr_rates(inst: &InstanceState, pd: vk::PhysicalDevice) -> Option<crate::vrs::DeviceRates> {
+fn fsr_rates(inst: &InstanceState, pd: vk::PhysicalDevice) -> Option<crate::features::foveation::vrs::rules::DeviceRates> {
     let (_, properties2) = properties2_fns(inst, pd)?;
     let mut fsr = vk::PhysicalDeviceFragmentShadingRatePropertiesKHR::default();
     let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut fsr);
     // SAFETY: a physical device of this instance; a correctly chained output struct.
     unsafe { properties2(pd, &mut p2) };
     let t = fsr.min_fragment_shading_rate_attachment_texel_size;
-    (t.width > 0 && t.height > 0).then_some(crate::vrs::DeviceRates {
+    (t.width > 0 && t.height > 0).then_some(crate::features::foveation::vrs::rules::DeviceRates {
         texel_width: t.width,
         texel_height: t.height,
         layered: fsr.layered_shading_rate_attachments != 0,
@@ -477,6 +479,22 @@ fn load_ext(gdpa: vk::PFN_vkGetDeviceProcAddr, device: vk::Device) -> ExtFns {
         cmd_set_logic_op: get(c"vkCmdSetLogicOpEXT").map(|p| unsafe { std::mem::transmute(p) }),
         // SAFETY: see above.
         cmd_set_patch_control_points: get(c"vkCmdSetPatchControlPointsEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above.
+        cmd_set_fragment_shading_rate: get(c"vkCmdSetFragmentShadingRateKHR").map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above.
+        cmd_bind_shaders: get(c"vkCmdBindShadersEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above.
+        cmd_set_vertex_input: get(c"vkCmdSetVertexInputEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above.
+        cmd_set_polygon_mode: get(c"vkCmdSetPolygonModeEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above.
+        cmd_set_rasterization_samples: get(c"vkCmdSetRasterizationSamplesEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above.
+        cmd_set_color_write_mask: get(c"vkCmdSetColorWriteMaskEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above.
+        cmd_set_color_blend_enable: get(c"vkCmdSetColorBlendEnableEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above.
+        cmd_set_depth_clamp_enable: get(c"vkCmdSetDepthClampEnableEXT").map(|p| unsafe { std::mem::transmute(p) }),
     }
 }
 
@@ -484,16 +502,22 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
     guard::catch("vkDestroyDevice", (), || {
         let key = dispatch_key(device);
         let Some(dev) = layer().devices.get(key) else { return };
-        if dev.mask.used() {
-            tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {} {}", dev.track.stats.summary(), dev.mask.summary());
-            // The app waited for the device to go idle before destroying it.
-            super::mask::destroy(&dev);
-            super::rdm::destroy(&dev);
-            super::secondary::destroy(&dev);
-        } else {
-            tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {}", dev.track.stats.summary());
+        let mut line = dev.track.stats.summary();
+        for summary in dev.features.all().iter().filter_map(|f| f.summary()) {
+            line.push(' ');
+            line.push_str(&summary);
         }
-        super::vrs::destroy(&dev);
+        for (reason, n) in dev.inject.vetoed() {
+            line.push_str(&format!(" vetoed.{reason}={n}"));
+        }
+        tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {line}");
+        // The app waited for the device to go idle before destroying it.
+        for f in dev.features.all() {
+            f.destroy(&dev);
+        }
+        super::inject::pipeline::destroy(&dev);
+        super::secondary::destroy(&dev);
+        super::lifetime::destroy(&dev);
         // SAFETY: forwarding the app's arguments.
         unsafe { (dev.fns.fp_v1_0().destroy_device)(device, allocator) };
         layer().devices.remove(key);

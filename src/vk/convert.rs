@@ -74,7 +74,7 @@ pub unsafe fn vertex_bindings(
 
 /// A copy / resolve region (same extent on both sides) as a transfer region.
 pub fn copy_region(r: &vk::ImageCopy) -> crate::track::eye_pass::TransferRegion {
-    let rect = |o: vk::Offset3D| crate::mask::PixelRect { x: o.x, y: o.y, width: r.extent.width, height: r.extent.height };
+    let rect = |o: vk::Offset3D| crate::core::rect::PixelRect { x: o.x, y: o.y, width: r.extent.width, height: r.extent.height };
     crate::track::eye_pass::TransferRegion {
         src_layer: r.src_subresource.base_array_layer,
         dst_layer: r.dst_subresource.base_array_layer,
@@ -92,7 +92,7 @@ pub fn blit_region(
     dst: [vk::Offset3D; 2],
 ) -> Option<crate::track::eye_pass::TransferRegion> {
     let rect = |o: [vk::Offset3D; 2]| {
-        (o[1].x >= o[0].x && o[1].y >= o[0].y).then(|| crate::mask::PixelRect {
+        (o[1].x >= o[0].x && o[1].y >= o[0].y).then(|| crate::core::rect::PixelRect {
             x: o[0].x,
             y: o[0].y,
             width: (o[1].x - o[0].x) as u32,

@@ -8,12 +8,12 @@
 
 pub(crate) mod convert;
 mod chain;
+pub(crate) mod feature;
 mod hooks;
+pub(crate) mod inject;
+pub(crate) mod lifetime;
 pub mod loader;
-mod mask;
-mod rdm;
 mod secondary;
-mod vrs;
 
 use crate::config::Config;
 use crate::guard::{self, PassThrough};
@@ -49,6 +49,15 @@ pub(crate) struct ExtFns {
     pub cmd_set_color_write_enable: Option<vk::PFN_vkCmdSetColorWriteEnableEXT>,
     pub cmd_set_logic_op: Option<vk::PFN_vkCmdSetLogicOpEXT>,
     pub cmd_set_patch_control_points: Option<vk::PFN_vkCmdSetPatchControlPointsEXT>,
+    // Commands that veto injections (`hooks::record`).
+    pub cmd_set_fragment_shading_rate: Option<vk::PFN_vkCmdSetFragmentShadingRateKHR>,
+    pub cmd_bind_shaders: Option<vk::PFN_vkCmdBindShadersEXT>,
+    pub cmd_set_vertex_input: Option<vk::PFN_vkCmdSetVertexInputEXT>,
+    pub cmd_set_polygon_mode: Option<vk::PFN_vkCmdSetPolygonModeEXT>,
+    pub cmd_set_rasterization_samples: Option<vk::PFN_vkCmdSetRasterizationSamplesEXT>,
+    pub cmd_set_color_write_mask: Option<vk::PFN_vkCmdSetColorWriteMaskEXT>,
+    pub cmd_set_color_blend_enable: Option<vk::PFN_vkCmdSetColorBlendEnableEXT>,
+    pub cmd_set_depth_clamp_enable: Option<vk::PFN_vkCmdSetDepthClampEnableEXT>,
 }
 
 /// What the layer keeps per `VkDevice`.
@@ -62,23 +71,40 @@ pub(crate) struct DeviceState {
     pub fns: ash::Device,
     pub ext: ExtFns,
     pub pass_through: Arc<PassThrough>,
-    pub config: Arc<Config>,
     pub track: DeviceTracker,
     pub extension_decision: Decision,
-    /// The hidden-area mask's objects and statistics.
-    pub mask: mask::MaskDevice,
-    /// Radial density masking's objects (its statistics live with the mask's).
-    pub rdm: rdm::RdmDevice,
-    /// Variable-rate shading's rate images (its statistics live with the mask's).
-    pub vrs: vrs::VrsDevice,
+    /// The settings resolved when the device was created (used until the OpenXR half publishes
+    /// live ones).
+    pub settings: Arc<crate::settings::Settings>,
+    /// The loader's callback for dispatchable objects the layer creates itself.
+    pub set_loader_data: Option<PfnSetDeviceLoaderData>,
+    /// Every registered feature's per-device object (`crate::features`).
+    pub features: crate::features::DeviceFeatures,
+    /// The injection chassis: triggers, pipeline cache.
+    pub inject: inject::InjectDevice,
+    /// Holds of recorded command buffers and their submissions.
+    pub lifetime: lifetime::LifetimeDevice,
     /// The layer's secondary command buffers for eye passes with secondary contents.
     pub secondary: secondary::SecondaryDevice,
 }
 
+/// The loader's `PFN_vkSetDeviceLoaderData`: a layer must call it on dispatchable objects it
+/// creates itself (our command buffers) so the layers below find their dispatch tables.
+pub(crate) type PfnSetDeviceLoaderData = unsafe extern "system" fn(vk::Device, *mut c_void) -> vk::Result;
+
 impl DeviceState {
+    /// The live settings (the OpenXR half re-reads a changed config file between frames), else
+    /// the device's own.
+    pub fn settings(&self) -> Arc<crate::settings::Settings> {
+        crate::settings::current().unwrap_or_else(|| self.settings.clone())
+    }
+
     /// `debug.fail_in`: the layer logic of `call` fails on purpose (fault-injection tests).
     pub fn check(&self, call: &'static str) -> Result<(), guard::Fault> {
-        check_fault(&self.config, call)
+        if self.settings.fails_in(call) {
+            return Err(guard::Fault(format!("{call}: failing on purpose (debug.fail_in)")));
+        }
+        Ok(())
     }
 }
 
@@ -130,18 +156,29 @@ pub(crate) fn device_is_tracked(device: u64) -> bool {
     layer().devices.get(dispatch_key(vk::Device::from_raw(device))).is_some()
 }
 
-/// The hidden-area mask statistics of the frame that just ended, summed over devices, and the
-/// start of the next frame. The OpenXR half calls this once per `xrEndFrame`.
-pub fn take_frame_stats() -> crate::mask::MaskFrameStats {
-    mask::take_frame_stats()
+/// Every feature's statistics of the frame that just ended, summed over devices (each device
+/// starts its next frame). The OpenXR half calls this once per `xrEndFrame`; it is also where
+/// completed submissions release what they held.
+pub fn take_frame_stats() -> crate::core::stats::FrameStats {
+    let mut all = crate::features::empty_stats();
+    for (_, d) in layer().devices.values() {
+        lifetime::poll(&d);
+        let device = crate::core::stats::FrameStats::new(d.features.all().iter().map(|f| f.take_frame()).collect());
+        all.add(&device);
+    }
+    all
 }
 
-/// Radial density masking: before `xrReleaseSwapchainImage` goes down, fill the quads skipped in
-/// the released image (`binding`: the session's device, queue family and queue index; `index`:
-/// the image being released, the oldest acquired). Does nothing unless RDM drew into that image.
-pub fn rdm_before_release(binding: Option<(u64, u32, u32)>, swapchain: u64, index: Option<u32>) {
-    if let (Some((device, family, queue)), Some(index)) = (binding, index) {
-        rdm::before_release(device, family, queue, swapchain, index);
+/// `xrReleaseSwapchainImage` of `index` of `swapchain` is about to go down: the features act on
+/// the released image (`binding`: the session's device, queue family and queue index).
+pub fn before_release(binding: Option<(u64, u32, u32)>, swapchain: u64, index: Option<u32>) {
+    let (Some((device, family, queue)), Some(index)) = (binding, index) else { return };
+    let Some(d) = layer().devices.get(dispatch_key(vk::Device::from_raw(device))) else { return };
+    if d.pass_through.is_on() {
+        return;
+    }
+    for f in d.features.all() {
+        f.before_release(&d, family, queue, swapchain, index);
     }
 }
 
@@ -275,6 +312,17 @@ intercepts! {
     Device "vkCmdBlitImage2KHR" => hooks::cmd_blit_image2 as vk::PFN_vkCmdBlitImage2;
     Device "vkCmdClearAttachments" => hooks::cmd_clear_attachments as vk::PFN_vkCmdClearAttachments;
     Device "vkCmdClearDepthStencilImage" => hooks::cmd_clear_depth_stencil_image as vk::PFN_vkCmdClearDepthStencilImage;
+    Device "vkCmdSetFragmentShadingRateKHR" => hooks::cmd_set_fragment_shading_rate as vk::PFN_vkCmdSetFragmentShadingRateKHR;
+    Device "vkCmdBindShadersEXT" => hooks::cmd_bind_shaders as vk::PFN_vkCmdBindShadersEXT;
+    Device "vkCmdSetVertexInputEXT" => hooks::cmd_set_vertex_input as vk::PFN_vkCmdSetVertexInputEXT;
+    Device "vkCmdSetPolygonModeEXT" => hooks::cmd_set_polygon_mode as vk::PFN_vkCmdSetPolygonModeEXT;
+    Device "vkCmdSetRasterizationSamplesEXT" => hooks::cmd_set_rasterization_samples as vk::PFN_vkCmdSetRasterizationSamplesEXT;
+    Device "vkCmdSetColorWriteMaskEXT" => hooks::cmd_set_color_write_mask as vk::PFN_vkCmdSetColorWriteMaskEXT;
+    Device "vkCmdSetColorBlendEnableEXT" => hooks::cmd_set_color_blend_enable as vk::PFN_vkCmdSetColorBlendEnableEXT;
+    Device "vkCmdSetDepthClampEnableEXT" => hooks::cmd_set_depth_clamp_enable as vk::PFN_vkCmdSetDepthClampEnableEXT;
+    Device "vkQueueSubmit" => hooks::queue_submit as vk::PFN_vkQueueSubmit;
+    Device "vkQueueSubmit2" => hooks::queue_submit2 as vk::PFN_vkQueueSubmit2;
+    Device "vkQueueSubmit2KHR" => hooks::queue_submit2 as vk::PFN_vkQueueSubmit2;
 }
 
 fn void_fn<F: Copy>(f: F) -> unsafe extern "system" fn() {
@@ -391,7 +439,8 @@ mod tests {
     fn table_lookup() {
         assert_eq!(intercept(b"vkCmdBeginRenderingKHR").map(|(l, _)| l), Some(Level::Device));
         assert_eq!(intercept(b"vkCreateDevice").map(|(l, _)| l), Some(Level::Instance));
-        assert!(intercept(b"vkQueueSubmit").is_none());
+        assert_eq!(intercept(b"vkQueueSubmit").map(|(l, _)| l), Some(Level::Device));
+        assert!(intercept(b"vkQueuePresentKHR").is_none());
         // Aliases share one hook.
         let a = intercept(b"vkCmdSetCullMode").unwrap().1 as usize;
         let b = intercept(b"vkCmdSetCullModeEXT").unwrap().1 as usize;

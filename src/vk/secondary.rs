@@ -91,7 +91,7 @@ pub(crate) fn record(
             let cb = cbs[0];
             // Dispatchable: the loader sets the dispatch word only on objects handed out through
             // it, so a layer must set it on its own before using them.
-            let set = d.rdm.set_loader_data.ok_or("the loader gave no vkSetDeviceLoaderData")?;
+            let set = d.set_loader_data.ok_or("the loader gave no vkSetDeviceLoaderData")?;
             // SAFETY: the loader's callback for this device and a command buffer allocated on it.
             let r = unsafe { set(d.handle, cb.as_raw() as usize as *mut std::ffi::c_void) };
             if r != vk::Result::SUCCESS {

@@ -24,8 +24,9 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
         let r = down.call(plain);
         // The app records its eye passes after this; masks must be there by then.
         if let (Some(s), true) = (&sess, r.into_raw() >= 0) {
-            session::refresh_masks(s);
-            session::refresh_foveation(s);
+            for f in crate::features::XR_FEATURES {
+                f.frame_begun(s);
+            }
         }
         Ok(r)
     }, plain)
@@ -35,8 +36,8 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
 /// configuration that was live while the frame was recorded (reloads apply after this).
 fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>, frame: u64) {
     static WRITER: std::sync::OnceLock<crate::frame_stats::Writer> = std::sync::OnceLock::new();
-    let mask = crate::vk::take_frame_stats();
-    let live = shared::shared().config().unwrap_or_else(|| inst.config.clone());
+    let stats = crate::vk::take_frame_stats();
+    let settings = super::settings(inst);
     let fovea = shared::shared().foveation().views.clone();
     let fovea_source = if fovea.is_empty() {
         None
@@ -45,38 +46,30 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
             .sessions
             .values()
             .into_iter()
-            .find_map(|(_, s)| *s.gaze.source.lock().unwrap_or_else(|e| e.into_inner()))
-            .or(Some(crate::foveation::CenterSource::Fixed))
+            .find_map(|(_, s)| *s.features.foveation.gaze.source.lock().unwrap_or_else(|e| e.into_inner()))
+            .or(Some(crate::features::foveation::rules::CenterSource::Fixed))
             .map(|src| format!("{src:?}"))
     };
     let vulkan_half = session.map(|s| s.vulkan_half);
     let record = crate::frame_stats::FrameRecord {
         frame,
-        mask_enabled: live.bool("mask.enabled"),
-        foveation_enabled: live.bool("foveation.enabled"),
-        mask,
+        mask_enabled: settings.mask.enabled,
+        foveation_enabled: settings.foveation.enabled,
+        stats,
         fovea,
         fovea_source,
         vulkan_half,
     };
     if let Some(s) = session {
-        let foveation = record.foveation_enabled;
-        // `auto` is VRS on devices that have it: the method in effect shows in what VRS counted.
-        let vrs_active = record.mask.vrs.passes > 0 || !record.mask.vrs.not_applied.is_empty();
-        let method = live.choice("foveation.method");
-        let enabled = crate::notices::Enabled {
-            mask: record.mask_enabled,
-            rdm: foveation && (method == "rdm" || (method == "auto" && !vrs_active)),
-            vrs: foveation && (method == "vrs" || (method == "auto" && vrs_active)),
-        };
-        for w in s.summary.lock().unwrap_or_else(|e| e.into_inner()).add_frame(enabled, &record.mask) {
+        let enabled = crate::features::enabled(&settings, &record.stats);
+        for w in s.summary.lock().unwrap_or_else(|e| e.into_inner()).add_frame(&enabled, &record.stats) {
             tracing::warn!("{w}");
         }
     }
-    if frame == 0 || record.mask.passes_masked > 0 || !record.mask.not_masked.is_empty() || !record.mask.vrs.is_empty() {
+    if frame == 0 || !record.stats.is_empty() {
         tracing::debug!("frame stats: {}", record.to_json());
     }
-    WRITER.get_or_init(Default::default).write(live.text("stats.file"), &record);
+    WRITER.get_or_init(Default::default).write(&settings.stats_file, &record);
 }
 
 /// Applies a changed config file from the next frame on (frame boundaries keep every frame's
@@ -93,9 +86,9 @@ fn reload_config(inst: &super::Instance) {
         return;
     }
     tracing::info!("config reloaded, changed: {changed:?} (features apply from the next frame; `enabled` and `log.level` only at start)");
-    if changed.iter().any(|k| k.starts_with("mask.")) {
-        for (_, s) in super::state().sessions.values() {
-            s.masks_dirty.store(true, Ordering::Release);
+    for (_, s) in super::state().sessions.values() {
+        for f in crate::features::XR_FEATURES {
+            f.config_reloaded(&s, &changed);
         }
     }
     shared.set_config(std::sync::Arc::new(config));

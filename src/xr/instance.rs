@@ -32,15 +32,17 @@ impl Stats {
     }
 }
 
-/// Instance extensions the enabled features use, if the runtime has them.
+/// Instance extensions the features use for themselves, if the runtime has them.
 fn wanted_extensions(config: &crate::config::Config) -> Vec<&'static str> {
-    // Enabled whenever the layer is, not only when the mask is on now: the mask can be switched
-    // on while the app runs (live config), and the extension cannot be enabled later.
-    let mut v = Vec::new();
-    if config.enabled() {
-        v.push(super::VISIBILITY_MASK_EXT);
-        if config.choice("foveation.eye_tracking") != "off" {
-            v.push(super::EYE_GAZE_EXT);
+    let settings = crate::settings::Settings::from_config(config);
+    let mut v: Vec<&'static str> = Vec::new();
+    for f in crate::features::XR_FEATURES {
+        let wanted = f.wanted_extensions(&settings);
+        tracing::debug!(feature = f.id(), ?wanted, "instance extensions a feature uses");
+        for e in wanted {
+            if !v.contains(&e) {
+                v.push(e);
+            }
         }
     }
     v
@@ -293,33 +295,27 @@ pub(super) unsafe extern "system" fn poll_event(instance: xr::Instance, event_da
     let plain = || unsafe { next(instance, event_data) };
     guard::run("xrPollEvent", &inst.pass_through, |down| {
         inst.check_fault("xrPollEvent")?;
-        let app_sees_masks = inst.app_enabled(super::VISIBILITY_MASK_EXT);
         loop {
             let r = down.call(plain);
             if r != xr::Result::SUCCESS || event_data.is_null() {
                 return Ok(r);
             }
-            // SAFETY: on success the runtime filled the event buffer; its `ty` tells its layout.
-            let ty = unsafe { (*event_data).ty };
-            if ty == xr::StructureType::EVENT_DATA_VISIBILITY_MASK_CHANGED_KHR {
-                // SAFETY: `ty` says the buffer holds this struct (it fits in XrEventDataBuffer).
-                let e = unsafe { &*(event_data as *const xr::EventDataVisibilityMaskChangedKHR) };
-                inst.stats.visibility_mask_events.fetch_add(1, Ordering::Relaxed);
-                tracing::info!("visibility mask of view {} changed", e.view_index);
-                if let Some(s) = state().sessions.get(e.session.into_raw()) {
-                    s.masks_dirty.store(true, Ordering::Release);
+            // SAFETY: on success the runtime filled the event buffer.
+            let event = unsafe { &*event_data };
+            let ty = event.ty;
+            // Every feature sees every event; one that is the layer's own is hidden from the app:
+            // poll again with the buffer restored to what the app passed in.
+            // Not `any`: every feature must see the event, whoever owns it.
+            let ours = crate::features::XR_FEATURES.iter().map(|f| f.event(&inst, event)).fold(false, |a, b| a | b);
+            if ours {
+                // SAFETY: the app's event buffer, valid for this call.
+                unsafe {
+                    (*event_data).ty = xr::StructureType::EVENT_DATA_BUFFER;
+                    (*event_data).next = std::ptr::null();
                 }
-                // The event exists for the app only if it enabled the extension itself: poll
-                // again with the buffer restored to what the app passed in.
-                if !app_sees_masks {
-                    // SAFETY: the app's event buffer, valid for this call.
-                    unsafe {
-                        (*event_data).ty = xr::StructureType::EVENT_DATA_BUFFER;
-                        (*event_data).next = std::ptr::null();
-                    }
-                    continue;
-                }
-            } else if ty == xr::StructureType::EVENT_DATA_SESSION_STATE_CHANGED {
+                continue;
+            }
+            if ty == xr::StructureType::EVENT_DATA_SESSION_STATE_CHANGED {
                 // SAFETY: as above.
                 let e = unsafe { &*(event_data as *const xr::EventDataSessionStateChanged) };
                 tracing::debug!("session {:#x} state {:?}", e.session.into_raw(), e.state);

@@ -2,10 +2,11 @@
 //! intercepted calls. Everything unsafe about the OpenXR side lives under `src/xr/`; what the hooks
 //! decide is in the safe modules of the crate.
 
+mod actions;
+pub(crate) mod feature;
 mod frame;
-mod gaze;
 mod instance;
-mod session;
+pub(crate) mod session;
 mod swapchain;
 mod vulkan;
 
@@ -108,8 +109,8 @@ intercepts! {
     "xrCreateVulkanDeviceKHR" => create_vulkan_device: CreateVulkanDeviceKHR = vulkan::create_vulkan_device,
     "xrGetVulkanInstanceExtensionsKHR" => get_vulkan_instance_extensions: GetVulkanInstanceExtensionsKHR = vulkan::get_vulkan_instance_extensions,
     "xrGetVulkanDeviceExtensionsKHR" => get_vulkan_device_extensions: GetVulkanDeviceExtensionsKHR = vulkan::get_vulkan_device_extensions,
-    "xrAttachSessionActionSets" => attach_session_action_sets: AttachSessionActionSets = gaze::attach_session_action_sets,
-    "xrSyncActions" => sync_actions: SyncActions = gaze::sync_actions,
+    "xrAttachSessionActionSets" => attach_session_action_sets: AttachSessionActionSets = actions::attach_session_action_sets,
+    "xrSyncActions" => sync_actions: SyncActions = actions::sync_actions,
     }
     calls {
     "xrStringToPath" => string_to_path: StringToPath,
@@ -177,6 +178,12 @@ pub(crate) struct XrState {
     pub instances: HandleMap<u64, Instance>,
     pub sessions: HandleMap<u64, session::Session>,
     pub swapchains: HandleMap<u64, swapchain::Swapchain>,
+}
+
+/// The live settings (published with the config at instance creation and on every reload), else
+/// those of the instance's own config.
+pub(crate) fn settings(inst: &Instance) -> std::sync::Arc<crate::settings::Settings> {
+    crate::settings::current().unwrap_or_else(|| std::sync::Arc::new(crate::settings::Settings::from_config(&inst.config)))
 }
 
 pub(crate) fn state() -> &'static XrState {

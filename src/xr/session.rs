@@ -1,10 +1,10 @@
-//! Session-level entry points: which Vulkan device a session renders with, where its views are,
-//! and its lens masks — what later features need to decide where and how to inject.
+//! Session-level entry points: which Vulkan device a session renders with and where its views
+//! are; the features' per-session state (`XrSessionFeatures`) is made here and their
+//! `views_located` event raised.
 
 use super::{state, Instance};
 use crate::guard;
-use crate::mask_source::{self, LensShape, SourcePolicy};
-use crate::shared::{ViewFov, ViewMask};
+use crate::shared::ViewFov;
 use std::sync::atomic::{AtomicBool, Ordering};
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
@@ -32,25 +32,17 @@ pub(crate) struct Session {
     pub instance: Arc<Instance>,
     pub binding: Option<VulkanBinding>,
     pub views: Mutex<Vec<LocatedView>>,
-    /// The hidden-area masks must be (re)fetched: at the start, and after the runtime said they
-    /// changed.
-    pub masks_dirty: AtomicBool,
     /// FOVs come from submitted frames once there are any (what the app really rendered with),
     /// before that from located views.
     pub fov_submitted: AtomicBool,
-    /// Fovea centre per view from the gaze policy (empty: optical axis).
-    pub gaze_centers: Mutex<Vec<crate::foveation::Tangent>>,
-    /// The layer's own eye-gaze action objects and policy state.
-    pub gaze: super::gaze::Gaze,
+    /// Every feature's per-session state.
+    pub features: crate::features::XrSessionFeatures,
     /// Whether the Vulkan half tracks the session's device (it can act on nothing otherwise).
     pub vulkan_half: bool,
     /// What the enabled features did over the session (`notices`): warnings once per reason, and a
     /// summary when the session ends.
     pub summary: Mutex<crate::notices::Summary>,
 }
-
-/// Views of `XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO`, the only configuration masks are kept for.
-const STEREO_VIEWS: u32 = 2;
 
 pub(crate) fn fov_tangents(fov: &xr::Fovf) -> ViewFov {
     ViewFov {
@@ -59,87 +51,6 @@ pub(crate) fn fov_tangents(fov: &xr::Fovf) -> ViewFov {
         tan_up: fov.angle_up.tan(),
         tan_down: fov.angle_down.tan(),
     }
-}
-
-/// Fetches one view's hidden triangle mesh from the runtime (two-call idiom). None when the runtime
-/// offers no visibility mask or the call fails (logged).
-fn runtime_mask(s: &Session, view: u32) -> Option<Vec<[f32; 2]>> {
-    if !s.instance.has_extension(super::VISIBILITY_MASK_EXT) {
-        return None;
-    }
-    let f = s.instance.next.get_visibility_mask?;
-    let ty = xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH;
-    let config = xr::ViewConfigurationType::PRIMARY_STEREO;
-    let mut mask = xr::VisibilityMaskKHR {
-        ty: xr::VisibilityMaskKHR::TYPE,
-        next: std::ptr::null_mut(),
-        vertex_capacity_input: 0,
-        vertex_count_output: 0,
-        vertices: std::ptr::null_mut(),
-        index_capacity_input: 0,
-        index_count_output: 0,
-        indices: std::ptr::null_mut(),
-    };
-    // SAFETY: the two-call idiom: counts first, then arrays of the reported sizes.
-    let r = unsafe { f(s.handle, config, view, ty, &mut mask) };
-    if r != xr::Result::SUCCESS {
-        tracing::warn!(?r, "xrGetVisibilityMaskKHR(view {view}) failed");
-        return None;
-    }
-    let mut vertices = vec![xr::Vector2f { x: 0.0, y: 0.0 }; mask.vertex_count_output as usize];
-    let mut indices = vec![0u32; mask.index_count_output as usize];
-    mask.vertex_capacity_input = vertices.len() as u32;
-    mask.index_capacity_input = indices.len() as u32;
-    mask.vertices = vertices.as_mut_ptr();
-    mask.indices = indices.as_mut_ptr();
-    // SAFETY: the arrays hold the capacities given.
-    let r = unsafe { f(s.handle, config, view, ty, &mut mask) };
-    if r != xr::Result::SUCCESS {
-        tracing::warn!(?r, "xrGetVisibilityMaskKHR(view {view}) failed");
-        return None;
-    }
-    vertices.truncate(mask.vertex_count_output as usize);
-    indices.truncate(mask.index_count_output as usize);
-    let v: Vec<[f32; 2]> = vertices.iter().map(|p| [p.x, p.y]).collect();
-    Some(crate::mask_source::expand(&v, &indices))
-}
-
-/// Publishes this frame's foveation from the live config: rings from the preset or angles, centres
-/// from the gaze policy (the optical axis without eye tracking). An empty list when it is off.
-pub(crate) fn refresh_foveation(s: &Session) {
-    let config = crate::shared::shared().config().unwrap_or_else(|| s.instance.config.clone());
-    if !config.bool("foveation.enabled") {
-        crate::shared::shared().update_foveation(Vec::new());
-        return;
-    }
-    let rings = crate::foveation::Rings::from_config(&config);
-    let centers = s.gaze_centers.lock().unwrap_or_else(|e| e.into_inner()).clone();
-    let centers = if centers.len() == STEREO_VIEWS as usize { centers } else { vec![[0.0, 0.0]; STEREO_VIEWS as usize] };
-    if crate::shared::shared().update_foveation(crate::foveation::fovea_views(&centers, rings)) {
-        tracing::debug!("foveation: centres {centers:?}, rings {rings:?}");
-    }
-}
-
-/// (Re)publishes the hidden-area masks of all views when they are due.
-pub(crate) fn refresh_masks(s: &Session) {
-    let config = crate::shared::shared().config().unwrap_or_else(|| s.instance.config.clone());
-    if !config.bool("mask.enabled") || !s.masks_dirty.swap(false, Ordering::AcqRel) {
-        return;
-    }
-    let policy = SourcePolicy::from_config(config.choice("mask.source"));
-    let radius = config.float("mask.synthesized.radius_deg");
-    let lens = LensShape { horizontal_deg: radius, vertical_deg: (radius * config.float("mask.synthesized.aspect")).min(89.0) };
-    let mut masks = Vec::new();
-    for view in 0..STEREO_VIEWS {
-        match mask_source::choose(policy, runtime_mask(s, view), &lens) {
-            Some((source, triangles)) => {
-                tracing::info!("view {view}: hidden-area mask from {source:?}, {} triangles", triangles.len() / 3);
-                masks.push(ViewMask { view, source, triangles });
-            }
-            None => tracing::info!("view {view}: no hidden-area mask (mask.source = runtime and the runtime has none)"),
-        }
-    }
-    crate::shared::shared().update_views(Some(masks), None);
 }
 
 /// Finds the session's state, or the instance to forward an unknown handle through.
@@ -206,8 +117,8 @@ pub(super) unsafe extern "system" fn create_session(
             ),
             None => tracing::warn!("session {:#x} has no Vulkan binding: nothing to do for it", handle.into_raw()),
         }
-        let config = crate::shared::shared().config().unwrap_or_else(|| inst.config.clone());
-        if binding.is_some() && !vulkan_half && (config.bool("mask.enabled") || config.bool("foveation.enabled")) {
+        let settings = super::settings(&inst);
+        if binding.is_some() && !vulkan_half && (settings.mask.enabled || settings.foveation.enabled) {
             tracing::warn!(
                 "the hidden-area mask / foveation is enabled, but stereoshim's Vulkan layer is not in the app's Vulkan \
                  device, so nothing will be applied. Likely causes: the app created its VkInstance before asking the \
@@ -221,10 +132,8 @@ pub(super) unsafe extern "system" fn create_session(
             instance: inst.clone(),
             binding,
             views: Mutex::new(Vec::new()),
-            masks_dirty: AtomicBool::new(true),
             fov_submitted: AtomicBool::new(false),
-            gaze_centers: Mutex::new(Vec::new()),
-            gaze: Default::default(),
+            features: Default::default(),
             vulkan_half,
             summary: Default::default(),
         };
@@ -298,7 +207,9 @@ pub(super) unsafe extern "system" fn locate_views(
             drop(last);
             // SAFETY: the app's locate info, valid for this call (the call succeeded).
             if let Some(info) = unsafe { view_locate_info.as_ref() } {
-                super::gaze::sample(&s, info, located);
+                for f in crate::features::XR_FEATURES {
+                    f.views_located(&s, info, located);
+                }
             }
         }
         Ok(r)

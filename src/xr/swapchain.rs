@@ -55,15 +55,16 @@ pub(super) unsafe extern "system" fn create_swapchain(
     let plain = || unsafe { next(session, create_info, swapchain) };
     guard::run("xrCreateSwapchain", &inst.pass_through, |down| {
         inst.check_fault("xrCreateSwapchain")?;
-        // Colour swapchains also get TRANSFER_SRC: radial density masking reconstructs skipped
-        // quads from a copy of the image. An extra usage bit changes nothing the app can see.
+        // Features may add usage (an extra usage bit changes nothing the app can see).
+        let settings = super::settings(&inst);
+        let added = |usage: xr::SwapchainUsageFlags| {
+            crate::features::XR_FEATURES.iter().fold(xr::SwapchainUsageFlags::EMPTY, |a, f| a | f.swapchain_usage(&settings, usage)) & !usage
+        };
         // SAFETY: the app's create info, valid for this call (null goes down unchanged).
         let (r, created_images) = swapchain_images::capture(|| match unsafe { create_info.as_ref() } {
-            Some(ci) if ci.usage_flags.contains(xr::SwapchainUsageFlags::COLOR_ATTACHMENT)
-                && !ci.usage_flags.contains(xr::SwapchainUsageFlags::TRANSFER_SRC) =>
-            {
+            Some(ci) if added(ci.usage_flags) != xr::SwapchainUsageFlags::EMPTY => {
                 let mut with = *ci;
-                with.usage_flags |= xr::SwapchainUsageFlags::TRANSFER_SRC;
+                with.usage_flags |= added(ci.usage_flags);
                 // SAFETY: the copy lives until the call returns.
                 down.call(|| unsafe { next(session, &with, swapchain) })
             }
@@ -202,7 +203,7 @@ pub(super) unsafe extern "system" fn release_swapchain_image(
             // Radial density masking: fill the skipped quads before the runtime sees the image
             // (the oldest acquired one is the one going back).
             let index = sc.acquired.lock().unwrap_or_else(|e| e.into_inner()).front().copied();
-            crate::vk::rdm_before_release(sc.session.binding.map(|b| (b.device, b.queue_family_index, b.queue_index)), swapchain.into_raw(), index);
+            crate::vk::before_release(sc.session.binding.map(|b| (b.device, b.queue_family_index, b.queue_index)), swapchain.into_raw(), index);
         }
         let r = down.call(plain);
         if let (Some(sc), xr::Result::SUCCESS) = (sc.as_ref(), r) {

@@ -4,8 +4,8 @@
 
 use super::image;
 use super::{Fov, RunOutput};
-use stereoshim::mask::PixelRect;
-use stereoshim::rdm::RdmParams;
+use stereoshim::core::rect::PixelRect;
+use stereoshim::features::foveation::rdm::rules::RdmParams;
 use stereoshim::shared::{FoveaView, ViewFov};
 
 /// With the hidden-area mask: how far from its outline the periphery PSNR starts (the filter reads

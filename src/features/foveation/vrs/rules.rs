@@ -16,7 +16,9 @@
 //! inner ring is ever shaded at less than full rate. Texels that hold no pixel of any eye get full
 //! rate (nothing is saved there, nothing can go wrong).
 
-use crate::mask::{NotMasked, PixelRect};
+use crate::core::pass::NotMasked;
+use crate::core::rect::PixelRect;
+use crate::core::stats::{json_counts, FeatureStats};
 use crate::shared::{FoveaView, ViewFov};
 use std::collections::BTreeMap;
 
@@ -44,11 +46,11 @@ pub fn decode(texel: u8) -> FragmentSize {
 }
 
 /// Which rate a ring gets.
-pub fn rate_of(ring: crate::rdm::Ring) -> FragmentSize {
+pub fn rate_of(ring: crate::core::fovea::Ring) -> FragmentSize {
     match ring {
-        crate::rdm::Ring::Inner => FULL,
-        crate::rdm::Ring::Middle => HALF,
-        crate::rdm::Ring::Outer => QUARTER,
+        crate::core::fovea::Ring::Inner => FULL,
+        crate::core::fovea::Ring::Middle => HALF,
+        crate::core::fovea::Ring::Outer => QUARTER,
     }
 }
 
@@ -295,6 +297,58 @@ impl VrsFrameStats {
     }
 }
 
+impl FeatureStats for VrsFrameStats {
+    fn id(&self) -> &'static str {
+        "vrs"
+    }
+    fn label(&self) -> &'static str {
+        "foveation (variable-rate shading)"
+    }
+    fn add(&mut self, other: &dyn FeatureStats) {
+        if let Some(o) = other.as_any().downcast_ref::<VrsFrameStats>() {
+            VrsFrameStats::add(self, o);
+        }
+    }
+    fn is_empty(&self) -> bool {
+        VrsFrameStats::is_empty(self)
+    }
+    fn passes(&self) -> u64 {
+        self.passes
+    }
+    fn not_applied(&self) -> Vec<(&'static str, u64)> {
+        self.not_applied.iter().map(|(k, v)| (*k, *v)).collect()
+    }
+    fn hint(&self, reason: &str) -> &'static str {
+        match reason {
+            "unsupported" => {
+                "the device has no attachment fragment shading rate enabled by the layer (the GPU lacks it, or the layer could not \
+                 enable it at vkCreateDevice: see \"vulkan device created\" in this log): use foveation.method = \"auto\" or \"rdm\""
+            }
+            "secondary" => "VRS does not reach passes whose contents are secondary command buffers: use foveation.method = \"rdm\"",
+            "no_fovea" => "no fovea yet for the view (the first frame): nothing to do unless it persists",
+            "multiview_not_layered" => "the GPU cannot use one rate layer per view: use foveation.method = \"rdm\"",
+            "app_uses_fsr" => "the app sets its own shading rate: the layer leaves it alone",
+            "render_pass" => "a render pass created before the layer could add its rate attachment",
+            "layered" => "a non-multiview pass renders several layers: not supported by VRS",
+            _ => crate::core::stats::common_hint(reason),
+        }
+    }
+    fn summary(&self) -> String {
+        VrsFrameStats::summary(self)
+    }
+    fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+        record.insert(
+            "vrs".into(),
+            serde_json::json!({
+                "passes": self.passes,
+                "maps_built": self.maps_built,
+                "not_applied": json_counts(self.not_applied.iter().map(|(k, v)| (*k, *v))),
+            }),
+        );
+    }
+    crate::feature_stats_any!();
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -355,7 +409,7 @@ mod tests {
         for i in 0..=400 {
             for j in 0..=400 {
                 let p = [x0 + (x1 - x0) * i as f64 / 400.0, y0 + (y1 - y0) * j as f64 / 400.0];
-                brute = brute.min(crate::foveation::angle_between_deg([p[0] as f32, p[1] as f32], [c[0] as f32, c[1] as f32]) as f64);
+                brute = brute.min(crate::core::fovea::angle_between_deg([p[0] as f32, p[1] as f32], [c[0] as f32, c[1] as f32]) as f64);
             }
         }
         assert!(m <= brute + 1e-4 && brute - m < 0.05, "analytic {m}, brute {brute}");
@@ -376,7 +430,7 @@ mod tests {
         for py in 0..256 {
             for px in 0..256 {
                 let t = [-1.0 + (px as f32 + 0.5) / 128.0, 1.0 - (py as f32 + 0.5) / 128.0];
-                let a = crate::foveation::angle_between_deg(t, [0.0, 0.0]);
+                let a = crate::core::fovea::angle_between_deg(t, [0.0, 0.0]);
                 let r = at(px / 16, py / 16);
                 if a <= 20.0 {
                     assert_eq!(r, FULL, "pixel {px},{py} at {a}°");

@@ -1,15 +1,43 @@
+//! Foveation on the OpenXR side: each frame's fovea (rings from the settings, centres from the
+//! gaze policy) is published for the Vulkan half at `xrBeginFrame`; colour swapchains get the
+//! usage radial density masking's reconstruction needs.
+//!
 //! Eye tracking without the app knowing: when the runtime has `XR_EXT_eye_gaze_interaction` and
 //! the app does not use it, the layer adds its own action set (one gaze pose action with its
-//! binding suggestion) to the app's `xrAttachSessionActionSets` and `xrSyncActions`, and locates the
-//! gaze each frame where the app locates its views. The app's own actions are untouched.
+//! binding suggestion) next to the app's at `xrAttachSessionActionSets` and `xrSyncActions`, and
+//! locates the gaze each frame where the app locates its views. The app's own actions are
+//! untouched.
 
-use super::session::{self, Session};
-use crate::foveation::{self, CenterSource, GazeFilter};
-use crate::guard;
+use super::rules::{fovea_views, CenterSource, GazeFilter};
+use crate::core::fovea;
+use crate::settings::Settings;
+use crate::xr::feature::XrFeature;
+use crate::xr::session::Session;
+use crate::xr::{settings, EYE_GAZE_EXT};
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::ffi::c_char;
 use std::sync::Mutex;
+
+/// Views of `XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO`.
+const STEREO_VIEWS: usize = 2;
+
+/// Foveation's OpenXR half (stateless; per-session state is `FoveationSession`).
+pub(crate) struct FoveationXr;
+
+/// Foveation's per-session state.
+#[derive(Debug, Default)]
+pub(crate) struct FoveationSession {
+    pub gaze: Gaze,
+    /// Fovea centre per view from the gaze policy (empty: optical axis).
+    pub centers: Mutex<Vec<fovea::Tangent>>,
+    /// The action set and action made for an attach in progress.
+    attaching: Mutex<Option<(xr::ActionSet, xr::Action)>>,
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 /// The layer's gaze action objects of one session.
 #[derive(Debug)]
@@ -39,10 +67,8 @@ fn fixed<const N: usize>(s: &str) -> [c_char; N] {
 /// and the config at attach time asks for eye-tracked foveation.
 fn wanted(s: &Session) -> bool {
     let inst = &s.instance;
-    let config = crate::shared::shared().config().unwrap_or_else(|| inst.config.clone());
-    inst.layer_extensions.iter().any(|e| e == super::EYE_GAZE_EXT)
-        && config.bool("foveation.enabled")
-        && config.choice("foveation.eye_tracking") == "auto"
+    let settings = settings(inst);
+    inst.layer_extensions.iter().any(|e| e == EYE_GAZE_EXT) && settings.foveation.enabled && settings.foveation.eye_tracking
 }
 
 /// Creates the action set, the pose action, its binding suggestion and its space. Any failure
@@ -113,54 +139,56 @@ fn create_actions(s: &Session) -> Result<(xr::ActionSet, xr::Action), String> {
     Ok((set, action))
 }
 
-pub(super) unsafe extern "system" fn attach_session_action_sets(
-    session: xr::Session,
-    attach_info: *const xr::SessionActionSetsAttachInfo,
-) -> xr::Result {
-    let (inst, sess) = match session::lookup(session) {
-        Ok(s) => (s.instance.clone(), Some(s)),
-        Err(Some(inst)) => (inst, None),
-        Err(None) => return xr::Result::ERROR_HANDLE_INVALID,
-    };
-    let Some(next) = inst.next.attach_session_action_sets else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
-    // SAFETY: forwarding the app's arguments unchanged.
-    let plain = || unsafe { next(session, attach_info) };
-    guard::run("xrAttachSessionActionSets", &inst.pass_through, |down| {
-        inst.check_fault("xrAttachSessionActionSets")?;
-        // SAFETY: the app's attach info, valid for this call (null goes down for the runtime).
-        let Some((s, info)) = sess.as_ref().zip(unsafe { attach_info.as_ref() }) else { return Ok(down.call(plain)) };
-        if !wanted(s) {
-            return Ok(down.call(plain));
+impl XrFeature for FoveationXr {
+    fn id(&self) -> &'static str {
+        "foveation"
+    }
+    /// Whenever the layer is on and eye tracking is not off: foveation can be switched on live.
+    fn wanted_extensions(&self, s: &Settings) -> Vec<&'static str> {
+        if s.enabled && s.foveation.eye_tracking {
+            vec![EYE_GAZE_EXT]
+        } else {
+            Vec::new()
         }
-        let (set, action) = match create_actions(s) {
-            Ok(a) => a,
+    }
+    /// Colour swapchains get TRANSFER_SRC: radial density masking reconstructs skipped quads from
+    /// a copy of the image. Added whenever RDM may run (the layer is on and the method is not
+    /// pinned to VRS), since foveation can be switched on while the app runs; an extra usage bit
+    /// changes nothing the app can see.
+    fn swapchain_usage(&self, s: &Settings, usage: xr::SwapchainUsageFlags) -> xr::SwapchainUsageFlags {
+        let rdm_possible = s.enabled && s.foveation.method != super::Method::Vrs;
+        if rdm_possible && usage.contains(xr::SwapchainUsageFlags::COLOR_ATTACHMENT) {
+            xr::SwapchainUsageFlags::TRANSFER_SRC
+        } else {
+            xr::SwapchainUsageFlags::EMPTY
+        }
+    }
+    fn action_sets(&self, s: &Session) -> Vec<xr::ActionSet> {
+        if !wanted(s) {
+            return Vec::new();
+        }
+        match create_actions(s) {
+            Ok((set, action)) => {
+                *lock(&s.features.foveation.attaching) = Some((set, action));
+                vec![set]
+            }
             Err(e) => {
                 tracing::warn!("eye tracking unavailable: {e}; foveation stays fixed");
-                return Ok(down.call(plain));
-            }
-        };
-        // SAFETY: the app's array of `count_action_sets` handles.
-        let mut sets: Vec<xr::ActionSet> = unsafe {
-            if info.count_action_sets == 0 || info.action_sets.is_null() {
                 Vec::new()
-            } else {
-                std::slice::from_raw_parts(info.action_sets, info.count_action_sets as usize).to_vec()
             }
-        };
-        sets.push(set);
-        let mut with = *info;
-        with.count_action_sets = sets.len() as u32;
-        with.action_sets = sets.as_ptr();
-        // SAFETY: the copy and the array live until the call returns.
-        let r = down.call(|| unsafe { next(session, &with) });
+        }
+    }
+    fn action_sets_attached(&self, s: &Session, r: xr::Result) {
+        let Some((set, action)) = lock(&s.features.foveation.attaching).take() else { return };
+        let inst = &s.instance;
         if r != xr::Result::SUCCESS {
-            // The app's own attach failed (or ours made it fail): never leave it changed.
+            // The app's own attach failed (or ours made it fail): never leave anything behind.
             if let Some(destroy) = inst.next.destroy_action_set {
                 // SAFETY: destroying the set we created.
                 unsafe { destroy(set) };
             }
             tracing::warn!(?r, "xrAttachSessionActionSets failed with the layer's gaze set");
-            return Ok(r);
+            return;
         }
         let space_info = xr::ActionSpaceCreateInfo {
             ty: xr::ActionSpaceCreateInfo::TYPE,
@@ -172,57 +200,48 @@ pub(super) unsafe extern "system" fn attach_session_action_sets(
         let mut space = xr::Space::NULL;
         let made = match inst.next.create_action_space {
             // SAFETY: valid session and action.
-            Some(f) => (unsafe { f(session, &space_info, &mut space) }) == xr::Result::SUCCESS,
+            Some(f) => (unsafe { f(s.handle, &space_info, &mut space) }) == xr::Result::SUCCESS,
             None => false,
         };
         if made {
-            tracing::info!("eye tracking: the layer's gaze action set is attached to session {:#x}", session.into_raw());
-            *s.gaze.actions.lock().unwrap_or_else(|e| e.into_inner()) = Some(GazeActions { action_set: set, space });
+            tracing::info!("eye tracking: the layer's gaze action set is attached to session {:#x}", s.handle.into_raw());
+            *lock(&s.features.foveation.gaze.actions) = Some(GazeActions { action_set: set, space });
         } else {
             tracing::warn!("eye tracking: could not create the gaze space; foveation stays fixed");
         }
-        Ok(r)
-    }, plain)
-}
-
-pub(super) unsafe extern "system" fn sync_actions(session: xr::Session, sync_info: *const xr::ActionsSyncInfo) -> xr::Result {
-    let (inst, sess) = match session::lookup(session) {
-        Ok(s) => (s.instance.clone(), Some(s)),
-        Err(Some(inst)) => (inst, None),
-        Err(None) => return xr::Result::ERROR_HANDLE_INVALID,
-    };
-    let Some(next) = inst.next.sync_actions else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
-    // SAFETY: forwarding the app's arguments unchanged.
-    let plain = || unsafe { next(session, sync_info) };
-    guard::run("xrSyncActions", &inst.pass_through, |down| {
-        inst.check_fault("xrSyncActions")?;
-        let ours = sess.as_ref().and_then(|s| s.gaze.actions.lock().unwrap_or_else(|e| e.into_inner()).as_ref().map(|g| g.action_set));
-        // SAFETY: the app's sync info, valid for this call.
-        let (Some(set), Some(info)) = (ours, unsafe { sync_info.as_ref() }) else { return Ok(down.call(plain)) };
-        // SAFETY: the app's array of `count_active_action_sets` entries.
-        let mut active: Vec<xr::ActiveActionSet> = unsafe {
-            if info.count_active_action_sets == 0 || info.active_action_sets.is_null() {
-                Vec::new()
-            } else {
-                std::slice::from_raw_parts(info.active_action_sets, info.count_active_action_sets as usize).to_vec()
-            }
-        };
-        active.push(xr::ActiveActionSet { action_set: set, subaction_path: xr::Path::NULL });
-        let mut with = *info;
-        with.count_active_action_sets = active.len() as u32;
-        with.active_action_sets = active.as_ptr();
-        // SAFETY: the copy and the array live until the call returns.
-        Ok(down.call(|| unsafe { next(session, &with) }))
-    }, plain)
+    }
+    fn active_action_sets(&self, s: &Session) -> Vec<xr::ActiveActionSet> {
+        lock(&s.features.foveation.gaze.actions).as_ref().map(|g| xr::ActiveActionSet { action_set: g.action_set, subaction_path: xr::Path::NULL }).into_iter().collect()
+    }
+    fn views_located(&self, s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
+        sample(s, info, views);
+    }
+    /// Publishes this frame's foveation from the live settings: rings from the preset or angles,
+    /// centres from the gaze policy (the optical axis without eye tracking). An empty list when
+    /// it is off.
+    fn frame_begun(&self, s: &Session) {
+        let settings = settings(&s.instance);
+        let shared = crate::shared::shared();
+        if !settings.foveation.enabled {
+            shared.update_foveation(Vec::new());
+            return;
+        }
+        let rings = settings.foveation.rings;
+        let centers = lock(&s.features.foveation.centers).clone();
+        let centers = if centers.len() == STEREO_VIEWS { centers } else { vec![[0.0, 0.0]; STEREO_VIEWS] };
+        if shared.update_foveation(fovea_views(&centers, rings)) {
+            tracing::debug!("foveation: centres {centers:?}, rings {rings:?}");
+        }
+    }
 }
 
 /// Samples the gaze at the time and in the space the app just located its views, and feeds each
 /// view's gaze policy. Views without a usable sample run the policy with `None` (hold, then the
 /// optical axis).
-pub(crate) fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
-    let config = crate::shared::shared().config().unwrap_or_else(|| s.instance.config.clone());
-    let tracked = config.bool("foveation.enabled") && config.choice("foveation.eye_tracking") == "auto";
-    let space = s.gaze.actions.lock().unwrap_or_else(|e| e.into_inner()).as_ref().map(|g| g.space);
+fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
+    let settings = settings(&s.instance);
+    let tracked = settings.foveation.enabled && settings.foveation.eye_tracking;
+    let space = lock(&s.features.foveation.gaze.actions).as_ref().map(|g| g.space);
     let direction = match (tracked, space, s.instance.next.locate_space) {
         (true, Some(space), Some(locate)) => {
             let mut loc = xr::SpaceLocation {
@@ -236,30 +255,30 @@ pub(crate) fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View])
             let valid = xr::SpaceLocationFlags::ORIENTATION_VALID | xr::SpaceLocationFlags::ORIENTATION_TRACKED;
             (r == xr::Result::SUCCESS && loc.location_flags.contains(valid)).then(|| {
                 let q = loc.pose.orientation;
-                foveation::forward([q.x, q.y, q.z, q.w])
+                fovea::forward([q.x, q.y, q.z, q.w])
             })
         }
         _ => None,
     };
-    let mut filters = s.gaze.filters.lock().unwrap_or_else(|e| e.into_inner());
+    let mut filters = lock(&s.features.foveation.gaze.filters);
     filters.resize_with(views.len(), GazeFilter::default);
     let mut source = CenterSource::Fixed;
-    let centers: Vec<foveation::Tangent> = views
+    let centers: Vec<fovea::Tangent> = views
         .iter()
         .zip(filters.iter_mut())
         .map(|(v, f)| {
             let q = v.pose.orientation;
-            let sample = direction.and_then(|d| foveation::gaze_in_view([q.x, q.y, q.z, q.w], d));
+            let sample = direction.and_then(|d| fovea::gaze_in_view([q.x, q.y, q.z, q.w], d));
             let (c, src) = f.update(sample, info.display_time.as_nanos());
             source = src;
             c
         })
         .collect();
     drop(filters);
-    let mut last = s.gaze.source.lock().unwrap_or_else(|e| e.into_inner());
+    let mut last = lock(&s.features.foveation.gaze.source);
     if *last != Some(source) {
         tracing::info!("foveation centre now from {source:?}");
         *last = Some(source);
     }
-    *s.gaze_centers.lock().unwrap_or_else(|e| e.into_inner()) = centers;
+    *lock(&s.features.foveation.centers) = centers;
 }

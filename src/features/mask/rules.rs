@@ -3,6 +3,9 @@
 //! counted the way the rasterizer does (fixed-point vertices, pixel centres, top-left rule), so the
 //! layer's "pixels masked" statistics and the tests' predicted savings match what the GPU rejects.
 
+use crate::core::rect::{PixelRect, ViewportRect};
+use crate::core::pass::NotMasked;
+use crate::core::stats::{json_counts, FeatureStats};
 use crate::shared::ViewFov;
 use std::collections::BTreeMap;
 
@@ -36,43 +39,6 @@ pub fn triangles_to_ndc(triangles: &[[f32; 2]], fov: &ViewFov) -> Vec<[f32; 2]> 
         .flatten()
         .copied()
         .collect()
-}
-
-/// A viewport in framebuffer pixels (`VkViewport` without depth).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ViewportRect {
-    pub x: f32,
-    pub y: f32,
-    pub width: f32,
-    pub height: f32,
-}
-
-/// A pixel rectangle (scissor, render area, image rect).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct PixelRect {
-    pub x: i32,
-    pub y: i32,
-    pub width: u32,
-    pub height: u32,
-}
-
-impl PixelRect {
-    pub fn intersect(&self, o: &PixelRect) -> PixelRect {
-        let x0 = self.x.max(o.x);
-        let y0 = self.y.max(o.y);
-        let x1 = (self.x as i64 + self.width as i64).min(o.x as i64 + o.width as i64);
-        let y1 = (self.y as i64 + self.height as i64).min(o.y as i64 + o.height as i64);
-        PixelRect { x: x0, y: y0, width: (x1 - x0 as i64).max(0) as u32, height: (y1 - y0 as i64).max(0) as u32 }
-    }
-    pub fn contains(&self, o: &PixelRect) -> bool {
-        self.intersect(o) == *o
-    }
-    pub fn area(&self) -> u64 {
-        self.width as u64 * self.height as u64
-    }
-    pub fn viewport(&self) -> ViewportRect {
-        ViewportRect { x: self.x as f32, y: self.y as f32, width: self.width as f32, height: self.height as f32 }
-    }
 }
 
 /// Which pixels of `clip` (viewport ∩ scissor, framebuffer pixels) NDC triangles cover: a
@@ -153,69 +119,6 @@ pub fn masked_pixels(triangles: &[[f32; 2]], fov: &ViewFov, rect: PixelRect) -> 
     coverage(&triangles_to_ndc(triangles, fov), rect.viewport(), rect)
 }
 
-/// Why a render pass instance got no mask. Stable names: they appear in statistics and logs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum NotMasked {
-    /// Nothing of the pass renders into a swapchain image or a known intermediate target.
-    NotEyePass,
-    /// It renders into a swapchain image whose eye use the OpenXR half has not seen yet, or into a
-    /// target not (yet) known to be copied into one.
-    EyeUnknown,
-    NoDepthAttachment,
-    /// The depth attachment is loaded, not cleared, at the start of the pass (and no clear of it
-    /// was seen).
-    DepthNotCleared,
-    /// Cleared to something other than 0 or 1: which value fails the app's test is unknown.
-    DepthClearNot01,
-    /// `SECONDARY_COMMAND_BUFFERS` contents or a secondary command buffer: draws cannot be
-    /// recorded there by the layer.
-    Secondary,
-    /// The OpenXR half has no mask or FOV for the eye's view.
-    NoMask,
-    /// A shape the layer does not handle (e.g. multiview layers not in view order, rects that
-    /// differ between views of one multiview pass).
-    Unsupported,
-    /// `mask.intermediate = off` and the pass renders into an intermediate target.
-    IntermediateOff,
-    /// The layer could not create its pipeline or vertex buffer.
-    LayerError,
-    /// The app's device was created without what the layer's draw needs for this pass (e.g.
-    /// `multiview`, `dynamicRendering`): the layer never creates an object the device cannot
-    /// legally have.
-    DeviceLacks,
-}
-
-impl NotMasked {
-    pub const ALL: [NotMasked; 11] = [
-        NotMasked::NotEyePass,
-        NotMasked::EyeUnknown,
-        NotMasked::NoDepthAttachment,
-        NotMasked::DepthNotCleared,
-        NotMasked::DepthClearNot01,
-        NotMasked::Secondary,
-        NotMasked::NoMask,
-        NotMasked::Unsupported,
-        NotMasked::IntermediateOff,
-        NotMasked::LayerError,
-        NotMasked::DeviceLacks,
-    ];
-    pub fn name(&self) -> &'static str {
-        match self {
-            NotMasked::NotEyePass => "not_eye_pass",
-            NotMasked::EyeUnknown => "eye_unknown",
-            NotMasked::NoDepthAttachment => "no_depth_attachment",
-            NotMasked::DepthNotCleared => "depth_not_cleared",
-            NotMasked::DepthClearNot01 => "depth_clear_not_0_1",
-            NotMasked::Secondary => "secondary",
-            NotMasked::NoMask => "no_mask",
-            NotMasked::Unsupported => "unsupported",
-            NotMasked::IntermediateOff => "intermediate_off",
-            NotMasked::LayerError => "layer_error",
-            NotMasked::DeviceLacks => "device_lacks",
-        }
-    }
-}
-
 /// What the mask did in one frame (between two `xrEndFrame`s), summed over devices. Plain fields:
 /// the OpenXR half writes them to `stats.file`.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -227,10 +130,6 @@ pub struct MaskFrameStats {
     pub not_masked: BTreeMap<&'static str, u64>,
     /// Pixels covered by the drawn mask, per OpenXR view index.
     pub pixels_masked: BTreeMap<u32, u64>,
-    /// Radial density masking (foveation method 2), injected by the same machinery.
-    pub rdm: crate::rdm::RdmFrameStats,
-    /// Variable-rate shading (foveation method 1): rate attachments chained into eye passes.
-    pub vrs: crate::vrs::VrsFrameStats,
 }
 
 impl MaskFrameStats {
@@ -242,8 +141,6 @@ impl MaskFrameStats {
         for (k, v) in &o.pixels_masked {
             *self.pixels_masked.entry(*k).or_insert(0) += v;
         }
-        self.rdm.add(&o.rdm);
-        self.vrs.add(&o.vrs);
     }
     pub fn count_not_masked(&mut self, why: NotMasked) {
         *self.not_masked.entry(why.name()).or_insert(0) += 1;
@@ -257,16 +154,47 @@ impl MaskFrameStats {
         for (k, v) in &self.not_masked {
             s.push_str(&format!(" not_masked.{k}={v}"));
         }
-        if !self.rdm.is_empty() {
-            s.push(' ');
-            s.push_str(&self.rdm.summary());
-        }
-        if !self.vrs.is_empty() {
-            s.push(' ');
-            s.push_str(&self.vrs.summary());
-        }
         s
     }
+}
+
+impl FeatureStats for MaskFrameStats {
+    fn id(&self) -> &'static str {
+        "mask"
+    }
+    fn label(&self) -> &'static str {
+        "hidden-area mask"
+    }
+    fn add(&mut self, other: &dyn FeatureStats) {
+        if let Some(o) = other.as_any().downcast_ref::<MaskFrameStats>() {
+            MaskFrameStats::add(self, o);
+        }
+    }
+    fn is_empty(&self) -> bool {
+        *self == MaskFrameStats::default()
+    }
+    fn passes(&self) -> u64 {
+        self.passes_masked
+    }
+    fn not_applied(&self) -> Vec<(&'static str, u64)> {
+        self.not_masked.iter().map(|(k, v)| (*k, *v)).collect()
+    }
+    fn hint(&self, reason: &str) -> &'static str {
+        match reason {
+            "no_mask" => "the runtime offers no visibility mask for the view: set mask.source = \"synthesized\" (or \"auto\")",
+            _ => crate::core::stats::common_hint(reason),
+        }
+    }
+    fn summary(&self) -> String {
+        MaskFrameStats::summary(self)
+    }
+    /// The mask's fields sit at the top level of the record (the first feature, kept as it was).
+    fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+        record.insert("passes_masked".into(), self.passes_masked.into());
+        record.insert("not_masked".into(), json_counts(self.not_masked.iter().map(|(k, v)| (*k, *v))));
+        record.insert("pixels_masked".into(), json_counts(self.pixels_masked.iter().map(|(k, v)| (*k, *v))));
+    }
+    crate::feature_stats_any!();
 }
 
 #[cfg(test)]
@@ -349,15 +277,5 @@ mod tests {
         assert_eq!(b.summary(), "masked_passes=4 masked_pixels=20 not_masked.no_depth_attachment=2");
         let names: std::collections::BTreeSet<_> = NotMasked::ALL.iter().map(|n| n.name()).collect();
         assert_eq!(names.len(), NotMasked::ALL.len());
-    }
-
-    #[test]
-    fn rect_ops() {
-        let a = PixelRect { x: 0, y: 0, width: 10, height: 10 };
-        let b = PixelRect { x: 5, y: -5, width: 10, height: 10 };
-        assert_eq!(a.intersect(&b), PixelRect { x: 5, y: 0, width: 5, height: 5 });
-        assert!(a.contains(&PixelRect { x: 1, y: 1, width: 2, height: 2 }));
-        assert!(!a.contains(&b));
-        assert_eq!(a.intersect(&PixelRect { x: 20, y: 0, width: 1, height: 1 }).area(), 0);
     }
 }

@@ -4,20 +4,11 @@
 //! (`shaders/rdm_rule.glsl`) repeat in the same order without fused multiply-adds, so the layer's
 //! statistics and the tests' predictions match what the GPU skips exactly.
 
-use crate::mask::PixelRect;
+pub use crate::core::fovea::Ring;
+use crate::core::rect::PixelRect;
+use crate::core::stats::{json_counts, FeatureStats};
 use crate::shared::{FoveaView, ViewFov};
 use std::collections::BTreeMap;
-
-/// How far a quad's view direction lies from the fovea centre direction.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Ring {
-    /// Within `inner_deg`: every quad shaded.
-    Inner,
-    /// Up to `middle_deg`: a checkerboard of quads, half of them skipped.
-    Middle,
-    /// Beyond: one quad in four shaded (both quad coordinates even).
-    Outer,
-}
 
 /// Everything the rule needs for one eye, as the shaders receive it (vertex attributes of the
 /// injected draw, push constants of the reconstruction): f32 values computed once on the CPU.
@@ -239,6 +230,54 @@ impl RdmFrameStats {
     }
 }
 
+impl FeatureStats for RdmFrameStats {
+    fn id(&self) -> &'static str {
+        "rdm"
+    }
+    fn label(&self) -> &'static str {
+        "foveation (radial density masking)"
+    }
+    fn add(&mut self, other: &dyn FeatureStats) {
+        if let Some(o) = other.as_any().downcast_ref::<RdmFrameStats>() {
+            RdmFrameStats::add(self, o);
+        }
+    }
+    fn is_empty(&self) -> bool {
+        RdmFrameStats::is_empty(self)
+    }
+    fn passes(&self) -> u64 {
+        self.passes
+    }
+    fn not_applied(&self) -> Vec<(&'static str, u64)> {
+        self.not_applied.iter().map(|(k, v)| (*k, *v)).collect()
+    }
+    fn hint(&self, reason: &str) -> &'static str {
+        match reason {
+            "no_fovea" => "no fovea yet for the view (the first frame): nothing to do unless it persists",
+            "not_one_to_one" => "the app copies the eye image to the swapchain scaled or offset: RDM cannot reconstruct it; use foveation.method = \"vrs\" where the GPU has it",
+            "swapchain_usage" => "the swapchain image lacks the usage RDM's reconstruction needs",
+            _ => crate::core::stats::common_hint(reason),
+        }
+    }
+    fn summary(&self) -> String {
+        RdmFrameStats::summary(self)
+    }
+    fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+        let per_view = |m: &BTreeMap<u32, u64>| json_counts(m.iter().map(|(k, v)| (*k, *v)));
+        record.insert(
+            "rdm".into(),
+            serde_json::json!({
+                "passes": self.passes,
+                "quads_skipped": per_view(&self.quads_skipped),
+                "pixels_skipped": per_view(&self.pixels_skipped),
+                "reconstructed": per_view(&self.reconstructed),
+                "not_applied": json_counts(self.not_applied.iter().map(|(k, v)| (*k, *v))),
+            }),
+        );
+    }
+    crate::feature_stats_any!();
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -294,7 +333,7 @@ mod tests {
         assert_eq!(p.ring(50, 49), Ring::Outer, "the optical axis is ~26.6° from the centre");
         // The angle is what counts, not the tangent distance: 10° from atan(0.5) = 26.57° is
         // 36.57° (tan 0.7417) outwards but 16.57° (tan 0.2976) inwards.
-        let angle = |q: u32| crate::foveation::angle_between_deg([-1.0 + (2 * q + 1) as f32 / 100.0, 0.0], [0.5, 0.0]);
+        let angle = |q: u32| crate::core::fovea::angle_between_deg([-1.0 + (2 * q + 1) as f32 / 100.0, 0.0], [0.5, 0.0]);
         for q in 50..100 {
             let want = if angle(q) <= 10.0 { Ring::Inner } else if angle(q) <= 20.0 { Ring::Middle } else { Ring::Outer };
             if (angle(q) - 10.0).abs() > 0.05 && (angle(q) - 20.0).abs() > 0.05 {

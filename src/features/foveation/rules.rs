@@ -3,6 +3,7 @@
 //! the rate maps can follow without flicker. Pure; the OpenXR shell feeds it samples.
 
 use crate::config::Config;
+use crate::core::fovea::{angle_between_deg, Tangent};
 use crate::shared::FoveaView;
 
 /// Full-rate radius and half-rate outer radius, degrees.
@@ -35,18 +36,6 @@ impl Rings {
         r.middle_deg = r.middle_deg.max(r.inner_deg);
         r
     }
-}
-
-/// A direction as a tangent-plane point of a view (x right, y up; z = −1).
-pub type Tangent = [f32; 2];
-
-/// Angle between two view directions given as tangent-plane points, degrees.
-pub fn angle_between_deg(a: Tangent, b: Tangent) -> f32 {
-    let (ax, ay, az) = (a[0] as f64, a[1] as f64, -1.0f64);
-    let (bx, by, bz) = (b[0] as f64, b[1] as f64, -1.0f64);
-    let dot = ax * bx + ay * by + az * bz;
-    let n = (ax * ax + ay * ay + az * az).sqrt() * (bx * bx + by * by + bz * bz).sqrt();
-    (dot / n).clamp(-1.0, 1.0).acos().to_degrees() as f32
 }
 
 /// How long a lost gaze (blink, tracking loss) keeps the last centre before falling back to the
@@ -110,30 +99,11 @@ pub fn fovea_views(centers: &[Tangent], rings: Rings) -> Vec<FoveaView> {
         .collect()
 }
 
-/// A gaze direction (in the space the views were located in) as a tangent-plane point of a view
-/// with orientation `q_space_view` (x, y, z, w); None when it points behind the view.
-pub fn gaze_in_view(q_space_view: [f32; 4], gaze_dir_space: [f32; 3]) -> Option<Tangent> {
-    let [x, y, z, w] = q_space_view;
-    // Rotate by the inverse (conjugate) orientation: space → view.
-    let q = [-x, -y, -z, w];
-    let v = gaze_dir_space;
-    let c1 = [q[1] * v[2] - q[2] * v[1], q[2] * v[0] - q[0] * v[2], q[0] * v[1] - q[1] * v[0]];
-    let c2 = [q[1] * c1[2] - q[2] * c1[1], q[2] * c1[0] - q[0] * c1[2], q[0] * c1[1] - q[1] * c1[0]];
-    let d = [v[0] + 2.0 * (q[3] * c1[0] + c2[0]), v[1] + 2.0 * (q[3] * c1[1] + c2[1]), v[2] + 2.0 * (q[3] * c1[2] + c2[2])];
-    // Directions more than ~85° off the view axis cannot be a fovea on any HMD.
-    (d[2] < -0.08).then(|| [d[0] / -d[2], d[1] / -d[2]])
-}
-
-/// The forward direction (−z) of an orientation (x, y, z, w).
-pub fn forward(q: [f32; 4]) -> [f32; 3] {
-    let [x, y, z, w] = q;
-    [-(2.0 * (x * z + w * y)), -(2.0 * (y * z - w * x)), -(1.0 - 2.0 * (x * x + y * y))]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::config::{Config, Inputs};
+    use crate::core::fovea::{forward, gaze_in_view};
 
     #[test]
     fn presets_and_overrides() {

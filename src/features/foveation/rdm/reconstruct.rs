@@ -1,96 +1,43 @@
-//! Radial density masking on the Vulkan side. Two halves: right after an eye pass's depth clear
-//! (the hidden-area mask's injection point, `vk::mask::on_trigger`), a full-viewport draw writes the
-//! failing depth on the quads `crate::rdm` skips, so early-Z rejects the app's fragments there; and
-//! before the runtime sees the swapchain image (`xrReleaseSwapchainImage`), a layer command buffer
-//! on the session's queue fills those quads from their shaded neighbours. Passes that render into
-//! an intermediate target hand their skipped quads on to the swapchain image through the app's 1:1
-//! copies / resolves. The rule lives in `crate::rdm`; this module only turns it into commands.
+//! Radial density masking on the Vulkan side, the reconstruction half: before the runtime sees a
+//! swapchain image (`xrReleaseSwapchainImage`), a layer command buffer on the session's queue
+//! fills the quads the checkerboard skipped from their shaded neighbours (`rules`' weights,
+//! `shaders/rdm_fill.frag`).
 
-use super::mask::{self, PipelineKey};
-use super::DeviceState;
-use crate::mask::PixelRect;
-use crate::rdm::{NotApplied, RdmParams, SkipCount};
+use super::rules::NotApplied;
+use super::vk::{lock, log_once, Pending, RdmDevice};
+use crate::core::rect::PixelRect;
 use crate::shared::{self, shared};
-use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan, TransferRegion};
+use crate::vk::DeviceState;
 use ash::vk::{self, Handle};
-use std::collections::{HashMap, HashSet, VecDeque};
-use std::ffi::c_void;
+use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::Ordering;
-use std::sync::{Mutex, MutexGuard};
+use std::sync::Mutex;
 
-static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm.vert.spv"));
-static VERT_MV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_mv.vert.spv"));
-static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm.frag.spv"));
 static FILL_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill.vert.spv"));
 static FILL_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill.frag.spv"));
-
-/// The loader's `PFN_vkSetDeviceLoaderData`: a layer must call it on dispatchable objects it
-/// creates itself (our command buffers) so the layers below find their dispatch tables.
-pub(crate) type PfnSetDeviceLoaderData = unsafe extern "system" fn(vk::Device, *mut c_void) -> vk::Result;
 
 /// Command buffers (with their temp image) in flight at most; a release finding all busy waits.
 const MAX_SLOTS: usize = 3;
 /// How long a release waits for an old reconstruction to finish before giving up on this one.
 const SLOT_WAIT_NS: u64 = 2_000_000_000;
 
-/// The depth draw's shaders, for `vk::mask`'s per-device shader modules.
-pub(super) fn draw_shaders() -> (&'static [u8], &'static [u8], &'static [u8]) {
-    (VERT, VERT_MV, FRAG)
+/// The reconstruction's objects of one device. Locks guard bookkeeping only.
+pub(crate) struct Reconstruct {
+    set_loader_data: Option<crate::vk::PfnSetDeviceLoaderData>,
+    memory: vk::PhysicalDeviceMemoryProperties,
+    fill: Mutex<Option<FillObjects>>,
+    slots: Mutex<VecDeque<Slot>>,
+    slot_count: std::sync::atomic::AtomicUsize,
 }
 
-/// One vertex of the depth draw: position, view, and the eye's rule parameters (flat).
-#[repr(C)]
-#[derive(Clone, Copy)]
-struct Vertex {
-    pos: [f32; 2],
-    view: u32,
-    origin: [i32; 2],
-    /// tan_left, tan_up, step_x, step_y.
-    tan: [f32; 4],
-    /// cx, cy, k_inner, k_middle.
-    fovea: [f32; 4],
-}
-
-/// Stride and attributes of `Vertex` (shaders/rdm.vert).
-pub(super) fn vertex_layout() -> (u32, Vec<vk::VertexInputAttributeDescription>) {
-    let a = |location, format, offset| vk::VertexInputAttributeDescription { location, binding: 0, format, offset };
-    (
-        std::mem::size_of::<Vertex>() as u32,
-        vec![
-            a(0, vk::Format::R32G32_SFLOAT, 0),
-            a(1, vk::Format::R32_UINT, 8),
-            a(2, vk::Format::R32G32_SINT, 12),
-            a(3, vk::Format::R32G32B32A32_SFLOAT, 20),
-            a(4, vk::Format::R32G32B32A32_SFLOAT, 36),
-        ],
-    )
-}
-
-/// (foveation generation, views generation, the eyes (view, rect) in draw order).
-type BufferKey = (u64, u64, Vec<(u32, PixelRect)>);
-
-struct DrawBuffer {
-    key: BufferKey,
-    buffer: vk::Buffer,
-    memory: vk::DeviceMemory,
-    retired_at: Option<u64>,
-}
-
-/// One eye of an image whose skipped quads await reconstruction.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Pending {
-    pub view: u32,
-    pub layer: u32,
-    /// The rule as drawn; `params.rect` is in the image's pixels.
-    pub params: RdmParams,
-}
-
-#[derive(Default)]
-struct Books {
-    /// Image (swapchain or intermediate) → eyes drawn with RDM since it was last released / copied.
-    pending: HashMap<u64, Vec<Pending>>,
-    counts: HashMap<(u64, u64, u32, PixelRect, PixelRect), SkipCount>,
-    logged: HashSet<String>,
+impl Reconstruct {
+    pub(crate) fn new(memory: vk::PhysicalDeviceMemoryProperties, set_loader_data: Option<crate::vk::PfnSetDeviceLoaderData>) -> Reconstruct {
+        Reconstruct { set_loader_data, memory, fill: Mutex::default(), slots: Mutex::default(), slot_count: Default::default() }
+    }
+    /// At vkDestroyDevice (the device is idle).
+    pub(crate) fn destroy(&self, d: &DeviceState) {
+        destroy_all(self, d);
+    }
 }
 
 struct FillObjects {
@@ -122,251 +69,27 @@ struct Slot {
     transient: Vec<(vk::ImageView, vk::Framebuffer)>,
 }
 
-/// Per-device RDM state. Locks guard bookkeeping only, never a call down.
-pub(crate) struct RdmDevice {
-    pub(super) set_loader_data: Option<PfnSetDeviceLoaderData>,
-    memory: vk::PhysicalDeviceMemoryProperties,
-    buffers: Mutex<Vec<DrawBuffer>>,
-    books: Mutex<Books>,
-    fill: Mutex<Option<FillObjects>>,
-    slots: Mutex<VecDeque<Slot>>,
-    slot_count: std::sync::atomic::AtomicUsize,
-}
-
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-impl RdmDevice {
-    pub fn new(memory: vk::PhysicalDeviceMemoryProperties, set_loader_data: Option<PfnSetDeviceLoaderData>) -> RdmDevice {
-        RdmDevice {
-            set_loader_data,
-            memory,
-            buffers: Mutex::new(Vec::new()),
-            books: Mutex::new(Books::default()),
-            fill: Mutex::new(None),
-            slots: Mutex::new(VecDeque::new()),
-            slot_count: Default::default(),
-        }
-    }
-}
-
-fn log_once(d: &DeviceState, key: String, f: impl FnOnce()) {
-    if lock(&d.rdm.books).logged.insert(key) {
-        f();
-    }
-}
-
-/// Records the checkerboard depth draw into the open pass (after the mask, before the app's state
-/// is restored by the caller) and remembers which eyes of which image need reconstruction.
-pub(super) fn record_draw(d: &DeviceState, cb: vk::CommandBuffer, key: &PipelineKey, plan: &MaskPlan) -> Result<(), NotApplied> {
-    let fovea = shared().foveation();
-    let views = shared().views();
-    let mut eyes: Vec<(EyeDraw, RdmParams)> = Vec::new();
-    for dr in &plan.draws {
-        let f = fovea.views.iter().find(|f| f.view == dr.view).ok_or(NotApplied::NoFovea)?;
-        let fov = views.fovs.get(dr.view as usize).ok_or(NotApplied::NoFovea)?;
-        eyes.push((*dr, RdmParams::new(fov, f, dr.viewport).ok_or(NotApplied::NoFovea)?));
-    }
-    if eyes.is_empty() {
-        return Err(NotApplied::NoFovea);
-    }
-    let bkey: BufferKey = (fovea.generation, views.generation, eyes.iter().map(|(dr, _)| (dr.view, dr.viewport)).collect());
-    let buffer = draw_buffer(d, &bkey, &eyes).map_err(|e| {
-        tracing::warn!("rdm vertex buffer: {e}");
-        NotApplied::LayerError
-    })?;
-    let pipeline = mask::pipeline(d, key).map_err(|e| match e {
-        mask::PipelineError::DeviceLacks => NotApplied::DeviceLacks,
-        mask::PipelineError::Vulkan(e) => {
-            tracing::warn!(?key, "rdm pipeline: {e}");
-            NotApplied::LayerError
-        }
-    })?;
-    let fns = d.fns.fp_v1_0();
-    let viewport = |r: PixelRect| mask::fail_viewport(r, plan.fail_depth);
-    let scissor = mask::rect2d;
-    // SAFETY: `cb` is recording inside the pass the plan was made for; the pipeline is compatible
-    // with it; the buffer lives until retired frames after this command buffer completed.
-    unsafe {
-        (fns.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
-        (fns.cmd_bind_vertex_buffers)(cb, 0, 1, &buffer, &0);
-        if plan.layout == EyeLayout::Multiview {
-            let dr = plan.draws[0];
-            (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
-            (fns.cmd_set_scissor)(cb, 0, 1, &scissor(dr.scissor));
-            (fns.cmd_draw)(cb, 3 * eyes.len() as u32, 1, 0, 0);
-        } else {
-            for (i, (dr, _)) in eyes.iter().enumerate().filter(|(_, (dr, _))| dr.scissor.area() > 0) {
-                (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
-                (fns.cmd_set_scissor)(cb, 0, 1, &scissor(dr.scissor));
-                (fns.cmd_draw)(cb, 3, 1, 3 * i as u32, 0);
-            }
-        }
-    }
-    let counts: Vec<(u32, SkipCount)> = eyes.iter().map(|(dr, p)| (dr.view, count(d, fovea.generation, views.generation, dr, p))).collect();
-    d.mask.count(|s| {
-        s.rdm.passes += 1;
-        for (view, c) in &counts {
-            *s.rdm.quads_skipped.entry(*view).or_insert(0) += c.quads_skipped;
-            *s.rdm.pixels_skipped.entry(*view).or_insert(0) += c.pixels_skipped;
-        }
-    });
-    {
-        let mut books = lock(&d.rdm.books);
-        let list = books.pending.entry(plan.image).or_default();
-        for (dr, p) in &eyes {
-            list.retain(|x| !(x.layer == dr.layer && x.params.rect == p.rect));
-            list.push(Pending { view: dr.view, layer: dr.layer, params: *p });
-        }
-    }
-    log_once(d, format!("draw {:?} {}", plan.layout, plan.intermediate), || {
-        let what: Vec<String> = eyes
-            .iter()
-            .zip(&counts)
-            .map(|((dr, p), (_, c))| {
-                let r = p.rect;
-                format!("view {} layer {} rect {}x{}+{}+{}: {} of {} quads skipped", dr.view, dr.layer, r.width, r.height, r.x, r.y, c.quads_skipped, c.quads)
-            })
-            .collect();
-        let target = if plan.intermediate { "intermediate image" } else { "swapchain image" };
-        tracing::info!("radial density masking {} pass on {target} {:#x}: {}", plan.layout.name(), plan.image, what.join("; "));
-    });
-    Ok(())
-}
-
-fn count(d: &DeviceState, fovea_gen: u64, views_gen: u64, dr: &EyeDraw, p: &RdmParams) -> SkipCount {
-    let k = (fovea_gen, views_gen, dr.view, dr.viewport, dr.scissor);
-    if let Some(c) = lock(&d.rdm.books).counts.get(&k) {
-        return *c;
-    }
-    let c = p.count(dr.scissor);
-    let mut books = lock(&d.rdm.books);
-    if books.counts.len() > 256 {
-        books.counts.clear();
-    }
-    books.counts.insert(k, c);
-    c
-}
-
-/// The vertex buffer for these eyes under the current generations, built on first use.
-fn draw_buffer(d: &DeviceState, key: &BufferKey, eyes: &[(EyeDraw, RdmParams)]) -> Result<vk::Buffer, String> {
-    let now = mask::FRAMES_ENDED.load(Ordering::Relaxed);
-    let mut retired = Vec::new();
-    {
-        let mut bufs = lock(&d.rdm.buffers);
-        if let Some(b) = bufs.iter().find(|b| b.key == *key && b.retired_at.is_none()) {
-            return Ok(b.buffer);
-        }
-        // Other generations are done; of the current one keep a few eye layouts.
-        let live = bufs.iter().filter(|b| b.retired_at.is_none() && (b.key.0, b.key.1) == (key.0, key.1)).count();
-        for b in bufs.iter_mut() {
-            if (b.key.0, b.key.1) != (key.0, key.1) || live >= 8 {
-                b.retired_at.get_or_insert(now);
-            }
-        }
-        bufs.retain(|b| {
-            let old = b.retired_at.is_some_and(|r| now >= r + mask::RETIRE_AFTER_FRAMES);
-            if old {
-                retired.push((b.buffer, b.memory));
-            }
-            !old
-        });
-    }
-    for (buffer, memory) in retired {
-        // SAFETY: retired RETIRE_AFTER_FRAMES frames ago; no command buffer still uses it.
-        unsafe {
-            d.fns.destroy_buffer(buffer, None);
-            d.fns.free_memory(memory, None);
-        }
-    }
-    let tri = [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]];
-    let vertices: Vec<Vertex> = eyes
-        .iter()
-        .flat_map(|(dr, p)| {
-            tri.iter().map(move |&pos| Vertex {
-                pos,
-                view: dr.view,
-                origin: [p.rect.x, p.rect.y],
-                tan: [p.tan_left, p.tan_up, p.step_x, p.step_y],
-                fovea: [p.center[0], p.center[1], p.k_inner, p.k_middle],
-            })
-        })
-        .collect();
-    let (buffer, memory) = mask::create_buffer(d, &vertices)?;
-    lock(&d.rdm.buffers).push(DrawBuffer { key: key.clone(), buffer, memory, retired_at: None });
-    tracing::debug!(?key, "rdm vertex buffer built");
-    Ok(buffer)
-}
-
-/// The app transfers `src` into `dst`: eyes of `src` awaiting reconstruction move to `dst` when a
-/// region carries them 1:1 into a swapchain image; a scaled region is counted (its skipped quads
-/// cannot be reconstructed there).
-pub(super) fn on_transfer(d: &DeviceState, src: u64, dst: u64, regions: &[TransferRegion]) {
-    if shared().images.get(dst).is_none() {
-        return;
-    }
-    let mut books = lock(&d.rdm.books);
-    let Some(list) = books.pending.remove(&src) else { return };
-    let (mut moved, mut kept, mut scaled) = (Vec::new(), Vec::new(), 0u64);
-    for p in list {
-        let hit = regions.iter().find(|r| p.layer >= r.src_layer && p.layer < r.src_layer + r.layer_count && r.src.intersect(&p.params.rect).area() > 0);
-        match hit {
-            Some(r) if (r.src.width, r.src.height) == (r.dst.width, r.dst.height) && r.src.contains(&p.params.rect) => {
-                let mut q = p;
-                q.layer = p.layer - r.src_layer + r.dst_layer;
-                q.params.rect.x = p.params.rect.x - r.src.x + r.dst.x;
-                q.params.rect.y = p.params.rect.y - r.src.y + r.dst.y;
-                moved.push(q);
-            }
-            Some(_) => scaled += 1,
-            None => kept.push(p),
-        }
-    }
-    if !kept.is_empty() {
-        books.pending.insert(src, kept);
-    }
-    let list = books.pending.entry(dst).or_default();
-    for q in moved {
-        list.retain(|x| !(x.layer == q.layer && x.params.rect == q.params.rect));
-        list.push(q);
-    }
-    drop(books);
-    if scaled > 0 {
-        d.mask.count(|s| *s.rdm.not_applied.entry(NotApplied::NotOneToOne.name()).or_insert(0) += scaled);
-        log_once(d, format!("scaled {src:#x}"), || {
-            tracing::warn!(src = format_args!("{src:#x}"), "radial density masking: target is not copied 1:1 into the swapchain image; its skipped quads cannot be reconstructed there")
-        });
-    }
-}
-
-/// The app destroyed an image: what was pending for it goes.
-pub(super) fn forget_image(d: &DeviceState, image: u64) {
-    lock(&d.rdm.books).pending.remove(&image);
-}
-
 /// Called by the OpenXR half in `xrReleaseSwapchainImage`, before calling down: reconstructs the
 /// skipped quads of the released image, on the session's queue, after the app's submitted work.
-pub(crate) fn before_release(device: u64, queue_family: u32, queue_index: u32, swapchain: u64, image_index: u32) {
-    let Some(d) = super::layer().devices.get(super::dispatch_key(vk::Device::from_raw(device))) else { return };
+pub(super) fn before_release(me: &RdmDevice, d: &DeviceState, queue_family: u32, queue_index: u32, swapchain: u64, image_index: u32) {
     if d.pass_through.is_on() {
         return;
     }
     let Some(sc) = shared().swapchains.get(swapchain) else { return };
     let Some(&image) = sc.images.get(image_index as usize) else { return };
-    let pending = lock(&d.rdm.books).pending.remove(&image).unwrap_or_default();
+    let pending = lock(&me.books).pending.remove(&image).unwrap_or_default();
     if pending.is_empty() {
         return;
     }
-    match reconstruct(&d, &sc, image, &pending, queue_family, queue_index) {
-        Ok(()) => d.mask.count(|s| {
+    match reconstruct(d, &sc, image, &pending, queue_family, queue_index) {
+        Ok(()) => me.count(|s| {
             for p in &pending {
-                *s.rdm.reconstructed.entry(p.view).or_insert(0) += 1;
+                *s.reconstructed.entry(p.view).or_insert(0) += 1;
             }
         }),
         Err((why, msg)) => {
-            d.mask.count(|s| s.rdm.count_not_applied(why));
-            log_once(&d, format!("reconstruct {}", why.name()), || tracing::warn!("radial density masking: no reconstruction of swapchain {swapchain:#x}: {msg}"));
+            me.count(|s| s.count_not_applied(why));
+            log_once(me, format!("reconstruct {}", why.name()), || tracing::warn!("radial density masking: no reconstruction of swapchain {swapchain:#x}: {msg}"));
         }
     }
 }
@@ -394,19 +117,19 @@ fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[P
     let (layout, set_layout, render_pass, pipeline, sampler) = fill_objects(d, format).map_err(|e| (NotApplied::LayerError, e))?;
     let mut slot = take_slot(d, family, set_layout)?;
     let r = record_and_submit(d, &mut slot, image, format, (width, height, layers), &eyes, family, queue_index, (layout, render_pass, pipeline, sampler));
-    lock(&d.rdm.slots).push_back(slot);
+    lock(&d.features.rdm.reconstruct.slots).push_back(slot);
     r
 }
 
 /// A free slot (waiting for the oldest if all are in flight), reset for recording.
 fn take_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -> Result<Slot, Failure> {
-    let front = lock(&d.rdm.slots).pop_front();
+    let front = lock(&d.features.rdm.reconstruct.slots).pop_front();
     let slot = match front {
         Some(s) => {
             // SAFETY: our fence.
             let ready = unsafe { d.fns.get_fence_status(s.fence) }.unwrap_or(false);
-            if !ready && d.rdm.slot_count.load(Ordering::Relaxed) < MAX_SLOTS {
-                lock(&d.rdm.slots).push_back(s);
+            if !ready && d.features.rdm.reconstruct.slot_count.load(Ordering::Relaxed) < MAX_SLOTS {
+                lock(&d.features.rdm.reconstruct.slots).push_back(s);
                 new_slot(d, family, set_layout)?
             } else {
                 s
@@ -418,7 +141,7 @@ fn take_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) 
     // with everything the slot's last submission used.
     unsafe {
         if let Err(e) = d.fns.wait_for_fences(&[slot.fence], true, SLOT_WAIT_NS) {
-            lock(&d.rdm.slots).push_back(slot);
+            lock(&d.features.rdm.reconstruct.slots).push_back(slot);
             return Err((NotApplied::LayerError, format!("waiting for an earlier reconstruction: {e}")));
         }
         let mut slot = slot;
@@ -428,7 +151,7 @@ fn take_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) 
         }
         let reset = d.fns.reset_fences(&[slot.fence]).and_then(|_| d.fns.reset_command_pool(slot.pool, vk::CommandPoolResetFlags::empty()));
         if let Err(e) = reset {
-            lock(&d.rdm.slots).push_back(slot);
+            lock(&d.features.rdm.reconstruct.slots).push_back(slot);
             return Err((NotApplied::LayerError, format!("reset: {e}")));
         }
         Ok(slot)
@@ -436,7 +159,7 @@ fn take_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) 
 }
 
 fn new_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -> Result<Slot, Failure> {
-    let Some(set_loader_data) = d.rdm.set_loader_data else {
+    let Some(set_loader_data) = d.features.rdm.reconstruct.set_loader_data else {
         return Err((NotApplied::LayerError, "the loader gave no vkSetDeviceLoaderData".into()));
     };
     // SAFETY: valid create infos on our device; every object made here is destroyed on failure
@@ -459,7 +182,7 @@ fn new_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -
             let alloc = vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1);
             slot.cb = d.fns.allocate_command_buffers(&alloc).map_err(layer_error("command buffer"))?[0];
             // The loader sets the dispatch word only on objects handed out through it.
-            let r = set_loader_data(d.handle, slot.cb.as_raw() as usize as *mut c_void);
+            let r = set_loader_data(d.handle, slot.cb.as_raw() as usize as *mut std::ffi::c_void);
             if r != vk::Result::SUCCESS {
                 return Err((NotApplied::LayerError, format!("vkSetDeviceLoaderData: {r:?}")));
             }
@@ -478,7 +201,7 @@ fn new_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -
             destroy_slot(d, slot);
             return Err(e);
         }
-        d.rdm.slot_count.fetch_add(1, Ordering::Relaxed);
+        d.features.rdm.reconstruct.slot_count.fetch_add(1, Ordering::Relaxed);
         Ok(slot)
     }
 }
@@ -538,7 +261,7 @@ fn ensure_temp(d: &DeviceState, slot: &mut Slot, format: vk::Format, (width, hei
     unsafe {
         let image = d.fns.create_image(&info, None).map_err(layer_error("temp image"))?;
         let req = d.fns.get_image_memory_requirements(image);
-        let mem = &d.rdm.memory;
+        let mem = &d.features.rdm.reconstruct.memory;
         let types = (0..mem.memory_type_count).filter(|&i| req.memory_type_bits & (1 << i) != 0);
         let index = types
             .clone()
@@ -758,7 +481,7 @@ fn record_and_submit(
 
 /// The fill pipeline's shared objects and the render pass + pipeline for `format`, made once.
 fn fill_objects(d: &DeviceState, format: vk::Format) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::RenderPass, vk::Pipeline, vk::Sampler), String> {
-    let mut guard = lock(&d.rdm.fill);
+    let mut guard = lock(&d.features.rdm.reconstruct.fill);
     // Creating a few objects under this lock is fine: these calls never re-enter the layer.
     if guard.is_none() {
         *guard = Some(create_fill_common(d)?);
@@ -889,19 +612,14 @@ fn create_fill_pipeline(d: &DeviceState, f: &FillObjects, format: vk::Format) ->
 
 /// Destroys every RDM object of the device (at vkDestroyDevice, before calling down; the app has
 /// waited for the device to go idle, and our submissions are on its queues).
-pub(crate) fn destroy(d: &DeviceState) {
-    let slots: Vec<Slot> = lock(&d.rdm.slots).drain(..).collect();
-    let buffers: Vec<DrawBuffer> = std::mem::take(&mut *lock(&d.rdm.buffers));
-    let fill = lock(&d.rdm.fill).take();
+fn destroy_all(r: &Reconstruct, d: &DeviceState) {
+    let slots: Vec<Slot> = lock(&r.slots).drain(..).collect();
+    let fill = lock(&r.fill).take();
     // SAFETY: our objects; the device is idle (fences waited for safety all the same).
     unsafe {
         for s in slots {
             let _ = d.fns.wait_for_fences(&[s.fence], true, SLOT_WAIT_NS);
             destroy_slot(d, s);
-        }
-        for b in buffers {
-            d.fns.destroy_buffer(b.buffer, None);
-            d.fns.free_memory(b.memory, None);
         }
         if let Some(f) = fill {
             for (rp, p) in f.passes.values() {
@@ -917,28 +635,3 @@ pub(crate) fn destroy(d: &DeviceState) {
     }
 }
 
-/// Pending reconstructions per image (tests of the transfer hand-over).
-#[cfg(test)]
-fn pending_views(list: &[Pending]) -> std::collections::BTreeMap<u32, u32> {
-    list.iter().map(|p| (p.view, p.layer)).collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn shaders_are_embedded_spirv_and_the_vertex_matches_its_layout() {
-        for s in [VERT, VERT_MV, FRAG, FILL_VERT, FILL_FRAG] {
-            assert_eq!(&s[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
-        }
-        let (stride, attrs) = vertex_layout();
-        assert_eq!(stride, 52);
-        assert_eq!(attrs.last().unwrap().offset, std::mem::offset_of!(Vertex, fovea) as u32);
-        assert_eq!(attrs[3].offset, std::mem::offset_of!(Vertex, tan) as u32);
-        assert_eq!(attrs[2].offset, std::mem::offset_of!(Vertex, origin) as u32);
-        assert_eq!(std::mem::size_of::<FillParams>(), 52);
-        let p = Pending { view: 1, layer: 0, params: RdmParams::new(&crate::shared::ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 }, &crate::shared::FoveaView { view: 1, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 }, PixelRect { x: 0, y: 0, width: 8, height: 8 }).unwrap() };
-        assert_eq!(pending_views(&[p]), std::collections::BTreeMap::from([(1, 0)]));
-    }
-}

@@ -1,0 +1,10 @@
+//! The pure core every feature and both shells build on: rectangles, fovea geometry, the eye-pass
+//! vocabulary, the per-feature statistics registry and the lifetime rules of layer objects. Nothing
+//! here touches Vulkan or OpenXR, and nothing here knows a feature.
+#![forbid(unsafe_code)]
+
+pub mod fovea;
+pub mod lifetime;
+pub mod pass;
+pub mod rect;
+pub mod stats;

@@ -1,0 +1,109 @@
+//! Foveated shading: a lower shading rate away from the fovea, by variable-rate shading (`vrs`,
+//! where the GPU has attachment rates) or radial density masking with reconstruction (`rdm`,
+//! everywhere else). `rules` holds what both share: ring sizes and the gaze policy.
+
+pub mod rdm;
+pub mod rules;
+pub mod vrs;
+pub(crate) mod xr;
+
+use crate::config::{Config, Kind, KeySpec};
+pub use rules::Rings;
+
+/// Foveation's config keys (shared by both methods).
+pub const KEYS: &[KeySpec] = &[
+    KeySpec {
+        key: "foveation.enabled",
+        kind: Kind::Bool,
+        default: "false",
+        doc: "foveated shading: lower shading rate in the periphery of every eye pass",
+    },
+    KeySpec {
+        key: "foveation.method",
+        kind: Kind::Choice(&["auto", "vrs", "rdm"]),
+        default: "auto",
+        doc: "vrs: VK_KHR_fragment_shading_rate attachment; rdm: radial density masking with reconstruction; auto: vrs where the GPU has it, else rdm",
+    },
+    KeySpec {
+        key: "foveation.preset",
+        kind: Kind::Choice(&["subtle", "balanced", "aggressive"]),
+        default: "balanced",
+        doc: "ring sizes: subtle (full rate within 30°, half to 45°), balanced (20°, 35°), aggressive (12°, 25°)",
+    },
+    KeySpec {
+        key: "foveation.inner_deg",
+        kind: Kind::Float { min: 0.0, max: 90.0 },
+        default: "0",
+        doc: "full-rate radius around the centre, degrees (0: from the preset)",
+    },
+    KeySpec {
+        key: "foveation.middle_deg",
+        kind: Kind::Float { min: 0.0, max: 90.0 },
+        default: "0",
+        doc: "half-rate ring's outer radius, degrees; quarter rate beyond (0: from the preset)",
+    },
+    KeySpec {
+        key: "foveation.eye_tracking",
+        kind: Kind::Choice(&["auto", "off"]),
+        default: "auto",
+        doc: "auto: follow the gaze when the runtime has XR_EXT_eye_gaze_interaction and a valid gaze, else the optical axis; off: always the optical axis",
+    },
+];
+
+/// `foveation.method`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    Auto,
+    Vrs,
+    Rdm,
+}
+
+impl Method {
+    /// The method in effect on a device with (`fsr_attachment`) or without attachment rates.
+    pub fn resolve(self, fsr_attachment: bool) -> Method {
+        match self {
+            Method::Auto if fsr_attachment => Method::Vrs,
+            Method::Auto => Method::Rdm,
+            m => m,
+        }
+    }
+}
+
+/// Foveation's typed settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FoveationSettings {
+    pub enabled: bool,
+    pub method: Method,
+    /// The rings, presets and explicit angles resolved.
+    pub rings: Rings,
+    /// `foveation.eye_tracking = auto`.
+    pub eye_tracking: bool,
+}
+
+impl FoveationSettings {
+    pub fn from_config(c: &Config) -> FoveationSettings {
+        FoveationSettings {
+            enabled: c.bool("foveation.enabled"),
+            method: match c.choice("foveation.method") {
+                "vrs" => Method::Vrs,
+                "rdm" => Method::Rdm,
+                _ => Method::Auto,
+            },
+            rings: Rings::from_config(c),
+            eye_tracking: c.choice("foveation.eye_tracking") == "auto",
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn auto_resolves_by_device() {
+        assert_eq!(Method::Auto.resolve(true), Method::Vrs);
+        assert_eq!(Method::Auto.resolve(false), Method::Rdm);
+        assert_eq!(Method::Rdm.resolve(true), Method::Rdm);
+        assert_eq!(Method::Vrs.resolve(false), Method::Vrs);
+    }
+}

@@ -1,0 +1,437 @@
+//! Radial density masking on the Vulkan side, the draw half: at the chassis' injection point (an
+//! eye pass's depth just cleared, after the mask) a full-viewport draw writes the failing depth on
+//! the quads `rules` skips, so early-Z rejects the app's fragments there. Which eyes of which image
+//! await reconstruction is decided when the command buffer is *submitted* (not recorded), in
+//! recording order together with the app's 1:1 transfers that carry them from an intermediate
+//! target into the swapchain image, so a command buffer recorded once and resubmitted hands its
+//! skipped quads to `reconstruct` every frame.
+
+use super::rules::{NotApplied, RdmFrameStats, RdmParams, SkipCount};
+use crate::core::rect::PixelRect;
+use crate::core::stats::FeatureStats;
+use crate::settings::Settings;
+use crate::shared::shared;
+use crate::track::eye_pass::{EyeDraw, EyeLayout, TransferRegion};
+use crate::vk::feature::{Destroyed, DeviceInit, Plugin, VkFeature};
+use crate::vk::inject::{self, pipeline, Injection};
+use crate::vk::lifetime::{self, HostBuffer};
+use crate::vk::DeviceState;
+use crate::core::pass::NotMasked;
+use ash::vk;
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm.vert.spv"));
+static VERT_MV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_mv.vert.spv"));
+static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm.frag.spv"));
+
+/// One vertex of the depth draw: position, view, and the eye's rule parameters (flat).
+#[repr(C)]
+#[derive(Clone, Copy)]
+struct Vertex {
+    pos: [f32; 2],
+    view: u32,
+    origin: [i32; 2],
+    /// tan_left, tan_up, step_x, step_y.
+    tan: [f32; 4],
+    /// cx, cy, k_inner, k_middle.
+    fovea: [f32; 4],
+}
+
+/// Stride and attributes of `Vertex` (shaders/rdm.vert).
+fn vertex_layout() -> (u32, Vec<vk::VertexInputAttributeDescription>) {
+    let a = |location, format, offset| vk::VertexInputAttributeDescription { location, binding: 0, format, offset };
+    (
+        std::mem::size_of::<Vertex>() as u32,
+        vec![
+            a(0, vk::Format::R32G32_SFLOAT, 0),
+            a(1, vk::Format::R32_UINT, 8),
+            a(2, vk::Format::R32G32_SINT, 12),
+            a(3, vk::Format::R32G32B32A32_SFLOAT, 20),
+            a(4, vk::Format::R32G32B32A32_SFLOAT, 36),
+        ],
+    )
+}
+
+
+
+/// One eye of an image whose skipped quads await reconstruction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Pending {
+    pub view: u32,
+    pub layer: u32,
+    /// The rule as drawn; `params.rect` is in the image's pixels.
+    pub params: RdmParams,
+}
+
+#[derive(Default)]
+pub(super) struct Books {
+    frame: RdmFrameStats,
+    total: RdmFrameStats,
+    /// Image (swapchain or intermediate) → eyes drawn with RDM since it was last released / copied.
+    pub(super) pending: HashMap<u64, Vec<Pending>>,
+    counts: HashMap<(u64, u64, u32, PixelRect, PixelRect), SkipCount>,
+    pub(super) logged: HashSet<String>,
+}
+
+/// Per-device RDM state. Locks guard bookkeeping only, never a call down.
+pub(crate) struct RdmDevice {
+    layer_enabled: bool,
+    /// The device has layer-enabled attachment rates (`foveation.method = auto` is VRS there).
+    fsr_attachment: bool,
+    used: AtomicBool,
+    memory: vk::PhysicalDeviceMemoryProperties,
+    pub(super) books: Mutex<Books>,
+    pub(super) reconstruct: super::reconstruct::Reconstruct,
+}
+
+pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl Plugin for RdmDevice {
+    /// `foveation.*`, shared with VRS (the registry lists a key once).
+    const KEYS: &'static [crate::config::KeySpec] = crate::features::foveation::KEYS;
+    fn new(init: &DeviceInit<'_>) -> RdmDevice {
+        RdmDevice {
+            layer_enabled: init.settings.enabled,
+            fsr_attachment: init.rates.is_some(),
+            used: AtomicBool::new(false),
+            memory: init.memory,
+            books: Mutex::default(),
+            reconstruct: super::reconstruct::Reconstruct::new(init.memory, init.set_loader_data),
+        }
+    }
+    fn empty_stats() -> Box<dyn FeatureStats> {
+        Box::new(RdmFrameStats::default())
+    }
+    /// On with RDM as the method in effect: `rdm`, or `auto` where VRS did not act this frame.
+    fn enabled(s: &Settings, frame: &crate::core::stats::FrameStats) -> bool {
+        let vrs_active = frame.get::<crate::features::foveation::vrs::rules::VrsFrameStats>().is_some_and(|v| !v.is_empty());
+        s.foveation.enabled && (s.foveation.method == crate::features::foveation::Method::Rdm || (s.foveation.method == crate::features::foveation::Method::Auto && !vrs_active))
+    }
+}
+
+impl RdmDevice {
+    pub(super) fn count(&self, f: impl Fn(&mut RdmFrameStats)) {
+        let mut b = lock(&self.books);
+        f(&mut b.frame);
+        f(&mut b.total);
+    }
+}
+
+/// The app transferred `src` into `dst` in a recording: applied to the pending books when the
+/// command buffer is submitted, in recording order with the draws.
+struct Transfer {
+    src: u64,
+    dst: u64,
+    regions: Vec<TransferRegion>,
+}
+
+/// One recorded checkerboard draw: its vertex buffer (the rule's parameters per eye) and the eyes
+/// of `image` it leaves to reconstruct. Refilled for the current fovea before a submission when
+/// the recording is idle, so a command buffer recorded once follows the gaze.
+struct Drawn {
+    buffer: Option<HostBuffer>,
+    image: u64,
+    eyes: Vec<EyeDraw>,
+    /// (foveation generation, views generation) the buffer holds, and its eyes' parameters.
+    state: Mutex<((u64, u64), Vec<Pending>)>,
+    pool: Arc<Mutex<Vec<HostBuffer>>>,
+}
+
+impl Drop for Drawn {
+    fn drop(&mut self) {
+        if let Some(b) = self.buffer.take() {
+            b.recycle(&self.pool);
+        }
+    }
+}
+
+/// (foveation generation, views generation) and every eye's rule parameters under them.
+type EyeParams = ((u64, u64), Vec<(EyeDraw, RdmParams)>);
+
+/// The rule's parameters of `eyes` under the current fovea and FOVs.
+fn params_now(eyes: &[EyeDraw]) -> Result<EyeParams, NotApplied> {
+    let fovea = shared().foveation();
+    let views = shared().views();
+    let mut out = Vec::new();
+    for dr in eyes {
+        let f = fovea.views.iter().find(|f| f.view == dr.view).ok_or(NotApplied::NoFovea)?;
+        let fov = views.fovs.get(dr.view as usize).ok_or(NotApplied::NoFovea)?;
+        out.push((*dr, RdmParams::new(fov, f, dr.viewport).ok_or(NotApplied::NoFovea)?));
+    }
+    if out.is_empty() {
+        return Err(NotApplied::NoFovea);
+    }
+    Ok(((fovea.generation, views.generation), out))
+}
+
+/// One full-viewport triangle per eye, carrying the eye's parameters.
+fn vertices(eyes: &[(EyeDraw, RdmParams)]) -> Vec<Vertex> {
+    let tri = [[-1.0f32, -1.0], [3.0, -1.0], [-1.0, 3.0]];
+    eyes.iter()
+        .flat_map(|(dr, p)| {
+            tri.iter().map(move |&pos| Vertex {
+                pos,
+                view: dr.view,
+                origin: [p.rect.x, p.rect.y],
+                tan: [p.tan_left, p.tan_up, p.step_x, p.step_y],
+                fovea: [p.center[0], p.center[1], p.k_inner, p.k_middle],
+            })
+        })
+        .collect()
+}
+
+impl Drawn {
+    /// Refills the buffer for the current generations when it holds older ones (the recording
+    /// must be idle); keeps what it has when the fovea is momentarily unknown.
+    fn refresh(&self) {
+        let mut st = lock(&self.state);
+        let now = (shared().foveation().generation, shared().views().generation);
+        if st.0 == now {
+            return;
+        }
+        let (Ok((generations, eyes)), Some(buffer)) = (params_now(&self.eyes), &self.buffer) else { return };
+        if buffer.write(0, &vertices(&eyes)) {
+            *st = (generations, eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect());
+        }
+    }
+}
+
+impl VkFeature for RdmDevice {
+    fn id(&self) -> &'static str {
+        "rdm"
+    }
+    fn take_frame(&self) -> Box<dyn FeatureStats> {
+        Box::new(std::mem::take(&mut lock(&self.books).frame))
+    }
+    fn summary(&self) -> Option<String> {
+        self.used.load(Ordering::Relaxed).then(|| lock(&self.books).total.summary())
+    }
+    fn injects(&self, s: &Settings) -> bool {
+        let on = self.layer_enabled && s.foveation.enabled && s.foveation.method.resolve(self.fsr_attachment) == crate::features::foveation::Method::Rdm;
+        if on {
+            self.used.store(true, Ordering::Relaxed);
+        }
+        on
+    }
+    fn inject(&self, d: &DeviceState, at: &Injection<'_>) {
+        if let Err(why) = record_draw(self, d, at) {
+            if at.counts {
+                self.count(|s| s.count_not_applied(why));
+            }
+        }
+    }
+    fn not_injected(&self, _d: &DeviceState, _s: &Settings, why: NotMasked) {
+        if why != NotMasked::NotEyePass {
+            self.count(|s| *s.not_applied.entry(why.name()).or_insert(0) += 1);
+        }
+    }
+    fn transfer(&self, d: &DeviceState, cb: vk::CommandBuffer, src: u64, dst: u64, regions: &[TransferRegion]) {
+        if self.injects(&d.settings()) {
+            lifetime::hold(d, ash::vk::Handle::as_raw(cb), Arc::new(Transfer { src, dst, regions: regions.to_vec() }));
+        }
+    }
+    fn destroyed(&self, _d: &DeviceState, what: Destroyed) {
+        if let Destroyed::Image(image) = what {
+            lock(&self.books).pending.remove(&image);
+        }
+    }
+    fn before_submit(&self, d: &DeviceState, cbs: &[u64]) {
+        for &cb in cbs {
+            let idle = !lifetime::in_flight(d, cb);
+            lifetime::with_holds(d, cb, |holds| {
+                for h in holds {
+                    if let Some(drawn) = h.downcast_ref::<Drawn>() {
+                        if idle {
+                            drawn.refresh();
+                        }
+                        let eyes = lock(&drawn.state).1.clone();
+                        let mut books = lock(&self.books);
+                        let list = books.pending.entry(drawn.image).or_default();
+                        for p in eyes {
+                            list.retain(|x| !(x.layer == p.layer && x.params.rect == p.params.rect));
+                            list.push(p);
+                        }
+                    } else if let Some(t) = h.downcast_ref::<Transfer>() {
+                        on_transfer(self, d, t.src, t.dst, &t.regions);
+                    }
+                }
+            });
+        }
+    }
+    fn before_release(&self, d: &DeviceState, family: u32, queue_index: u32, swapchain: u64, image_index: u32) {
+        super::reconstruct::before_release(self, d, family, queue_index, swapchain, image_index);
+    }
+    fn destroy(&self, d: &DeviceState) {
+        self.reconstruct.destroy(d);
+    }
+}
+
+pub(super) fn log_once(me: &RdmDevice, key: String, f: impl FnOnce()) {
+    if lock(&me.books).logged.insert(key) {
+        f();
+    }
+}
+
+/// Records the checkerboard depth draw into the open pass (after the mask, before the chassis
+/// restores the app's state); which eyes await reconstruction is applied at submission.
+fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<(), NotApplied> {
+    let plan = at.plan;
+    let ((fovea_generation, views_generation), eyes) = params_now(&plan.draws)?;
+    let pass = pipeline::pass_key(d, at.pass, plan).ok_or(NotApplied::LayerError)?;
+    let key = pipeline::PipelineKey { feature: me.id(), variant: 0, pass };
+    let p = pipeline::get(d, &key, || {
+        let (stride, attributes) = vertex_layout();
+        // A fragment shader that discards kept quads; colour writes stay off.
+        pipeline::PipelineDesc { vert: VERT, vert_multiview: VERT_MV, frag: Some(FRAG), stride, attributes, write_first_color: false }
+    })
+    .map_err(|e| match e {
+        pipeline::PipelineError::DeviceLacks => NotApplied::DeviceLacks,
+        pipeline::PipelineError::Vulkan(e) => {
+            tracing::warn!(?key, "rdm pipeline: {e}");
+            NotApplied::LayerError
+        }
+    })?;
+    let vertices = vertices(&eyes);
+    let buffer = HostBuffer::take(d, std::mem::size_of_val(&vertices[..]) as u64, &me.memory).map_err(|e| {
+        tracing::warn!("rdm vertex buffer: {e}");
+        NotApplied::LayerError
+    })?;
+    buffer.write(0, &vertices);
+    let pending = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
+    let drawn = Arc::new(Drawn {
+        image: plan.image,
+        eyes: plan.draws.clone(),
+        state: Mutex::new(((fovea_generation, views_generation), pending)),
+        buffer: Some(buffer),
+        pool: d.lifetime.buffers.clone(),
+    });
+    let vk_buffer = drawn.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
+    let cb = at.cb;
+    let fns = d.fns.fp_v1_0();
+    let viewport = |r: PixelRect| inject::fail_viewport(r, plan.fail_depth);
+    // SAFETY: `cb` is recording inside the pass the plan was made for; the pipeline is compatible
+    // with it; the buffer is held by the app's command buffer (below) until its recording closes
+    // and its submissions complete.
+    unsafe {
+        (fns.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::GRAPHICS, p);
+        (fns.cmd_bind_vertex_buffers)(cb, 0, 1, &vk_buffer, &0);
+        if plan.layout == EyeLayout::Multiview {
+            let dr = plan.draws[0];
+            (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
+            (fns.cmd_set_scissor)(cb, 0, 1, &inject::rect2d(dr.scissor));
+            (fns.cmd_draw)(cb, 3 * eyes.len() as u32, 1, 0, 0);
+        } else {
+            for (i, (dr, _)) in eyes.iter().enumerate().filter(|(_, (dr, _))| dr.scissor.area() > 0) {
+                (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
+                (fns.cmd_set_scissor)(cb, 0, 1, &inject::rect2d(dr.scissor));
+                (fns.cmd_draw)(cb, 3, 1, 3 * i as u32, 0);
+            }
+        }
+    }
+    lifetime::hold(d, at.owner, drawn);
+    let counts: Vec<(u32, SkipCount)> = eyes.iter().map(|(dr, p)| (dr.view, count(me, fovea_generation, views_generation, dr, p))).collect();
+    me.count(|s| {
+        s.passes += 1;
+        for (view, c) in &counts {
+            *s.quads_skipped.entry(*view).or_insert(0) += c.quads_skipped;
+            *s.pixels_skipped.entry(*view).or_insert(0) += c.pixels_skipped;
+        }
+    });
+    log_once(me, format!("draw {:?} {}", plan.layout, plan.intermediate), || {
+        let what: Vec<String> = eyes
+            .iter()
+            .zip(&counts)
+            .map(|((dr, p), (_, c))| {
+                let r = p.rect;
+                format!("view {} layer {} rect {}x{}+{}+{}: {} of {} quads skipped", dr.view, dr.layer, r.width, r.height, r.x, r.y, c.quads_skipped, c.quads)
+            })
+            .collect();
+        let target = if plan.intermediate { "intermediate image" } else { "swapchain image" };
+        tracing::info!("radial density masking {} pass on {target} {:#x}: {}", plan.layout.name(), plan.image, what.join("; "));
+    });
+    Ok(())
+}
+
+fn count(me: &RdmDevice, fovea_gen: u64, views_gen: u64, dr: &EyeDraw, p: &RdmParams) -> SkipCount {
+    let k = (fovea_gen, views_gen, dr.view, dr.viewport, dr.scissor);
+    if let Some(c) = lock(&me.books).counts.get(&k) {
+        return *c;
+    }
+    let c = p.count(dr.scissor);
+    let mut books = lock(&me.books);
+    if books.counts.len() > 256 {
+        books.counts.clear();
+    }
+    books.counts.insert(k, c);
+    c
+}
+
+/// The app transfers `src` into `dst`: eyes of `src` awaiting reconstruction move to `dst` when a
+/// region carries them 1:1 into a swapchain image; a scaled region is counted (its skipped quads
+/// cannot be reconstructed there).
+fn on_transfer(me: &RdmDevice, _d: &DeviceState, src: u64, dst: u64, regions: &[TransferRegion]) {
+    if shared().images.get(dst).is_none() {
+        return;
+    }
+    let mut books = lock(&me.books);
+    let Some(list) = books.pending.remove(&src) else { return };
+    let (mut moved, mut kept, mut scaled) = (Vec::new(), Vec::new(), 0u64);
+    for p in list {
+        let hit = regions.iter().find(|r| p.layer >= r.src_layer && p.layer < r.src_layer + r.layer_count && r.src.intersect(&p.params.rect).area() > 0);
+        match hit {
+            Some(r) if (r.src.width, r.src.height) == (r.dst.width, r.dst.height) && r.src.contains(&p.params.rect) => {
+                let mut q = p;
+                q.layer = p.layer - r.src_layer + r.dst_layer;
+                q.params.rect.x = p.params.rect.x - r.src.x + r.dst.x;
+                q.params.rect.y = p.params.rect.y - r.src.y + r.dst.y;
+                moved.push(q);
+            }
+            Some(_) => scaled += 1,
+            None => kept.push(p),
+        }
+    }
+    if !kept.is_empty() {
+        books.pending.insert(src, kept);
+    }
+    let list = books.pending.entry(dst).or_default();
+    for q in moved {
+        list.retain(|x| !(x.layer == q.layer && x.params.rect == q.params.rect));
+        list.push(q);
+    }
+    drop(books);
+    if scaled > 0 {
+        me.count(|s| *s.not_applied.entry(NotApplied::NotOneToOne.name()).or_insert(0) += scaled);
+        log_once(me, format!("scaled {src:#x}"), || {
+            tracing::warn!(src = format_args!("{src:#x}"), "radial density masking: target is not copied 1:1 into the swapchain image; its skipped quads cannot be reconstructed there")
+        });
+    }
+}
+
+/// Pending reconstructions per image (tests of the transfer hand-over).
+#[cfg(test)]
+fn pending_views(list: &[Pending]) -> std::collections::BTreeMap<u32, u32> {
+    list.iter().map(|p| (p.view, p.layer)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shaders_are_embedded_spirv_and_the_vertex_matches_its_layout() {
+        for s in [VERT, VERT_MV, FRAG] {
+            assert_eq!(&s[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
+        }
+        let (stride, attrs) = vertex_layout();
+        assert_eq!(stride, 52);
+        assert_eq!(attrs.last().unwrap().offset, std::mem::offset_of!(Vertex, fovea) as u32);
+        assert_eq!(attrs[3].offset, std::mem::offset_of!(Vertex, tan) as u32);
+        assert_eq!(attrs[2].offset, std::mem::offset_of!(Vertex, origin) as u32);
+        let p = Pending { view: 1, layer: 0, params: RdmParams::new(&crate::shared::ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 }, &crate::shared::FoveaView { view: 1, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 }, PixelRect { x: 0, y: 0, width: 8, height: 8 }).unwrap() };
+        assert_eq!(pending_views(&[p]), std::collections::BTreeMap::from([(1, 0)]));
+    }
+}

@@ -1,0 +1,7 @@
+//! Variable-rate shading (foveation method 1): `rules` is the pure rate map; `vk` keeps the
+//! layer's rate images and chains them into eye passes; `pass` amends the app's render passes,
+//! framebuffers and pipelines so a rate attachment can be chained at all.
+
+pub(crate) mod pass;
+pub mod rules;
+pub(crate) mod vk;

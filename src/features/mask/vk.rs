@@ -1,0 +1,342 @@
+//! The hidden-area mask on the Vulkan side: at the chassis' injection point (an eye pass's depth
+//! just cleared) draw the view's hidden triangles at the depth that fails the app's test, so
+//! early-Z rejects the app's own fragments there. Geometry comes from `rules`, the eye rects from
+//! the chassis' plan; this module only turns them into commands.
+//!
+//! The draw reads its vertices and its indirect draw arguments from a buffer of the recording's
+//! own (`MaskData`), held by the app's command buffer (`vk::lifetime`). A command buffer recorded
+//! once and resubmitted keeps drawing the *current* mask: before each submission whose recording
+//! is idle, a buffer filled for an older mask generation is refilled (`before_submit`).
+
+use crate::core::pass::NotMasked;
+use crate::core::rect::PixelRect;
+use crate::core::stats::FeatureStats;
+use crate::features::mask::rules::{self, MaskFrameStats};
+use crate::settings::Settings;
+use crate::shared::{shared, Views};
+use crate::track::eye_pass::{EyeLayout, MaskPlan};
+use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
+use crate::vk::inject::{self, pipeline, Injection};
+use crate::vk::lifetime::{self, HostBuffer};
+use crate::vk::DeviceState;
+use ash::vk;
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/mask.vert.spv"));
+static VERT_MV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/mask_mv.vert.spv"));
+static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/mask.frag.spv"));
+
+/// One vertex: NDC position and the view it belongs to.
+#[repr(C)]
+#[derive(Clone, Copy)]
+struct Vertex {
+    pos: [f32; 2],
+    view: u32,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// One mask generation's geometry, built once per generation.
+struct Geometry {
+    generation: u64,
+    /// view → NDC triangles.
+    ndc: BTreeMap<u32, Vec<[f32; 2]>>,
+}
+
+impl Geometry {
+    fn of(views: &Views) -> Geometry {
+        let mut ndc = BTreeMap::new();
+        for m in &views.masks {
+            let Some(fov) = views.fovs.get(m.view as usize) else { continue };
+            let t = rules::triangles_to_ndc(&m.triangles, fov);
+            if !t.is_empty() {
+                ndc.insert(m.view, t);
+            }
+        }
+        Geometry { generation: views.generation, ndc }
+    }
+}
+
+/// The draws of one injection: which views, one indirect draw each (one in all for multiview).
+#[derive(Clone, Debug, PartialEq)]
+struct DrawShape {
+    views: Vec<u32>,
+    multiview: bool,
+}
+
+/// A recording's mask data: indirect arguments first, then the vertices.
+struct MaskData {
+    buffer: Option<HostBuffer>,
+    shape: DrawShape,
+    /// The mask generation the buffer holds.
+    generation: Mutex<u64>,
+    pool: Arc<Mutex<Vec<HostBuffer>>>,
+}
+
+impl Drop for MaskData {
+    fn drop(&mut self) {
+        if let Some(b) = self.buffer.take() {
+            b.recycle(&self.pool);
+        }
+    }
+}
+
+const ARGS: u64 = std::mem::size_of::<vk::DrawIndirectCommand>() as u64;
+
+impl MaskData {
+    fn vertex_offset(&self) -> u64 {
+        ARGS * self.shape.views.len().max(1) as u64
+    }
+    /// Writes `g`'s geometry for the shape; false when a view has no mask or it does not fit
+    /// (then every draw is made empty: no mask is always correct output).
+    fn fill(&self, g: &Geometry) -> bool {
+        let Some(buf) = &self.buffer else { return false };
+        let mut vertices = Vec::new();
+        let mut args = Vec::new();
+        for v in &self.shape.views {
+            let Some(t) = g.ndc.get(v) else {
+                args.clear();
+                break;
+            };
+            args.push(vk::DrawIndirectCommand { vertex_count: t.len() as u32, instance_count: 1, first_vertex: vertices.len() as u32, first_instance: 0 });
+            vertices.extend(t.iter().map(|&pos| Vertex { pos, view: *v }));
+        }
+        if self.shape.multiview && !args.is_empty() {
+            args = vec![vk::DrawIndirectCommand { vertex_count: vertices.len() as u32, instance_count: 1, first_vertex: 0, first_instance: 0 }];
+        }
+        let fits = !args.is_empty() && buf.write(self.vertex_offset(), &vertices);
+        if !fits {
+            let empty = vec![vk::DrawIndirectCommand { vertex_count: 0, instance_count: 0, first_vertex: 0, first_instance: 0 }; self.shape.views.len().max(1)];
+            buf.write(0, &empty);
+        } else {
+            buf.write(0, &args);
+        }
+        *lock(&self.generation) = g.generation;
+        fits
+    }
+}
+
+#[derive(Default)]
+struct Books {
+    frame: MaskFrameStats,
+    total: MaskFrameStats,
+    /// (generation, view, viewport, scissor) → pixels covered.
+    coverage: HashMap<(u64, u32, PixelRect, PixelRect), u64>,
+    logged_kinds: HashSet<(EyeLayout, bool)>,
+    geometry: Option<Arc<Geometry>>,
+}
+
+/// The mask's per-device state. Locks guard bookkeeping only, never a call down.
+pub(crate) struct MaskDevice {
+    /// The master switch at device creation; `mask.*` settings are read live.
+    layer_enabled: bool,
+    used: AtomicBool,
+    memory: vk::PhysicalDeviceMemoryProperties,
+    books: Mutex<Books>,
+}
+
+impl Plugin for MaskDevice {
+    const KEYS: &'static [crate::config::KeySpec] = super::KEYS;
+    fn new(init: &DeviceInit<'_>) -> MaskDevice {
+        MaskDevice { layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default() }
+    }
+    fn empty_stats() -> Box<dyn FeatureStats> {
+        Box::new(MaskFrameStats::default())
+    }
+    fn enabled(s: &Settings, _frame: &crate::core::stats::FrameStats) -> bool {
+        s.mask.enabled
+    }
+}
+
+impl MaskDevice {
+    fn count(&self, f: impl Fn(&mut MaskFrameStats)) {
+        let mut b = lock(&self.books);
+        f(&mut b.frame);
+        f(&mut b.total);
+    }
+
+    /// The current generation's geometry (built once per generation).
+    fn geometry(&self) -> Arc<Geometry> {
+        let views = shared().views();
+        let mut b = lock(&self.books);
+        match &b.geometry {
+            Some(g) if g.generation == views.generation => g.clone(),
+            _ => {
+                let g = Arc::new(Geometry::of(&views));
+                tracing::info!(generation = views.generation, views = g.ndc.len(), vertices = g.ndc.values().map(Vec::len).sum::<usize>(), "mask geometry built");
+                b.geometry = Some(g.clone());
+                g
+            }
+        }
+    }
+
+    fn coverage(&self, g: &Geometry, view: u32, viewport: PixelRect, scissor: PixelRect) -> u64 {
+        let k = (g.generation, view, viewport, scissor);
+        if let Some(n) = lock(&self.books).coverage.get(&k) {
+            return *n;
+        }
+        let n = g.ndc.get(&view).map_or(0, |t| rules::coverage(t, viewport.viewport(), scissor));
+        let mut books = lock(&self.books);
+        if books.coverage.len() > 256 {
+            books.coverage.clear();
+        }
+        books.coverage.insert(k, n);
+        n
+    }
+
+    /// Records the mask draw(s); returns pixels masked per view.
+    fn record(&self, d: &DeviceState, at: &Injection<'_>) -> Result<Vec<(u32, u64)>, NotMasked> {
+        let plan = at.plan;
+        let g = self.geometry();
+        if g.ndc.is_empty() || plan.draws.iter().any(|dr| !g.ndc.contains_key(&dr.view)) {
+            return Err(NotMasked::NoMask);
+        }
+        let pass = pipeline::pass_key(d, at.pass, plan).ok_or(NotMasked::Unsupported)?;
+        let debug = at.settings.mask.debug;
+        let key = pipeline::PipelineKey { feature: self.id(), variant: debug as u32, pass };
+        let p = pipeline::get(d, &key, || pipeline::PipelineDesc {
+            vert: VERT,
+            vert_multiview: VERT_MV,
+            // Without the debug tint the draw is depth-only: no fragment shader at all.
+            frag: debug.then_some(FRAG),
+            stride: std::mem::size_of::<Vertex>() as u32,
+            attributes: vec![
+                vk::VertexInputAttributeDescription { location: 0, binding: 0, format: vk::Format::R32G32_SFLOAT, offset: 0 },
+                vk::VertexInputAttributeDescription { location: 1, binding: 0, format: vk::Format::R32_UINT, offset: 8 },
+            ],
+            write_first_color: debug,
+        })
+        .map_err(|e| match e {
+            pipeline::PipelineError::DeviceLacks => NotMasked::DeviceLacks,
+            pipeline::PipelineError::Vulkan(e) => {
+                tracing::warn!(?key, "mask pipeline: {e}");
+                NotMasked::LayerError
+            }
+        })?;
+        let multiview = plan.layout == EyeLayout::Multiview;
+        let draws: Vec<_> = if multiview { plan.draws.iter().take(1).copied().collect() } else { plan.draws.iter().filter(|dr| dr.scissor.area() > 0).copied().collect() };
+        let shape = DrawShape { views: if multiview { plan.draws.iter().map(|dr| dr.view).collect() } else { draws.iter().map(|dr| dr.view).collect() }, multiview };
+        // Room for masks up to twice this one's size: a changed mask usually fits when refilled.
+        let vertices: usize = shape.views.iter().map(|v| g.ndc[v].len()).sum();
+        let size = ARGS * shape.views.len().max(1) as u64 + 2 * (vertices * std::mem::size_of::<Vertex>()) as u64;
+        let buffer = HostBuffer::take(d, size, &self.memory).map_err(|e| {
+            tracing::warn!("mask buffer: {e}");
+            NotMasked::LayerError
+        })?;
+        let data = Arc::new(MaskData { buffer: Some(buffer), shape, generation: Mutex::new(0), pool: d.lifetime.buffers.clone() });
+        if !data.fill(&g) {
+            return Err(NotMasked::LayerError);
+        }
+        let vk_buffer = data.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
+        let fns = d.fns.fp_v1_0();
+        // SAFETY: `at.cb` is recording inside the pass the plan was made for (the chassis just
+        // recorded its begin / clear); the pipeline is compatible with it; the buffer is held by
+        // the app's command buffer until its recording is closed and its submissions completed.
+        unsafe {
+            (fns.cmd_bind_pipeline)(at.cb, vk::PipelineBindPoint::GRAPHICS, p);
+            (fns.cmd_bind_vertex_buffers)(at.cb, 0, 1, &vk_buffer, &data.vertex_offset());
+            for (i, dr) in draws.iter().enumerate() {
+                (fns.cmd_set_viewport)(at.cb, 0, 1, &inject::fail_viewport(dr.viewport, plan.fail_depth));
+                (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(dr.scissor));
+                (fns.cmd_draw_indirect)(at.cb, vk_buffer, ARGS * i as u64, 1, ARGS as u32);
+            }
+        }
+        lifetime::hold(d, at.owner, data);
+        Ok(plan.draws.iter().map(|dr| (dr.view, self.coverage(&g, dr.view, dr.viewport, dr.scissor))).collect())
+    }
+
+    fn log_kind_once(&self, plan: &MaskPlan, pixels: &[(u32, u64)]) {
+        if !lock(&self.books).logged_kinds.insert((plan.layout, plan.intermediate)) {
+            return;
+        }
+        let target = if plan.intermediate { "intermediate image" } else { "swapchain image" };
+        let eyes: Vec<String> = plan
+            .draws
+            .iter()
+            .map(|dr| {
+                let r = dr.viewport;
+                let px = pixels.iter().find(|p| p.0 == dr.view).map_or(0, |p| p.1);
+                format!("view {}, rect {}x{}+{}+{} ({px} pixels masked)", dr.view, r.width, r.height, r.x, r.y)
+            })
+            .collect();
+        tracing::info!("masking {} pass on {target} {:#x}: {}; mask depth {}", plan.layout.name(), plan.image, eyes.join("; "), plan.fail_depth);
+    }
+}
+
+impl VkFeature for MaskDevice {
+    fn id(&self) -> &'static str {
+        "mask"
+    }
+    fn take_frame(&self) -> Box<dyn FeatureStats> {
+        Box::new(std::mem::take(&mut lock(&self.books).frame))
+    }
+    fn summary(&self) -> Option<String> {
+        self.used.load(Ordering::Relaxed).then(|| lock(&self.books).total.summary())
+    }
+    fn injects(&self, s: &Settings) -> bool {
+        let on = self.layer_enabled && s.mask.enabled;
+        if on {
+            self.used.store(true, Ordering::Relaxed);
+        }
+        on
+    }
+    fn inject(&self, d: &DeviceState, at: &Injection<'_>) {
+        match self.record(d, at) {
+            Ok(pixels) => {
+                self.count(|s| {
+                    s.passes_masked += 1;
+                    for (view, px) in &pixels {
+                        *s.pixels_masked.entry(*view).or_insert(0) += px;
+                    }
+                });
+                self.log_kind_once(at.plan, &pixels);
+            }
+            Err(why) => {
+                if at.counts {
+                    self.count(|s| s.count_not_masked(why));
+                    if why != NotMasked::NotEyePass {
+                        tracing::debug!("pass not masked: {}", why.name());
+                    }
+                }
+            }
+        }
+    }
+    fn not_injected(&self, _d: &DeviceState, _s: &Settings, why: NotMasked) {
+        self.count(|s| s.count_not_masked(why));
+    }
+    fn before_submit(&self, d: &DeviceState, cbs: &[u64]) {
+        let mut g: Option<Arc<Geometry>> = None;
+        for &cb in cbs {
+            lifetime::with_idle_holds(d, cb, |holds| {
+                for h in holds {
+                    let Some(data) = h.downcast_ref::<MaskData>() else { continue };
+                    let views_generation = shared().views().generation;
+                    if *lock(&data.generation) != views_generation {
+                        let g = g.get_or_insert_with(|| self.geometry());
+                        if !data.fill(g) {
+                            tracing::debug!("a recorded mask draw no longer fits the changed mask: drawn empty");
+                        }
+                    }
+                }
+            });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shaders_are_embedded_spirv() {
+        for s in [VERT, VERT_MV, FRAG] {
+            assert_eq!(&s[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
+        }
+        assert_eq!(std::mem::size_of::<Vertex>(), 12);
+        assert_eq!(ARGS, 16);
+    }
+}

@@ -1,0 +1,140 @@
+//! The hidden-area mask on the OpenXR side: each view's hidden triangles — the runtime's
+//! `XR_KHR_visibility_mask` mesh or a synthesized lens (`source`) — published for the
+//! Vulkan half at `xrBeginFrame` whenever they are due: at the start, after the runtime says they
+//! changed, and after a config reload that touched `mask.*`.
+
+use super::source::{self as mask_source, LensShape, SourcePolicy};
+use crate::settings::Settings;
+use crate::shared::ViewMask;
+use crate::xr::feature::XrFeature;
+use crate::xr::session::Session;
+use crate::xr::{settings, state, Instance, VISIBILITY_MASK_EXT};
+use openxr_sys as xr;
+use openxr_sys::Handle as _;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Views of `XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO`, the only configuration masks are kept for.
+const STEREO_VIEWS: u32 = 2;
+
+/// The mask's OpenXR half (stateless; per-session state is `MaskSession`).
+pub(crate) struct MaskXr;
+
+/// The mask's per-session state.
+#[derive(Debug)]
+pub(crate) struct MaskSession {
+    /// The masks must be (re)fetched.
+    pub dirty: AtomicBool,
+}
+
+impl Default for MaskSession {
+    fn default() -> Self {
+        MaskSession { dirty: AtomicBool::new(true) }
+    }
+}
+
+impl XrFeature for MaskXr {
+    fn id(&self) -> &'static str {
+        "mask"
+    }
+    /// Whenever the layer is on, not only when the mask is on now: the mask can be switched on
+    /// while the app runs, and the extension cannot be enabled later.
+    fn wanted_extensions(&self, s: &Settings) -> Vec<&'static str> {
+        if s.enabled {
+            vec![VISIBILITY_MASK_EXT]
+        } else {
+            Vec::new()
+        }
+    }
+    fn frame_begun(&self, s: &Session) {
+        refresh_masks(s);
+    }
+    /// `XrEventDataVisibilityMaskChangedKHR`: refetch; the app sees the event only if it enabled
+    /// the extension itself.
+    fn event(&self, inst: &Instance, event: &xr::EventDataBuffer) -> bool {
+        if event.ty != xr::StructureType::EVENT_DATA_VISIBILITY_MASK_CHANGED_KHR {
+            return false;
+        }
+        // SAFETY: `ty` says the buffer holds this struct (it fits in XrEventDataBuffer).
+        let e = unsafe { &*(event as *const xr::EventDataBuffer as *const xr::EventDataVisibilityMaskChangedKHR) };
+        inst.stats.visibility_mask_events.fetch_add(1, Ordering::Relaxed);
+        tracing::info!("visibility mask of view {} changed", e.view_index);
+        if let Some(s) = state().sessions.get(e.session.into_raw()) {
+            s.features.mask.dirty.store(true, Ordering::Release);
+        }
+        !inst.app_enabled(VISIBILITY_MASK_EXT)
+    }
+    fn config_reloaded(&self, s: &Session, changed: &[&'static str]) {
+        if changed.iter().any(|k| k.starts_with("mask.")) {
+            s.features.mask.dirty.store(true, Ordering::Release);
+        }
+    }
+}
+
+/// Fetches one view's hidden triangle mesh from the runtime (two-call idiom). None when the runtime
+/// offers no visibility mask or the call fails (logged).
+fn runtime_mask(s: &Session, view: u32) -> Option<Vec<[f32; 2]>> {
+    if !s.instance.has_extension(VISIBILITY_MASK_EXT) {
+        return None;
+    }
+    let f = s.instance.next.get_visibility_mask?;
+    let ty = xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH;
+    let config = xr::ViewConfigurationType::PRIMARY_STEREO;
+    let mut mask = xr::VisibilityMaskKHR {
+        ty: xr::VisibilityMaskKHR::TYPE,
+        next: std::ptr::null_mut(),
+        vertex_capacity_input: 0,
+        vertex_count_output: 0,
+        vertices: std::ptr::null_mut(),
+        index_capacity_input: 0,
+        index_count_output: 0,
+        indices: std::ptr::null_mut(),
+    };
+    // SAFETY: the two-call idiom: counts first, then arrays of the reported sizes.
+    let r = unsafe { f(s.handle, config, view, ty, &mut mask) };
+    if r != xr::Result::SUCCESS {
+        tracing::warn!(?r, "xrGetVisibilityMaskKHR(view {view}) failed");
+        return None;
+    }
+    let mut vertices = vec![xr::Vector2f { x: 0.0, y: 0.0 }; mask.vertex_count_output as usize];
+    let mut indices = vec![0u32; mask.index_count_output as usize];
+    mask.vertex_capacity_input = vertices.len() as u32;
+    mask.index_capacity_input = indices.len() as u32;
+    mask.vertices = vertices.as_mut_ptr();
+    mask.indices = indices.as_mut_ptr();
+    // SAFETY: the arrays hold the capacities given.
+    let r = unsafe { f(s.handle, config, view, ty, &mut mask) };
+    if r != xr::Result::SUCCESS {
+        tracing::warn!(?r, "xrGetVisibilityMaskKHR(view {view}) failed");
+        return None;
+    }
+    vertices.truncate(mask.vertex_count_output as usize);
+    indices.truncate(mask.index_count_output as usize);
+    let v: Vec<[f32; 2]> = vertices.iter().map(|p| [p.x, p.y]).collect();
+    Some(mask_source::expand(&v, &indices))
+}
+
+/// (Re)publishes the hidden-area masks of all views when they are due.
+fn refresh_masks(s: &Session) {
+    let settings = settings(&s.instance);
+    if !settings.mask.enabled || !s.features.mask.dirty.swap(false, Ordering::AcqRel) {
+        return;
+    }
+    let policy = match settings.mask.source {
+        crate::features::mask::SourceSetting::Runtime => SourcePolicy::Runtime,
+        crate::features::mask::SourceSetting::Synthesized => SourcePolicy::Synthesized,
+        crate::features::mask::SourceSetting::Auto => SourcePolicy::Auto,
+    };
+    let radius = settings.mask.synthesized_radius_deg;
+    let lens = LensShape { horizontal_deg: radius, vertical_deg: (radius * settings.mask.synthesized_aspect).min(89.0) };
+    let mut masks = Vec::new();
+    for view in 0..STEREO_VIEWS {
+        match mask_source::choose(policy, runtime_mask(s, view), &lens) {
+            Some((source, triangles)) => {
+                tracing::info!("view {view}: hidden-area mask from {source:?}, {} triangles", triangles.len() / 3);
+                masks.push(ViewMask { view, source, triangles });
+            }
+            None => tracing::info!("view {view}: no hidden-area mask (mask.source = runtime and the runtime has none)"),
+        }
+    }
+    crate::shared::shared().update_views(Some(masks), None);
+}

@@ -1,0 +1,125 @@
+//! Typed settings: every key the layer acts on, parsed once per configuration (re)load into plain
+//! fields and shared as an `Arc`, so a misspelt key is a compile error and the hot paths (pass
+//! begin, depth clear, transfers) neither look strings up nor take the configuration lock.
+//!
+//! The OpenXR half publishes the live settings (`publish`) when it resolves or reloads the
+//! configuration; `current` costs one atomic load per call and reads a per-thread copy that is
+//! refreshed only after a publish.
+
+use crate::config::Config;
+use crate::features::foveation::FoveationSettings;
+use crate::features::mask::MaskSettings;
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, RwLock};
+
+/// `vulkan.fragment_shading_rate`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FsrSetting {
+    Auto,
+    On,
+    Off,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    /// The master switch (`enabled`); only read at startup.
+    pub enabled: bool,
+    /// `mask.intermediate` != off: eye passes include intermediate targets copied 1:1 into a
+    /// swapchain image (shared by every feature's eye-pass test).
+    pub intermediate: bool,
+    pub fragment_shading_rate: FsrSetting,
+    pub mask: MaskSettings,
+    pub foveation: FoveationSettings,
+    pub stats_file: String,
+    /// `debug.fail_in`, split.
+    pub fail_in: Vec<String>,
+}
+
+impl Settings {
+    pub fn from_config(c: &Config) -> Settings {
+        Settings {
+            enabled: c.enabled(),
+            intermediate: c.choice("mask.intermediate") != "off",
+            fragment_shading_rate: match c.choice("vulkan.fragment_shading_rate") {
+                "on" => FsrSetting::On,
+                "off" => FsrSetting::Off,
+                _ => FsrSetting::Auto,
+            },
+            mask: MaskSettings::from_config(c),
+            foveation: FoveationSettings::from_config(c),
+            stats_file: c.text("stats.file").to_string(),
+            fail_in: c.text("debug.fail_in").split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),
+        }
+    }
+
+    /// `debug.fail_in` names `call`.
+    pub fn fails_in(&self, call: &str) -> bool {
+        !self.fail_in.is_empty() && self.fail_in.iter().any(|c| c == call)
+    }
+}
+
+static PUBLISHED: RwLock<Option<Arc<Settings>>> = RwLock::new(None);
+static GENERATION: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    static CACHED: RefCell<(u64, Option<Arc<Settings>>)> = const { RefCell::new((0, None)) };
+}
+
+/// Makes `s` the live settings of the process (the OpenXR half, at instance creation and reload).
+pub fn publish(s: Settings) {
+    *PUBLISHED.write().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(s));
+    GENERATION.fetch_add(1, Ordering::Release);
+}
+
+/// The live settings, or None before the OpenXR half published any (a Vulkan-only process then
+/// uses its device's own).
+pub fn current() -> Option<Arc<Settings>> {
+    let generation = GENERATION.load(Ordering::Acquire);
+    if generation == 0 {
+        return None;
+    }
+    CACHED.with(|c| {
+        let mut c = c.borrow_mut();
+        if c.0 != generation {
+            *c = (generation, PUBLISHED.read().unwrap_or_else(|e| e.into_inner()).clone());
+        }
+        c.1.clone()
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Inputs;
+
+    #[test]
+    fn parsed_once_from_the_config() {
+        let env = |k: &str| match k {
+            "STEREOSHIM_MASK_ENABLED" => Some("true".to_string()),
+            "STEREOSHIM_MASK_INTERMEDIATE" => Some("off".to_string()),
+            "STEREOSHIM_FOVEATION_METHOD" => Some("rdm".to_string()),
+            "STEREOSHIM_DEBUG_FAIL_IN" => Some("vkCmdDraw, xrEndFrame".to_string()),
+            _ => None,
+        };
+        let (c, d) = Config::resolve(&Inputs { file: None, app_names: &[], env: &env });
+        assert!(d.is_empty(), "{d:?}");
+        let s = Settings::from_config(&c);
+        assert!(s.mask.enabled && !s.intermediate && !s.foveation.enabled);
+        assert_eq!(s.foveation.method, crate::features::foveation::Method::Rdm);
+        assert!(s.fails_in("xrEndFrame") && !s.fails_in("xrBeginFrame"));
+    }
+
+    #[test]
+    fn publish_reaches_every_thread() {
+        let (c, _) = Config::resolve(&Inputs { file: None, app_names: &[], env: &|_| None });
+        let mut s = Settings::from_config(&c);
+        s.stats_file = "first".into();
+        publish(s.clone());
+        assert_eq!(current().unwrap().stats_file, "first");
+        s.stats_file = "second".into();
+        publish(s);
+        assert_eq!(std::thread::spawn(|| current().unwrap().stats_file.clone()).join().unwrap(), "second");
+        assert_eq!(current().unwrap().stats_file, "second");
+    }
+}

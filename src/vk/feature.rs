@@ -1,0 +1,147 @@
+//! What a feature is to the Vulkan chassis: a `Plugin` (how it is made per device, its config keys
+//! and statistics) and a `VkFeature` (the events it handles). Hooks track state and raise these
+//! events over `DeviceFeatures::all()` in registry order; a feature implements only the events it
+//! needs (every method has a do-nothing default).
+//!
+//! Events, in the order a frame meets them:
+//! - creation: `amend_render_pass`, `amend_framebuffer` / `framebuffer_created`,
+//!   `amend_pipelines` (may return an amended copy of the app's create info; the first feature
+//!   that amends wins, and the app's own info is retried if the driver refuses the amended one);
+//! - destruction: `destroyed` (images, render passes, framebuffers);
+//! - recording: `amend_render_pass_begin` / `amend_rendering` (before the pass goes down),
+//!   `pass_begun` (after), `inject` at the chassis' injection point (`vk::inject`: right after the
+//!   depth clear), `not_injected`, `transfer` (copies, resolves, blits);
+//! - submission: `before_submit` (refresh what a recorded command buffer reads; apply what it
+//!   recorded, in recording order);
+//! - OpenXR side: `before_release` (`xrReleaseSwapchainImage`, before it goes down);
+//! - `take_frame` at every `xrEndFrame`, `destroy` at `vkDestroyDevice`.
+
+use super::inject::Injection;
+use super::DeviceState;
+use crate::config::KeySpec;
+use crate::core::pass::NotMasked;
+use crate::core::stats::FeatureStats;
+use crate::settings::Settings;
+use crate::track::cmd::PassKind;
+use crate::track::eye_pass::TransferRegion;
+use ash::vk;
+use std::any::Any;
+
+/// What a feature may use when it is made for a new device.
+pub(crate) struct DeviceInit<'a> {
+    pub settings: &'a Settings,
+    pub memory: vk::PhysicalDeviceMemoryProperties,
+    /// The device's attachment shading rates, when the layer enabled them.
+    pub rates: Option<crate::features::foveation::vrs::rules::DeviceRates>,
+    pub set_loader_data: Option<super::PfnSetDeviceLoaderData>,
+}
+
+/// How a feature is registered.
+pub(crate) trait Plugin: VkFeature + Sized {
+    /// The config keys the feature owns.
+    const KEYS: &'static [KeySpec];
+    fn new(init: &DeviceInit<'_>) -> Self;
+    /// A frame's empty statistics of this feature.
+    fn empty_stats() -> Box<dyn FeatureStats>;
+    /// Whether the user has the feature on in a frame recorded under `s` (`frame`: what every
+    /// feature counted in it, for choices resolved per device such as `foveation.method = auto`).
+    /// Never-silent notices warn about features that are on but apply to nothing.
+    fn enabled(s: &Settings, frame: &crate::core::stats::FrameStats) -> bool;
+}
+
+/// An app's create or begin info with the feature's additions: `info` points into `keep`, which
+/// lives while the call goes down.
+pub(crate) struct Amended<T> {
+    pub info: T,
+    /// What `info` points into; only kept alive.
+    pub _keep: Box<dyn Any>,
+}
+
+/// The render pass amendment also says which attachment the feature appended.
+pub(crate) struct AmendedRenderPass {
+    pub amended: Amended<vk::RenderPassCreateInfo2<'static>>,
+    pub appended_attachment: u32,
+}
+
+/// Where a render pass create info comes from.
+#[derive(Clone, Copy)]
+pub(crate) enum RenderPassInfo {
+    V1(*const vk::RenderPassCreateInfo<'static>),
+    V2(*const vk::RenderPassCreateInfo2<'static>),
+}
+
+/// A destroyed app object the feature may have derived state from.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Destroyed {
+    Image(u64),
+    Framebuffer(u64),
+}
+
+/// The events a feature handles on one device.
+///
+/// The `unsafe fn`s receive the app's create / begin infos: they must be valid for the duration
+/// of the call (the app's contract with the hook that raises the event).
+pub(crate) trait VkFeature: Send + Sync {
+    /// The registry id (`stats.file`, logs, pipeline cache keys).
+    fn id(&self) -> &'static str;
+    /// This feature's statistics of the frame that just ended; resets them.
+    fn take_frame(&self) -> Box<dyn FeatureStats>;
+    /// The session's totals for the device's stats line, when the feature ever acted.
+    fn summary(&self) -> Option<String> {
+        None
+    }
+
+    /// # Safety
+    /// `ci` is the app's valid create info.
+    unsafe fn amend_render_pass(&self, _d: &DeviceState, _ci: RenderPassInfo) -> Option<AmendedRenderPass> {
+        None
+    }
+    /// # Safety
+    /// `ci` is the app's valid create info. `pending` receives what `framebuffer_created` needs.
+    unsafe fn amend_framebuffer(&self, _d: &DeviceState, _ci: *const vk::FramebufferCreateInfo<'_>, _pending: &mut Option<Box<dyn Any>>) -> Option<Amended<vk::FramebufferCreateInfo<'static>>> {
+        None
+    }
+    /// The framebuffer an amendment was made for was created (Some) or failed (None).
+    fn framebuffer_created(&self, _d: &DeviceState, _fb: Option<vk::Framebuffer>, _pending: Box<dyn Any>) {}
+    /// # Safety
+    /// `infos` are `count` valid create infos.
+    unsafe fn amend_pipelines(&self, _d: &DeviceState, _infos: *const vk::GraphicsPipelineCreateInfo<'_>, _count: u32) -> Option<Amended<Vec<vk::GraphicsPipelineCreateInfo<'static>>>> {
+        None
+    }
+    fn destroyed(&self, _d: &DeviceState, _what: Destroyed) {}
+
+    /// # Safety
+    /// `info` is the app's valid begin info; `cb` is recording outside a pass.
+    unsafe fn amend_render_pass_begin(&self, _d: &DeviceState, _cb: vk::CommandBuffer, _kind: PassKind, _info: *const vk::RenderPassBeginInfo<'_>) -> Option<Amended<vk::RenderPassBeginInfo<'static>>> {
+        None
+    }
+    /// # Safety
+    /// `info` is the app's valid rendering info; `cb` is recording outside a pass.
+    unsafe fn amend_rendering(&self, _d: &DeviceState, _cb: vk::CommandBuffer, _info: *const vk::RenderingInfo<'_>) -> Option<Amended<vk::RenderingInfo<'static>>> {
+        None
+    }
+    /// A render pass instance began (after the call went down and the pass is tracked).
+    fn pass_begun(&self, _d: &DeviceState, _cb: vk::CommandBuffer, _secondary: bool) {}
+
+    /// Whether the feature draws at the injection point under these settings on this device.
+    fn injects(&self, _s: &Settings) -> bool {
+        false
+    }
+    /// Records the feature's draws into `at.cb` inside the app's pass (the chassis restores the
+    /// app's state afterwards). Counts its own success and failure (`at.counts`).
+    fn inject(&self, _d: &DeviceState, _at: &Injection<'_>) {}
+    /// An eye-pass candidate got no injection for `why` (counted when the feature injects).
+    fn not_injected(&self, _d: &DeviceState, _s: &Settings, _why: NotMasked) {}
+    /// The app transferred `src` into `dst` in `cb`.
+    fn transfer(&self, _d: &DeviceState, _cb: vk::CommandBuffer, _src: u64, _dst: u64, _regions: &[TransferRegion]) {}
+
+    /// Command buffers are about to be submitted: refresh what their recordings read (only where
+    /// no earlier submission of a recording may still execute) and act on what they recorded.
+    fn before_submit(&self, _d: &DeviceState, _cbs: &[u64]) {}
+    /// `xrReleaseSwapchainImage` of `image` (index of `swapchain`) is about to go down; the
+    /// session's queue is (`family`, `queue_index`).
+    fn before_release(&self, _d: &DeviceState, _family: u32, _queue_index: u32, _swapchain: u64, _image_index: u32) {}
+
+    /// `vkDestroyDevice`, before it goes down (the device is idle).
+    fn destroy(&self, _d: &DeviceState) {}
+}

@@ -1,0 +1,318 @@
+//! The one injection mechanism: where a feature's draws go into an app's pass, and how the app's
+//! state comes back afterwards. The hooks raise *triggers* (a pass began, a subpass began, the
+//! depth attachment was cleared, the pass is ending); this module asks the eye-pass test
+//! (`track::eye_pass`) whether the pass is an eye pass with a freshly cleared depth, and if so
+//! calls every injecting feature in registry order at the injection point, then restores the app's
+//! state (`restore`). Passes whose contents are secondary command buffers get the draws in a
+//! secondary of the layer's, executed ahead of the app's (`vk::secondary`).
+//!
+//! Injection points: right after the depth clear (the pass's begin with a CLEAR load op, a
+//! `vkCmdClearAttachments` of the depth, or a begin that loads an image cleared by
+//! `vkCmdClearDepthStencilImage`). The pure decision (when a pass counts, deferral to a later
+//! clear, pending secondaries) is `trigger::decide`.
+
+pub(crate) mod pipeline;
+pub(crate) mod restore;
+pub(crate) mod trigger;
+
+use super::DeviceState;
+use crate::core::pass::NotMasked;
+use crate::core::rect::PixelRect;
+use crate::settings::Settings;
+use crate::shared::shared;
+use crate::track::cmd::{AttachmentUse, PassInstance, StateCmd};
+use crate::track::eye_pass::{self, EyeSource, Eyes, Learned, MaskPlan};
+use ash::vk::{self, Handle};
+use std::collections::{HashMap, HashSet};
+use std::sync::{Mutex, MutexGuard};
+pub(crate) use trigger::Trigger;
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// What a feature gets at the injection point.
+pub(crate) struct Injection<'a> {
+    /// The command buffer to record into: the app's, inside its pass, or a secondary of the
+    /// layer's inheriting it.
+    pub cb: vk::CommandBuffer,
+    pub pass: &'a PassInstance,
+    pub plan: &'a MaskPlan,
+    pub settings: &'a Settings,
+    /// Whether this injection counts as the pass's (a pass counts once, at its first chance).
+    pub counts: bool,
+    /// The app's command buffer the draws end up in (holds are taken on it).
+    pub owner: u64,
+}
+
+/// An injection waiting for the app's vkCmdExecuteCommands.
+struct Pending {
+    snap: Snapshot,
+    plan: MaskPlan,
+    counts: bool,
+}
+
+/// Per-device injection state. The lock guards bookkeeping only, never a call down.
+#[derive(Default)]
+pub(crate) struct InjectDevice {
+    books: Mutex<Books>,
+    pub(crate) pipelines: pipeline::Cache,
+}
+
+#[derive(Default)]
+struct Books {
+    /// Command buffers whose open pass loads its depth and was not injected at its beginning: it
+    /// counts at its first depth clear, or as `depth_not_cleared` when it ends.
+    deferred: HashSet<u64>,
+    /// Primaries whose open eye pass has its contents in secondaries.
+    pending: HashMap<u64, Pending>,
+    logged_targets: HashSet<u64>,
+    logged_reasons: HashSet<NotMasked>,
+    logged_vetoes: HashSet<&'static str>,
+    /// Injections vetoed, by reason (the command the layer cannot restore after).
+    vetoed: HashMap<&'static str, u64>,
+}
+
+impl InjectDevice {
+    /// Injections vetoed so far, by reason (for the device's stats line).
+    pub(crate) fn vetoed(&self) -> Vec<(&'static str, u64)> {
+        let mut v: Vec<_> = lock(&self.books).vetoed.iter().map(|(k, v)| (*k, *v)).collect();
+        v.sort();
+        v
+    }
+}
+
+/// What the pass looked like when the trigger fired, copied out of the command buffer's lock.
+struct Snapshot {
+    pass: PassInstance,
+    restore: Vec<StateCmd>,
+    secondary_level: bool,
+    explicit_clear: Option<f32>,
+    veto: Option<&'static str>,
+}
+
+/// Whether any feature draws at the injection point under these settings.
+pub(crate) fn any_injects(d: &DeviceState, s: &Settings) -> bool {
+    d.features.all().iter().any(|f| f.injects(s))
+}
+
+/// Entry from the hooks, after the triggering command went down successfully.
+pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigger) {
+    let settings = d.settings();
+    if !any_injects(d, &settings) {
+        return;
+    }
+    let key = cb.as_raw();
+    if trigger == Trigger::End && !lock(&d.inject.books).deferred.contains(&key) {
+        return;
+    }
+    let secondary_level = d.track.command_buffers.get(key).is_some_and(|c| c.level == vk::CommandBufferLevel::SECONDARY);
+    let snap = d.track.with_cb(key, |s| {
+        let pass = s.pass.clone()?;
+        // A pass that loads an image cleared by vkCmdClearDepthStencilImage starts from that clear.
+        let mut explicit_clear = None;
+        if matches!(trigger, Trigger::Begin { .. }) {
+            let images: Vec<u64> = attachments(&pass).iter().filter_map(|a| a.image_view.as_ref().map(|v| v.image)).collect();
+            if let Some(depth_image) = depth_image(&pass).filter(|_| eye_pass::depth_loads(&pass)) {
+                explicit_clear = s.depth_image_clears.iter().rev().find(|(i, _)| *i == depth_image).map(|(_, v)| *v);
+            }
+            s.depth_image_clears.retain(|(i, _)| !images.contains(i));
+        }
+        if let Trigger::Clear { depth, .. } = &trigger {
+            explicit_clear = Some(*depth);
+        }
+        Some(Snapshot { pass, restore: s.restore_commands(), secondary_level, explicit_clear, veto: s.veto })
+    });
+    let Some(Some(snap)) = snap else { return };
+    if !matches!(trigger, Trigger::Clear { .. }) {
+        // A new subpass or the end: whatever was pending for the previous one was never executed.
+        lock(&d.inject.books).pending.remove(&key);
+    }
+    let eyes = |a: &AttachmentUse| eyes_of(d, a, settings.intermediate);
+    let facts = eye_pass::Facts { secondary_contents: snap.secondary_level, intermediate_enabled: settings.intermediate, eyes: &eyes, explicit_clear: snap.explicit_clear };
+    let plan = eye_pass::classify(&snap.pass, &facts);
+    let decision = {
+        let mut books = lock(&d.inject.books);
+        let deferred = books.deferred.contains(&key);
+        let dec = trigger::decide(&trigger, &snap.pass, plan.as_ref().map(|_| ()).map_err(|e| *e), deferred);
+        if dec.defer {
+            books.deferred.insert(key);
+        } else if dec.undefer {
+            books.deferred.remove(&key);
+        }
+        dec
+    };
+    let mut plan = match plan {
+        Ok(p) => p,
+        Err(why) => {
+            count_not_injected(d, &settings, decision.counts, why, &snap.pass);
+            return;
+        }
+    };
+    if trigger == Trigger::End {
+        return;
+    }
+    if let Trigger::Clear { rects, .. } = &trigger {
+        // A clear of part of the attachment: inject only into eyes it fully re-cleared.
+        plan.draws.retain(|dr| rects.iter().any(|r| r.contains(&dr.scissor)));
+        if plan.draws.is_empty() {
+            if decision.counts {
+                // Still uncleared where the eyes are: a later clear or the pass's end counts it.
+                lock(&d.inject.books).deferred.insert(key);
+            }
+            return;
+        }
+    }
+    if let Some(reason) = snap.veto {
+        veto(d, &settings, decision.counts, reason, &snap.pass);
+        return;
+    }
+    if trigger.secondary_contents() && !snap.secondary_level {
+        lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: decision.counts });
+        return;
+    }
+    inject(d, cb, key, &snap, &plan, &settings, decision.counts, true);
+}
+
+/// The app executes secondaries in `cb`: if its open eye pass awaits the layer's draws, they are
+/// recorded into a secondary of the layer's, returned to be executed first.
+pub(crate) fn on_execute_commands(d: &DeviceState, cb: vk::CommandBuffer) -> Option<vk::CommandBuffer> {
+    let Pending { snap, plan, counts } = lock(&d.inject.books).pending.remove(&cb.as_raw())?;
+    let settings = d.settings();
+    let formats;
+    let inherit = match (&snap.pass.rendering, &snap.pass.render_pass, &snap.pass.framebuffer) {
+        (Some(r), _, _) => {
+            let Some(pipeline::PassKey::Dynamic { colors, depth, stencil, samples, .. }) = pipeline::pass_key(d, &snap.pass, &plan) else {
+                count_not_injected(d, &settings, counts, NotMasked::Unsupported, &snap.pass);
+                return None;
+            };
+            formats = colors;
+            super::secondary::Inherit::Rendering { flags: r.flags, view_mask: r.view_mask, colors: &formats, depth, stencil, samples: vk::SampleCountFlags::from_raw(samples) }
+        }
+        (None, Some(rp), Some(fb)) => super::secondary::Inherit::RenderPass { render_pass: rp.handle, subpass: snap.pass.subpass, framebuffer: fb.handle },
+        _ => {
+            count_not_injected(d, &settings, counts, NotMasked::Unsupported, &snap.pass);
+            return None;
+        }
+    };
+    let recorded = super::secondary::record(d, cb.as_raw(), &inherit, |ours| inject(d, ours, cb.as_raw(), &snap, &plan, &settings, counts, false));
+    match recorded {
+        Ok(ours) => Some(ours),
+        Err(e) => {
+            tracing::warn!("layer secondary command buffer: {e}");
+            count_not_injected(d, &settings, counts, NotMasked::LayerError, &snap.pass);
+            None
+        }
+    }
+}
+
+/// Counts (and logs once) a pass the injecting features leave alone.
+fn count_not_injected(d: &DeviceState, settings: &Settings, counts: bool, why: NotMasked, pass: &PassInstance) {
+    if !counts {
+        return;
+    }
+    for f in d.features.all() {
+        if f.injects(settings) {
+            f.not_injected(d, settings, why);
+        }
+    }
+    if why != NotMasked::NotEyePass && lock(&d.inject.books).logged_reasons.insert(why) {
+        tracing::info!(kind = ?pass.kind, "pass not masked: {} (logged once per reason)", why.name());
+    }
+}
+
+/// The command buffer uses state the layer cannot restore: no injection, never wrong output.
+fn veto(d: &DeviceState, settings: &Settings, counts: bool, reason: &'static str, pass: &PassInstance) {
+    let first = {
+        let mut books = lock(&d.inject.books);
+        *books.vetoed.entry(reason).or_insert(0) += 1;
+        books.logged_vetoes.insert(reason)
+    };
+    if first {
+        tracing::warn!(kind = ?pass.kind, "injection vetoed: the command buffer uses {reason}, state the layer cannot restore after its draws; such passes are left alone (logged once per reason)");
+    }
+    if counts {
+        for f in d.features.all() {
+            if f.injects(settings) {
+                f.not_injected(d, settings, NotMasked::Unsupported);
+            }
+        }
+    }
+}
+
+/// Records every injecting feature's draws for an eye pass into `cb`, then the app's state after
+/// them when `cb` is the app's own (a secondary of the layer's needs no restore: the app's
+/// secondaries set their own state).
+#[allow(clippy::too_many_arguments)]
+fn inject(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, plan: &MaskPlan, settings: &Settings, counts: bool, restore: bool) {
+    let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore));
+    let at = Injection { cb, pass: &snap.pass, plan, settings, counts, owner };
+    for f in d.features.all() {
+        if f.injects(settings) {
+            f.inject(d, &at);
+        }
+    }
+}
+
+fn attachments(pass: &PassInstance) -> Vec<&AttachmentUse> {
+    match &pass.rendering {
+        Some(r) => r.color.iter().chain(&r.depth).chain(&r.stencil).map(|a| &a.attachment).collect(),
+        None => pass.attachments.iter().collect(),
+    }
+}
+
+fn depth_image(pass: &PassInstance) -> Option<u64> {
+    let att = match &pass.rendering {
+        Some(r) => r.depth.as_ref().map(|d| &d.attachment),
+        None => {
+            let rp = pass.render_pass.as_ref()?;
+            let i = rp.subpasses.get(pass.subpass as usize)?.depth_stencil?.used()?;
+            pass.attachments.get(i as usize)
+        }
+    }?;
+    att.image_view.as_ref().map(|v| v.image)
+}
+
+/// Which eyes an attachment shows: a swapchain image's published uses, or an intermediate
+/// target's learned ones (logged once per image).
+pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) -> Eyes {
+    if let Some(sc) = &a.swapchain {
+        return Eyes::Swapchain(sc.swapchain.uses().iter().map(EyeSource::from_use).collect());
+    }
+    let Some(image) = a.image_view.as_ref().map(|v| v.image) else { return Eyes::Unknown };
+    match d.track.intermediate_eyes(shared(), image) {
+        None => Eyes::Unknown,
+        Some(learned) => {
+            let first = lock(&d.inject.books).logged_targets.insert(image);
+            match learned {
+                Learned::Eyes(e) => {
+                    if first {
+                        tracing::info!(
+                            image = format_args!("{image:#x}"),
+                            "intermediate eye target: image is transferred 1:1 into a swapchain image; eyes {:?}{}",
+                            e,
+                            if intermediate { "" } else { " (mask.intermediate = off: not masked)" }
+                        );
+                    }
+                    Eyes::Intermediate(e)
+                }
+                Learned::Rejected(why) => {
+                    if first {
+                        tracing::info!(image = format_args!("{image:#x}"), "not an intermediate eye target: {why}");
+                    }
+                    Eyes::Unknown
+                }
+            }
+        }
+    }
+}
+
+/// The viewport of an injected depth draw: the eye's rect, with the depth range pinned to the fail
+/// depth so one pipeline serves both depth conventions.
+pub(crate) fn fail_viewport(r: PixelRect, fail_depth: f32) -> vk::Viewport {
+    vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: fail_depth, max_depth: fail_depth }
+}
+
+pub(crate) fn rect2d(r: PixelRect) -> vk::Rect2D {
+    vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } }
+}

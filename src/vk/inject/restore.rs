@@ -1,0 +1,133 @@
+//! Save and restore of the app's state around the layer's injected draws: the tracked state
+//! (`CmdState::restore_commands`: pipeline, dynamic state, push constants, vertex buffers) is
+//! replayed when the `Restore` guard drops, so every path out of an injection — success, a
+//! feature's failure, an early return — gives the app back the state it set. State the layer
+//! cannot restore vetoes the injection before anything is recorded (`CmdState::veto`).
+
+use crate::track::cmd::StateCmd;
+use crate::vk::DeviceState;
+use ash::vk::{self, Handle};
+
+/// Replays the app's state into `cb` when dropped.
+pub(crate) struct Restore<'a> {
+    d: &'a DeviceState,
+    cb: vk::CommandBuffer,
+    commands: &'a [StateCmd],
+}
+
+impl<'a> Restore<'a> {
+    /// `cb` must be recording inside the app's pass, with `commands` taken from its tracked state
+    /// when the injection point was reached.
+    pub(crate) fn new(d: &'a DeviceState, cb: vk::CommandBuffer, commands: &'a [StateCmd]) -> Restore<'a> {
+        Restore { d, cb, commands }
+    }
+}
+
+impl Drop for Restore<'_> {
+    fn drop(&mut self) {
+        for c in self.commands {
+            // SAFETY: `cb` is recording inside the app's pass (`new`'s contract); the commands
+            // replay the app's own state, whose handles are alive while it records.
+            unsafe { replay(self.d, self.cb, c) };
+        }
+    }
+}
+
+/// Records one state command the app had in effect.
+///
+/// # Safety
+/// `cb` must be recording; the command's handles are the app's, still valid.
+pub(crate) unsafe fn replay(d: &DeviceState, cb: vk::CommandBuffer, c: &StateCmd) {
+    let v0 = d.fns.fp_v1_0();
+    let v3 = d.fns.fp_v1_3();
+    let vp = |v: &crate::track::cmd::Viewport| vk::Viewport { x: v.x, y: v.y, width: v.width, height: v.height, min_depth: v.min_depth, max_depth: v.max_depth };
+    let rc = |r: &crate::track::cmd::Rect| vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } };
+    // SAFETY: per this function's contract; arrays live across each call.
+    unsafe {
+        match c {
+            StateCmd::BindPipeline(p) => (v0.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::GRAPHICS, vk::Pipeline::from_raw(*p)),
+            StateCmd::SetViewport { first, viewports } => {
+                let v: Vec<_> = viewports.iter().map(vp).collect();
+                (v0.cmd_set_viewport)(cb, *first, v.len() as u32, v.as_ptr())
+            }
+            StateCmd::SetViewportWithCount(viewports) => {
+                let v: Vec<_> = viewports.iter().map(vp).collect();
+                (v3.cmd_set_viewport_with_count)(cb, v.len() as u32, v.as_ptr())
+            }
+            StateCmd::SetScissor { first, scissors } => {
+                let s: Vec<_> = scissors.iter().map(rc).collect();
+                (v0.cmd_set_scissor)(cb, *first, s.len() as u32, s.as_ptr())
+            }
+            StateCmd::SetScissorWithCount(scissors) => {
+                let s: Vec<_> = scissors.iter().map(rc).collect();
+                (v3.cmd_set_scissor_with_count)(cb, s.len() as u32, s.as_ptr())
+            }
+            StateCmd::LineWidth(w) => (v0.cmd_set_line_width)(cb, *w),
+            StateCmd::DepthBias { constant_factor, clamp, slope_factor } => (v0.cmd_set_depth_bias)(cb, *constant_factor, *clamp, *slope_factor),
+            StateCmd::BlendConstants(c) => (v0.cmd_set_blend_constants)(cb, c),
+            StateCmd::DepthBounds { min, max } => (v0.cmd_set_depth_bounds)(cb, *min, *max),
+            StateCmd::StencilCompareMask { face, mask } => (v0.cmd_set_stencil_compare_mask)(cb, *face, *mask),
+            StateCmd::StencilWriteMask { face, mask } => (v0.cmd_set_stencil_write_mask)(cb, *face, *mask),
+            StateCmd::StencilReference { face, reference } => (v0.cmd_set_stencil_reference)(cb, *face, *reference),
+            StateCmd::CullMode(m) => (v3.cmd_set_cull_mode)(cb, *m),
+            StateCmd::FrontFace(f) => (v3.cmd_set_front_face)(cb, *f),
+            StateCmd::PrimitiveTopology(t) => (v3.cmd_set_primitive_topology)(cb, *t),
+            StateCmd::DepthTestEnable(e) => (v3.cmd_set_depth_test_enable)(cb, (*e).into()),
+            StateCmd::DepthWriteEnable(e) => (v3.cmd_set_depth_write_enable)(cb, (*e).into()),
+            StateCmd::DepthCompareOp(op) => (v3.cmd_set_depth_compare_op)(cb, *op),
+            StateCmd::DepthBoundsTestEnable(e) => (v3.cmd_set_depth_bounds_test_enable)(cb, (*e).into()),
+            StateCmd::StencilTestEnable(e) => (v3.cmd_set_stencil_test_enable)(cb, (*e).into()),
+            StateCmd::StencilOp { face, fail_op, pass_op, depth_fail_op, compare_op } => {
+                (v3.cmd_set_stencil_op)(cb, *face, *fail_op, *pass_op, *depth_fail_op, *compare_op)
+            }
+            StateCmd::RasterizerDiscardEnable(e) => (v3.cmd_set_rasterizer_discard_enable)(cb, (*e).into()),
+            StateCmd::DepthBiasEnable(e) => (v3.cmd_set_depth_bias_enable)(cb, (*e).into()),
+            StateCmd::PrimitiveRestartEnable(e) => (v3.cmd_set_primitive_restart_enable)(cb, (*e).into()),
+            StateCmd::LineStipple { factor, pattern } => {
+                if let Some(f) = d.ext.cmd_set_line_stipple {
+                    f(cb, *factor, *pattern)
+                }
+            }
+            StateCmd::ColorWriteEnable(v) => {
+                if let Some(f) = d.ext.cmd_set_color_write_enable {
+                    let b: Vec<vk::Bool32> = v.iter().map(|&x| x.into()).collect();
+                    f(cb, b.len() as u32, b.as_ptr())
+                }
+            }
+            StateCmd::LogicOp(op) => {
+                if let Some(f) = d.ext.cmd_set_logic_op {
+                    f(cb, *op)
+                }
+            }
+            StateCmd::PatchControlPoints(n) => {
+                if let Some(f) = d.ext.cmd_set_patch_control_points {
+                    f(cb, *n)
+                }
+            }
+            StateCmd::PushConstants { layout, stages, offset, data } => {
+                (v0.cmd_push_constants)(cb, vk::PipelineLayout::from_raw(*layout), *stages, *offset, data.len() as u32, data.as_ptr().cast())
+            }
+            StateCmd::BindVertexBuffers { first, bindings } => {
+                let buffers: Vec<vk::Buffer> = bindings.iter().map(|b| vk::Buffer::from_raw(b.buffer)).collect();
+                let offsets: Vec<u64> = bindings.iter().map(|b| b.offset).collect();
+                let n = buffers.len() as u32;
+                if bindings.iter().any(|b| b.v2) {
+                    let sizes: Vec<u64> = bindings.iter().map(|b| b.size.unwrap_or(vk::WHOLE_SIZE)).collect();
+                    let strides: Option<Vec<u64>> = bindings.iter().map(|b| b.stride).collect();
+                    let has_sizes = bindings.iter().any(|b| b.size.is_some());
+                    (v3.cmd_bind_vertex_buffers2)(
+                        cb,
+                        *first,
+                        n,
+                        buffers.as_ptr(),
+                        offsets.as_ptr(),
+                        if has_sizes { sizes.as_ptr() } else { std::ptr::null() },
+                        strides.as_ref().map_or(std::ptr::null(), |s| s.as_ptr()),
+                    )
+                } else {
+                    (v0.cmd_bind_vertex_buffers)(cb, *first, n, buffers.as_ptr(), offsets.as_ptr())
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,51 @@
+//! What a feature is to the OpenXR chassis: the events the OpenXR hooks raise over the registry
+//! (`crate::features::XR_FEATURES`), each with a do-nothing default. Per-session state lives in
+//! the session's `XrSessionFeatures` (made by the registry), so no hook names a feature.
+//!
+//! Events: `wanted_extensions` (xrCreateInstance), `swapchain_usage` (xrCreateSwapchain, may add
+//! usage), `action_sets` / `action_sets_attached` / `active_action_sets`
+//! (xrAttachSessionActionSets, xrSyncActions: the feature's own actions next to the app's),
+//! `views_located` (xrLocateViews), `frame_begun` (xrBeginFrame: publish what the Vulkan half
+//! needs for the frame the app is about to record), `event` (xrPollEvent), `config_reloaded`
+//! (between frames). Image release reaches the Vulkan features (`crate::vk::before_release`);
+//! end-frame amendments and view-configuration changes will come with the view features.
+
+use super::session::Session;
+use super::Instance;
+use crate::settings::Settings;
+use openxr_sys as xr;
+
+pub(crate) trait XrFeature: Sync {
+    /// The registry id.
+    fn id(&self) -> &'static str;
+    /// Instance extensions the feature uses for itself, enabled when the runtime has them (asked
+    /// once, at instance creation: they cannot be enabled later, so a feature asks whenever it may
+    /// be switched on while the app runs).
+    fn wanted_extensions(&self, _s: &Settings) -> Vec<&'static str> {
+        Vec::new()
+    }
+    /// Usage the feature adds to a swapchain the app creates with `usage`.
+    fn swapchain_usage(&self, _s: &Settings, _usage: xr::SwapchainUsageFlags) -> xr::SwapchainUsageFlags {
+        xr::SwapchainUsageFlags::EMPTY
+    }
+    /// Action sets of the feature's to attach along with the app's (`xrAttachSessionActionSets`).
+    fn action_sets(&self, _s: &Session) -> Vec<xr::ActionSet> {
+        Vec::new()
+    }
+    /// The attach with the feature's sets went down with result `r`.
+    fn action_sets_attached(&self, _s: &Session, _r: xr::Result) {}
+    /// Action sets of the feature's to sync along with the app's (`xrSyncActions`).
+    fn active_action_sets(&self, _s: &Session) -> Vec<xr::ActiveActionSet> {
+        Vec::new()
+    }
+    /// The app located its views.
+    fn views_located(&self, _s: &Session, _info: &xr::ViewLocateInfo, _views: &[xr::View]) {}
+    /// `xrBeginFrame` succeeded: the app records the frame's passes next.
+    fn frame_begun(&self, _s: &Session) {}
+    /// The runtime delivered `event`; true when it is the layer's own (the app does not see it).
+    fn event(&self, _inst: &Instance, _event: &xr::EventDataBuffer) -> bool {
+        false
+    }
+    /// The configuration was reloaded with `changed` keys.
+    fn config_reloaded(&self, _s: &Session, _changed: &[&'static str]) {}
+}
