@@ -187,7 +187,16 @@ fn main() {
                 if method == "vrs" && stats["vrs"]["passes"].as_u64().unwrap_or(0) == 0 {
                     failures.push(format!("{}: VRS did not engage: {}", run.name, stats["vrs"]));
                 }
-                for (got_v, want_v) in out.views(FRAME).iter().zip(plain.views(FRAME)) {
+                // Every view of both runs, paired; a run that captured other views, sizes or
+                // depth (or none) is a failure, not a shorter table.
+                let pairs = match common::pair_frame(out.frames(), FRAME, plain.frames(), FRAME, common::DepthCheck::Compare) {
+                    Ok(pairs) => pairs,
+                    Err(e) => {
+                        failures.push(format!("{}: frame {FRAME} cannot be compared with the plain run's: {e}", run.name));
+                        continue;
+                    }
+                };
+                for (got_v, want_v) in pairs {
                     let (w, h) = (got_v.image_rect.width, got_v.image_rect.height);
                     let (got, want) = (out.image(&got_v.file), plain.image(&want_v.file));
                     let m = a.texel;

@@ -99,11 +99,17 @@ pub struct ViewFov {
 
 /// The masks and FOVs of all views; replaced as a whole, with a generation that increases on every
 /// change so the Vulkan half can rebuild what it derived.
+///
+/// Two FOVs per view, kept apart for features that change what the app sees (a FOV tightened to
+/// the lens): `app_fovs` is what the app renders its images with (from its submitted frames, before
+/// the first one from the views it was given), and what everything drawn into those images is
+/// placed by; `runtime_fovs` is what the runtime reported for the views, and expects back.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Views {
     pub generation: u64,
     pub masks: Vec<ViewMask>,
-    pub fovs: Vec<ViewFov>,
+    pub app_fovs: Vec<ViewFov>,
+    pub runtime_fovs: Vec<ViewFov>,
 }
 
 /// One view's foveation: where full rate is needed and how fast the rate falls off, in angular
@@ -163,15 +169,24 @@ impl Shared {
         self.views.read().unwrap_or_else(|e| e.into_inner()).clone()
     }
     /// Replaces masks and/or FOVs; bumps the generation only when something changed.
-    pub fn update_views(&self, masks: Option<Vec<ViewMask>>, fovs: Option<Vec<ViewFov>>) -> bool {
+    pub fn update_views(&self, masks: Option<Vec<ViewMask>>, app_fovs: Option<Vec<ViewFov>>) -> bool {
+        self.update(|next| {
+            if let Some(m) = masks {
+                next.masks = m;
+            }
+            if let Some(f) = app_fovs {
+                next.app_fovs = f;
+            }
+        })
+    }
+    /// Replaces the FOVs the runtime reported; bumps the generation only when they changed.
+    pub fn update_runtime_fovs(&self, fovs: Vec<ViewFov>) -> bool {
+        self.update(|next| next.runtime_fovs = fovs)
+    }
+    fn update(&self, change: impl FnOnce(&mut Views)) -> bool {
         let mut cur = self.views.write().unwrap_or_else(|e| e.into_inner());
         let mut next = (**cur).clone();
-        if let Some(m) = masks {
-            next.masks = m;
-        }
-        if let Some(f) = fovs {
-            next.fovs = f;
-        }
+        change(&mut next);
         if next == **cur {
             return false;
         }
@@ -225,7 +240,10 @@ mod tests {
         let mask = ViewMask { view: 0, source: MaskSource::Runtime, triangles: vec![[0.0, 0.0]; 3] };
         assert!(s.update_views(Some(vec![mask]), None));
         assert_eq!(s.views().generation, 2);
-        assert_eq!(s.views().fovs.len(), 2);
+        assert_eq!(s.views().app_fovs.len(), 2);
+        assert!(s.update_runtime_fovs(vec![fov]));
+        assert!(!s.update_runtime_fovs(vec![fov]));
+        assert_eq!((s.views().generation, s.views().runtime_fovs.len()), (3, 1));
     }
 
     #[test]

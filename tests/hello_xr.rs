@@ -26,7 +26,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::image::{self, Image};
-use common::{hidden_pixels, mask_edge_pixels, RunOutput};
+use common::{hidden_pixels, mask_edge_pixels, Half, RunOutput};
 
 /// Frames each run submits (frame 0 is never masked: the eye use of the images is not yet known).
 const FRAMES: u64 = 3;
@@ -149,12 +149,6 @@ impl HelloRun {
     }
 }
 
-fn assert_same_frames(label: &str, a: &RunOutput, fa: u64, b: &RunOutput, fb: u64) {
-    for (va, vb) in a.views(fa).iter().zip(b.views(fb)) {
-        image::assert_identical(&format!("{label}-view{}", va.view), &a.image(&va.file), &b.image(&vb.file));
-    }
-}
-
 /// The plain runs are bit-identical frame to frame and between the two plugins, and silent under
 /// the validation layer hello_xr enables itself.
 #[test]
@@ -170,10 +164,10 @@ fn plain_runs_are_deterministic() {
         let refused: Vec<&str> = r.out.stderr.lines().filter(|l| l.contains("[mock-runtime]") && l.contains("-> ERROR_")).collect();
         assert!(refused.is_empty(), "{}: the runtime refused calls:\n{}", r.out.name, refused.join("\n"));
         for f in 1..FRAMES {
-            assert_same_frames(&format!("{}-f0-f{f}", r.out.name), &r.out, 0, &r.out, f);
+            common::assert_same_frame(&format!("{}-f0-f{f}", r.out.name), &r.out, 0, &r.out, f);
         }
     }
-    assert_same_frames("hello-xr-plain-vulkan-vs-vulkan2", &v1.out, 1, &v2.out, 1);
+    common::assert_same_frame("hello-xr-plain-vulkan-vs-vulkan2", &v1.out, 1, &v2.out, 1);
 }
 
 /// hello_xr's input reaches it through the mock's interaction profiles: of the five profiles it
@@ -202,13 +196,13 @@ fn check_masked(plugin: &str, hmd: &str) {
     let masked = run(&format!("{tag}-masked"), plugin, true, &env);
     masked.assert_clean_exit();
     let name = &masked.out.name;
-    assert!(masked.out.log_lines("internal failure").is_empty(), "{name}: {}", masked.out.log);
+    masked.out.assert_log_lacks(Half::Both, "internal failure");
     // hello_xr's own validation layer (in its create info, below the layer) stays silent about
     // what the layer creates on its Vulkan 1.0 device.
     assert!(masked.validation_errors.is_empty(), "{name}: {} validation errors:\n{}", masked.validation_errors.len(), masked.validation_errors.join("\n"));
 
     // Frame 0: eye uses unknown, nothing masked.
-    assert_same_frames(&format!("{tag}-f0"), &masked.out, 0, &plain.out, 0);
+    common::assert_same_frame(&format!("{tag}-f0"), &masked.out, 0, &plain.out, 0);
     for f in 1..FRAMES {
         let frame = masked.out.frame(f);
         assert_eq!(frame.visibility_masks.len(), 2, "{name}: frames.json has no visibility_masks");
@@ -217,7 +211,7 @@ fn check_masked(plugin: &str, hmd: &str) {
         assert_eq!(record["passes_masked"], 2, "{name} frame {f}: both eye passes masked: {record}");
         assert!(record["not_masked"].as_object().is_some_and(|o| o.is_empty()), "{name} frame {f}: {record}");
         let mut hidden_by_mask = 0;
-        for (a, b) in masked.out.views(f).iter().zip(plain.out.views(f)) {
+        for (a, b) in common::views_to_compare(name, &masked.out, f, &plain.out, f) {
             let mask = &frame.visibility_masks.iter().find(|m| m.view == a.view).expect("mask of view").hidden_triangles;
             let (w, h) = (a.image_rect.width, a.image_rect.height);
             let hidden = hidden_pixels(mask, &a.fov, w, h);

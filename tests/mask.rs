@@ -8,7 +8,7 @@
 mod common;
 
 use common::image::{self, Image};
-use common::{hidden_pixels, mask_edge_pixels, Run, RunOutput};
+use common::{hidden_pixels, mask_edge_pixels, Half, Run, RunOutput};
 
 /// The tint `mask.debug` paints (magenta, shaders/mask.frag), as 8-bit RGB.
 const TINT: [u16; 3] = [255, 0, 255];
@@ -43,16 +43,14 @@ fn check_env(name: &str, args: &[&str], debug: bool, env: &[(&str, &str)]) -> Ve
     layered.name = format!("{name}-masked");
     let masked = layered.run();
     masked.assert_ok();
-    assert!(masked.log_lines("internal failure").is_empty(), "{name}: {}", masked.log);
+    masked.assert_log_lacks(Half::Both, "internal failure");
     assert!(!masked.log_lines("masking ").is_empty(), "{name}: the layer never masked a pass:\n{}", masked.log);
     // Frame 0: eye uses unknown, nothing masked.
-    for (a, b) in masked.views(0).iter().zip(plain.views(0)) {
-        image::assert_identical(&format!("{name}-f0-view{}", a.view), &masked.image(&a.file), &plain.image(&b.file));
-    }
+    common::assert_same_frame(&format!("{name}-f0"), &masked, 0, &plain, 0);
     let frame = masked.frame(1);
     assert_eq!(frame.visibility_masks.len(), 2, "{name}: frames.json has no visibility_masks");
     let mut out = Vec::new();
-    for (a, b) in masked.views(1).iter().zip(plain.views(1)) {
+    for (a, b) in common::views_to_compare(name, &masked, 1, &plain, 1) {
         let mask = &frame.visibility_masks.iter().find(|m| m.view == a.view).expect("mask of view").hidden_triangles;
         let (w, h) = (a.image_rect.width, a.image_rect.height);
         let hidden = hidden_pixels(mask, &a.fov, w, h);
@@ -108,6 +106,7 @@ fn check_env(name: &str, args: &[&str], debug: bool, env: &[(&str, &str)]) -> Ve
     }
     // The layer's own count (rasterizer-exact coverage) agrees with the harness's within edges.
     let line = masked.log_lines("vulkan device stats:");
+    assert!(!line.is_empty(), "{name}: no `vulkan device stats:` line:\n{}", masked.log);
     let px: u64 = line
         .iter()
         .flat_map(|l| l.split_whitespace())
@@ -121,7 +120,7 @@ fn check_env(name: &str, args: &[&str], debug: bool, env: &[(&str, &str)]) -> Ve
     // once, as masked, not also as unmasked at its beginning.
     let stats = line.join("\n");
     assert!(!stats.contains("not_masked.depth_not_cleared"), "{name}: {stats}");
-    assert!(!masked.log.contains("pass not masked: depth_not_cleared"), "{name}: {}", masked.log);
+    masked.assert_log_lacks(Half::Vulkan, "pass not masked: depth_not_cleared");
     out
 }
 
@@ -210,7 +209,8 @@ fn intermediate_off_leaves_offscreen_passes_alone() {
     let out = run.run();
     out.assert_ok();
     common::assert_same_captures("mask-intermediate-off", &out, &plain);
-    assert_eq!(out.stats, plain.stats);
+    common::assert_same_stats("mask-intermediate-off", &out, &plain);
+    out.assert_layer_loaded(Half::Vulkan);
     let line = out.log_lines("vulkan device stats:").join("\n");
     assert!(line.contains("masked_passes=0") && line.contains("not_masked.intermediate_off="), "{line}");
 }

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::Run;
+use common::{Half, Run};
 
 /// The layer's "enabled [...] for the layer's own use" log lines that name `extension` (it may enable
 /// others with it, e.g. XR_EXT_eye_gaze_interaction).
@@ -52,6 +52,7 @@ fn mask_change_event_refetches_and_stays_hidden() {
     // Fetched at the start and once more after the change.
     assert_eq!(out.log_lines("hidden-area mask from Runtime").len(), 4, "{}", out.log);
     let stats = out.log_lines("openxr stats:");
+    assert_eq!(stats.len(), 1, "{}", out.log);
     assert!(stats[0].contains("visibility_mask_events=2"), "{}", stats[0]);
 }
 
@@ -62,7 +63,7 @@ fn mask_disabled_fetches_nothing() {
     let out = Run::new("mask-source-off").with_layer().run();
     out.assert_ok();
     assert_eq!(out.log_lines("for the layer's own use").len(), 1, "{}", out.log);
-    assert!(out.log_lines("hidden-area mask").is_empty(), "{}", out.log);
+    out.assert_log_lacks(Half::OpenXr, "hidden-area mask");
 }
 
 /// A mask change reaches the pixels: after the runtime shrinks the visible area, later frames are

@@ -9,6 +9,9 @@
 //! `DURATION_S` and must then exit 0; a run past `LIMIT_S` is a hang (backtrace of every thread in
 //! the failure message).
 
+mod common;
+
+use common::Half;
 use serde_json::Value;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -189,6 +192,9 @@ struct Outcome {
     /// which the spec allows; reported, not counted.
     cv_internal: Vec<String>,
     stats: Vec<Value>,
+    /// The layer's log (`$XDG_STATE_HOME/stereoshim/stereoshim.log` inside the root); empty when
+    /// it did not load.
+    log: String,
     /// Ran on the mock runtime, whose frame clock advances one period per frame, not with time.
     mock: bool,
 }
@@ -355,6 +361,7 @@ fn run(root: &Path, spec: &Spec) -> Outcome {
         cv_errors,
         cv_internal,
         stats: read("stats.jsonl").lines().filter_map(|l| serde_json::from_str(l).ok()).collect(),
+        log: read("state/stereoshim/stereoshim.log"),
         app_log,
         dir,
         mock: spec.mock_runtime,
@@ -481,6 +488,19 @@ fn check_clean_exit(c: &mut Checks, o: &Outcome) {
     c.check(o.status == Some(0), || format!("{}: run status {:?} (see runner output)", o.name, o.status));
 }
 
+/// Both halves of the layer loaded (their lines in its log): what every check of what the layer
+/// did (or did not do) in a run presupposes.
+fn check_layer_loaded(c: &mut Checks, o: &Outcome) {
+    if let Err(e) = common::layer_loaded(&o.log, Half::Both) {
+        c.check(false, || format!("{}: {e}", o.name));
+    }
+}
+
+/// The layer did not load: no log file at all.
+fn check_layer_not_loaded(c: &mut Checks, o: &Outcome, why: &str) {
+    c.check(!o.dir.join("state/stereoshim/stereoshim.log").exists(), || format!("{}: {why}, but the layer logged:\n{}", o.name, o.log));
+}
+
 fn check_validation(c: &mut Checks, o: &Outcome) {
     c.check(o.vk_errors.is_empty(), || {
         format!("{}: {} Vulkan validation errors, first: {}", o.name, o.vk_errors.len(), o.vk_errors.first().map_or("", |s| s.as_str()))
@@ -575,6 +595,8 @@ fn layer_case(name: &str, graphics: &'static str, features: bool, vk_instance_la
     let mut c = Checks::default();
     check_clean_exit(&mut c, base);
     check_clean_exit(&mut c, &o);
+    check_layer_loaded(&mut c, &o);
+    c.check(o.rendered() > 0, || format!("{}: no frame rendered", o.name));
     c.check(o.stats.len() == o.frames.len(), || {
         format!("{}: {} layer stats lines for {} xrEndFrame calls (is the layer loaded?)", o.name, o.stats.len(), o.frames.len())
     });
@@ -652,6 +674,7 @@ fn mock_layer_case(name: &str, features: bool, vk_instance_layers: bool) {
     let spec = Spec { layer: Layer::Explicit, features, vk_instance_layers, mock_runtime: true, ..Spec::new(name, "Vulkan") };
     let o = run(&root, &spec);
     check_clean_exit(&mut c, &o);
+    check_layer_loaded(&mut c, &o);
     check_validation(&mut c, &o);
     if features {
         check_features_applied(&mut c, &o);
@@ -716,6 +739,7 @@ fn implicit_install_picks_up_layer() {
     check_clean_exit(&mut c, &o);
     c.check(o.runner.contains("step pre: exit 0"), || format!("{name}: stereoshim install --user failed (pre.log)"));
     c.check(!o.stats.is_empty(), || format!("{name}: the installed layer was not picked up (no stats)"));
+    check_layer_loaded(&mut c, &o);
     check_validation(&mut c, &o);
     check_features_applied(&mut c, &o);
     c.finish(&[&o]);
@@ -733,7 +757,7 @@ fn implicit_disable_keeps_it_out() {
     c.check(o.runner.contains("step pre: exit 0"), || format!("{name}: stereoshim install --user failed (pre.log)"));
     c.check(o.rendered() > 0, || format!("{name}: no frames"));
     c.check(o.stats.is_empty(), || format!("{name}: STEREOSHIM_DISABLE=1 but the layer wrote stats"));
-    c.check(!o.dir.join("state/stereoshim/stereoshim.log").exists(), || format!("{name}: STEREOSHIM_DISABLE=1 but the layer logged"));
+    check_layer_not_loaded(&mut c, &o, "STEREOSHIM_DISABLE=1");
     c.finish(&[&o]);
 }
 
@@ -749,6 +773,7 @@ fn implicit_uninstall_removes_it() {
     c.check(o.runner.contains("step pre: exit 0"), || format!("{name}: stereoshim install/uninstall failed (pre.log)"));
     c.check(o.rendered() > 0, || format!("{name}: no frames"));
     c.check(o.stats.is_empty(), || format!("{name}: uninstalled, but the layer still wrote stats"));
+    check_layer_not_loaded(&mut c, &o, "uninstalled");
     // Files only: uninstall leaves the (then empty) folder it installed into.
     let leftovers: Vec<_> = walk(&o.dir.join("data")).into_iter().filter(|p| p.is_file() && p.to_string_lossy().contains("stereoshim")).collect();
     c.check(leftovers.is_empty(), || format!("{name}: uninstall left {leftovers:?}"));

@@ -27,7 +27,7 @@ mod common;
 
 use common::image::{self, Image};
 use common::rdm::{self, Expected};
-use common::{hidden_pixels, mask_edge_pixels, Run, RunOutput};
+use common::{hidden_pixels, mask_edge_pixels, Half, Run, RunOutput};
 use std::path::{Path, PathBuf};
 
 /// Frames each run submits (`MOCK_XR_EXIT_AFTER`).
@@ -85,14 +85,16 @@ fn validation_summary(stderr: &str) -> Vec<String> {
     seen.into_iter().map(|(id, n, first)| format!("{n} × {id}, first: {first}")).collect()
 }
 
-/// The layer was in the app (the log proves both halves), the app exited cleanly (0: which under
-/// `--validation` means no validation error, synchronization included), and the layer reported
-/// no internal failure and no error. The log check comes first: only a log known to be the
-/// layer's can show that something is absent from it.
+/// The layer was in the app (the log proves both halves, and that the Vulkan half is in the
+/// session's device), the app exited cleanly (0: which under `--validation` means no validation
+/// error, synchronization included), and the layer reported no internal failure and no error.
+/// The load check comes first (`common::layer_loaded`, through `log_lacks`): only a log known to
+/// be the layer's can show that something is absent from it.
 fn check_run(out: &RunOutput, problems: &mut Problems) {
+    out.assert_layer_loaded(Half::Both);
     assert!(
         !out.log_lines("the Vulkan half tracks this device").is_empty(),
-        "{}: the layer's log does not show it loaded with its Vulkan half; log:\n{}\nstderr:\n{}",
+        "{}: the Vulkan half is not in the session's device; log:\n{}\nstderr:\n{}",
         out.name,
         out.log,
         out.stderr
@@ -113,9 +115,7 @@ fn check_run(out: &RunOutput, problems: &mut Problems) {
         problems.0.push(format!("{}: the layer never logged `vulkan device stats:` (the device was not destroyed through it)", out.name));
     }
     for needle in ["internal failure", " ERROR "] {
-        for line in out.log_lines(needle) {
-            problems.0.push(format!("{}: layer log: {line}", out.name));
-        }
+        problems.check(common::log_lacks(&out.log, Half::Both, needle).map_err(|e| format!("{}: {}", out.name, e.lines().next().unwrap_or_default())));
     }
 }
 
@@ -138,18 +138,26 @@ fn captured(frame: u64, runs: &[&RunOutput]) -> Result<(), String> {
     Ok(())
 }
 
+/// Frame `frame`'s views of `layered` paired with those of `plain` (`common::pair_frame`: both
+/// runs captured it, with the same views, sizes and depth presence), or why not.
+fn views<'a>(name: &str, layered: &'a RunOutput, plain: &'a RunOutput, frame: u64) -> Result<Vec<(&'a common::View, &'a common::View)>, String> {
+    captured(frame, &[plain, layered])?;
+    common::pair_frame(layered.frames(), frame, plain.frames(), frame, common::DepthCheck::Compare)
+        .map_err(|e| format!("{name}: frame {frame} of {} and {} cannot be compared: {e}", layered.name, plain.name))
+}
+
 /// Frame `frame` through the layer with the mask on, against the same frame without the layer:
 /// inside the runtime's hidden-area mask of that frame (frames.json, rasterized by the harness)
 /// black, outside it bit-identical, pixels along its outline either; the layer's `stats.file`
 /// record counts the mask's pixels per view within 1 % (tests/mask_source.rs
 /// `changed_mask_is_applied_to_later_frames`).
 fn check_masked(name: &str, plain: &RunOutput, masked: &RunOutput, frame: u64, record: Option<&serde_json::Value>) -> Result<(), String> {
-    captured(frame, &[plain, masked])?;
+    let pairs = views(name, masked, plain, frame)?;
     let masks = &masked.frame(frame).visibility_masks;
     if masks.len() != 2 {
         return Err(format!("{name} frame {frame}: frames.json has no visibility_masks"));
     }
-    for (a, b) in masked.views(frame).iter().zip(plain.views(frame)) {
+    for (a, b) in pairs {
         let mask = &masks.iter().find(|m| m.view == a.view).expect("mask of view").hidden_triangles;
         let (w, h) = (a.image_rect.width, a.image_rect.height);
         let hidden = hidden_pixels(mask, &a.fov, w, h);
@@ -199,8 +207,7 @@ fn check_masked(name: &str, plain: &RunOutput, masked: &RunOutput, frame: u64, r
 
 /// Frame `frame` through the layer with nothing enabled for it is bit-identical to the run without.
 fn check_untouched(name: &str, plain: &RunOutput, layered: &RunOutput, frame: u64) -> Result<(), String> {
-    captured(frame, &[plain, layered])?;
-    for (a, b) in layered.views(frame).iter().zip(plain.views(frame)) {
+    for (a, b) in views(name, layered, plain, frame)? {
         let (got, want) = (layered.image(&a.file), plain.image(&b.file));
         let n = got.count_different(&want);
         if n > 0 {
@@ -491,7 +498,7 @@ fn synchronization_validation_is_on_through_the_layer() {
         .env("STEREOSHIM_FOVEATION_ENABLED", "1")
         .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
         .run();
-    assert!(!out.log_lines("the Vulkan half tracks this device").is_empty(), "the layer did not load:\n{}", out.log);
+    out.assert_layer_loaded(Half::Both);
     assert_eq!(out.code, Some(3), "a hazard under --validation must fail the run; stderr:\n{}", out.stderr);
     assert!(out.stderr.contains("SYNC-HAZARD-"), "no synchronization hazard reported; stderr:\n{}", out.stderr);
 }

@@ -86,6 +86,9 @@ pub enum StateCmd {
     /// `vkCmdBindVertexBuffers` (sizes and strides None) or `vkCmdBindVertexBuffers2`. Not
     /// dynamic state, but an injected draw binds its own vertex buffer, so it is restored too.
     BindVertexBuffers { first: u32, bindings: Vec<VertexBinding> },
+    /// `vkCmdBindDescriptorSets(GRAPHICS)`. Restored only after an injection that bound sets of
+    /// its own (the layer's pipelines so far use none, which disturbs nothing).
+    BindDescriptorSets { layout: u64, first: u32, sets: Vec<u64>, dynamic_offsets: Vec<u32> },
 }
 
 /// One vertex buffer binding slot as the app set it.
@@ -107,7 +110,7 @@ impl StateCmd {
     pub fn dynamic_state(&self) -> Option<vk::DynamicState> {
         use vk::DynamicState as D;
         Some(match self {
-            StateCmd::BindPipeline(_) | StateCmd::PushConstants { .. } | StateCmd::BindVertexBuffers { .. } => return None,
+            StateCmd::BindPipeline(_) | StateCmd::PushConstants { .. } | StateCmd::BindVertexBuffers { .. } | StateCmd::BindDescriptorSets { .. } => return None,
             StateCmd::SetViewport { .. } => D::VIEWPORT,
             StateCmd::SetViewportWithCount(_) => D::VIEWPORT_WITH_COUNT,
             StateCmd::SetScissor { .. } => D::SCISSOR,
@@ -285,6 +288,9 @@ pub struct CmdState {
     /// draw (shader objects, vertex input, shading rate, extended dynamic state 3): injections
     /// into this command buffer are vetoed (`vk::inject`).
     pub veto: Option<&'static str>,
+    /// Descriptor set bindings still in effect, oldest first (a bind fully covered by a later
+    /// one of the same sets is dropped).
+    descriptor_sets: Vec<StateCmd>,
 }
 
 const MAX_PUSHES: usize = 64;
@@ -338,6 +344,17 @@ impl CmdState {
             StateCmd::SetScissorWithCount(s) => {
                 put(&mut self.scissors, 0, &s);
                 self.scissor_count = Some(s.len() as u32);
+            }
+            StateCmd::BindDescriptorSets { first, ref sets, .. } => {
+                let end = first + sets.len() as u32;
+                self.descriptor_sets.retain(|b| match b {
+                    StateCmd::BindDescriptorSets { first: f, sets: s, .. } => !(*f >= first && *f + s.len() as u32 <= end),
+                    _ => true,
+                });
+                if self.descriptor_sets.len() >= MAX_PUSHES {
+                    self.descriptor_sets.remove(0);
+                }
+                self.descriptor_sets.push(cmd);
             }
             StateCmd::PushConstants { layout, stages, offset, ref data } => {
                 let end = offset + data.len() as u32;
@@ -452,6 +469,11 @@ impl CmdState {
             }
         }
         out
+    }
+
+    /// Commands that re-establish the app's descriptor set bindings, in their original order.
+    pub fn descriptor_set_commands(&self) -> Vec<StateCmd> {
+        self.descriptor_sets.clone()
     }
 
     /// Whether the app bound any vertex buffer (the mask binds one at binding 0).
@@ -667,5 +689,21 @@ mod tests {
         let c = ClearValue([0.5f32.to_bits(), 7, 0, 0]);
         assert_eq!((c.depth(), c.stencil()), (0.5, 7));
         assert_eq!(c.color_f32()[0], 0.5);
+    }
+
+    #[test]
+    fn descriptor_sets_are_kept_in_order_and_covered_binds_dropped() {
+        let mut s = CmdState::default();
+        let bind = |first: u32, sets: &[u64]| StateCmd::BindDescriptorSets { layout: 7, first, sets: sets.to_vec(), dynamic_offsets: vec![] };
+        s.record(bind(0, &[1, 2]));
+        s.record(bind(1, &[3]));
+        assert_eq!(s.descriptor_set_commands(), vec![bind(0, &[1, 2]), bind(1, &[3])]);
+        s.record(bind(0, &[4, 5]));
+        assert_eq!(s.descriptor_set_commands(), vec![bind(0, &[4, 5])], "both earlier binds are covered");
+        assert!(s.restore_commands().is_empty(), "sets are restored only on request");
+        s.bind_pipeline(9, None);
+        assert_eq!(s.descriptor_set_commands().len(), 1, "binding a pipeline keeps the sets");
+        s.forget_graphics_state();
+        assert!(s.descriptor_set_commands().is_empty());
     }
 }

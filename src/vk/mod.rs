@@ -243,6 +243,7 @@ intercepts! {
     Device "vkCmdExecuteCommands" => hooks::cmd_execute_commands as vk::PFN_vkCmdExecuteCommands;
     Device "vkCmdBindPipeline" => hooks::cmd_bind_pipeline as vk::PFN_vkCmdBindPipeline;
     Device "vkCmdPushConstants" => hooks::cmd_push_constants as vk::PFN_vkCmdPushConstants;
+    Device "vkCmdBindDescriptorSets" => hooks::cmd_bind_descriptor_sets as vk::PFN_vkCmdBindDescriptorSets;
     Device "vkCmdSetViewport" => hooks::cmd_set_viewport as vk::PFN_vkCmdSetViewport;
     Device "vkCmdSetScissor" => hooks::cmd_set_scissor as vk::PFN_vkCmdSetScissor;
     Device "vkCmdSetViewportWithCount" => hooks::cmd_set_viewport_with_count as vk::PFN_vkCmdSetViewportWithCount;

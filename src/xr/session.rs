@@ -201,9 +201,13 @@ pub(super) unsafe extern "system" fn locate_views(
             let mut last = s.views.lock().unwrap_or_else(|e| e.into_inner());
             last.clear();
             last.extend(located.iter().map(|v| LocatedView { pose: v.pose, fov: v.fov }));
+            let fovs: Vec<ViewFov> = located.iter().map(|v| fov_tangents(&v.fov)).collect();
+            // The layer hands the runtime's views to the app unchanged: until the app submits a
+            // frame, they are also what it renders with.
             if !s.fov_submitted.load(Ordering::Acquire) {
-                crate::shared::shared().update_views(None, Some(located.iter().map(|v| fov_tangents(&v.fov)).collect()));
+                crate::shared::shared().update_views(None, Some(fovs.clone()));
             }
+            crate::shared::shared().update_runtime_fovs(fovs);
             drop(last);
             // SAFETY: the app's locate info, valid for this call (the call succeeded).
             if let Some(info) = unsafe { view_locate_info.as_ref() } {

@@ -209,29 +209,214 @@ pub fn isolate(cmd: &mut Command, dir: &Path, capture: &Path, layer: bool) {
         .env_remove("XR_API_LAYER_PATH")
         .env_remove("VK_INSTANCE_LAYERS")
         .env_remove("VK_ADD_LAYER_PATH")
-        .env_remove("STEREOSHIM_CONFIG")
         .env("XDG_RUNTIME_DIR", dir.join("run"))
         .env("XDG_DATA_HOME", dir.join("data"))
         .env("XDG_CONFIG_HOME", dir.join("config"))
         .env("XDG_STATE_HOME", dir.join("state"));
+    // The developer's own STEREOSHIM_* settings (STEREOSHIM_CONFIG, STEREOSHIM_ENABLED=0, a
+    // feature switched on, STEREOSHIM_DISABLE, …) would change what every run tests, or let a
+    // check pass because the layer did nothing: a run sets the ones it wants after this.
+    for (key, _) in std::env::vars_os() {
+        if key.to_string_lossy().starts_with("STEREOSHIM_") {
+            cmd.env_remove(key);
+        }
+    }
     if layer {
         cmd.env("XR_API_LAYER_PATH", layer_manifest_dir()).env("XR_ENABLE_API_LAYERS", XR_LAYER_NAME);
     }
 }
 
-/// Asserts that every image captured in `a` (colour and depth, every frame) equals the one of the
-/// same frame and view in `b`.
-pub fn assert_same_captures(label: &str, a: &RunOutput, b: &RunOutput) {
-    let frames = &a.frames().frames;
-    assert!(!frames.is_empty(), "{label}: nothing captured");
-    for frame in frames {
-        for (va, vb) in a.views(frame.frame).iter().zip(b.views(frame.frame)) {
-            let name = format!("{label}-f{}-view{}", frame.frame, va.view);
-            image::assert_identical(&name, &a.image(&va.file), &b.image(&vb.file));
-            if let (Some(da), Some(db)) = (&va.depth, &vb.depth) {
-                image::assert_identical(&format!("{name}-depth"), &a.image(&da.file), &b.image(&db.file));
-            }
+/// Whether a comparison of two captures also requires their submitted depth to agree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DepthCheck {
+    /// Depth is submitted for the same views in both (or in neither), with the same image sizes,
+    /// and its images are compared too.
+    Compare,
+    /// Only colour is compared: for runs that differ in `--submit-depth` on purpose.
+    Ignore,
+}
+
+/// The projection views of frame `fa` of `a` paired with those of frame `fb` of `b` (every
+/// projection layer, in order), for an image-by-image comparison; `Err` says why the two frames
+/// cannot be compared that way, so that a comparison never passes by comparing less than both
+/// runs captured: a frame is missing; the frames' layers differ in number or type; a projection
+/// layer's view ids differ (count or order); a view's image size differs or is empty; with
+/// [`DepthCheck::Compare`], depth is present in one view and not in the other, or its size
+/// differs; or there is no projection view at all (nothing to compare). "left" is `a`, "right" `b`.
+pub fn pair_frame<'a>(a: &'a Frames, fa: u64, b: &'a Frames, fb: u64, depth: DepthCheck) -> Result<Vec<(&'a View, &'a View)>, String> {
+    let find = |f: &'a Frames, n: u64, side: &str| f.frames.iter().find(|x| x.frame == n).ok_or_else(|| format!("frame {n} not captured on the {side}"));
+    let (x, y) = (find(a, fa, "left")?, find(b, fb, "right")?);
+    let kinds = |f: &Frame| f.layers.iter().map(|l| l.kind.clone()).collect::<Vec<_>>();
+    if kinds(x) != kinds(y) {
+        return Err(format!("layers differ: left frame {fa} {:?}, right frame {fb} {:?}", kinds(x), kinds(y)));
+    }
+    let mut pairs = Vec::new();
+    for (i, (la, lb)) in x.layers.iter().zip(&y.layers).enumerate().filter(|(_, (l, _))| l.kind == "projection") {
+        let ids = |l: &Layer| l.views.iter().map(|v| v.view).collect::<Vec<_>>();
+        if ids(la) != ids(lb) {
+            return Err(format!("layer {i}: views differ: left frame {fa} {:?}, right frame {fb} {:?}", ids(la), ids(lb)));
         }
+        for (va, vb) in la.views.iter().zip(&lb.views) {
+            let v = va.view;
+            let size = |r: &Rect| (r.width, r.height);
+            if size(&va.image_rect) != size(&vb.image_rect) {
+                return Err(format!("layer {i} view {v}: image sizes differ: left {:?}, right {:?}", size(&va.image_rect), size(&vb.image_rect)));
+            }
+            if va.image_rect.width == 0 || va.image_rect.height == 0 {
+                return Err(format!("layer {i} view {v}: empty image {:?}: nothing to compare", size(&va.image_rect)));
+            }
+            if depth == DepthCheck::Compare {
+                match (&va.depth, &vb.depth) {
+                    (Some(da), Some(db)) if size(&da.image_rect) != size(&db.image_rect) => {
+                        return Err(format!(
+                            "layer {i} view {v}: depth image sizes differ: left {:?}, right {:?}",
+                            size(&da.image_rect),
+                            size(&db.image_rect)
+                        ));
+                    }
+                    (Some(_), None) | (None, Some(_)) => {
+                        let side = |d: &Option<DepthInfo>| if d.is_some() { "depth" } else { "no depth" };
+                        return Err(format!("layer {i} view {v}: left has {}, right has {}", side(&va.depth), side(&vb.depth)));
+                    }
+                    _ => {}
+                }
+            }
+            pairs.push((va, vb));
+        }
+    }
+    if pairs.is_empty() {
+        return Err(format!("no projection view captured in left frame {fa} / right frame {fb}: nothing to compare"));
+    }
+    Ok(pairs)
+}
+
+/// Every captured frame of `a` paired with the same frame of `b` ([`pair_frame`] each); `Err`
+/// when the runs captured different frames (count or numbers), different HMD profiles, or no
+/// frame at all.
+#[allow(clippy::type_complexity)]
+pub fn pair_captures<'a>(a: &'a Frames, b: &'a Frames, depth: DepthCheck) -> Result<Vec<(u64, Vec<(&'a View, &'a View)>)>, String> {
+    let numbers = |f: &Frames| f.frames.iter().map(|x| x.frame).collect::<Vec<_>>();
+    let (na, nb) = (numbers(a), numbers(b));
+    if na.is_empty() || nb.is_empty() {
+        return Err(format!("nothing to compare: left captured frames {na:?}, right {nb:?}"));
+    }
+    if na != nb {
+        return Err(format!("captured frames differ: left {na:?}, right {nb:?}"));
+    }
+    if a.hmd != b.hmd {
+        return Err(format!("HMD profiles differ: left {:?}, right {:?}", a.hmd, b.hmd));
+    }
+    na.into_iter().map(|n| pair_frame(a, n, b, n, depth).map(|p| (n, p)).map_err(|e| format!("frame {n}: {e}"))).collect()
+}
+
+/// Asserts that `a` and `b` captured the same frames with the same views, image sizes and depth
+/// presence (see [`pair_captures`]), and that every image (colour and depth, every frame) of `a`
+/// equals the one of the same frame and view in `b`.
+pub fn assert_same_captures(label: &str, a: &RunOutput, b: &RunOutput) {
+    compare_captures(label, a, b, DepthCheck::Compare);
+}
+
+/// [`assert_same_captures`] for colour only: for runs that differ in submitting depth on purpose.
+pub fn assert_same_colour_captures(label: &str, a: &RunOutput, b: &RunOutput) {
+    compare_captures(label, a, b, DepthCheck::Ignore);
+}
+
+fn compare_captures(label: &str, a: &RunOutput, b: &RunOutput, depth: DepthCheck) {
+    let frames = pair_captures(a.frames(), b.frames(), depth)
+        .unwrap_or_else(|e| panic!("{label}: the captures of {} (left) and {} (right) cannot be compared: {e}", a.name, b.name));
+    for (frame, pairs) in frames {
+        compare_views(&format!("{label}-f{frame}"), a, b, &pairs, depth);
+    }
+}
+
+/// Asserts that frame `fa` of `a` and frame `fb` of `b` have the same views, image sizes and depth
+/// presence ([`pair_frame`]) and identical images, colour and depth.
+pub fn assert_same_frame(label: &str, a: &RunOutput, fa: u64, b: &RunOutput, fb: u64) {
+    let pairs = views_to_compare(label, a, fa, b, fb);
+    compare_views(label, a, b, &pairs, DepthCheck::Compare);
+}
+
+/// [`pair_frame`] of two runs' frames, for a comparison written by hand (pixel rules other than
+/// equality): panics when the frames cannot be compared view by view, so such a loop never runs
+/// over fewer views than were captured, or over none.
+pub fn views_to_compare<'a>(label: &str, a: &'a RunOutput, fa: u64, b: &'a RunOutput, fb: u64) -> Vec<(&'a View, &'a View)> {
+    pair_frame(a.frames(), fa, b.frames(), fb, DepthCheck::Compare)
+        .unwrap_or_else(|e| panic!("{label}: frame {fa} of {} (left) and frame {fb} of {} (right) cannot be compared: {e}", a.name, b.name))
+}
+
+fn compare_views(label: &str, a: &RunOutput, b: &RunOutput, pairs: &[(&View, &View)], depth: DepthCheck) {
+    for (va, vb) in pairs {
+        let name = format!("{label}-view{}", va.view);
+        image::assert_identical(&name, &a.image(&va.file), &b.image(&vb.file));
+        if let (DepthCheck::Compare, Some(da), Some(db)) = (depth, &va.depth, &vb.depth) {
+            image::assert_identical(&format!("{name}-depth"), &a.image(&da.file), &b.image(&db.file));
+        }
+    }
+}
+
+/// Asserts that two runs' `--stats` report the same shaded fragments per frame and view. Fails
+/// when either run has no stats, no frame in them, or a frame without views: two empty reports are
+/// equal and prove nothing.
+pub fn assert_same_stats(label: &str, a: &RunOutput, b: &RunOutput) {
+    for o in [a, b] {
+        let stats = o.stats.as_ref().unwrap_or_else(|| panic!("{label}: {} wrote no stats", o.name));
+        assert!(!stats.frames.is_empty(), "{label}: {}'s stats have no frame", o.name);
+        assert!(stats.frames.iter().all(|f| !f.views.is_empty()), "{label}: {}'s stats have a frame without views: {stats:?}", o.name);
+    }
+    assert_eq!(a.stats, b.stats, "{label}: shaded fragments differ (left {}, right {})", a.name, b.name);
+}
+
+/// Which half of the layer a log assertion is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Half {
+    /// The OpenXR API layer: it logged the instance it created for the app.
+    OpenXr,
+    /// The Vulkan layer: it logged a device it is in the chain of (where it sees the app's passes).
+    Vulkan,
+    Both,
+}
+
+/// The line the OpenXR half writes when `xrCreateApiLayerInstance` succeeded:
+/// `<target>: instance 0x… for app "…"` (src/xr/instance.rs), also when disabled by config. The
+/// message is matched where the log format puts it, right after `<target>: `, so a line that only
+/// mentions it does not count.
+fn xr_half_loaded(line: &str) -> bool {
+    line.contains(": instance 0x") && line.contains(" for app ")
+}
+
+/// The message the Vulkan half logs for every device it is in the chain of (src/vk/chain.rs), as
+/// it starts after `<target>: ` (a warning that quotes it, `see "vulkan device created"`, does
+/// not count).
+const VK_HALF_LOADED: &str = ": vulkan device created";
+
+/// `Ok` when `log` (a run's layer log) shows that `half` loaded; else why not. An assertion that a
+/// line is absent from the log means nothing unless this holds: a run the layer never loaded into
+/// has an empty log, which lacks every line.
+pub fn layer_loaded(log: &str, half: Half) -> Result<(), String> {
+    let xr = log.lines().any(xr_half_loaded);
+    let vk = log.lines().any(|l| l.contains(VK_HALF_LOADED));
+    let missing: Vec<&str> = [
+        (matches!(half, Half::OpenXr | Half::Both) && !xr, "the OpenXR half (no `instance 0x… for app` line)"),
+        (matches!(half, Half::Vulkan | Half::Both) && !vk, "the Vulkan half (no `vulkan device created` line)"),
+    ]
+    .into_iter()
+    .filter_map(|(m, what)| m.then_some(what))
+    .collect();
+    if missing.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("the layer did not load: {}; log:\n{log}", missing.join(", ")))
+    }
+}
+
+/// `Ok` when `half` loaded ([`layer_loaded`]) and no line of `log` contains `needle`.
+pub fn log_lacks(log: &str, half: Half, needle: &str) -> Result<(), String> {
+    layer_loaded(log, half)?;
+    let found: Vec<&str> = log.lines().filter(|l| l.contains(needle)).collect();
+    if found.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("{} log line(s) contain {needle:?}, first: {}\nlog:\n{log}", found.len(), found[0]))
     }
 }
 
@@ -279,10 +464,12 @@ impl RunOutput {
     pub fn frame(&self, n: u64) -> &Frame {
         self.frames().frames.iter().find(|f| f.frame == n).unwrap_or_else(|| panic!("{}: frame {n} not captured", self.name))
     }
-    /// The projection views of captured frame `n`, in view order.
+    /// The projection views of captured frame `n` (its first projection layer), in view order;
+    /// never empty (a loop over them must not pass by running zero times).
     pub fn views(&self, n: u64) -> Vec<&View> {
         let frame = self.frame(n);
-        let layer = frame.layers.iter().find(|l| l.kind == "projection").expect("a projection layer");
+        let layer = frame.layers.iter().find(|l| l.kind == "projection").unwrap_or_else(|| panic!("{}: frame {n} has no projection layer", self.name));
+        assert!(!layer.views.is_empty(), "{}: frame {n}'s projection layer has no view", self.name);
         layer.views.iter().collect()
     }
     /// `--pixel-stats` of frame `n`, view `view`: shaded fragments per pixel of the view's image
@@ -295,6 +482,28 @@ impl RunOutput {
         let expected = v.image_rect.width as usize * v.image_rect.height as usize * 4;
         assert_eq!(bytes.len(), expected, "{}: {} has {} bytes, not width × height × 4", self.name, path.display(), bytes.len());
         bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+    }
+    /// Asserts that `half` of the layer loaded in this run ([`layer_loaded`]).
+    pub fn assert_layer_loaded(&self, half: Half) -> &Self {
+        if let Err(e) = layer_loaded(&self.log, half) {
+            panic!("{}: {e}", self.name);
+        }
+        self
+    }
+    /// Asserts that `half` of the layer loaded and that no line of its log contains `needle`
+    /// ([`log_lacks`]): every assertion that something is absent from the log goes through here,
+    /// so none can pass because the layer never ran.
+    pub fn assert_log_lacks(&self, half: Half, needle: &str) -> &Self {
+        if let Err(e) = log_lacks(&self.log, half, needle) {
+            panic!("{}: {e}", self.name);
+        }
+        self
+    }
+    /// Asserts that the layer did not load at all in this run (it wrote no log): for runs that
+    /// keep it out on purpose.
+    pub fn assert_layer_not_loaded(&self) -> &Self {
+        assert!(self.log.is_empty(), "{}: the layer was meant to stay out but logged:\n{}", self.name, self.log);
+        self
     }
     /// Log lines containing `needle`.
     pub fn log_lines(&self, needle: &str) -> Vec<&str> {

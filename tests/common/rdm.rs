@@ -103,7 +103,11 @@ pub struct Expected {
 /// saved under `test-artifacts/{name}-view{V}`). Both runs need `--pixel-stats`.
 pub fn check_frame(name: &str, plain: &RunOutput, rdm: &RunOutput, frame: u64, expected: &Expected) -> Result<Vec<ViewResult>, String> {
     let mut out = Vec::new();
-    for (a, b) in rdm.views(frame).iter().zip(plain.views(frame)) {
+    // Every view both runs captured, or an error: a frame that cannot be compared view by view
+    // (missing, different views or sizes) never passes by comparing less.
+    let pairs = super::pair_frame(rdm.frames(), frame, plain.frames(), frame, super::DepthCheck::Compare)
+        .map_err(|e| format!("{name}: frame {frame} of {} and {} cannot be compared: {e}", rdm.name, plain.name))?;
+    for (a, b) in pairs {
         let (w, h) = (a.image_rect.width, a.image_rect.height);
         let center = expected.center;
         let fovea = FoveaView { view: a.view, center, inner_deg: expected.inner_deg, middle_deg: expected.middle_deg };

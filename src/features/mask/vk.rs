@@ -51,7 +51,7 @@ impl Geometry {
     fn of(views: &Views) -> Geometry {
         let mut ndc = BTreeMap::new();
         for m in &views.masks {
-            let Some(fov) = views.fovs.get(m.view as usize) else { continue };
+            let Some(fov) = views.app_fovs.get(m.view as usize) else { continue };
             let t = rules::triangles_to_ndc(&m.triangles, fov);
             if !t.is_empty() {
                 ndc.insert(m.view, t);

@@ -101,6 +101,34 @@ pub(in crate::vk) unsafe extern "system" fn cmd_push_constants(
     })
 }
 
+#[allow(clippy::too_many_arguments)]
+pub(in crate::vk) unsafe extern "system" fn cmd_bind_descriptor_sets(
+    cb: vk::CommandBuffer,
+    bind_point: vk::PipelineBindPoint,
+    layout: vk::PipelineLayout,
+    first: u32,
+    n: u32,
+    sets: *const vk::DescriptorSet,
+    n_dynamic: u32,
+    dynamic_offsets: *const u32,
+) {
+    cmd(
+        "vkCmdBindDescriptorSets",
+        cb,
+        (),
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d| unsafe { (d.fns.fp_v1_0().cmd_bind_descriptor_sets)(cb, bind_point, layout, first, n, sets, n_dynamic, dynamic_offsets) },
+        |d, cb| {
+            if bind_point == vk::PipelineBindPoint::GRAPHICS {
+                // SAFETY: arrays valid with their counts during the app's call.
+                let (sets, dynamic_offsets) = unsafe { (convert::slice(sets, n), convert::slice(dynamic_offsets, n_dynamic)) };
+                let sets = sets.iter().map(|s| s.as_raw()).collect();
+                state(d, cb, StateCmd::BindDescriptorSets { layout: layout.as_raw(), first, sets, dynamic_offsets: dynamic_offsets.to_vec() })
+            }
+        },
+    )
+}
+
 /// Hooks for dynamic-state commands: call down unchanged, record one `StateCmd`.
 macro_rules! state_hook {
     ($name:ident, $call:literal, ($cb:ident, $($arg:ident : $ty:ty),*), |$d:ident| $next:expr, $cmd:expr) => {

@@ -43,6 +43,8 @@ pub(crate) struct Injection<'a> {
     pub counts: bool,
     /// The app's command buffer the draws end up in (holds are taken on it).
     pub owner: u64,
+    /// Set by a feature that bound descriptor sets: the app's are rebound afterwards.
+    pub bound_sets: std::cell::Cell<bool>,
 }
 
 /// An injection waiting for the app's vkCmdExecuteCommands.
@@ -86,6 +88,7 @@ impl InjectDevice {
 struct Snapshot {
     pass: PassInstance,
     restore: Vec<StateCmd>,
+    sets: Vec<StateCmd>,
     secondary_level: bool,
     explicit_clear: Option<f32>,
     veto: Option<&'static str>,
@@ -121,7 +124,7 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
         if let Trigger::Clear { depth, .. } = &trigger {
             explicit_clear = Some(*depth);
         }
-        Some(Snapshot { pass, restore: s.restore_commands(), secondary_level, explicit_clear, veto: s.veto })
+        Some(Snapshot { pass, restore: s.restore_commands(), sets: s.descriptor_set_commands(), secondary_level, explicit_clear, veto: s.veto })
     });
     let Some(Some(snap)) = snap else { return };
     if !matches!(trigger, Trigger::Clear { .. }) {
@@ -245,8 +248,9 @@ fn veto(d: &DeviceState, settings: &Settings, counts: bool, reason: &'static str
 /// secondaries set their own state).
 #[allow(clippy::too_many_arguments)]
 fn inject(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, plan: &MaskPlan, settings: &Settings, counts: bool, restore: bool) {
-    let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore));
-    let at = Injection { cb, pass: &snap.pass, plan, settings, counts, owner };
+    let at = Injection { cb, pass: &snap.pass, plan, settings, counts, owner, bound_sets: Default::default() };
+    // Dropped last: the app's state goes back after every feature's draws.
+    let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore, &snap.sets, &at.bound_sets));
     for f in d.features.all() {
         if f.injects(settings) {
             f.inject(d, &at);

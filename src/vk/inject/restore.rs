@@ -1,5 +1,6 @@
 //! Save and restore of the app's state around the layer's injected draws: the tracked state
-//! (`CmdState::restore_commands`: pipeline, dynamic state, push constants, vertex buffers) is
+//! (`CmdState::restore_commands`: pipeline, dynamic state, push constants, vertex buffers; and
+//! the app's descriptor sets when a feature bound sets of its own, `Injection::bound_sets`) is
 //! replayed when the `Restore` guard drops, so every path out of an injection — success, a
 //! feature's failure, an early return — gives the app back the state it set. State the layer
 //! cannot restore vetoes the injection before anything is recorded (`CmdState::veto`).
@@ -13,19 +14,23 @@ pub(crate) struct Restore<'a> {
     d: &'a DeviceState,
     cb: vk::CommandBuffer,
     commands: &'a [StateCmd],
+    sets: &'a [StateCmd],
+    bound_sets: &'a std::cell::Cell<bool>,
 }
 
 impl<'a> Restore<'a> {
-    /// `cb` must be recording inside the app's pass, with `commands` taken from its tracked state
-    /// when the injection point was reached.
-    pub(crate) fn new(d: &'a DeviceState, cb: vk::CommandBuffer, commands: &'a [StateCmd]) -> Restore<'a> {
-        Restore { d, cb, commands }
+    /// `cb` must be recording inside the app's pass, with `commands` and `sets` taken from its
+    /// tracked state when the injection point was reached; `bound_sets` says (when dropped)
+    /// whether an injected draw bound descriptor sets.
+    pub(crate) fn new(d: &'a DeviceState, cb: vk::CommandBuffer, commands: &'a [StateCmd], sets: &'a [StateCmd], bound_sets: &'a std::cell::Cell<bool>) -> Restore<'a> {
+        Restore { d, cb, commands, sets, bound_sets }
     }
 }
 
 impl Drop for Restore<'_> {
     fn drop(&mut self) {
-        for c in self.commands {
+        let sets = if self.bound_sets.get() { self.sets } else { &[] };
+        for c in self.commands.iter().chain(sets) {
             // SAFETY: `cb` is recording inside the app's pass (`new`'s contract); the commands
             // replay the app's own state, whose handles are alive while it records.
             unsafe { replay(self.d, self.cb, c) };
@@ -106,6 +111,19 @@ pub(crate) unsafe fn replay(d: &DeviceState, cb: vk::CommandBuffer, c: &StateCmd
             }
             StateCmd::PushConstants { layout, stages, offset, data } => {
                 (v0.cmd_push_constants)(cb, vk::PipelineLayout::from_raw(*layout), *stages, *offset, data.len() as u32, data.as_ptr().cast())
+            }
+            StateCmd::BindDescriptorSets { layout, first, sets, dynamic_offsets } => {
+                let sets: Vec<vk::DescriptorSet> = sets.iter().map(|s| vk::DescriptorSet::from_raw(*s)).collect();
+                (v0.cmd_bind_descriptor_sets)(
+                    cb,
+                    vk::PipelineBindPoint::GRAPHICS,
+                    vk::PipelineLayout::from_raw(*layout),
+                    *first,
+                    sets.len() as u32,
+                    sets.as_ptr(),
+                    dynamic_offsets.len() as u32,
+                    dynamic_offsets.as_ptr(),
+                )
             }
             StateCmd::BindVertexBuffers { first, bindings } => {
                 let buffers: Vec<vk::Buffer> = bindings.iter().map(|b| vk::Buffer::from_raw(b.buffer)).collect();

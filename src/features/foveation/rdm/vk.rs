@@ -159,7 +159,7 @@ fn params_now(eyes: &[EyeDraw]) -> Result<EyeParams, NotApplied> {
     let mut out = Vec::new();
     for dr in eyes {
         let f = fovea.views.iter().find(|f| f.view == dr.view).ok_or(NotApplied::NoFovea)?;
-        let fov = views.fovs.get(dr.view as usize).ok_or(NotApplied::NoFovea)?;
+        let fov = views.app_fovs.get(dr.view as usize).ok_or(NotApplied::NoFovea)?;
         out.push((*dr, RdmParams::new(fov, f, dr.viewport).ok_or(NotApplied::NoFovea)?));
     }
     if out.is_empty() {

@@ -305,7 +305,7 @@ fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: bool, app_f
     let view_mask = pass.view_mask();
     let mut eyes = Vec::new();
     let eye = |layer: u32, s: &eye_pass::EyeSource| -> Result<EyeRates, NotApplied> {
-        let fov = *views.fovs.get(s.view as usize).ok_or(NotApplied::NoFovea)?;
+        let fov = *views.app_fovs.get(s.view as usize).ok_or(NotApplied::NoFovea)?;
         let f = *fovea.views.iter().find(|f| f.view == s.view).ok_or(NotApplied::NoFovea)?;
         Ok(EyeRates { layer, rect: s.rect, fov, fovea: f })
     };
