@@ -289,14 +289,14 @@ fn run_hello_xr(r: &Run, plugin: &str) -> RunOutput {
     // teardown, with or without the layer); the frames are captured by then, so a run that stalls
     // there is ended and judged on its captures, and says so.
     let limit = std::time::Duration::from_secs(45);
-    let (status, stalled) = loop {
+    let (status, signal, stalled) = loop {
         if let Some(s) = child.try_wait().expect("wait for hello_xr") {
-            break (s.code(), false);
+            break (s.code(), std::os::unix::process::ExitStatusExt::signal(&s), false);
         }
         if started.elapsed() > limit {
             let _ = child.kill();
             let _ = child.wait();
-            break (None, true);
+            break (None, None, true);
         }
         std::thread::sleep(std::time::Duration::from_millis(50));
     };
@@ -316,5 +316,5 @@ fn run_hello_xr(r: &Run, plugin: &str) -> RunOutput {
         (false, false) => status,
     };
     let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
-    RunOutput { name: r.name.clone(), code, stderr: text, capture, frames, stats: None, elapsed: started.elapsed(), log }
+    RunOutput { name: r.name.clone(), code, signal, stderr: text, capture, frames, stats: None, elapsed: started.elapsed(), log }
 }

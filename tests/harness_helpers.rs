@@ -123,6 +123,7 @@ fn run_output(name: &str, frames_spec: &[(u64, &[ViewSpec])], colour: u16) -> Ru
     RunOutput {
         name: name.into(),
         code: Some(0),
+        signal: None,
         stderr: String::new(),
         capture,
         frames: Some(frames),

@@ -113,7 +113,7 @@ fn run(name: &str, plugin: &str, layer: bool, env: &[(&str, &str)]) -> HelloRun 
         .map(|t| t.lines().map(|l| serde_json::from_str(l).expect("stats line parses")).collect())
         .unwrap_or_default();
     let validation_errors = output.lines().filter(|l| l.contains("Validation Error")).map(str::to_string).collect();
-    let out = RunOutput { name: name.to_string(), code: status.code(), stderr: output, capture, frames, stats: None, elapsed: started.elapsed(), log };
+    let out = RunOutput { name: name.to_string(), code: status.code(), signal: std::os::unix::process::ExitStatusExt::signal(&status), stderr: output, capture, frames, stats: None, elapsed: started.elapsed(), log };
     HelloRun { out, stats, validation_errors }
 }
 

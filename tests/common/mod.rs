@@ -3,6 +3,7 @@
 #![allow(dead_code)] // each test binary uses a different subset
 
 pub mod image;
+pub mod rdm;
 
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -108,12 +109,55 @@ impl Run {
     }
 
     pub fn run(&self) -> RunOutput {
+        let (dir, mut cmd) = self.prepare();
+        let started = std::time::Instant::now();
+        let out = cmd.output().expect("spawn xr-scene");
+        let elapsed = started.elapsed();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        self.collect(&dir, out.status, stderr, elapsed)
+    }
+
+    /// Like [`Run::run`], but calls `during(run dir)` every few milliseconds while the app runs,
+    /// e.g. to rewrite the layer's config file ([`Run::config_file`]) after some frames. The app
+    /// is killed (and the test fails) if it runs longer than `limit`.
+    pub fn run_while(&self, limit: std::time::Duration, mut during: impl FnMut(&Path)) -> RunOutput {
+        let (dir, mut cmd) = self.prepare();
+        // To a file, not a pipe: nobody reads a pipe while the app runs, and a full one would
+        // block it.
+        let stderr_path = dir.join("stderr.txt");
+        cmd.stdout(std::process::Stdio::null()).stderr(std::fs::File::create(&stderr_path).expect("stderr file"));
+        let started = std::time::Instant::now();
+        let mut child = cmd.spawn().expect("spawn xr-scene");
+        let status = loop {
+            if let Some(status) = child.try_wait().expect("wait for xr-scene") {
+                break status;
+            }
+            if started.elapsed() > limit {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!("{}: xr-scene still running after {limit:?}; stderr:\n{}", self.name, std::fs::read_to_string(&stderr_path).unwrap_or_default());
+            }
+            during(&dir);
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        };
+        let elapsed = started.elapsed();
+        let stderr = std::fs::read_to_string(&stderr_path).unwrap_or_default();
+        self.collect(&dir, status, stderr, elapsed)
+    }
+
+    /// The layer's config file of a run in `dir` (`$XDG_CONFIG_HOME/stereoshim/config.toml`).
+    pub fn config_file(dir: &Path) -> PathBuf {
+        dir.join("config/stereoshim/config.toml")
+    }
+
+    /// The run's fresh folder and the app's command, ready to start.
+    fn prepare(&self) -> (PathBuf, Command) {
         let dir = output_dir(&self.name);
         let capture = dir.join("capture");
         let stats = dir.join("stats.json");
         if let Some(text) = &self.config_toml {
             std::fs::create_dir_all(dir.join("config/stereoshim")).unwrap();
-            std::fs::write(dir.join("config/stereoshim/config.toml"), text).unwrap();
+            std::fs::write(Run::config_file(&dir), text).unwrap();
         }
         let mut cmd = match self.wrapper.split_first() {
             Some((program, rest)) => {
@@ -134,19 +178,22 @@ impl Run {
         for (k, v) in &self.env {
             cmd.env(k, v);
         }
-        let started = std::time::Instant::now();
-        let out = cmd.output().expect("spawn xr-scene");
-        let elapsed = started.elapsed();
-        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        (dir, cmd)
+    }
+
+    /// Reads what a finished run left in `dir`.
+    fn collect(&self, dir: &Path, status: std::process::ExitStatus, stderr: String, elapsed: std::time::Duration) -> RunOutput {
+        use std::os::unix::process::ExitStatusExt;
+        let capture = dir.join("capture");
         std::fs::write(dir.join("stderr.txt"), &stderr).ok();
         let frames = std::fs::read(capture.join("frames.json"))
             .ok()
             .map(|b| serde_json::from_slice::<Frames>(&b).expect("frames.json parses"));
-        let stats = std::fs::read(&stats)
+        let stats = std::fs::read(dir.join("stats.json"))
             .ok()
             .map(|b| serde_json::from_slice::<Stats>(&b).expect("stats.json parses"));
         let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
-        RunOutput { name: self.name.clone(), code: out.status.code(), stderr, capture, frames, stats, elapsed, log }
+        RunOutput { name: self.name.clone(), code: status.code(), signal: status.signal(), stderr, capture, frames, stats, elapsed, log }
     }
 }
 
@@ -394,6 +441,8 @@ pub fn layer_manifest_dir() -> PathBuf {
 pub struct RunOutput {
     pub name: String,
     pub code: Option<i32>,
+    /// The signal that killed the app, if one did (then `code` is None).
+    pub signal: Option<i32>,
     pub stderr: String,
     pub capture: PathBuf,
     pub frames: Option<Frames>,

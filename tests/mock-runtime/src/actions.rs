@@ -1,6 +1,7 @@
 //! Minimal action system: enough of xrCreateActionSet … xrSyncActions … xrGetActionState* and
 //! action spaces for an app's menu button and eye gaze (XR_EXT_eye_gaze_interaction), with the
-//! spec's errors for misuse. Input is scripted by MOCK_XR_MENU_CLICK_AT and MOCK_XR_GAZE.
+//! spec's errors for misuse. Input is scripted by MOCK_XR_MENU_CLICK_AT and MOCK_XR_GAZE (or
+//! MOCK_XR_GAZE_PATH, a gaze that moves with the frame number).
 //! Suggested bindings are checked against every interaction profile of the spec (profiles.rs),
 //! so real apps that suggest several profiles run; only the simple controller and eye gaze are
 //! driven, bindings to the others are accepted and stay inactive.
@@ -211,13 +212,15 @@ fn attached_to(sa: &SessionActions, set: u64) -> bool {
 /// The pose of an action space's action in STAGE, None when not locatable.
 pub fn action_pose(s: &Session, action: u64, sub: u64) -> Option<Pose> {
     let a = ACTIONS.get(action).ok()?;
+    // Taken before the actions lock: xrSyncActions takes the core lock first, then that one.
+    let frame = s.core.lock().unwrap().frames_ended;
     let sa = s.actions.lock().unwrap();
     if !sa.states.get(&(action, sub)).is_some_and(|st| st.active) {
         return None;
     }
     let src = bound_sources(s, &sa, &a, sub).into_iter().next()?;
     if src == GAZE_POSE {
-        let (yaw, pitch) = s.instance.cfg.gaze?;
+        let (yaw, pitch) = s.instance.cfg.gaze.as_ref()?.at(frame);
         // yaw > 0 looks right (a negative turn about +y), pitch > 0 looks up.
         let q = Quat::from_rotation_y(-yaw.to_radians()) * Quat::from_rotation_x(pitch.to_radians());
         return Some(head_pose().mul(&Pose::new(Vec3::ZERO, q)));

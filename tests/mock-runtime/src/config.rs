@@ -70,8 +70,8 @@ pub struct Config {
     pub capture_dir: Option<std::path::PathBuf>,
     pub capture_frames: Option<FrameList>,
     pub exit_after: Option<u64>,
-    /// (yaw, pitch) in degrees.
-    pub gaze: Option<(f32, f32)>,
+    /// Where the eyes look (`MOCK_XR_GAZE` or `MOCK_XR_GAZE_PATH`); None: not tracking.
+    pub gaze: Option<Gaze>,
     pub eye_tracker: bool,
     pub disabled_extensions: HashSet<String>,
     pub mask_change_at: Option<u64>,
@@ -103,6 +103,55 @@ pub fn parse_gaze(s: &str) -> Result<(f32, f32), String> {
     Ok((y, p))
 }
 
+/// The eye tracker's gaze: fixed (`MOCK_XR_GAZE=yaw,pitch`) or moving deterministically with the
+/// frame number (`MOCK_XR_GAZE_PATH=yaw,pitch;yaw,pitch;…`, each point held for
+/// `MOCK_XR_GAZE_HOLD` frames, then the next, cycling), so tests know the gaze of every frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Gaze {
+    /// (yaw, pitch) in degrees.
+    Fixed(f32, f32),
+    /// Points (yaw, pitch) in degrees; frame f shows `points[(f / hold) % len]`.
+    Path { points: Vec<(f32, f32)>, hold: u64 },
+}
+
+impl Gaze {
+    /// (yaw, pitch) in degrees while frame `frame` is rendered (the session's count of successful
+    /// `xrEndFrame`s).
+    pub fn at(&self, frame: u64) -> (f32, f32) {
+        match self {
+            Gaze::Fixed(y, p) => (*y, *p),
+            Gaze::Path { points, hold } => points[((frame / hold) % points.len() as u64) as usize],
+        }
+    }
+
+    /// Reads `MOCK_XR_GAZE`, `MOCK_XR_GAZE_PATH` and `MOCK_XR_GAZE_HOLD` (given as values, so
+    /// tests need not touch the environment). A fixed and a moving gaze together, or a hold
+    /// without a path, are errors rather than a silently different test.
+    pub fn parse(fixed: Option<&str>, path: Option<&str>, hold: Option<&str>) -> Result<Option<Gaze>, String> {
+        let hold = hold
+            .map(|h| h.trim().parse::<u64>().ok().filter(|&n| n > 0).ok_or_else(|| format!("MOCK_XR_GAZE_HOLD={h:?}: want a frame count > 0")))
+            .transpose()?;
+        match (fixed, path, hold) {
+            (Some(_), Some(_), _) => Err("MOCK_XR_GAZE and MOCK_XR_GAZE_PATH exclude each other".into()),
+            (_, None, Some(_)) => Err("MOCK_XR_GAZE_HOLD needs MOCK_XR_GAZE_PATH".into()),
+            (Some(f), None, None) => parse_gaze(f).map(|(y, p)| Some(Gaze::Fixed(y, p))),
+            (None, None, None) => Ok(None),
+            (None, Some(path), hold) => {
+                let points = path
+                    .split(';')
+                    .map(str::trim)
+                    .filter(|p| !p.is_empty())
+                    .map(|p| parse_gaze(p).map_err(|e| format!("MOCK_XR_GAZE_PATH={path:?}: {e}")))
+                    .collect::<Result<Vec<_>, _>>()?;
+                if points.is_empty() {
+                    return Err(format!("MOCK_XR_GAZE_PATH={path:?}: no points"));
+                }
+                Ok(Some(Gaze::Path { points, hold: hold.unwrap_or(1) }))
+            }
+        }
+    }
+}
+
 impl Config {
     /// Reads the environment. A malformed variable is an error (xrCreateInstance fails) rather
     /// than a silently different test.
@@ -118,7 +167,7 @@ impl Config {
                 .map(|s| FrameList::parse(&s))
                 .transpose()?,
             exit_after: parse_u64("MOCK_XR_EXIT_AFTER")?,
-            gaze: var("MOCK_XR_GAZE").map(|s| parse_gaze(&s)).transpose()?,
+            gaze: Gaze::parse(var("MOCK_XR_GAZE").as_deref(), var("MOCK_XR_GAZE_PATH").as_deref(), var("MOCK_XR_GAZE_HOLD").as_deref())?,
             eye_tracker: var("MOCK_XR_EYE_TRACKER").is_none_or(|v| v.trim() != "0"),
             disabled_extensions: var("MOCK_XR_DISABLE_EXTENSIONS")
                 .map(|s| s.split(',').map(|e| e.trim().to_string()).filter(|e| !e.is_empty()).collect())
@@ -209,5 +258,27 @@ mod tests {
         assert_eq!(parse_gaze("10,-5").unwrap(), (10.0, -5.0));
         assert!(parse_gaze("10").is_err());
         assert!(parse_gaze("0,95").is_err());
+        assert_eq!(Gaze::parse(Some("10,-5"), None, None).unwrap(), Some(Gaze::Fixed(10.0, -5.0)));
+        assert_eq!(Gaze::parse(None, None, None).unwrap(), None);
+    }
+
+    #[test]
+    fn gaze_path_moves_with_the_frame_number() {
+        let g = Gaze::parse(None, Some("0,0; 12,-6 ;-10,8"), Some("3")).unwrap().unwrap();
+        let seen: Vec<(f32, f32)> = (0..10).map(|f| g.at(f)).collect();
+        let (a, b, c) = ((0.0, 0.0), (12.0, -6.0), (-10.0, 8.0));
+        assert_eq!(seen, [a, a, a, b, b, b, c, c, c, a], "each point held 3 frames, then the next, cycling");
+        // Hold defaults to one frame; a fixed gaze never moves.
+        let g = Gaze::parse(None, Some("1,2;3,4"), None).unwrap().unwrap();
+        assert_eq!((0..4).map(|f| g.at(f)).collect::<Vec<_>>(), [(1.0, 2.0), (3.0, 4.0), (1.0, 2.0), (3.0, 4.0)]);
+        assert_eq!(Gaze::Fixed(5.0, 6.0).at(1234), (5.0, 6.0));
+        // Misuse is an error, not a different gaze.
+        assert!(Gaze::parse(Some("1,2"), Some("1,2;3,4"), None).is_err(), "fixed and moving together");
+        assert!(Gaze::parse(Some("1,2"), None, Some("3")).is_err(), "hold without a path");
+        assert!(Gaze::parse(None, Some("1,2;3"), None).is_err(), "a point without pitch");
+        assert!(Gaze::parse(None, Some("1,2;0,95"), None).is_err(), "pitch out of range");
+        assert!(Gaze::parse(None, Some(" ; "), None).is_err(), "no points");
+        assert!(Gaze::parse(None, Some("1,2"), Some("0")).is_err(), "hold 0");
+        assert!(Gaze::parse(None, Some("1,2"), Some("x")).is_err(), "hold not a number");
     }
 }

@@ -447,6 +447,56 @@ fn actions_menu_click_and_gaze() {
     assert!((fwd.y.asin().to_degrees() - 5.0).abs() < 0.01, "pitch {fwd}");
 }
 
+/// `MOCK_XR_GAZE_PATH` + `MOCK_XR_GAZE_HOLD`: the gaze located during frame f (after f
+/// successful xrEndFrame calls) is the path's point (f / hold) mod len, whatever the locate time.
+#[test]
+fn gaze_path_moves_with_the_frame_number() {
+    let _g = serial();
+    std::env::set_var("MOCK_XR_GAZE_PATH", "10,5;-20,0");
+    std::env::set_var("MOCK_XR_GAZE_HOLD", "2");
+    let fx = fixture(&["XR_KHR_vulkan_enable2", "XR_EXT_eye_gaze_interaction"]);
+    let (x, s) = (fx.xr(), fx.session);
+    let set = action_set(x);
+    let gaze = action(x, set, "gaze", xr::ActionType::POSE_INPUT, &[]);
+    let suggest: pfn::SuggestInteractionProfileBindings = x.f("xrSuggestInteractionProfileBindings");
+    let b = [xr::ActionSuggestedBinding { action: gaze, binding: path(x, "/user/eyes_ext/input/gaze_ext/pose") }];
+    let info = xr::InteractionProfileSuggestedBinding { ty: xr::InteractionProfileSuggestedBinding::TYPE, next: std::ptr::null(), interaction_profile: path(x, "/interaction_profiles/ext/eye_gaze_interaction"), count_suggested_bindings: 1, suggested_bindings: b.as_ptr() };
+    let attach: pfn::AttachSessionActionSets = x.f("xrAttachSessionActionSets");
+    let sets = [set];
+    let ai = xr::SessionActionSetsAttachInfo { ty: xr::SessionActionSetsAttachInfo::TYPE, next: std::ptr::null(), count_action_sets: 1, action_sets: sets.as_ptr() };
+    let space_f: pfn::CreateActionSpace = x.f("xrCreateActionSpace");
+    let asci = xr::ActionSpaceCreateInfo { ty: xr::ActionSpaceCreateInfo::TYPE, next: std::ptr::null(), action: gaze, subaction_path: xr::Path::NULL, pose_in_action_space: identity_pose() };
+    let mut gaze_space = xr::Space::NULL;
+    // SAFETY: valid arguments.
+    unsafe {
+        assert_eq!(suggest(x.instance, &info), xr::Result::SUCCESS);
+        assert_eq!(attach(s, &ai), xr::Result::SUCCESS);
+        assert_eq!(space_f(s, &asci, &mut gaze_space), xr::Result::SUCCESS);
+    }
+    let view = reference_space(x, s, xr::ReferenceSpaceType::VIEW);
+    assert_eq!(begin_session(x, s), xr::Result::SUCCESS);
+    let sync: pfn::SyncActions = x.f("xrSyncActions");
+    let active = [xr::ActiveActionSet { action_set: set, subaction_path: xr::Path::NULL }];
+    let si = xr::ActionsSyncInfo { ty: xr::ActionsSyncInfo::TYPE, next: std::ptr::null(), count_active_action_sets: 1, active_action_sets: active.as_ptr() };
+    let locate: pfn::LocateSpace = x.f("xrLocateSpace");
+    let mut seen = Vec::new();
+    for _ in 0..5 {
+        let (_, fst) = wait_frame(x, s);
+        assert_eq!(begin_frame(x, s), xr::Result::SUCCESS);
+        let mut loc = xr::SpaceLocation { ty: xr::SpaceLocation::TYPE, next: std::ptr::null_mut(), location_flags: xr::SpaceLocationFlags::EMPTY, pose: identity_pose() };
+        // SAFETY: valid arguments.
+        unsafe {
+            assert_eq!(sync(s, &si), xr::Result::SUCCESS);
+            assert_eq!(locate(gaze_space, view, fst.predicted_display_time, &mut loc), xr::Result::SUCCESS);
+        }
+        let o = loc.pose.orientation;
+        let fwd = glam::Quat::from_xyzw(o.x, o.y, o.z, o.w) * glam::Vec3::NEG_Z;
+        seen.push((fwd.x.atan2(-fwd.z).to_degrees().round(), fwd.y.asin().to_degrees().round()));
+        assert_eq!(end_frame(x, s, fst.predicted_display_time, &[]), xr::Result::SUCCESS);
+    }
+    assert_eq!(seen, [(10.0, 5.0), (10.0, 5.0), (-20.0, 0.0), (-20.0, 0.0), (10.0, 5.0)]);
+}
+
 /// frames.json's `visibility_masks` of each captured frame, per view: the hidden triangles' points.
 fn captured_masks(dir: &std::path::Path) -> Vec<Vec<Vec<[f32; 2]>>> {
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("frames.json")).unwrap()).unwrap();

@@ -96,6 +96,17 @@ pub struct Options {
     /// `--pixel-stats DIR`: per frame and view, shaded fragments per pixel of the view's rect.
     pub pixel_stats: Option<PathBuf>,
     pub validation: bool,
+    /// `--record-once`: each combination of acquired swapchain images gets its command buffers
+    /// recorded the first time it is needed and resubmitted unchanged ever after; per-frame data
+    /// reaches them only through memory they read.
+    pub record_once: bool,
+    /// `--rerecord-every N` (with `--record-once`): every N-th frame (N, 2N, …) re-records the
+    /// frame set it submits, as engines do that re-record when something changed; the other sets
+    /// keep running what they were recorded with.
+    pub rerecord_every: Option<u64>,
+    /// `--sync-hazard`: leave out the barrier between the counters' fill and the fragment shader's
+    /// atomics, a hazard only synchronization validation reports (proves that it is on).
+    pub sync_hazard: bool,
 }
 
 impl Default for Options {
@@ -121,6 +132,9 @@ impl Default for Options {
             stats: None,
             pixel_stats: None,
             validation: false,
+            record_once: false,
+            rerecord_every: None,
+            sync_hazard: false,
         }
     }
 }
@@ -152,7 +166,15 @@ usage: xr-scene [options]
   --stats FILE                              write per-frame GPU time and shaded fragments as JSON
   --pixel-stats DIR                         write per frame and view the shaded fragments of each pixel
                                             (DIR/frame-NNNNN-view-V.u32, raw little-endian u32)
-  --validation                              enable VK_LAYER_KHRONOS_validation (exit 3 on errors)
+  --validation                              enable VK_LAYER_KHRONOS_validation with synchronization
+                                            validation (exit 3 on errors)
+  --record-once                             record each combination of acquired swapchain images'
+                                            command buffers once and resubmit them every frame
+                                            (per-frame data in per-frame-in-flight buffers)
+  --rerecord-every N                        with --record-once: every N-th frame re-records the
+                                            command buffers it submits (the others stay as recorded)
+  --sync-hazard                             leave out one barrier (counters' fill -> fragment shader):
+                                            a hazard only synchronization validation reports
   --help                                    show this text";
 
 /// Parses the arguments after the program name. `Err` carries the message for a usage error;
@@ -259,9 +281,21 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                     .parse::<u32>()
                     .map_err(|_| format!("--shading-cost must be a non-negative integer, got {v:?}"))?;
             }
+            "--rerecord-every" => {
+                let v = value("--rerecord-every")?;
+                o.rerecord_every = Some(
+                    v.parse::<u64>()
+                        .ok()
+                        .filter(|n| *n > 0)
+                        .ok_or_else(|| format!("--rerecord-every must be a positive integer, got {v:?}"))?,
+                );
+            }
             "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
             "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
-            "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary" if inline.is_some() => {
+            "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary"
+            | "--record-once" | "--sync-hazard"
+                if inline.is_some() =>
+            {
                 return Err(format!("{flag} takes no value"))
             }
             "--intermediate" => o.intermediate = true,
@@ -271,6 +305,8 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--empty" => o.empty = true,
             "--validation" => o.validation = true,
             "--secondary" => o.secondary = true,
+            "--record-once" => o.record_once = true,
+            "--sync-hazard" => o.sync_hazard = true,
             _ => return Err(format!("unknown argument {arg:?}")),
         }
     }
@@ -296,6 +332,15 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
     // State bound in a primary command buffer is not inherited by secondaries.
     if o.secondary && o.bind_before_pass {
         return Err("--bind-before-pass and --secondary exclude each other: a secondary command buffer inherits no bound state".into());
+    }
+    // Without --record-once every frame is re-recorded anyway.
+    if o.rerecord_every.is_some() && !o.record_once {
+        return Err("--rerecord-every only applies with --record-once".into());
+    }
+    // The left-out barrier guards the fragment shader's counter writes: without draws there is
+    // no hazard to report, and the flag would prove nothing.
+    if o.sync_hazard && o.empty {
+        return Err("--sync-hazard needs draws: it cannot be combined with --empty".into());
     }
     Ok(Some(o))
 }
@@ -332,6 +377,40 @@ mod tests {
         assert!(p(&["--secondary"]).unwrap().unwrap().secondary);
         assert!(p(&["--secondary=1"]).is_err());
         assert!(p(&["--secondary", "--bind-before-pass"]).is_err());
+    }
+
+    /// `--record-once` works with every layout, way of starting a pass, secondary contents,
+    /// intermediate target, animation and Vulkan binding (nothing it needs varies per frame
+    /// except through memory); only the flag's own misuse is refused.
+    #[test]
+    fn record_once_combines_with_everything() {
+        assert!(!p(&[]).unwrap().unwrap().record_once);
+        for layout in ["per-eye", "multiview", "side-by-side"] {
+            for rendering in ["render-pass", "render-pass2", "dynamic"] {
+                for extra in [&[][..], &["--secondary"], &["--intermediate"], &["--intermediate", "--samples", "1", "--submit-depth"], &["--animate", "--vulkan", "enable"], &["--bind-before-pass", "--depth-clear", "image"]] {
+                    let args = [&["--record-once", "--layout", layout, "--rendering", rendering][..], extra].concat();
+                    let o = p(&args).unwrap_or_else(|e| panic!("{args:?}: {e}")).unwrap();
+                    assert!(o.record_once, "{args:?}");
+                }
+            }
+        }
+        assert!(p(&["--record-once", "--vulkan-api", "1.0", "--secondary"]).unwrap().unwrap().record_once);
+        assert!(p(&["--record-once=1"]).is_err());
+        assert_eq!(p(&["--record-once", "--rerecord-every", "7"]).unwrap().unwrap().rerecord_every, Some(7));
+        assert_eq!(p(&["--record-once"]).unwrap().unwrap().rerecord_every, None);
+        let e = p(&["--rerecord-every", "7"]).unwrap_err();
+        assert!(e.contains("--record-once"), "{e}");
+        assert!(p(&["--record-once", "--rerecord-every", "0"]).is_err());
+        assert!(p(&["--record-once", "--rerecord-every"]).is_err());
+    }
+
+    #[test]
+    fn sync_hazard_needs_draws() {
+        assert!(p(&["--sync-hazard"]).unwrap().unwrap().sync_hazard);
+        assert!(!p(&[]).unwrap().unwrap().sync_hazard);
+        let e = p(&["--sync-hazard", "--empty"]).unwrap_err();
+        assert!(e.contains("--empty"), "{e}");
+        assert!(p(&["--sync-hazard=yes"]).is_err());
     }
 
     #[test]

@@ -74,6 +74,9 @@ fn run(opts: &cli::Options) -> Result<u64> {
     }
     let reversed = opts.depth == cli::DepthMode::Reverse;
     let mut frame: u64 = 0;
+    // CPU time in OpenXR calls per frame, kept until the frame's GPU work is measured (with
+    // `--record-once` that is when its frame set is needed again, or at the end).
+    let mut xr_us: std::collections::HashMap<u64, f64> = std::collections::HashMap::new();
 
     loop {
         if xs.poll_events(&xri.instance)? == xr::Flow::Exit {
@@ -119,10 +122,7 @@ fn run(opts: &cli::Options) -> Result<u64> {
             }
             xr_time += t.elapsed();
             let uniforms = frame_uniforms(&views, reversed, opts.animate, frame);
-            let (gpu_ms, counts, record_us) = renderer.render(&gpu, &targets, &acquired, &uniforms)?;
-            if let (Some(p), Some(dir)) = (&renderer.pixels, &opts.pixel_stats) {
-                p.write(dir, frame)?;
-            }
+            let finished = renderer.render(&gpu, &targets, &acquired, &uniforms, frame)?;
             let t = std::time::Instant::now();
             for slot in &mut targets.slots {
                 slot.color.swapchain.release_image().ctx("xrReleaseSwapchainImage")?;
@@ -132,27 +132,40 @@ fn run(opts: &cli::Options) -> Result<u64> {
             }
             end_frame(&xri, &xs, state.predicted_display_time, Some((&targets, &views, reversed)))?;
             xr_time += t.elapsed();
-            if let Some(s) = &mut stats {
-                s.push(stats::FrameStats {
-                    frame,
-                    gpu_time_ms: gpu_ms,
-                    cpu_xr_us: xr_time.as_secs_f64() * 1e6,
-                    cpu_record_us: record_us,
-                    views: (0..2).map(|v| stats::ViewStats { view: v, shaded_fragments: counts[v as usize] }).collect(),
-                })?;
-            }
+            xr_us.insert(frame, xr_time.as_secs_f64() * 1e6);
+            push_stats(&mut stats, &mut xr_us, finished)?;
         }
         frame += 1;
         if opts.frames.is_some_and(|n| frame >= n) {
             xs.request_exit()?;
         }
     }
+    // Frames still in flight (`--record-once`) are measured before anything is torn down.
+    let finished = renderer.finish()?;
+    push_stats(&mut stats, &mut xr_us, finished)?;
     drop(renderer);
     drop(targets);
     drop(xs);
     drop(gpu);
     drop(xri);
     Ok(frame)
+}
+
+/// Adds the measurements of frames whose GPU work finished to `--stats`.
+fn push_stats(stats: &mut Option<stats::StatsLog>, xr_us: &mut std::collections::HashMap<u64, f64>, finished: Vec<renderer::FrameResult>) -> Result<()> {
+    for r in finished {
+        let cpu_xr_us = xr_us.remove(&r.frame).unwrap_or(0.0);
+        if let Some(s) = stats {
+            s.push(stats::FrameStats {
+                frame: r.frame,
+                gpu_time_ms: r.gpu_time_ms,
+                cpu_xr_us,
+                cpu_record_us: r.record_us,
+                views: (0..2).map(|v| stats::ViewStats { view: v, shaded_fragments: r.counts[v as usize] }).collect(),
+            })?;
+        }
+    }
+    Ok(())
 }
 
 fn frame_uniforms(views: &[oxr::View], reversed: bool, animate: bool, frame: u64) -> renderer::FrameUniforms {

@@ -161,7 +161,8 @@ impl Passes {
     /// `--secondary`: begins `secondary` (a secondary command buffer) for the contents of the pass
     /// that `begin` will open on `color`/`depth`: it continues that render pass instance, inheriting
     /// render pass, subpass 0 and framebuffer (render pass objects) or the attachment formats,
-    /// view mask and sample count (dynamic rendering).
+    /// view mask and sample count (dynamic rendering). `usage`: the primary's usage flags
+    /// (ONE_TIME_SUBMIT or not), to which RENDER_PASS_CONTINUE is added.
     pub fn begin_secondary(
         &mut self,
         gpu: &Gpu,
@@ -169,6 +170,7 @@ impl Passes {
         color: vk::ImageView,
         depth: vk::ImageView,
         extent: vk::Extent2D,
+        usage: vk::CommandBufferUsageFlags,
     ) -> Result<()> {
         let color_formats = [self.format.color];
         let mut rendering = vk::CommandBufferInheritanceRenderingInfo::default()
@@ -186,10 +188,11 @@ impl Passes {
             Rendering::Dynamic => inheritance = inheritance.push_next(&mut rendering),
         }
         let info = vk::CommandBufferBeginInfo::default()
-            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT | vk::CommandBufferUsageFlags::RENDER_PASS_CONTINUE)
+            .flags(usage | vk::CommandBufferUsageFlags::RENDER_PASS_CONTINUE)
             .inheritance_info(&inheritance);
-        // SAFETY: the buffer is a secondary of a pool with RESET_COMMAND_BUFFER, not pending (one
-        // frame in flight, waited on); the inheritance matches the pass `begin` opens.
+        // SAFETY: the buffer is a secondary of a pool with RESET_COMMAND_BUFFER, not pending (the
+        // submission of the primary that executed it was waited on); the inheritance matches the
+        // pass `begin` opens.
         unsafe { gpu.device.begin_command_buffer(secondary, &info) }.ctx("vkBeginCommandBuffer(secondary)")
     }
 

@@ -1,5 +1,8 @@
-//! Per-frame GPU work: scene buffers, descriptors, the pipeline, and recording one frame's
-//! command buffer with every barrier the frame needs (the tests run under synchronization validation).
+//! Per-frame GPU work: scene buffers, descriptors, the pipeline, and recording a frame's command
+//! buffer with every barrier the frame needs (the tests run under synchronization validation).
+//! Normal mode records one command buffer anew every frame and waits for it; `--record-once`
+//! records one per combination of acquired swapchain images the first time it is needed and then
+//! only resubmits it, as simple engines do, with the per-frame data in memory it reads.
 
 use crate::cli::{DepthClear, DepthMode, Layout, Options};
 use crate::error::{Ctx, Error, Result};
@@ -9,6 +12,8 @@ use crate::stats::{GpuCounters, PixelCounters, BINDING_RANGE};
 use crate::targets::{depth_aspect, Targets};
 use ash::vk;
 use glam::{Mat4, Vec4};
+use std::collections::HashMap;
+use std::path::PathBuf;
 
 // SPIR-V from build.rs; read_spv copies into u32-aligned storage.
 const SCENE_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene.vert.spv"));
@@ -19,6 +24,8 @@ const SCENE_VK10_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_v
 const SCENE_VK10_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/scene_vk10.frag.spv"));
 
 /// Uniform block `Frame` of the shaders (std140: mat4s and vec4s only, no padding surprises).
+/// Everything that changes from frame to frame is here, never in push constants, so that a
+/// command buffer recorded once (`--record-once`) still draws each frame's view.
 #[repr(C)]
 #[derive(Debug, Clone, Copy)]
 pub struct FrameUniforms {
@@ -27,6 +34,7 @@ pub struct FrameUniforms {
     pub eye_pos: [Vec4; 2],
 }
 
+/// Per draw and constant for the whole run (eye index, options, pixel-stats geometry).
 #[repr(C)]
 #[derive(Debug, Clone, Copy)]
 struct PushConstants {
@@ -50,6 +58,10 @@ struct Buffer {
 }
 
 impl Buffer {
+    fn null() -> Buffer {
+        Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() }
+    }
+
     fn new(gpu: &Gpu, size: u64, usage: vk::BufferUsageFlags, props: vk::MemoryPropertyFlags) -> Result<Buffer> {
         let d = &gpu.device;
         // SAFETY: valid create infos; on failure the partial object is destroyed.
@@ -79,7 +91,7 @@ impl Buffer {
     }
 
     fn destroy(&mut self, d: &ash::Device) {
-        // SAFETY: device idle; our handles (null is ignored).
+        // SAFETY: no pending GPU work uses it (callers wait); our handles (null is ignored).
         unsafe {
             d.destroy_buffer(self.buffer, None);
             if self.memory != vk::DeviceMemory::null() {
@@ -92,10 +104,45 @@ impl Buffer {
 }
 
 /// Indices of the swapchain images acquired for this frame, per slot.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Acquired {
     pub color: u32,
     pub depth: Option<u32>,
+}
+
+/// What the app measured of one frame once its GPU work finished.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameResult {
+    pub frame: u64,
+    pub gpu_time_ms: f64,
+    /// Shaded fragments per view.
+    pub counts: [u64; 2],
+    /// CPU time spent recording the frame's command buffers, µs (0 when `--record-once`
+    /// resubmitted buffers recorded for an earlier frame).
+    pub record_us: f64,
+}
+
+/// Everything one submission reads or writes that the host also touches: its command buffers, the
+/// uniform buffer the host fills before the submission, the counters it reads after, and the
+/// fence in between. The host waits for the fence before it writes the uniforms or reads or
+/// re-zeroes the counters again, so no submission's data is overwritten while the GPU reads it.
+struct FrameSet {
+    cmd: vk::CommandBuffer,
+    /// `--secondary`: one secondary command buffer per pass (per slot); empty without the flag.
+    secondaries: Vec<vk::CommandBuffer>,
+    fence: vk::Fence,
+    descriptor_pool: vk::DescriptorPool,
+    descriptor_set: vk::DescriptorSet,
+    uniforms: Buffer,
+    uniforms_mapped: *mut FrameUniforms,
+    counters: GpuCounters,
+    /// `--pixel-stats`: per-pixel counters. Without it, binding 2 aliases the per-view counters
+    /// (same ranges, same offsets) and the shader never touches it.
+    pixels: Option<PixelCounters>,
+    /// `--record-once`: the command buffers hold this set's frame (they are never re-recorded).
+    recorded: bool,
+    /// Submitted and not yet waited for: (frame number, recording time in µs).
+    pending: Option<(u64, f64)>,
 }
 
 pub struct Renderer {
@@ -112,25 +159,30 @@ pub struct Renderer {
     set_layout: vk::DescriptorSetLayout,
     pipeline_layout: vk::PipelineLayout,
     pipeline: vk::Pipeline,
-    descriptor_pool: vk::DescriptorPool,
-    descriptor_set: vk::DescriptorSet,
     vertices: Buffer,
     indices: Buffer,
     index_count: u32,
     /// `--empty`: record the passes without their draws.
     empty: bool,
-    uniforms: Buffer,
-    uniforms_mapped: *mut FrameUniforms,
-    pub counters: GpuCounters,
-    /// `--pixel-stats`: per-pixel counters. Without it, binding 2 aliases the per-view counters
-    /// (same ranges, same offsets) and the shader never touches it.
-    pub pixels: Option<PixelCounters>,
+    /// `--sync-hazard`: leave out the counters' fill → fragment shader barrier.
+    sync_hazard: bool,
+    /// `--record-once`: one frame set per combination of acquired images, never re-recorded...
+    record_once: bool,
+    /// ... except every N-th frame's (`--rerecord-every N`).
+    rerecord_every: Option<u64>,
+    /// `--pixel-stats DIR`: where a finished frame's per-pixel counts go.
+    pixel_stats: Option<PathBuf>,
+    /// Each view's image rect size (the per-pixel counters' regions).
+    view_sizes: [(u32, u32); 2],
+    /// `--secondary`: each pass's contents go into a secondary command buffer of its own.
+    secondary: bool,
+    /// How many passes a frame has (the number of secondaries `--secondary` needs per set).
+    pass_count: u32,
     command_pool: vk::CommandPool,
-    cmd: vk::CommandBuffer,
-    /// `--secondary`: one secondary command buffer per pass of a frame (per slot), recorded anew
-    /// every frame with the pass's contents; empty without the flag.
-    secondaries: Vec<vk::CommandBuffer>,
-    fence: vk::Fence,
+    /// Normal mode: one set, re-recorded and waited for every frame. `--record-once`: one per
+    /// entry of `sets_by_images`, each in flight until the frame that needs it again.
+    sets: Vec<FrameSet>,
+    sets_by_images: HashMap<Vec<Acquired>, usize>,
 }
 
 impl Renderer {
@@ -150,13 +202,9 @@ impl Renderer {
                 load_depth: opts.depth_clear != DepthClear::LoadOp,
             },
         )?;
-        let counters = GpuCounters::new(gpu)?;
-        let pixels = match opts.pixel_stats {
-            Some(_) => Some(PixelCounters::new(gpu, targets.views.map(|v| (v.extent.width, v.extent.height)))?),
-            None => None,
-        };
+        let view_sizes = targets.views.map(|v| (v.extent.width, v.extent.height));
         let mut flags = if opts.color_format == crate::cli::ColorFamily::Unorm { PC_MANUAL_SRGB } else { 0 };
-        if pixels.is_some() {
+        if opts.pixel_stats.is_some() {
             flags |= PC_PIXEL_STATS;
         }
         let mut r = Renderer {
@@ -175,33 +223,32 @@ impl Renderer {
                 pix_origin_x: 0,
                 pix_width: 0,
                 pix_height: 0,
-                pix_view_stride: pixels.as_ref().map_or(0, |p| p.view_stride(multiview)),
+                pix_view_stride: if opts.pixel_stats.is_some() { PixelCounters::stride_for(gpu, view_sizes, multiview) } else { 0 },
             },
             passes,
             set_layout: vk::DescriptorSetLayout::null(),
             pipeline_layout: vk::PipelineLayout::null(),
             pipeline: vk::Pipeline::null(),
-            descriptor_pool: vk::DescriptorPool::null(),
-            descriptor_set: vk::DescriptorSet::null(),
-            vertices: Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() },
-            indices: Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() },
+            vertices: Buffer::null(),
+            indices: Buffer::null(),
             index_count: 0,
             empty: opts.empty,
-            uniforms: Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() },
-            uniforms_mapped: std::ptr::null_mut(),
-            counters,
-            pixels,
+            sync_hazard: opts.sync_hazard,
+            record_once: opts.record_once,
+            rerecord_every: opts.rerecord_every,
+            pixel_stats: opts.pixel_stats.clone(),
+            view_sizes,
+            secondary: opts.secondary,
+            pass_count: targets.slots.len() as u32,
             command_pool: vk::CommandPool::null(),
-            cmd: vk::CommandBuffer::null(),
-            secondaries: Vec::new(),
-            fence: vk::Fence::null(),
+            sets: Vec::new(),
+            sets_by_images: HashMap::new(),
         };
-        r.init(opts, gpu, targets.slots.len() as u32)?;
+        r.init(opts, gpu)?;
         Ok(r)
     }
 
-    /// `passes`: how many passes a frame has (the number of secondaries `--secondary` needs).
-    fn init(&mut self, opts: &Options, gpu: &Gpu, passes: u32) -> Result<()> {
+    fn init(&mut self, opts: &Options, gpu: &Gpu) -> Result<()> {
         let d = &gpu.device;
         // SAFETY: plain object creation on a live device; everything is destroyed in Drop.
         unsafe {
@@ -213,25 +260,6 @@ impl Renderer {
                     None,
                 )
                 .ctx("vkCreateCommandPool")?;
-            self.cmd = d
-                .allocate_command_buffers(
-                    &vk::CommandBufferAllocateInfo::default()
-                        .command_pool(self.command_pool)
-                        .level(vk::CommandBufferLevel::PRIMARY)
-                        .command_buffer_count(1),
-                )
-                .ctx("vkAllocateCommandBuffers")?[0];
-            if opts.secondary {
-                self.secondaries = d
-                    .allocate_command_buffers(
-                        &vk::CommandBufferAllocateInfo::default()
-                            .command_pool(self.command_pool)
-                            .level(vk::CommandBufferLevel::SECONDARY)
-                            .command_buffer_count(passes),
-                    )
-                    .ctx("vkAllocateCommandBuffers(secondary)")?;
-            }
-            self.fence = d.create_fence(&vk::FenceCreateInfo::default(), None).ctx("vkCreateFence")?;
 
             let bindings = [
                 vk::DescriptorSetLayoutBinding::default()
@@ -284,59 +312,108 @@ impl Renderer {
             d.destroy_shader_module(vert, None);
             d.destroy_shader_module(frag, None);
             self.pipeline = pipeline?;
+        }
+        self.upload_scene(gpu)
+    }
+
+    /// A new frame set: command buffers, fence, and the uniforms, counters and descriptor set that
+    /// its command buffers read and write. Pushed onto `sets` as soon as it holds anything, so
+    /// Drop frees what a failure left behind.
+    fn new_set(&mut self, gpu: &Gpu) -> Result<usize> {
+        let d = &gpu.device;
+        let counters = GpuCounters::new(gpu)?;
+        let pixels = match self.pixel_stats {
+            Some(_) => Some(PixelCounters::new(gpu, self.view_sizes)?),
+            None => None,
+        };
+        self.sets.push(FrameSet {
+            cmd: vk::CommandBuffer::null(),
+            secondaries: Vec::new(),
+            fence: vk::Fence::null(),
+            descriptor_pool: vk::DescriptorPool::null(),
+            descriptor_set: vk::DescriptorSet::null(),
+            uniforms: Buffer::null(),
+            uniforms_mapped: std::ptr::null_mut(),
+            counters,
+            pixels,
+            recorded: false,
+            pending: None,
+        });
+        let index = self.sets.len() - 1;
+        let set = &mut self.sets[index];
+        // SAFETY: plain object creation on a live device; everything is destroyed in Drop.
+        unsafe {
+            set.cmd = d
+                .allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(self.command_pool)
+                        .level(vk::CommandBufferLevel::PRIMARY)
+                        .command_buffer_count(1),
+                )
+                .ctx("vkAllocateCommandBuffers")?[0];
+            if self.secondary {
+                set.secondaries = d
+                    .allocate_command_buffers(
+                        &vk::CommandBufferAllocateInfo::default()
+                            .command_pool(self.command_pool)
+                            .level(vk::CommandBufferLevel::SECONDARY)
+                            .command_buffer_count(self.pass_count),
+                    )
+                    .ctx("vkAllocateCommandBuffers(secondary)")?;
+            }
+            set.fence = d.create_fence(&vk::FenceCreateInfo::default(), None).ctx("vkCreateFence")?;
 
             let pool_sizes = [
                 vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: 1 },
                 vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER_DYNAMIC, descriptor_count: 2 },
             ];
-            self.descriptor_pool = d
+            set.descriptor_pool = d
                 .create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&pool_sizes), None)
                 .ctx("vkCreateDescriptorPool")?;
-            self.descriptor_set = d
+            let set_layouts = [self.set_layout];
+            set.descriptor_set = d
                 .allocate_descriptor_sets(
-                    &vk::DescriptorSetAllocateInfo::default()
-                        .descriptor_pool(self.descriptor_pool)
-                        .set_layouts(&set_layouts),
+                    &vk::DescriptorSetAllocateInfo::default().descriptor_pool(set.descriptor_pool).set_layouts(&set_layouts),
                 )
                 .ctx("vkAllocateDescriptorSets")?[0];
 
             let ubo_size = std::mem::size_of::<FrameUniforms>() as u64;
-            self.uniforms = Buffer::new(
+            set.uniforms = Buffer::new(
                 gpu,
                 ubo_size,
                 vk::BufferUsageFlags::UNIFORM_BUFFER,
                 vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT,
             )?;
-            self.uniforms_mapped = d
-                .map_memory(self.uniforms.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
+            set.uniforms_mapped = d
+                .map_memory(set.uniforms.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
                 .ctx("vkMapMemory(uniforms)")? as *mut FrameUniforms;
 
-            let ubo_info = [vk::DescriptorBufferInfo { buffer: self.uniforms.buffer, offset: 0, range: ubo_size }];
-            let ssbo_info = [vk::DescriptorBufferInfo { buffer: self.counters.buffer, offset: 0, range: BINDING_RANGE }];
-            let pixel_info = [match &self.pixels {
+            let ubo_info = [vk::DescriptorBufferInfo { buffer: set.uniforms.buffer, offset: 0, range: ubo_size }];
+            let ssbo_info = [vk::DescriptorBufferInfo { buffer: set.counters.buffer, offset: 0, range: BINDING_RANGE }];
+            let pixel_info = [match &set.pixels {
                 Some(p) => vk::DescriptorBufferInfo { buffer: p.buffer, offset: 0, range: p.binding_range(self.multiview) },
                 None => ssbo_info[0],
             }];
             let writes = [
                 vk::WriteDescriptorSet::default()
-                    .dst_set(self.descriptor_set)
+                    .dst_set(set.descriptor_set)
                     .dst_binding(0)
                     .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
                     .buffer_info(&ubo_info),
                 vk::WriteDescriptorSet::default()
-                    .dst_set(self.descriptor_set)
+                    .dst_set(set.descriptor_set)
                     .dst_binding(1)
                     .descriptor_type(vk::DescriptorType::STORAGE_BUFFER_DYNAMIC)
                     .buffer_info(&ssbo_info),
                 vk::WriteDescriptorSet::default()
-                    .dst_set(self.descriptor_set)
+                    .dst_set(set.descriptor_set)
                     .dst_binding(2)
                     .descriptor_type(vk::DescriptorType::STORAGE_BUFFER_DYNAMIC)
                     .buffer_info(&pixel_info),
             ];
             d.update_descriptor_sets(&writes, &[]);
         }
-        self.upload_scene(gpu)
+        Ok(index)
     }
 
     /// Puts the scene into device-local buffers through a staging buffer and a fenced copy.
@@ -362,63 +439,149 @@ impl Renderer {
             vk::BufferUsageFlags::TRANSFER_SRC,
             vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT,
         )?;
+        let (mut cmd, mut fence) = (vk::CommandBuffer::null(), vk::Fence::null());
         // SAFETY: the staging memory is host-visible and `total` bytes long; the copy is fenced
-        // and waited for before the staging buffer is destroyed.
+        // and waited for before the staging buffer, the command buffer and the fence go.
         let result = unsafe {
             (|| -> Result<()> {
                 let p = d.map_memory(staging.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()).ctx("vkMapMemory")? as *mut u8;
                 std::ptr::copy_nonoverlapping(vbytes.as_ptr(), p, vbytes.len());
                 std::ptr::copy_nonoverlapping(ibytes.as_ptr(), p.add(vbytes.len()), ibytes.len());
                 d.unmap_memory(staging.memory);
-                d.begin_command_buffer(self.cmd, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
+                cmd = d
+                    .allocate_command_buffers(
+                        &vk::CommandBufferAllocateInfo::default()
+                            .command_pool(self.command_pool)
+                            .level(vk::CommandBufferLevel::PRIMARY)
+                            .command_buffer_count(1),
+                    )
+                    .ctx("vkAllocateCommandBuffers")?[0];
+                fence = d.create_fence(&vk::FenceCreateInfo::default(), None).ctx("vkCreateFence")?;
+                d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
                     .ctx("vkBeginCommandBuffer")?;
-                d.cmd_copy_buffer(self.cmd, staging.buffer, self.vertices.buffer, &[vk::BufferCopy { src_offset: 0, dst_offset: 0, size: vbytes.len() as u64 }]);
-                d.cmd_copy_buffer(self.cmd, staging.buffer, self.indices.buffer, &[vk::BufferCopy { src_offset: vbytes.len() as u64, dst_offset: 0, size: ibytes.len() as u64 }]);
+                d.cmd_copy_buffer(cmd, staging.buffer, self.vertices.buffer, &[vk::BufferCopy { src_offset: 0, dst_offset: 0, size: vbytes.len() as u64 }]);
+                d.cmd_copy_buffer(cmd, staging.buffer, self.indices.buffer, &[vk::BufferCopy { src_offset: vbytes.len() as u64, dst_offset: 0, size: ibytes.len() as u64 }]);
                 let mb = [vk::MemoryBarrier::default()
                     .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
                     .dst_access_mask(vk::AccessFlags::VERTEX_ATTRIBUTE_READ | vk::AccessFlags::INDEX_READ)];
-                d.cmd_pipeline_barrier(self.cmd, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::VERTEX_INPUT, vk::DependencyFlags::empty(), &mb, &[], &[]);
-                d.end_command_buffer(self.cmd).ctx("vkEndCommandBuffer")?;
-                self.submit_and_wait(gpu)
+                d.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::VERTEX_INPUT, vk::DependencyFlags::empty(), &mb, &[], &[]);
+                d.end_command_buffer(cmd).ctx("vkEndCommandBuffer")?;
+                let cmds = [cmd];
+                d.queue_submit(gpu.queue, &[vk::SubmitInfo::default().command_buffers(&cmds)], fence).ctx("vkQueueSubmit")?;
+                d.wait_for_fences(&[fence], true, u64::MAX).ctx("vkWaitForFences")
             })()
         };
+        if result.is_err() {
+            // SAFETY: nothing may still run on a failed path (a submitted copy is waited for).
+            unsafe {
+                let _ = d.device_wait_idle();
+            }
+        }
+        // SAFETY: the copy finished (waited above); null handles are ignored.
+        unsafe {
+            d.destroy_fence(fence, None);
+            if cmd != vk::CommandBuffer::null() {
+                d.free_command_buffers(self.command_pool, &[cmd]);
+            }
+        }
         staging.destroy(d);
         result
     }
 
-    fn submit_and_wait(&self, gpu: &Gpu) -> Result<()> {
-        let d = &gpu.device;
-        let cmds = [self.cmd];
-        // SAFETY: the command buffer is fully recorded; the fence is unsignalled.
-        unsafe {
-            d.queue_submit(gpu.queue, &[vk::SubmitInfo::default().command_buffers(&cmds)], self.fence)
-                .ctx("vkQueueSubmit")?;
-            d.wait_for_fences(&[self.fence], true, u64::MAX).ctx("vkWaitForFences")?;
-            d.reset_fences(&[self.fence]).ctx("vkResetFences")?;
+    /// Renders one frame: writes `uniforms` for the GPU, records (normal mode: anew every frame;
+    /// `--record-once`: only the first time this combination of acquired images occurs, and in
+    /// every N-th frame with `--rerecord-every N`) and
+    /// submits. Returns the measurements of every frame whose GPU work is known to be finished
+    /// now: normal mode waits for this frame; `--record-once` waits only when it reuses a set, for
+    /// the frame that set held before (the others stay in flight; [`Renderer::finish`] collects them).
+    pub fn render(&mut self, gpu: &Gpu, targets: &Targets, acquired: &[Acquired], uniforms: &FrameUniforms, frame: u64) -> Result<Vec<FrameResult>> {
+        let index = match (self.record_once, self.sets_by_images.get(acquired)) {
+            (true, Some(&i)) => i,
+            (true, None) => {
+                let i = self.new_set(gpu)?;
+                self.sets_by_images.insert(acquired.to_vec(), i);
+                i
+            }
+            (false, _) if self.sets.is_empty() => self.new_set(gpu)?,
+            (false, _) => 0,
+        };
+        let mut done = Vec::new();
+        // The set's previous submission must be finished before its uniforms are written and its
+        // counters zeroed again.
+        done.extend(self.complete(index)?);
+        let record_start = std::time::Instant::now();
+        let set = &self.sets[index];
+        // SAFETY: the set's previous submission is complete (above), so the GPU reads nothing of
+        // its uniform buffer, which is host-coherent and mapped for the set's lifetime.
+        unsafe { set.uniforms_mapped.write(*uniforms) };
+        let rerecord = self.rerecord_every.is_some_and(|n| frame > 0 && frame.is_multiple_of(n));
+        let record_us = if self.record_once && set.recorded && !rerecord {
+            0.0
+        } else {
+            self.record(gpu, index, targets, acquired)?;
+            self.sets[index].recorded = true;
+            record_start.elapsed().as_secs_f64() * 1e6
+        };
+        let set = &mut self.sets[index];
+        let cmds = [set.cmd];
+        // SAFETY: the command buffer is fully recorded and not pending (its fence was waited for);
+        // the fence is unsignalled (reset after every wait).
+        unsafe { gpu.device.queue_submit(gpu.queue, &[vk::SubmitInfo::default().command_buffers(&cmds)], set.fence) }.ctx("vkQueueSubmit")?;
+        set.pending = Some((frame, record_us));
+        if !self.record_once {
+            // One frame at a time: measured before the next one is recorded.
+            done.extend(self.complete(index)?);
         }
-        Ok(())
+        Ok(done)
     }
 
-    /// Records, submits and waits for one frame; returns (GPU ms, shaded fragments per view).
-    /// Records, submits and waits for one frame. Returns the GPU time in ms, the shaded fragments
-    /// per view, and the CPU time spent recording the command buffer in µs (what a Vulkan layer's
-    /// per-command overhead adds to).
-    pub fn render(&mut self, gpu: &Gpu, targets: &Targets, acquired: &[Acquired], uniforms: &FrameUniforms) -> Result<(f64, [u64; 2], f64)> {
-        let d = gpu.device.clone();
-        let cmd = self.cmd;
-        let record_start = std::time::Instant::now();
-        // SAFETY: one frame in flight: the previous submit was waited on, so the uniform buffer
-        // and the command buffer are free to reuse. All recorded handles are alive.
+    /// Waits for every frame still in flight and returns their measurements, in frame order.
+    pub fn finish(&mut self) -> Result<Vec<FrameResult>> {
+        let mut order: Vec<(u64, usize)> = self.sets.iter().enumerate().filter_map(|(i, s)| s.pending.map(|(f, _)| (f, i))).collect();
+        order.sort_unstable();
+        let mut done = Vec::new();
+        for (_, i) in order {
+            done.extend(self.complete(i)?);
+        }
+        Ok(done)
+    }
+
+    /// If set `index` has a submission in flight: waits for it, reads its counters (and writes
+    /// its per-pixel counts) and makes the set reusable.
+    fn complete(&mut self, index: usize) -> Result<Option<FrameResult>> {
+        let set = &mut self.sets[index];
+        let Some((frame, record_us)) = set.pending.take() else { return Ok(None) };
+        let d = &self.device;
+        // SAFETY: the fence was submitted with the set's command buffer.
         unsafe {
-            self.uniforms_mapped.write(*uniforms);
+            d.wait_for_fences(&[set.fence], true, u64::MAX).ctx("vkWaitForFences")?;
+            d.reset_fences(&[set.fence]).ctx("vkResetFences")?;
+        }
+        let (gpu_time_ms, counts) = set.counters.read(self.multiview)?;
+        if let (Some(p), Some(dir)) = (&set.pixels, &self.pixel_stats) {
+            p.write(dir, frame)?;
+        }
+        Ok(Some(FrameResult { frame, gpu_time_ms, counts, record_us }))
+    }
+
+    /// Records frame set `index`'s command buffers for the images in `acquired`.
+    fn record(&mut self, gpu: &Gpu, index: usize, targets: &Targets, acquired: &[Acquired]) -> Result<()> {
+        let d = gpu.device.clone();
+        let set = &self.sets[index];
+        let cmd = set.cmd;
+        // A command buffer recorded once is submitted many times (and so are the secondaries it
+        // executes): ONE_TIME_SUBMIT only where it is re-recorded for every submission.
+        let usage = if self.record_once { vk::CommandBufferUsageFlags::empty() } else { vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT };
+        // SAFETY: the set's previous submission was waited for, so its command buffers are not
+        // pending and may be reset. All recorded handles are alive.
+        unsafe {
             d.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty()).ctx("vkResetCommandBuffer")?;
-            d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
-                .ctx("vkBeginCommandBuffer")?;
-            self.counters.record_start(cmd);
-            if let Some(p) = &self.pixels {
+            d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default().flags(usage)).ctx("vkBeginCommandBuffer")?;
+            set.counters.record_start(cmd);
+            if let Some(p) = &set.pixels {
                 p.record_start(cmd);
             }
-            self.pre_pass_barriers(targets, acquired);
+            self.pre_pass_barriers(cmd, set, targets, acquired);
 
             for (slot_index, a) in acquired.iter().enumerate() {
                 let slot = &targets.slots[slot_index];
@@ -439,7 +602,7 @@ impl Renderer {
                     Layout::Multiview => vec![0],
                 };
                 // Where the pass's contents are recorded: its secondary, or the primary itself.
-                let rec = self.secondaries.get(slot_index).copied().unwrap_or(cmd);
+                let rec = set.secondaries.get(slot_index).copied().unwrap_or(cmd);
                 let bind = |eye: u32, viewport: bool| {
                     let rect = targets.views[eye as usize];
                     let (x, w) = if self.multiview { (0, extent.width) } else { (rect.offset_x, rect.extent.width) };
@@ -453,12 +616,12 @@ impl Renderer {
                         vk::PipelineBindPoint::GRAPHICS,
                         self.pipeline_layout,
                         0,
-                        &[self.descriptor_set],
+                        &[set.descriptor_set],
                         &[
-                            self.counters.dynamic_offset(eye, self.multiview),
-                            match &self.pixels {
+                            set.counters.dynamic_offset(eye, self.multiview),
+                            match &set.pixels {
                                 Some(p) => p.dynamic_offset(eye, self.multiview),
-                                None => self.counters.dynamic_offset(eye, self.multiview),
+                                None => set.counters.dynamic_offset(eye, self.multiview),
                             },
                         ],
                     );
@@ -484,8 +647,8 @@ impl Renderer {
                 }
                 // `--secondary`: the pass's contents (its clear, binds and draws) go into its own
                 // secondary command buffer, recorded first and executed inside the pass.
-                if let Some(&sec) = self.secondaries.get(slot_index) {
-                    self.passes.begin_secondary(gpu, sec, color_view, depth_view, extent)?;
+                if let Some(&sec) = set.secondaries.get(slot_index) {
+                    self.passes.begin_secondary(gpu, sec, color_view, depth_view, extent, usage)?;
                 } else {
                     self.passes.begin(gpu, cmd, color_view, depth_view, extent, self.clear_depth, false)?;
                 }
@@ -513,22 +676,18 @@ impl Renderer {
             }
 
             if self.intermediate {
-                self.resolve_to_swapchains(targets, acquired);
+                self.resolve_to_swapchains(cmd, targets, acquired);
             }
-            self.counters.record_end(cmd);
-            if let Some(p) = &self.pixels {
+            set.counters.record_end(cmd);
+            if let Some(p) = &set.pixels {
                 p.record_end(cmd);
             }
             d.end_command_buffer(cmd).ctx("vkEndCommandBuffer")?;
         }
-        let record_us = record_start.elapsed().as_secs_f64() * 1e6;
-        self.submit_and_wait(gpu)?;
-        let (gpu_ms, counts) = self.counters.read(self.multiview)?;
-        Ok((gpu_ms, counts, record_us))
+        Ok(())
     }
-
     /// Everything the passes write, ordered after its previous use and put in attachment layout.
-    fn pre_pass_barriers(&self, targets: &Targets, acquired: &[Acquired]) {
+    fn pre_pass_barriers(&self, cmd: vk::CommandBuffer, set: &FrameSet, targets: &Targets, acquired: &[Acquired]) {
         let mut images = Vec::new();
         for (i, a) in acquired.iter().enumerate() {
             let slot = &targets.slots[i];
@@ -582,8 +741,13 @@ impl Renderer {
                 _ => {}
             }
         }
-        let mut buffers = vec![self.counters.after_fill_barrier()];
-        buffers.extend(self.pixels.as_ref().map(|p| p.after_fill_barrier()));
+        let mut buffers = vec![set.counters.after_fill_barrier()];
+        buffers.extend(set.pixels.as_ref().map(|p| p.after_fill_barrier()));
+        if self.sync_hazard {
+            // `--sync-hazard`: the fragment shader's atomics then race the fill (write after
+            // write), which only synchronization validation notices.
+            buffers.clear();
+        }
         let fragment_tests = vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
         let mut dst_stages = vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | fragment_tests;
         if self.depth_clear == DepthClear::Image {
@@ -592,7 +756,7 @@ impl Renderer {
         // SAFETY: recording state, outside any render pass.
         unsafe {
             self.device.cmd_pipeline_barrier(
-                self.cmd,
+                cmd,
                 vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | fragment_tests,
                 dst_stages,
                 vk::DependencyFlags::empty(),
@@ -602,14 +766,14 @@ impl Renderer {
             );
         }
         if self.depth_clear == DepthClear::Image {
-            self.clear_depth_images(targets, acquired);
+            self.clear_depth_images(cmd, targets, acquired);
         }
     }
 
     /// `--depth-clear image`: `vkCmdClearDepthStencilImage` on every depth image of the frame (in
     /// TRANSFER_DST_OPTIMAL), then the clear made visible to the passes that load it, in
     /// DEPTH_STENCIL_ATTACHMENT_OPTIMAL.
-    fn clear_depth_images(&self, targets: &Targets, acquired: &[Acquired]) {
+    fn clear_depth_images(&self, cmd: vk::CommandBuffer, targets: &Targets, acquired: &[Acquired]) {
         let value = vk::ClearDepthStencilValue { depth: self.clear_depth, stencil: 0 };
         let mut to_attachment = Vec::new();
         for (i, a) in acquired.iter().enumerate() {
@@ -621,7 +785,7 @@ impl Renderer {
             };
             let r = range(depth_aspect(targets.depth_format), slot.layers);
             // SAFETY: recording, outside any pass; the image was just put in TRANSFER_DST_OPTIMAL.
-            unsafe { self.device.cmd_clear_depth_stencil_image(self.cmd, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &value, &[r]) };
+            unsafe { self.device.cmd_clear_depth_stencil_image(cmd, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &value, &[r]) };
             to_attachment.push(image_barrier(
                 image,
                 r,
@@ -634,7 +798,7 @@ impl Renderer {
         // SAFETY: recording state, outside any render pass.
         unsafe {
             self.device.cmd_pipeline_barrier(
-                self.cmd,
+                cmd,
                 vk::PipelineStageFlags::TRANSFER,
                 vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS,
                 vk::DependencyFlags::empty(),
@@ -647,9 +811,8 @@ impl Renderer {
 
     /// `--intermediate`: resolve (N > 1) or copy (N = 1) each offscreen target into its swapchain
     /// image, then hand the swapchain image back in COLOR_ATTACHMENT_OPTIMAL as the binding requires.
-    fn resolve_to_swapchains(&self, targets: &Targets, acquired: &[Acquired]) {
+    fn resolve_to_swapchains(&self, cmd: vk::CommandBuffer, targets: &Targets, acquired: &[Acquired]) {
         let d = &self.device;
-        let cmd = self.cmd;
         let mut to_transfer = Vec::new();
         let mut back = Vec::new();
         for (i, a) in acquired.iter().enumerate() {
@@ -785,18 +948,21 @@ fn shader_module(d: &ash::Device, bytes: &[u8], api: crate::cli::VulkanApi) -> R
 impl Drop for Renderer {
     fn drop(&mut self) {
         let d = &self.device;
-        // SAFETY: wait for the GPU, then destroy our objects (null handles are ignored).
+        // SAFETY: wait for the GPU (frames still in flight included), then destroy our objects
+        // (null handles are ignored; command buffers go with their pool).
         unsafe {
             let _ = d.device_wait_idle();
+            for set in &mut self.sets {
+                d.destroy_fence(set.fence, None);
+                d.destroy_descriptor_pool(set.descriptor_pool, None);
+                set.uniforms.destroy(d);
+            }
             d.destroy_pipeline(self.pipeline, None);
             d.destroy_pipeline_layout(self.pipeline_layout, None);
-            d.destroy_descriptor_pool(self.descriptor_pool, None);
             d.destroy_descriptor_set_layout(self.set_layout, None);
-            d.destroy_fence(self.fence, None);
             d.destroy_command_pool(self.command_pool, None);
         }
         self.vertices.destroy(d);
         self.indices.destroy(d);
-        self.uniforms.destroy(d);
     }
 }

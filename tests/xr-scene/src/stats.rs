@@ -202,11 +202,28 @@ pub struct PixelCounters {
 }
 
 impl PixelCounters {
-    pub fn new(gpu: &Gpu, sizes: [(u32, u32); 2]) -> Result<PixelCounters> {
-        let d = &gpu.device;
+    /// Bytes from one view's region to the next: the larger view's counts, aligned for dynamic
+    /// offsets.
+    fn region(gpu: &Gpu, sizes: [(u32, u32); 2]) -> u64 {
         let align = gpu.props.limits.min_storage_buffer_offset_alignment.max(4);
         let bytes = sizes.iter().map(|&(w, h)| w as u64 * h as u64 * 4).max().unwrap_or(4).max(4);
-        let region = bytes.div_ceil(align) * align;
+        bytes.div_ceil(align) * align
+    }
+
+    /// Elements between the views' regions inside the bound range (multiview only; 0 otherwise),
+    /// known before any counters exist: the push constants carry it, and each frame set has its
+    /// own counters of the same shape.
+    pub fn stride_for(gpu: &Gpu, sizes: [(u32, u32); 2], multiview: bool) -> u32 {
+        if multiview {
+            (Self::region(gpu, sizes) / 4) as u32
+        } else {
+            0
+        }
+    }
+
+    pub fn new(gpu: &Gpu, sizes: [(u32, u32); 2]) -> Result<PixelCounters> {
+        let d = &gpu.device;
+        let region = Self::region(gpu, sizes);
         let mut p = PixelCounters {
             device: d.clone(),
             buffer: vk::Buffer::null(),
@@ -234,15 +251,6 @@ impl PixelCounters {
             2 * self.region
         } else {
             self.region
-        }
-    }
-
-    /// Elements between the views' regions inside the bound range (multiview only).
-    pub fn view_stride(&self, multiview: bool) -> u32 {
-        if multiview {
-            (self.region / 4) as u32
-        } else {
-            0
         }
     }
 
@@ -372,14 +380,23 @@ impl StatsLog {
         StatsLog { path, frames: Vec::new() }
     }
 
+    /// Adds a frame's numbers in frame order (`--record-once` measures frames when their GPU
+    /// work is found finished, which need not be the order they were submitted in).
     pub fn push(&mut self, f: FrameStats) -> Result<()> {
-        self.frames.push(f);
+        let at = self.frames.partition_point(|g| g.frame < f.frame);
+        self.frames.insert(at, f);
         self.write()
     }
 
+    /// Written beside the file and renamed over it, so a crash in the middle (a driver fault in
+    /// another thread) leaves the previous complete file, never a truncated one.
     pub fn write(&self) -> Result<()> {
         let json = to_json(&self.frames);
-        std::fs::write(&self.path, json).map_err(|e| Error(format!("writing {}: {e}", self.path.display())))
+        let mut tmp = self.path.clone().into_os_string();
+        tmp.push(".new");
+        let err = |e: std::io::Error| Error(format!("writing {}: {e}", self.path.display()));
+        std::fs::write(&tmp, json).map_err(err)?;
+        std::fs::rename(&tmp, &self.path).map_err(err)
     }
 }
 
