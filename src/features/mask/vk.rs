@@ -360,8 +360,7 @@ impl VkFeature for MaskDevice {
         let area = inject::render_area(at.pass);
         // Any plan with this pass's shape makes the same pipeline (render pass + subpass or
         // formats; multiview from the pass itself).
-        let layout = if at.pass.view_mask() != 0 { EyeLayout::Multiview } else { EyeLayout::PerEye };
-        let plan = MaskPlan { fail_depth: at.fail_depth, layout, intermediate: false, image: 0, view_mask: at.pass.view_mask(), draws: Vec::new() };
+        let plan = inject::shape_only(at.pass, at.fail_depth);
         let Ok(p) = self.pipeline(d, at.pass, &plan, at.settings.mask.debug) else { return };
         let Ok(data) = self.data(d, &g, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area }) else { return };
         data.refresh(self, &g, None);

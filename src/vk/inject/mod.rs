@@ -79,6 +79,8 @@ struct Pending {
     snap: Snapshot,
     plan: MaskPlan,
     counts: bool,
+    /// The pass awaits its eyes (`Awaiting`); `plan` only carries its shape.
+    awaiting: bool,
 }
 
 /// Per-device injection state. The lock guards bookkeeping only, never a call down.
@@ -176,16 +178,20 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
         Ok(p) => p,
         Err(why) => {
             count_not_injected(d, &settings, decision.counts, why, &snap.pass);
-            if why == NotMasked::EyeUnknown && trigger != Trigger::End && snap.veto.is_none() && !trigger.secondary_contents() {
+            // A clear of part of the attachment may leave an eye uncleared: only whole clears.
+            let whole = match &trigger {
+                Trigger::Clear { rects, .. } => rects.iter().any(|r| r.contains(&render_area(&snap.pass))),
+                Trigger::End => false,
+                _ => true,
+            };
+            if why == NotMasked::EyeUnknown && whole && snap.veto.is_none() {
                 if let Some(fail_depth) = eye_pass::awaiting_eyes(&snap.pass, &facts) {
-                    let at = Awaiting { cb, owner: key, pass: &snap.pass, fail_depth, settings: &settings };
-                    let bound_sets = Default::default();
-                    let _restore = restore::Restore::new(d, cb, &snap.restore, &snap.sets, &bound_sets);
-                    for f in d.features.all() {
-                        if f.injects(&settings) {
-                            f.inject_awaiting(d, &at);
-                        }
+                    if trigger.secondary_contents() && !snap.secondary_level {
+                        let plan = shape_only(&snap.pass, fail_depth);
+                        lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: false, awaiting: true });
+                        return;
                     }
+                    inject_awaiting(d, cb, key, &snap, fail_depth, &settings, true);
                 }
             }
             return;
@@ -210,7 +216,7 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
         return;
     }
     if trigger.secondary_contents() && !snap.secondary_level {
-        lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: decision.counts });
+        lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: decision.counts, awaiting: false });
         return;
     }
     inject(d, cb, key, &snap, &plan, &settings, decision.counts, true);
@@ -219,7 +225,7 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
 /// The app executes secondaries in `cb`: if its open eye pass awaits the layer's draws, they are
 /// recorded into a secondary of the layer's, returned to be executed first.
 pub(crate) fn on_execute_commands(d: &DeviceState, cb: vk::CommandBuffer) -> Option<vk::CommandBuffer> {
-    let Pending { snap, plan, counts } = lock(&d.inject.books).pending.remove(&cb.as_raw())?;
+    let Pending { snap, plan, counts, awaiting } = lock(&d.inject.books).pending.remove(&cb.as_raw())?;
     let settings = d.settings();
     let formats;
     let inherit = match (&snap.pass.rendering, &snap.pass.render_pass, &snap.pass.framebuffer) {
@@ -237,7 +243,13 @@ pub(crate) fn on_execute_commands(d: &DeviceState, cb: vk::CommandBuffer) -> Opt
             return None;
         }
     };
-    let recorded = super::secondary::record(d, cb.as_raw(), &inherit, |ours| inject(d, ours, cb.as_raw(), &snap, &plan, &settings, counts, false));
+    let recorded = super::secondary::record(d, cb.as_raw(), &inherit, |ours| {
+        if awaiting {
+            inject_awaiting(d, ours, cb.as_raw(), &snap, plan.fail_depth, &settings, false)
+        } else {
+            inject(d, ours, cb.as_raw(), &snap, &plan, &settings, counts, false)
+        }
+    });
     match recorded {
         Ok(ours) => Some(ours),
         Err(e) => {
@@ -295,6 +307,27 @@ fn inject(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, p
             f.inject(d, &at);
         }
     }
+}
+
+/// Records every injecting feature's draws for a pass awaiting its eyes (`Awaiting`), then the
+/// app's state when `cb` is the app's own.
+#[allow(clippy::too_many_arguments)]
+fn inject_awaiting(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, fail_depth: f32, settings: &Settings, restore: bool) {
+    let at = Awaiting { cb, owner, pass: &snap.pass, fail_depth, settings };
+    let bound_sets = Default::default();
+    let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore, &snap.sets, &bound_sets));
+    for f in d.features.all() {
+        if f.injects(settings) {
+            f.inject_awaiting(d, &at);
+        }
+    }
+}
+
+/// A plan carrying only a pass's shape (its layout by view mask): what pipelines and inherited
+/// secondaries need before the eyes are known.
+pub(crate) fn shape_only(pass: &PassInstance, fail_depth: f32) -> MaskPlan {
+    let layout = if pass.view_mask() != 0 { eye_pass::EyeLayout::Multiview } else { eye_pass::EyeLayout::PerEye };
+    MaskPlan { fail_depth, layout, intermediate: false, image: 0, view_mask: pass.view_mask(), draws: Vec::new() }
 }
 
 fn attachments(pass: &PassInstance) -> Vec<&AttachmentUse> {

@@ -445,8 +445,7 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
 /// finds its eyes.
 fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result<(), NotApplied> {
     let area = inject::render_area(at.pass);
-    let layout = if at.pass.view_mask() != 0 { EyeLayout::Multiview } else { EyeLayout::PerEye };
-    let plan = MaskPlan { fail_depth: at.fail_depth, layout, intermediate: false, image: 0, view_mask: at.pass.view_mask(), draws: Vec::new() };
+    let plan = inject::shape_only(at.pass, at.fail_depth);
     let p = pipeline(me, d, at.pass, &plan)?;
     let data = drawn(me, d, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area })?;
     data.refresh(me, None);
