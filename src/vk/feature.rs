@@ -8,9 +8,10 @@
 //!   `amend_pipelines` (may return an amended copy of the app's create info; the first feature
 //!   that amends wins, and the app's own info is retried if the driver refuses the amended one);
 //! - destruction: `destroyed` (images, render passes, framebuffers);
-//! - recording: `amend_render_pass_begin` / `amend_rendering` (before the pass goes down),
-//!   `pass_begun` (after), `inject` at the chassis' injection point (`vk::inject`: right after the
-//!   depth clear), `not_injected`, `transfer` (copies, resolves, blits);
+//! - recording: `amend_render_pass_begin` / `amend_rendering` (before the pass goes down; the
+//!   point before begin), `pass_begun` (after), `inject` / `inject_awaiting` at the chassis'
+//!   injection point (`vk::inject`: right after the depth clear), `not_injected`, `pass_ending`
+//!   (before the end goes down), `pass_ended` (after it), `transfer` (copies, resolves, blits);
 //! - submission: `before_submit` (refresh what a recorded command buffer reads; apply what it
 //!   recorded, in recording order);
 //! - OpenXR side: `before_release` (`xrReleaseSwapchainImage`, before it goes down);
@@ -122,6 +123,10 @@ pub(crate) trait VkFeature: Send + Sync {
     }
     /// A render pass instance began (after the call went down and the pass is tracked).
     fn pass_begun(&self, _d: &DeviceState, _cb: vk::CommandBuffer, _secondary: bool) {}
+    /// The open pass (still tracked) is about to end: the last point to record into it.
+    fn pass_ending(&self, _d: &DeviceState, _cb: vk::CommandBuffer) {}
+    /// The pass ended (outside any pass again, before the app's next command).
+    fn pass_ended(&self, _d: &DeviceState, _cb: vk::CommandBuffer) {}
 
     /// Whether the feature draws at the injection point under these settings on this device.
     fn injects(&self, _s: &Settings) -> bool {

@@ -268,11 +268,20 @@ pub(in crate::vk) unsafe extern "system" fn cmd_next_subpass(cb: vk::CommandBuff
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_end_render_pass(cb: vk::CommandBuffer) {
-    // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdEndRenderPass", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_end_render_pass)(cb) }, |d, raw| {
-        inject::on_trigger(d, cb, Trigger::End);
-        d.track.end_pass(raw)
-    })
+    hook_decided(
+        "vkCmdEndRenderPass",
+        cb,
+        (),
+        |d| pass_ending(d, cb),
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d, _| unsafe { (d.fns.fp_v1_0().cmd_end_render_pass)(cb) },
+        |d, ()| {
+            inject::on_trigger(d, cb, Trigger::End);
+            d.track.end_pass(cb.as_raw());
+            pass_ended(d, cb);
+            Ok(())
+        },
+    )
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_begin_render_pass2(
@@ -313,11 +322,20 @@ pub(in crate::vk) unsafe extern "system" fn cmd_next_subpass2(cb: vk::CommandBuf
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_end_render_pass2(cb: vk::CommandBuffer, end: *const vk::SubpassEndInfo<'_>) {
-    // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdEndRenderPass2", cb, (), |d| unsafe { (d.fns.fp_v1_2().cmd_end_render_pass2)(cb, end) }, |d, raw| {
-        inject::on_trigger(d, cb, Trigger::End);
-        d.track.end_pass(raw)
-    })
+    hook_decided(
+        "vkCmdEndRenderPass2",
+        cb,
+        (),
+        |d| pass_ending(d, cb),
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d, _| unsafe { (d.fns.fp_v1_2().cmd_end_render_pass2)(cb, end) },
+        |d, ()| {
+            inject::on_trigger(d, cb, Trigger::End);
+            d.track.end_pass(cb.as_raw());
+            pass_ended(d, cb);
+            Ok(())
+        },
+    )
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandBuffer, info: *const vk::RenderingInfo<'_>) {
@@ -349,11 +367,20 @@ pub(in crate::vk) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandB
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_end_rendering(cb: vk::CommandBuffer) {
-    // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdEndRendering", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_end_rendering)(cb) }, |d, raw| {
-        inject::on_trigger(d, cb, Trigger::End);
-        d.track.end_pass(raw)
-    })
+    hook_decided(
+        "vkCmdEndRendering",
+        cb,
+        (),
+        |d| pass_ending(d, cb),
+        // SAFETY: forwarding the app's arguments unchanged.
+        |d, _| unsafe { (d.fns.fp_v1_3().cmd_end_rendering)(cb) },
+        |d, ()| {
+            inject::on_trigger(d, cb, Trigger::End);
+            d.track.end_pass(cb.as_raw());
+            pass_ended(d, cb);
+            Ok(())
+        },
+    )
 }
 
 fn secondary_contents(info: *const vk::SubpassBeginInfo<'_>) -> bool {
@@ -404,6 +431,20 @@ fn transfer(d: &DeviceState, cb: vk::CommandBuffer, src: vk::Image, dst: vk::Ima
     }
     for f in d.features.all() {
         f.transfer(d, cb, src.as_raw(), dst.as_raw(), &regions);
+    }
+}
+
+/// Raises `pass_ending` over the features: the pass is still open in `cb` (the end goes down next).
+fn pass_ending(d: &DeviceState, cb: vk::CommandBuffer) {
+    for f in d.features.all() {
+        f.pass_ending(d, cb);
+    }
+}
+
+/// Raises `pass_ended` over the features.
+fn pass_ended(d: &DeviceState, cb: vk::CommandBuffer) {
+    for f in d.features.all() {
+        f.pass_ended(d, cb);
     }
 }
 

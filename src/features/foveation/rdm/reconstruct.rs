@@ -3,8 +3,8 @@
 //! fills the quads the checkerboard skipped from their shaded neighbours (`rules`' weights,
 //! `shaders/rdm_fill.frag`).
 
-use super::rules::NotApplied;
-use super::vk::{lock, log_once, Pending, RdmDevice};
+use super::rules::{NotApplied, Pending};
+use super::vk::{lock, log_once, RdmDevice};
 use crate::core::rect::PixelRect;
 use crate::shared::{self, shared};
 use crate::vk::DeviceState;

@@ -7,6 +7,7 @@
 
 pub use crate::core::fovea::Ring;
 use crate::core::rect::PixelRect;
+use crate::track::eye_pass::TransferRegion;
 use crate::core::stats::{json_counts, FeatureStats};
 use crate::shared::{FoveaView, ViewFov};
 use std::collections::BTreeMap;
@@ -282,6 +283,46 @@ impl FeatureStats for RdmFrameStats {
     crate::feature_stats_any!();
 }
 
+/// One eye of an image whose skipped quads await reconstruction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pending {
+    pub view: u32,
+    pub layer: u32,
+    /// The rule as drawn; `params.rect` is in the image's pixels.
+    pub params: RdmParams,
+}
+
+/// Where the eyes awaiting reconstruction in an image go when the app transfers that image.
+#[derive(Debug, Default, PartialEq)]
+pub struct HandOff {
+    /// Carried 1:1 into the destination (in its layers and pixels).
+    pub moved: Vec<Pending>,
+    /// Not touched by any region: still the source's.
+    pub kept: Vec<Pending>,
+    /// Touched by a scaled or partial region: their skipped quads cannot be reconstructed.
+    pub scaled: u64,
+}
+
+/// The hand-off of `pending` (the source image's eyes) through a transfer's `regions`.
+pub fn hand_off(pending: Vec<Pending>, regions: &[TransferRegion]) -> HandOff {
+    let mut out = HandOff::default();
+    for p in pending {
+        let hit = regions.iter().find(|r| p.layer >= r.src_layer && p.layer < r.src_layer + r.layer_count && r.src.intersect(&p.params.rect).area() > 0);
+        match hit {
+            Some(r) if (r.src.width, r.src.height) == (r.dst.width, r.dst.height) && r.src.contains(&p.params.rect) => {
+                let mut q = p;
+                q.layer = p.layer - r.src_layer + r.dst_layer;
+                q.params.rect.x = p.params.rect.x - r.src.x + r.dst.x;
+                q.params.rect.y = p.params.rect.y - r.src.y + r.dst.y;
+                out.moved.push(q);
+            }
+            Some(_) => out.scaled += 1,
+            None => out.kept.push(p),
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -388,5 +429,26 @@ mod tests {
         assert_eq!(b.summary(), "rdm_passes=2 rdm_quads_skipped=10 rdm_pixels_skipped=40 rdm_reconstructed=0 rdm_not_applied.not_one_to_one=2");
         assert_eq!(reconstruction_weight(1, 0), 1.0);
         assert_eq!(reconstruction_weight(2, 1), 0.2);
+    }
+
+    #[test]
+    fn hand_off_moves_one_to_one_and_counts_scaled() {
+        let fov = ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
+        let fovea = FoveaView { view: 0, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 };
+        let eye = |view: u32, x: i32| Pending { view, layer: 0, params: RdmParams::new(&fov, &FoveaView { view, ..fovea }, PixelRect { x, y: 0, width: 8, height: 8 }).unwrap() };
+        let region = |src_x: i32, dst_x: i32, w: u32| TransferRegion {
+            src: PixelRect { x: src_x, y: 0, width: w, height: 8 },
+            dst: PixelRect { x: dst_x, y: 0, width: 8, height: 8 },
+            src_layer: 0,
+            dst_layer: 1,
+            layer_count: 1,
+        };
+        // Eye 0 copied 1:1 to x 100 of layer 1, eye 1 (x 8) scaled, a third eye (x 16) untouched.
+        let out = hand_off(vec![eye(0, 0), eye(1, 8), eye(1, 16)], &[region(0, 100, 8), region(8, 0, 4)]);
+        assert_eq!(out.moved.len(), 1);
+        assert_eq!((out.moved[0].layer, out.moved[0].params.rect.x), (1, 100));
+        assert_eq!(out.scaled, 1);
+        assert_eq!(out.kept.len(), 1);
+        assert_eq!(out.kept[0].params.rect.x, 16);
     }
 }

@@ -6,7 +6,7 @@
 //! target into the swapchain image, so a command buffer recorded once and resubmitted hands its
 //! skipped quads to `reconstruct` every frame.
 
-use super::rules::{NotApplied, RdmFrameStats, RdmParams, SkipCount};
+use super::rules::{hand_off, HandOff, NotApplied, Pending, RdmFrameStats, RdmParams, SkipCount};
 use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
 use crate::settings::Settings;
@@ -55,15 +55,6 @@ fn vertex_layout() -> (u32, Vec<vk::VertexInputAttributeDescription>) {
 }
 
 
-
-/// One eye of an image whose skipped quads await reconstruction.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Pending {
-    pub view: u32,
-    pub layer: u32,
-    /// The rule as drawn; `params.rect` is in the image's pixels.
-    pub params: RdmParams,
-}
 
 #[derive(Default)]
 pub(super) struct Books {
@@ -487,21 +478,7 @@ fn on_transfer(me: &RdmDevice, _d: &DeviceState, src: u64, dst: u64, regions: &[
     }
     let mut books = lock(&me.books);
     let Some(list) = books.pending.remove(&src) else { return };
-    let (mut moved, mut kept, mut scaled) = (Vec::new(), Vec::new(), 0u64);
-    for p in list {
-        let hit = regions.iter().find(|r| p.layer >= r.src_layer && p.layer < r.src_layer + r.layer_count && r.src.intersect(&p.params.rect).area() > 0);
-        match hit {
-            Some(r) if (r.src.width, r.src.height) == (r.dst.width, r.dst.height) && r.src.contains(&p.params.rect) => {
-                let mut q = p;
-                q.layer = p.layer - r.src_layer + r.dst_layer;
-                q.params.rect.x = p.params.rect.x - r.src.x + r.dst.x;
-                q.params.rect.y = p.params.rect.y - r.src.y + r.dst.y;
-                moved.push(q);
-            }
-            Some(_) => scaled += 1,
-            None => kept.push(p),
-        }
-    }
+    let HandOff { moved, kept, scaled } = hand_off(list, regions);
     if !kept.is_empty() {
         books.pending.insert(src, kept);
     }
@@ -519,12 +496,6 @@ fn on_transfer(me: &RdmDevice, _d: &DeviceState, src: u64, dst: u64, regions: &[
     }
 }
 
-/// Pending reconstructions per image (tests of the transfer hand-over).
-#[cfg(test)]
-fn pending_views(list: &[Pending]) -> std::collections::BTreeMap<u32, u32> {
-    list.iter().map(|p| (p.view, p.layer)).collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -539,7 +510,5 @@ mod tests {
         assert_eq!(attrs.last().unwrap().offset, std::mem::offset_of!(Vertex, fovea) as u32);
         assert_eq!(attrs[3].offset, std::mem::offset_of!(Vertex, tan) as u32);
         assert_eq!(attrs[2].offset, std::mem::offset_of!(Vertex, origin) as u32);
-        let p = Pending { view: 1, layer: 0, params: RdmParams::new(&crate::shared::ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 }, &crate::shared::FoveaView { view: 1, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 }, PixelRect { x: 0, y: 0, width: 8, height: 8 }).unwrap() };
-        assert_eq!(pending_views(&[p]), std::collections::BTreeMap::from([(1, 0)]));
     }
 }
