@@ -6,14 +6,23 @@
 //! usage), `action_sets` / `action_sets_attached` / `active_action_sets`
 //! (xrAttachSessionActionSets, xrSyncActions: the feature's own actions next to the app's),
 //! `views_located` (xrLocateViews), `frame_begun` (xrBeginFrame: publish what the Vulkan half
-//! needs for the frame the app is about to record), `event` (xrPollEvent), `config_reloaded`
-//! (between frames). Image release reaches the Vulkan features (`crate::vk::before_release`);
-//! end-frame amendments and view-configuration changes will come with the view features.
+//! needs for the frame the app is about to record), `amend_frame_end` (xrEndFrame: may submit
+//! amended layers in place of the app's), `views_enumerated` (xrEnumerateViewConfigurationViews:
+//! may change what the app is told), `event` (xrPollEvent), `config_reloaded` (between frames).
+//! Image release reaches the Vulkan features (`crate::vk::before_release`).
 
 use super::session::Session;
 use super::Instance;
 use crate::settings::Settings;
 use openxr_sys as xr;
+use std::any::Any;
+
+/// The app's `XrFrameEndInfo` with a feature's changes: `info` points into `_keep`, which lives
+/// while the call goes down.
+pub(crate) struct AmendedFrameEnd {
+    pub info: xr::FrameEndInfo,
+    pub _keep: Box<dyn Any>,
+}
 
 pub(crate) trait XrFeature: Sync {
     /// The registry id.
@@ -42,6 +51,14 @@ pub(crate) trait XrFeature: Sync {
     fn views_located(&self, _s: &Session, _info: &xr::ViewLocateInfo, _views: &[xr::View]) {}
     /// `xrBeginFrame` succeeded: the app records the frame's passes next.
     fn frame_begun(&self, _s: &Session) {}
+    /// The runtime answered `xrEnumerateViewConfigurationViews` with `views`; the feature may
+    /// change what the app is told (e.g. the recommended sizes).
+    fn views_enumerated(&self, _s: &Settings, _views: &mut [xr::ViewConfigurationView]) {}
+    /// `xrEndFrame` is about to go down with the app's `info`; an amended copy replaces it (the
+    /// first feature that amends wins).
+    fn amend_frame_end(&self, _s: &Session, _info: &xr::FrameEndInfo) -> Option<AmendedFrameEnd> {
+        None
+    }
     /// The runtime delivered `event`; true when it is the layer's own (the app does not see it).
     fn event(&self, _inst: &Instance, _event: &xr::EventDataBuffer) -> bool {
         false

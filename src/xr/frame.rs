@@ -187,7 +187,19 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
         let layers = if known { unsafe { read_projection_layers(frame_end_info) } } else { None };
         // SAFETY: as above.
         let fovs = if known { unsafe { read_fovs(frame_end_info) } } else { None };
-        let r = down.call(plain);
+        // What the app rendered (above) is what the Vulkan half works with; a feature may give the
+        // runtime an amended frame.
+        // SAFETY: the app's frame end info, valid for this call (null is handled).
+        let app_info = unsafe { frame_end_info.as_ref() };
+        let amended = match (session::lookup(session), app_info) {
+            (Ok(s), Some(info)) => crate::features::XR_FEATURES.iter().find_map(|f| f.amend_frame_end(&s, info)),
+            _ => None,
+        };
+        let r = match &amended {
+            // SAFETY: the app's frame with only the feature's changes; it lives until the call returns.
+            Some(a) => down.call(|| unsafe { next(session, &a.info) }),
+            None => down.call(plain),
+        };
         if r != xr::Result::SUCCESS {
             return Ok(r);
         }

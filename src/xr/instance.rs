@@ -270,8 +270,13 @@ pub(super) unsafe extern "system" fn enumerate_view_configuration_views(
         inst.check_fault("xrEnumerateViewConfigurationViews")?;
         let r = down.call(plain);
         if r == xr::Result::SUCCESS && view_capacity_input > 0 && !views.is_null() && !view_count_output.is_null() {
-            // SAFETY: on success the runtime wrote `*view_count_output` (≤ capacity) entries.
-            let written = unsafe { std::slice::from_raw_parts(views, (*view_count_output).min(view_capacity_input) as usize) };
+            // SAFETY: on success the runtime wrote `*view_count_output` (≤ capacity) entries into
+            // the app's array, which is the app's to change until the call returns.
+            let written = unsafe { std::slice::from_raw_parts_mut(views, (*view_count_output).min(view_capacity_input) as usize) };
+            let settings = super::settings(&inst);
+            for f in crate::features::XR_FEATURES {
+                f.views_enumerated(&settings, written);
+            }
             for (i, v) in written.iter().enumerate() {
                 tracing::info!(
                     "view {i} of {view_configuration_type:?}: recommended {}x{}, max {}x{}",
