@@ -19,6 +19,7 @@
 
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
+use crate::track::eye_pass::EyeSource;
 use crate::core::stats::{json_counts, FeatureStats};
 use crate::shared::{FoveaView, ViewFov};
 use std::collections::BTreeMap;
@@ -209,6 +210,65 @@ pub fn pass_rate_layers(view_masks: &[u32], layered: bool) -> u32 {
 /// pixels: covers every pixel (`ceil(extent / texel)`).
 pub fn pass_rate_extent(width: u32, height: u32, view_masks: &[u32], rates: DeviceRates) -> (u32, u32, u32) {
     (texels(width, rates.texel_width), texels(height, rates.texel_height), pass_rate_layers(view_masks, rates.layered))
+}
+
+/// What of an eye pass decides its rate image's layers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PassShape {
+    /// The first array layer of the attachment that shows the eyes.
+    pub base_layer: u32,
+    pub view_mask: u32,
+    /// The pass renders more than one layer without multiview.
+    pub layered: bool,
+}
+
+/// The eyes an eye pass's rate image carries (their rate-image layer, rect, FOV and fovea) and
+/// its layer count: one layer per view of a multiview pass (needs `layered` rates), else one.
+pub fn pass_eyes(
+    sources: &[EyeSource],
+    shape: PassShape,
+    rates: DeviceRates,
+    fov_of: &dyn Fn(u32) -> Option<ViewFov>,
+    fovea_of: &dyn Fn(u32) -> Option<FoveaView>,
+) -> Result<(Vec<EyeRates>, u32), NotApplied> {
+    let eye = |layer: u32, s: &EyeSource| -> Result<EyeRates, NotApplied> {
+        Ok(EyeRates { layer, rect: s.rect, fov: fov_of(s.view).ok_or(NotApplied::NoFovea)?, fovea: fovea_of(s.view).ok_or(NotApplied::NoFovea)? })
+    };
+    let mut eyes = Vec::new();
+    let layers = if shape.view_mask != 0 {
+        if !rates.layered {
+            return Err(NotApplied::MultiviewNotLayered);
+        }
+        for i in (0..32).filter(|i| shape.view_mask & (1 << i) != 0) {
+            for s in sources.iter().filter(|s| s.layer == shape.base_layer + i) {
+                eyes.push(eye(i, s)?);
+            }
+        }
+        32 - shape.view_mask.leading_zeros()
+    } else {
+        // A layered pass without multiview: one rate layer (the spec's only choice for a render
+        // pass object) cannot carry per-layer eyes.
+        if shape.layered {
+            return Err(NotApplied::Layered);
+        }
+        for s in sources.iter().filter(|s| s.layer == shape.base_layer) {
+            eyes.push(eye(0, s)?);
+        }
+        1
+    };
+    if eyes.is_empty() {
+        return Err(NotApplied::EyeUnknown);
+    }
+    Ok((eyes, layers))
+}
+
+/// (width, height) in texels of a rate image for an attachment of `image` extent: it covers the
+/// whole attachment (so one image serves every pass on images of that size), at least the render
+/// area.
+pub fn map_extent(image: Option<(u32, u32)>, area: PixelRect, rates: DeviceRates) -> (u32, u32) {
+    let w = image.map_or(0, |i| i.0).max((area.x.max(0) as u32).saturating_add(area.width));
+    let h = image.map_or(0, |i| i.1).max((area.y.max(0) as u32).saturating_add(area.height));
+    (texels(w, rates.texel_width), texels(h, rates.texel_height))
 }
 
 /// Why a pass got no rate attachment.
@@ -477,5 +537,29 @@ mod tests {
         assert_eq!(b.passes, 4);
         assert_eq!(b.summary(), "vrs_passes=4 vrs_maps_built=0 vrs_not_applied.unsupported=2");
         assert_eq!(NotApplied::from_not_masked(NotMasked::NotEyePass), None);
+    }
+
+    #[test]
+    fn pass_eyes_by_layout() {
+        let fov = ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
+        let fov_of = |_: u32| Some(fov);
+        let fovea_of = |view: u32| Some(FoveaView { view, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 });
+        let rect = |x: i32| PixelRect { x, y: 0, width: 64, height: 64 };
+        let src = |view: u32, layer: u32, x: i32| EyeSource { view, layer, rect: rect(x) };
+        let rates = DeviceRates { texel_width: 16, texel_height: 16, layered: true };
+        let flat = PassShape { base_layer: 0, view_mask: 0, layered: false };
+        // Side by side: both eyes in one layer.
+        let (eyes, layers) = pass_eyes(&[src(0, 0, 0), src(1, 0, 64)], flat, rates, &fov_of, &fovea_of).unwrap();
+        assert_eq!((eyes.len(), layers), (2, 1));
+        // Multiview: a layer per view, on a device with layered rates only.
+        let mv = PassShape { base_layer: 0, view_mask: 0b11, layered: false };
+        let (eyes, layers) = pass_eyes(&[src(0, 0, 0), src(1, 1, 0)], mv, rates, &fov_of, &fovea_of).unwrap();
+        assert_eq!((eyes.iter().map(|e| e.layer).collect::<Vec<_>>(), layers), (vec![0, 1], 2));
+        assert_eq!(pass_eyes(&[src(0, 0, 0)], mv, DeviceRates { layered: false, ..rates }, &fov_of, &fovea_of), Err(NotApplied::MultiviewNotLayered));
+        assert_eq!(pass_eyes(&[src(0, 0, 0)], PassShape { layered: true, ..flat }, rates, &fov_of, &fovea_of), Err(NotApplied::Layered));
+        assert_eq!(pass_eyes(&[src(0, 1, 0)], flat, rates, &fov_of, &fovea_of), Err(NotApplied::EyeUnknown));
+        assert_eq!(pass_eyes(&[src(0, 0, 0)], flat, rates, &fov_of, &|_| None), Err(NotApplied::NoFovea));
+        assert_eq!(map_extent(Some((100, 50)), rect(0), rates), (7, 4));
+        assert_eq!(map_extent(None, PixelRect { x: 10, y: 0, width: 64, height: 64 }, rates), (5, 4));
     }
 }

@@ -301,47 +301,20 @@ fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: bool, app_f
     }
     let rates = d.features.vrs.rates.ok_or(NotApplied::Unsupported)?;
     let (views, fovea) = (shared().views(), shared().foveation());
-    let base_layer = att.image_view.as_ref().map_or(0, |v| v.range.base_array_layer);
-    let view_mask = pass.view_mask();
-    let mut eyes = Vec::new();
-    let eye = |layer: u32, s: &eye_pass::EyeSource| -> Result<EyeRates, NotApplied> {
-        let fov = *views.app_fovs.get(s.view as usize).ok_or(NotApplied::NoFovea)?;
-        let f = *fovea.views.iter().find(|f| f.view == s.view).ok_or(NotApplied::NoFovea)?;
-        Ok(EyeRates { layer, rect: s.rect, fov, fovea: f })
+    let shape = rule::PassShape {
+        base_layer: att.image_view.as_ref().map_or(0, |v| v.range.base_array_layer),
+        view_mask: pass.view_mask(),
+        layered: pass.rendering.as_ref().is_some_and(|r| r.layer_count > 1) || pass.framebuffer.as_ref().is_some_and(|f| f.layers > 1),
     };
-    let layers = if view_mask != 0 {
-        if !rates.layered {
-            return Err(NotApplied::MultiviewNotLayered);
-        }
-        for i in (0..32).filter(|i| view_mask & (1 << i) != 0) {
-            for s in sources.iter().filter(|s| s.layer == base_layer + i) {
-                eyes.push(eye(i, s)?);
-            }
-        }
-        32 - view_mask.leading_zeros()
-    } else {
-        // A layered pass without multiview: one rate layer (the spec's only choice for a render
-        // pass object) cannot carry per-layer eyes.
-        if pass.rendering.as_ref().is_some_and(|r| r.layer_count > 1) || pass.framebuffer.as_ref().is_some_and(|f| f.layers > 1) {
-            return Err(NotApplied::Layered);
-        }
-        for s in sources.iter().filter(|s| s.layer == base_layer) {
-            eyes.push(eye(0, s)?);
-        }
-        1
-    };
-    if eyes.is_empty() {
-        return Err(NotApplied::EyeUnknown);
-    }
-    // Cover the whole attachment (so one image serves every pass on images of that size), at
-    // least the render area.
-    let image = att.image_view.as_ref().and_then(|v| d.track.images.get(v.image));
-    let area = pass.render_area;
-    let w = image.as_ref().map_or(0, |i| i.extent.width).max((area.x.max(0) as u32).saturating_add(area.width));
-    let h = image.as_ref().map_or(0, |i| i.extent.height).max((area.y.max(0) as u32).saturating_add(area.height));
+    let fov_of = |view: u32| views.app_fovs.get(view as usize).copied();
+    let fovea_of = |view: u32| fovea.views.iter().find(|f| f.view == view).copied();
+    let (eyes, layers) = rule::pass_eyes(&sources, shape, rates, &fov_of, &fovea_of)?;
+    let image = att.image_view.as_ref().and_then(|v| d.track.images.get(v.image)).map(|i| (i.extent.width, i.extent.height));
+    let a = pass.render_area;
+    let (width, height) = rule::map_extent(image, PixelRect { x: a.x, y: a.y, width: a.width, height: a.height }, rates);
     let key = MapKey {
-        width: rule::texels(w, rates.texel_width),
-        height: rule::texels(h, rates.texel_height),
+        width,
+        height,
         layers,
         eyes: eyes.iter().map(|e| (e.layer, e.fovea.view, e.rect)).collect(),
         foveation_generation: fovea.generation,
