@@ -81,10 +81,25 @@ pub struct Config {
     /// `MOCK_XR_PACE_HZ`: xrWaitFrame blocks like a compositor's vsync at this rate (unset: no
     /// sleeping, the display clock only advances per call).
     pub pace: Option<std::time::Duration>,
+    /// `MOCK_XR_HEAD_YAW_DEG_PER_S`: the head turns about +y at this rate (degrees per second of
+    /// display time), so located views change deterministically from frame to frame; None: still.
+    pub head_yaw_deg_per_s: Option<f64>,
 }
 
 fn var(name: &str) -> Option<String> {
     std::env::var(name).ok().filter(|v| !v.trim().is_empty())
+}
+
+/// `MOCK_XR_HEAD_YAW_DEG_PER_S`: a finite rate in degrees per second (negative turns right).
+pub fn parse_yaw_rate(v: Option<&str>) -> Result<Option<f64>, String> {
+    v.map(|v| {
+        v.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|r| r.is_finite() && r.abs() <= 3600.0)
+            .ok_or_else(|| format!("MOCK_XR_HEAD_YAW_DEG_PER_S={v:?}: want degrees per second, |rate| <= 3600"))
+    })
+    .transpose()
 }
 
 fn parse_u64(name: &str) -> Result<Option<u64>, String> {
@@ -179,6 +194,7 @@ impl Config {
             pace: parse_u64("MOCK_XR_PACE_HZ")?
                 .filter(|&hz| hz > 0)
                 .map(|hz| std::time::Duration::from_nanos(1_000_000_000 / hz)),
+            head_yaw_deg_per_s: parse_yaw_rate(var("MOCK_XR_HEAD_YAW_DEG_PER_S").as_deref())?,
         })
     }
 
@@ -222,6 +238,16 @@ impl FailCounters {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn yaw_rate() {
+        assert_eq!(parse_yaw_rate(None), Ok(None));
+        assert_eq!(parse_yaw_rate(Some("30")), Ok(Some(30.0)));
+        assert_eq!(parse_yaw_rate(Some(" -12.5 ")), Ok(Some(-12.5)));
+        assert!(parse_yaw_rate(Some("fast")).is_err());
+        assert!(parse_yaw_rate(Some("inf")).is_err());
+        assert!(parse_yaw_rate(Some("5000")).is_err());
+    }
 
     #[test]
     fn frame_list() {

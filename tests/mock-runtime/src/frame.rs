@@ -8,7 +8,7 @@ use openxr_sys as xr;
 
 use crate::capture::{self, SubmittedDepth, SubmittedLayer, SubmittedView};
 use crate::session::{self, Session};
-use crate::space::{self, head_pose, Pose};
+use crate::space::{self, Pose};
 use crate::swapchain::{self, Swapchain};
 use crate::system::{check_view_config, MAX_LAYERS};
 use crate::util::{find_in_chain, guard, input, input_opt, output, two_call, XrResult};
@@ -239,10 +239,11 @@ pub unsafe extern "system" fn xr_end_frame(session: xr::Session, info: *const xr
     })
 }
 
-/// The views of the active profile in `base` (STAGE-relative head composition).
-pub fn views_in(s: &Session, base: &Pose) -> [(Pose, [f32; 4]); 2] {
+/// The views of the active profile in `base` at display time `t_ns` (STAGE-relative head
+/// composition; the head turns with `MOCK_XR_HEAD_YAW_DEG_PER_S`).
+pub fn views_in(s: &Session, base: &Pose, t_ns: i64) -> [(Pose, [f32; 4]); 2] {
     let hmd = s.instance.cfg.hmd;
-    let head = head_pose();
+    let head = crate::space::head_pose_at(s.instance.cfg.head_yaw_deg_per_s, t_ns);
     let inv = base.inverse();
     [0, 1].map(|v| {
         let (p, q) = hmd.eye_in_head(v);
@@ -274,7 +275,7 @@ pub unsafe extern "system" fn xr_locate_views(
         }
         let base_pose = base.in_stage(&s);
         use xr::ViewStateFlags as V;
-        let located = base_pose.map(|b| views_in(&s, &b));
+        let located = base_pose.map(|b| views_in(&s, &b, info.display_time.as_nanos()));
         st.view_state_flags = if located.is_some() {
             V::ORIENTATION_VALID | V::POSITION_VALID | V::ORIENTATION_TRACKED | V::POSITION_TRACKED
         } else {

@@ -63,6 +63,18 @@ pub fn head_pose() -> Pose {
     Pose::new(Vec3::new(0.0, HEAD_HEIGHT, 0.0), Quat::IDENTITY)
 }
 
+/// The head in STAGE space at display time `t_ns`: [`head_pose`] turned about +y (right-handed:
+/// a positive rate turns left) by `yaw_deg_per_s` times the display time since the session's
+/// first predicted display time. Without a rate, the still head of [`head_pose`].
+pub fn head_pose_at(yaw_deg_per_s: Option<f64>, t_ns: i64) -> Pose {
+    let Some(rate) = yaw_deg_per_s else { return head_pose() };
+    let secs = (t_ns - crate::session::BASE_TIME_NS) as f64 / 1e9;
+    // Reduced in f64 so that long runs keep the angle exact to f32 precision.
+    let deg = (rate * secs).rem_euclid(360.0);
+    let head = head_pose();
+    Pose::new(head.p, Quat::from_rotation_y((deg as f32).to_radians()))
+}
+
 /// Reference space origins in STAGE space.
 pub fn reference_origin(ty: xr::ReferenceSpaceType) -> XrResult<Pose> {
     match ty {
@@ -260,6 +272,38 @@ pub unsafe extern "system" fn xr_destroy_space(space: xr::Space) -> xr::Result {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `MOCK_XR_HEAD_YAW_DEG_PER_S`: still without a rate; with one, the head turns about +y by
+    /// rate × display time since the first frame, in place, deterministically.
+    #[test]
+    fn head_yaw_follows_display_time() {
+        let t0 = crate::session::BASE_TIME_NS;
+        let still = head_pose();
+        for t in [t0, t0 + 11_111_111, t0 + 5_000_000_000] {
+            let h = head_pose_at(None, t);
+            assert_eq!((h.p, h.q), (still.p, still.q));
+        }
+        let at = |t: i64| head_pose_at(Some(90.0), t);
+        assert!(at(t0).q.angle_between(Quat::IDENTITY) < 1e-6, "no turn at the first display time");
+        let half = at(t0 + 500_000_000);
+        assert!(half.q.angle_between(Quat::from_rotation_y(45f32.to_radians())) < 1e-5);
+        assert_eq!(half.p, still.p, "turns in place");
+        // Positive turns left: the forward direction (-z) goes towards -x.
+        let fwd = half.q * Vec3::NEG_Z;
+        assert!(fwd.x < -0.7 && fwd.z < -0.7, "{fwd:?}");
+        // Frame to frame (90 Hz period) the located yaw differs by rate × period.
+        let period = 11_111_111i64;
+        let a = at(t0 + 7 * period);
+        let b = at(t0 + 8 * period);
+        let step = a.q.angle_between(b.q).to_degrees();
+        assert!((step - 90.0 * period as f32 / 1e9).abs() < 1e-3, "{step}");
+        assert_eq!(at(t0 + 8 * period).q, b.q, "deterministic");
+        // Negative rates turn right; long runs stay exact (reduced mod 360 in f64).
+        let r = head_pose_at(Some(-30.0), t0 + 1_000_000_000);
+        assert!(r.q.angle_between(Quat::from_rotation_y(-30f32.to_radians())) < 1e-5);
+        let long = head_pose_at(Some(90.0), t0 + 3_600 * 1_000_000_000 + 500_000_000);
+        assert!(long.q.angle_between(Quat::from_rotation_y(45f32.to_radians())) < 1e-4);
+    }
 
     #[test]
     fn pose_algebra() {
