@@ -18,6 +18,8 @@ layout(set = 0, binding = 0) uniform Frame {
     mat4 view_proj[2];
     mat4 cube_model;
     vec4 eye_pos[2];
+    // `--far-movers`: the far mover's model matrix (identity without the option).
+    mat4 mover_model;
 } frame;
 
 layout(set = 0, binding = 1, std430) buffer Counts {

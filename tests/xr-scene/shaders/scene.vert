@@ -14,6 +14,8 @@ layout(set = 0, binding = 0) uniform Frame {
     mat4 view_proj[2];
     mat4 cube_model;
     vec4 eye_pos[2];
+    // `--far-movers`: the far mover's model matrix (identity without the option).
+    mat4 mover_model;
 } frame;
 
 layout(push_constant) uniform Push {
@@ -35,6 +37,7 @@ layout(location = 2) out vec3 v_color;
 layout(location = 3) flat out uint v_flags;
 
 const uint FLAG_ANIMATED = 2u;
+const uint FLAG_MOVER = 16u;
 
 void main() {
 #ifdef MULTIVIEW
@@ -47,6 +50,10 @@ void main() {
     if ((in_flags & FLAG_ANIMATED) != 0u) {
         world = frame.cube_model * world;
         n = mat3(frame.cube_model) * n;
+    }
+    if ((in_flags & FLAG_MOVER) != 0u) {
+        world = frame.mover_model * world;
+        n = mat3(frame.mover_model) * n;
     }
     v_world = world.xyz;
     v_normal = n;

@@ -61,6 +61,15 @@ impl VulkanApi {
     }
 }
 
+/// What lies beyond the scenery (`--sky`): far geometry, or nothing but the clear colour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sky {
+    /// A sky dome of far geometry (1500 m) around the stage: every pixel not covered by scenery.
+    Geometry,
+    /// No sky geometry: what the scenery does not cover keeps the pass's clear colour.
+    Clear,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ColorFamily {
     Srgb,
@@ -107,6 +116,16 @@ pub struct Options {
     /// `--sync-hazard`: leave out the barrier between the counters' fill and the fragment shader's
     /// atomics, a hazard only synchronization validation reports (proves that it is on).
     pub sync_hazard: bool,
+    /// `--sky`: the sky dome of far geometry (default) or just the clear colour.
+    pub sky: Sky,
+    /// `--sky-first`: the sky dome gets its own draw, first in each eye pass, with depth test and
+    /// depth write off (as engines draw skyboxes), instead of last in the scene's one draw.
+    pub sky_first: bool,
+    /// `--translucent`: a translucent near pane, blended over the far field after the opaque
+    /// geometry with depth write off.
+    pub translucent: bool,
+    /// `--far-movers`: a far object that orbits the stage with the frame number.
+    pub far_movers: bool,
 }
 
 impl Default for Options {
@@ -135,6 +154,10 @@ impl Default for Options {
             record_once: false,
             rerecord_every: None,
             sync_hazard: false,
+            sky: Sky::Geometry,
+            sky_first: false,
+            translucent: false,
+            far_movers: false,
         }
     }
 }
@@ -175,6 +198,12 @@ usage: xr-scene [options]
                                             command buffers it submits (the others stay as recorded)
   --sync-hazard                             leave out one barrier (counters' fill -> fragment shader):
                                             a hazard only synchronization validation reports
+  --sky geometry|clear                      a sky dome of far geometry (default) or the clear colour
+  --sky-first                               draw the sky first in each eye pass, depth test and depth
+                                            write off (default: last in the scene's draw, depth-tested)
+  --translucent                             a translucent near pane blended over the far field, drawn
+                                            after the opaque geometry, depth write off
+  --far-movers                              a far object (~250 m) that orbits the stage by frame number
   --help                                    show this text";
 
 /// Parses the arguments after the program name. `Err` carries the message for a usage error;
@@ -243,6 +272,13 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                     v => return Err(format!("unknown --vulkan-api {v:?} (1.0, 1.1 or 1.3)")),
                 }
             }
+            "--sky" => {
+                o.sky = match value("--sky")?.as_str() {
+                    "geometry" => Sky::Geometry,
+                    "clear" => Sky::Clear,
+                    v => return Err(format!("unknown --sky {v:?} (geometry or clear)")),
+                }
+            }
             "--color-format" => {
                 o.color_format = match value("--color-format")?.as_str() {
                     "srgb" => ColorFamily::Srgb,
@@ -293,7 +329,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
             "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
             "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary"
-            | "--record-once" | "--sync-hazard"
+            | "--record-once" | "--sync-hazard" | "--sky-first" | "--translucent" | "--far-movers"
                 if inline.is_some() =>
             {
                 return Err(format!("{flag} takes no value"))
@@ -307,6 +343,9 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--secondary" => o.secondary = true,
             "--record-once" => o.record_once = true,
             "--sync-hazard" => o.sync_hazard = true,
+            "--sky-first" => o.sky_first = true,
+            "--translucent" => o.translucent = true,
+            "--far-movers" => o.far_movers = true,
             _ => return Err(format!("unknown argument {arg:?}")),
         }
     }
@@ -341,6 +380,10 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
     // no hazard to report, and the flag would prove nothing.
     if o.sync_hazard && o.empty {
         return Err("--sync-hazard needs draws: it cannot be combined with --empty".into());
+    }
+    // Without sky geometry there is nothing to draw first.
+    if o.sky_first && o.sky == Sky::Clear {
+        return Err("--sky-first needs sky geometry: it cannot be combined with --sky clear".into());
     }
     Ok(Some(o))
 }
@@ -411,6 +454,24 @@ mod tests {
         let e = p(&["--sync-hazard", "--empty"]).unwrap_err();
         assert!(e.contains("--empty"), "{e}");
         assert!(p(&["--sync-hazard=yes"]).is_err());
+    }
+
+    #[test]
+    fn far_field_scene_options() {
+        let o = p(&[]).unwrap().unwrap();
+        assert_eq!(o.sky, Sky::Geometry);
+        assert!(!o.sky_first && !o.translucent && !o.far_movers);
+        let o = p(&["--sky", "geometry", "--sky-first", "--translucent", "--far-movers"]).unwrap().unwrap();
+        assert_eq!(o.sky, Sky::Geometry);
+        assert!(o.sky_first && o.translucent && o.far_movers);
+        assert_eq!(p(&["--sky=clear"]).unwrap().unwrap().sky, Sky::Clear);
+        assert!(p(&["--sky", "box"]).is_err());
+        assert!(p(&["--sky"]).is_err());
+        let e = p(&["--sky", "clear", "--sky-first"]).unwrap_err();
+        assert!(e.contains("--sky clear"), "{e}");
+        assert!(p(&["--translucent=1"]).is_err());
+        assert!(p(&["--far-movers=yes"]).is_err());
+        assert!(p(&["--sky-first=1"]).is_err());
     }
 
     #[test]

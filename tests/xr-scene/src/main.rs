@@ -121,7 +121,7 @@ fn run(opts: &cli::Options) -> Result<u64> {
                 acquired.push(renderer::Acquired { color, depth });
             }
             xr_time += t.elapsed();
-            let uniforms = frame_uniforms(&views, reversed, opts.animate, frame);
+            let uniforms = frame_uniforms(&views, reversed, opts.animate, opts.far_movers, frame);
             let finished = renderer.render(&gpu, &targets, &acquired, &uniforms, frame)?;
             let t = std::time::Instant::now();
             for slot in &mut targets.slots {
@@ -168,7 +168,7 @@ fn push_stats(stats: &mut Option<stats::StatsLog>, xr_us: &mut std::collections:
     Ok(())
 }
 
-fn frame_uniforms(views: &[oxr::View], reversed: bool, animate: bool, frame: u64) -> renderer::FrameUniforms {
+fn frame_uniforms(views: &[oxr::View], reversed: bool, animate: bool, far_movers: bool, frame: u64) -> renderer::FrameUniforms {
     let vp = |v: &oxr::View| {
         let f = v.fov;
         let proj = camera::projection(
@@ -190,7 +190,8 @@ fn frame_uniforms(views: &[oxr::View], reversed: bool, animate: bool, frame: u64
     } else {
         Mat4::IDENTITY
     };
-    renderer::FrameUniforms { view_proj: [vp(&views[0]), vp(&views[1])], cube_model, eye_pos: [eye(&views[0]), eye(&views[1])] }
+    let mover_model = if far_movers { scene::mover_model(frame) } else { Mat4::IDENTITY };
+    renderer::FrameUniforms { view_proj: [vp(&views[0]), vp(&views[1])], cube_model, eye_pos: [eye(&views[0]), eye(&views[1])], mover_model }
 }
 
 /// xrEndFrame through the raw entry point: the `openxr` crate's safe layer types cannot chain

@@ -326,6 +326,7 @@ impl Passes {
         vert: vk::ShaderModule,
         frag: vk::ShaderModule,
         depth_compare: vk::CompareOp,
+        kind: PipelineKind,
     ) -> Result<vk::Pipeline> {
         let stages = [
             vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vert).name(c"main"),
@@ -357,11 +358,25 @@ impl Passes {
             .line_width(1.0);
         let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(self.format.samples);
         let depth = vk::PipelineDepthStencilStateCreateInfo::default()
-            .depth_test_enable(true)
-            .depth_write_enable(true)
+            .depth_test_enable(kind != PipelineKind::Sky)
+            .depth_write_enable(kind == PipelineKind::Opaque)
             .depth_compare_op(depth_compare);
-        let blend_att = [vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA)];
-        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_att);
+        let mut blend_att = vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA);
+        if kind == PipelineKind::Translucent {
+            // The vertex format has no alpha: the pane's opacity is the blend constant's.
+            blend_att = blend_att
+                .blend_enable(true)
+                .src_color_blend_factor(vk::BlendFactor::CONSTANT_ALPHA)
+                .dst_color_blend_factor(vk::BlendFactor::ONE_MINUS_CONSTANT_ALPHA)
+                .color_blend_op(vk::BlendOp::ADD)
+                .src_alpha_blend_factor(vk::BlendFactor::ZERO)
+                .dst_alpha_blend_factor(vk::BlendFactor::ONE)
+                .alpha_blend_op(vk::BlendOp::ADD);
+        }
+        let blend_atts = [blend_att];
+        let blend = vk::PipelineColorBlendStateCreateInfo::default()
+            .attachments(&blend_atts)
+            .blend_constants([0.0, 0.0, 0.0, crate::scene::PANE_ALPHA]);
         let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
         let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
         let color_formats = [self.format.color];
@@ -392,6 +407,17 @@ impl Passes {
             .ctx("vkCreateGraphicsPipelines")?;
         Ok(pipelines[0])
     }
+}
+
+/// The scene's pipelines differ only in depth and blend state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PipelineKind {
+    /// Depth test and write on, no blending: everything of the default scene.
+    Opaque,
+    /// `--sky-first`: depth test and write off, as engines draw a skybox before the scene.
+    Sky,
+    /// `--translucent`: depth test on, write off, blended with the blend constant's alpha.
+    Translucent,
 }
 
 impl Drop for Passes {

@@ -7,7 +7,7 @@
 use crate::cli::{DepthClear, DepthMode, Layout, Options};
 use crate::error::{Ctx, Error, Result};
 use crate::gpu::Gpu;
-use crate::passes::{PassFormat, Passes};
+use crate::passes::{PassFormat, Passes, PipelineKind};
 use crate::stats::{GpuCounters, PixelCounters, BINDING_RANGE};
 use crate::targets::{depth_aspect, Targets};
 use ash::vk;
@@ -32,6 +32,8 @@ pub struct FrameUniforms {
     pub view_proj: [Mat4; 2],
     pub cube_model: Mat4,
     pub eye_pos: [Vec4; 2],
+    /// `--far-movers`: the far mover's model matrix (identity without it).
+    pub mover_model: Mat4,
 }
 
 /// Per draw and constant for the whole run (eye index, options, pixel-stats geometry).
@@ -159,9 +161,20 @@ pub struct Renderer {
     set_layout: vk::DescriptorSetLayout,
     pipeline_layout: vk::PipelineLayout,
     pipeline: vk::Pipeline,
+    /// `--sky-first`: the sky's own pipeline (depth test and write off); null without it.
+    sky_pipeline: vk::Pipeline,
+    /// `--translucent`: the pane's pipeline (blended, depth write off); null without it.
+    translucent_pipeline: vk::Pipeline,
     vertices: Buffer,
     indices: Buffer,
-    index_count: u32,
+    /// The scene's index ranges ([`crate::scene::Scene`]): opaque, sky, translucent counts.
+    opaque_count: u32,
+    sky_count: u32,
+    translucent_count: u32,
+    /// Which optional parts the scene has (`--sky`, `--translucent`, `--far-movers`).
+    parts: crate::scene::Parts,
+    /// `--sky-first`: the sky is drawn first in each pass, by its own draw.
+    sky_first: bool,
     /// `--empty`: record the passes without their draws.
     empty: bool,
     /// `--sync-hazard`: leave out the counters' fill → fragment shader barrier.
@@ -229,9 +242,19 @@ impl Renderer {
             set_layout: vk::DescriptorSetLayout::null(),
             pipeline_layout: vk::PipelineLayout::null(),
             pipeline: vk::Pipeline::null(),
+            sky_pipeline: vk::Pipeline::null(),
+            translucent_pipeline: vk::Pipeline::null(),
             vertices: Buffer::null(),
             indices: Buffer::null(),
-            index_count: 0,
+            opaque_count: 0,
+            sky_count: 0,
+            translucent_count: 0,
+            parts: crate::scene::Parts {
+                sky: opts.sky == crate::cli::Sky::Geometry,
+                translucent: opts.translucent,
+                far_mover: opts.far_movers,
+            },
+            sky_first: opts.sky_first,
             empty: opts.empty,
             sync_hazard: opts.sync_hazard,
             record_once: opts.record_once,
@@ -308,10 +331,32 @@ impl Renderer {
                 }
             };
             let compare = if opts.depth == DepthMode::Reverse { vk::CompareOp::GREATER } else { vk::CompareOp::LESS };
-            let pipeline = self.passes.create_pipeline(self.pipeline_layout, vert, frag, compare);
+            // Extra pipelines only for the options that draw with them, so that the default run
+            // creates exactly what it always did.
+            let mut kinds = vec![PipelineKind::Opaque];
+            if opts.sky_first {
+                kinds.push(PipelineKind::Sky);
+            }
+            if opts.translucent {
+                kinds.push(PipelineKind::Translucent);
+            }
+            let mut created = Ok(());
+            for kind in kinds {
+                match self.passes.create_pipeline(self.pipeline_layout, vert, frag, compare, kind) {
+                    Ok(p) => match kind {
+                        PipelineKind::Opaque => self.pipeline = p,
+                        PipelineKind::Sky => self.sky_pipeline = p,
+                        PipelineKind::Translucent => self.translucent_pipeline = p,
+                    },
+                    Err(e) => {
+                        created = Err(e);
+                        break;
+                    }
+                }
+            }
             d.destroy_shader_module(vert, None);
             d.destroy_shader_module(frag, None);
-            self.pipeline = pipeline?;
+            created?;
         }
         self.upload_scene(gpu)
     }
@@ -419,7 +464,11 @@ impl Renderer {
     /// Puts the scene into device-local buffers through a staging buffer and a fenced copy.
     fn upload_scene(&mut self, gpu: &Gpu) -> Result<()> {
         let d = &gpu.device;
-        let mesh = crate::scene::build();
+        let scene = crate::scene::build_parts(self.parts);
+        let mesh = scene.mesh;
+        self.opaque_count = scene.opaque;
+        self.sky_count = scene.sky;
+        self.translucent_count = scene.translucent;
         // SAFETY: Vertex is repr(C) plain data.
         let vbytes = unsafe {
             std::slice::from_raw_parts(mesh.vertices.as_ptr() as *const u8, std::mem::size_of_val(&mesh.vertices[..]))
@@ -428,7 +477,6 @@ impl Renderer {
         let ibytes = unsafe {
             std::slice::from_raw_parts(mesh.indices.as_ptr() as *const u8, std::mem::size_of_val(&mesh.indices[..]))
         };
-        self.index_count = mesh.indices.len() as u32;
         let dst = vk::BufferUsageFlags::TRANSFER_DST;
         self.vertices = Buffer::new(gpu, vbytes.len() as u64, dst | vk::BufferUsageFlags::VERTEX_BUFFER, vk::MemoryPropertyFlags::DEVICE_LOCAL)?;
         self.indices = Buffer::new(gpu, ibytes.len() as u64, dst | vk::BufferUsageFlags::INDEX_BUFFER, vk::MemoryPropertyFlags::DEVICE_LOCAL)?;
@@ -663,8 +711,24 @@ impl Renderer {
                     if !(early && one_draw) {
                         bind(eye, true);
                     }
-                    if !self.empty {
-                        d.cmd_draw_indexed(rec, self.index_count, 1, 0, 0, 0);
+                    if self.empty {
+                        continue;
+                    }
+                    // Pipelines share one layout, so switching keeps the bound set and push
+                    // constants. Default scene: one draw, the sky last in it.
+                    if self.sky_first {
+                        d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.sky_pipeline);
+                        d.cmd_draw_indexed(rec, self.sky_count, 1, self.opaque_count, 0, 0);
+                        d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+                        d.cmd_draw_indexed(rec, self.opaque_count, 1, 0, 0, 0);
+                    } else {
+                        d.cmd_draw_indexed(rec, self.opaque_count + self.sky_count, 1, 0, 0, 0);
+                    }
+                    if self.translucent_count > 0 {
+                        // After everything opaque, as translucent geometry must be.
+                        d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.translucent_pipeline);
+                        d.cmd_draw_indexed(rec, self.translucent_count, 1, self.opaque_count + self.sky_count, 0, 0);
+                        d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
                     }
                 }
                 if rec != cmd {
@@ -958,6 +1022,8 @@ impl Drop for Renderer {
                 set.uniforms.destroy(d);
             }
             d.destroy_pipeline(self.pipeline, None);
+            d.destroy_pipeline(self.sky_pipeline, None);
+            d.destroy_pipeline(self.translucent_pipeline, None);
             d.destroy_pipeline_layout(self.pipeline_layout, None);
             d.destroy_descriptor_set_layout(self.set_layout, None);
             d.destroy_command_pool(self.command_pool, None);

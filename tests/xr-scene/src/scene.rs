@@ -12,12 +12,63 @@ pub const FLAG_ANIMATED: u32 = 2;
 pub const FLAG_CHECKER: u32 = 4;
 /// Blended towards the haze colour with distance.
 pub const FLAG_FOG: u32 = 8;
+/// Transformed by the per-frame far-mover matrix (`--far-movers`).
+pub const FLAG_MOVER: u32 = 16;
 
 pub const CUBE_CENTRE: Vec3 = Vec3::new(0.0, 1.45, -1.5);
 pub const CUBE_SIZE: f32 = 0.4;
 pub const CUBE_COLOR: [f32; 3] = [0.85, 0.1, 0.1];
 pub const SKY_RADIUS: f32 = 1500.0;
 pub const GROUND_RADIUS: f32 = 1400.0;
+
+/// `--translucent`: an unlit pane 2.5 m ahead, left of the red cube (never behind it), spanning
+/// the horizon so that it lies over the far field (buildings, mountains, sky) and a little ground.
+pub const PANE_MIN: Vec3 = Vec3::new(-1.4, 1.25, -2.5);
+pub const PANE_MAX: Vec3 = Vec3::new(-0.55, 1.95, -2.5);
+pub const PANE_COLOR: [f32; 3] = [0.1, 0.85, 0.55];
+/// The pane's opacity: blend constant alpha of the translucent pipeline (the vertex format has
+/// no alpha).
+pub const PANE_ALPHA: f32 = 0.5;
+/// `--far-movers`: a box ahead and above the horizon at frame 0, orbiting the stage's +y axis.
+pub const MOVER_CENTRE: Vec3 = Vec3::new(0.0, 40.0, -250.0);
+pub const MOVER_SIZE: f32 = 20.0;
+pub const MOVER_COLOR: [f32; 3] = [0.95, 0.6, 0.1];
+/// Radians per frame of the mover's orbit (2.5 m per frame at 250 m: about 0.6 degrees).
+pub const MOVER_RAD_PER_FRAME: f32 = 0.01;
+
+/// Which optional parts the scene has (the `--sky`, `--translucent` and `--far-movers` options).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Parts {
+    pub sky: bool,
+    pub translucent: bool,
+    pub far_mover: bool,
+}
+
+impl Default for Parts {
+    /// The scene every existing test captures: sky dome, no pane, no mover.
+    fn default() -> Self {
+        Parts { sky: true, translucent: false, far_mover: false }
+    }
+}
+
+/// The mesh and its index ranges, in draw order of the default scene: `opaque` (everything but
+/// the sky), then `sky`, then `translucent`. Opaque and sky are adjacent so that the scene can
+/// still be drawn in one draw with the sky last, as before these options existed.
+#[derive(Debug)]
+pub struct Scene {
+    pub mesh: Mesh,
+    /// Indices `0..opaque`.
+    pub opaque: u32,
+    /// Indices `opaque..opaque + sky` (0 without sky geometry).
+    pub sky: u32,
+    /// Indices `opaque + sky..opaque + sky + translucent` (0 without `--translucent`).
+    pub translucent: u32,
+}
+
+/// The far mover's model matrix at `frame`: deterministic in the frame number, not in time.
+pub fn mover_model(frame: u64) -> glam::Mat4 {
+    glam::Mat4::from_rotation_y((frame % 100_000) as f32 * MOVER_RAD_PER_FRAME)
+}
 
 /// Matches the vertex input layout of the scene pipeline (40 bytes).
 #[repr(C)]
@@ -113,9 +164,17 @@ impl Mesh {
     }
 }
 
+/// Builds the default scene (see [`build_parts`]); the renderer calls `build_parts` itself.
+#[cfg(test)]
+pub fn build() -> Mesh {
+    build_parts(Parts::default()).mesh
+}
+
 /// Builds the whole scene. Nearest objects come first in the index buffer so that the depth test
 /// rejects most of what is behind them (primitives rasterize in order within the single draw).
-pub fn build() -> Mesh {
+/// The optional parts go where they leave the default scene's buffers unchanged: the far mover
+/// at the end of the opaque range, the pane after the sky.
+pub fn build_parts(parts: Parts) -> Scene {
     let mut m = Mesh::default();
     let lit_fog = FLAG_LIT | FLAG_FOG;
 
@@ -163,8 +222,20 @@ pub fn build() -> Mesh {
         m.indices.extend_from_slice(&[centre, centre + 1 + s, centre + 2 + s]);
     }
 
-    m.add_sky(SKY_RADIUS, 24, 48);
-    m
+    if parts.far_mover {
+        m.add_box(MOVER_CENTRE, Vec3::splat(MOVER_SIZE), MOVER_COLOR, FLAG_LIT | FLAG_MOVER);
+    }
+    let opaque = m.indices.len() as u32;
+    if parts.sky {
+        m.add_sky(SKY_RADIUS, 24, 48);
+    }
+    let sky = m.indices.len() as u32 - opaque;
+    if parts.translucent {
+        let (a, b) = (PANE_MIN, PANE_MAX);
+        m.quad(Vec3::new(a.x, a.y, a.z), Vec3::new(b.x, a.y, a.z), Vec3::new(b.x, b.y, a.z), Vec3::new(a.x, b.y, a.z), PANE_COLOR, 0);
+    }
+    let translucent = m.indices.len() as u32 - opaque - sky;
+    Scene { mesh: m, opaque, sky, translucent }
 }
 
 #[cfg(test)]
@@ -213,6 +284,42 @@ mod tests {
         for v in build().vertices {
             assert!((Vec3::from(v.pos) - eye).length() < crate::camera::FAR * 0.9);
         }
+    }
+
+    #[test]
+    fn parts_leave_the_default_scene_alone() {
+        let d = build();
+        let s = build_parts(Parts::default());
+        assert_eq!((s.mesh.vertices.clone(), s.mesh.indices.clone()), (d.vertices.clone(), d.indices.clone()));
+        assert_eq!(s.opaque + s.sky, d.indices.len() as u32);
+        assert_eq!(s.translucent, 0);
+        // The sky is the last part of the default draw and nothing else has flags 0 there.
+        assert!(s.mesh.indices[s.opaque as usize..].iter().all(|&i| s.mesh.vertices[i as usize].flags == 0));
+
+        let all = build_parts(Parts { sky: true, translucent: true, far_mover: true });
+        assert_eq!(all.translucent, 6);
+        assert_eq!(all.sky, s.sky);
+        assert_eq!(all.opaque, s.opaque + 36, "the mover is one box at the end of the opaque range");
+        // Everything of the default scene keeps its index position.
+        assert_eq!(&all.mesh.indices[..s.opaque as usize], &s.mesh.indices[..s.opaque as usize]);
+        let movers = all.mesh.vertices.iter().filter(|v| v.flags & FLAG_MOVER != 0).count();
+        assert_eq!(movers, 24);
+
+        let clear = build_parts(Parts { sky: false, ..Parts::default() });
+        assert_eq!((clear.opaque, clear.sky), (s.opaque, 0));
+        assert!(clear.mesh.vertices.iter().all(|v| v.flags != 0), "no sky vertices left");
+    }
+
+    #[test]
+    fn pane_is_near_left_of_the_cube_and_mover_is_far() {
+        assert!(PANE_MAX.x < CUBE_CENTRE.x - CUBE_SIZE, "left of the cube");
+        assert!(PANE_MIN.y < 1.6 && PANE_MAX.y > 1.6, "spans eye height, so the horizon");
+        for f in [0u64, 1, 57, 1000] {
+            let c = mover_model(f).transform_point3(MOVER_CENTRE);
+            assert!((c.length() - MOVER_CENTRE.length()).abs() < 1e-2, "orbits the stage's y axis");
+            assert_eq!(c, mover_model(f).transform_point3(MOVER_CENTRE), "deterministic");
+        }
+        assert_ne!(mover_model(0).transform_point3(MOVER_CENTRE), mover_model(1).transform_point3(MOVER_CENTRE));
     }
 
     #[test]
