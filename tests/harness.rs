@@ -5,7 +5,7 @@
 mod common;
 
 use common::image::Image;
-use common::{assert_same_captures, assert_same_stats, project, Run, RunOutput};
+use common::{assert_same_captures, assert_same_colour_captures, assert_same_stats, project, Run, RunOutput};
 
 /// Centre of the red near cube (docs/testing.md).
 const NEAR_CUBE: [f32; 3] = [0.0, 1.45, -1.5];
@@ -819,6 +819,40 @@ fn head_yaw_turns_the_located_views() {
         if f > 0 {
             let (a, b) = (turning.image(&turning.views(f - 1)[0].file), turning.image(&tv[0].file));
             assert!(a.count_different(&b) > 0, "frame {f}: the turning head's image did not change");
+        }
+    }
+}
+
+/// What `--sky-first` and `--translucent` leave in the submitted depth (what a layer reusing
+/// far pixels reads): the sky drawn first writes no depth, so where only sky shows the depth is
+/// still the clear value (the sky drawn last writes its own 1500 m depth there), with the same
+/// colour; the translucent pane writes no depth at all (depth identical to the run without it).
+#[test]
+fn sky_first_and_translucent_write_no_depth() {
+    for depth in ["standard", "reverse"] {
+        let run = |name: &str, args: &[&str]| {
+            let out = Run::new(&format!("no-depth-{depth}-{name}")).args(["--depth", depth, "--submit-depth"]).args(args.iter().copied()).run();
+            out.assert_ok();
+            out
+        };
+        let last = run("sky-last", &[]);
+        let first = run("sky-first", &["--sky-first"]);
+        assert_same_colour_captures(&format!("no-depth-{depth}-sky-first-colour"), &first, &last);
+        let clear = if depth == "standard" { u16::MAX } else { 0 };
+        for (a, b) in last.views(FRAME).iter().zip(first.views(FRAME)) {
+            let (dl, df) = (last.image(&a.depth.as_ref().unwrap().file), first.image(&b.depth.as_ref().unwrap().file));
+            let sky = differing_pixels(&dl, &df);
+            let (w, _) = (dl.width, dl.height);
+            assert!(sky.contains(&(w / 2, 1)), "{depth} view {}: the sky's depth at the top centre did not differ", a.view);
+            for (x, y) in sky {
+                assert_eq!(df.pixel(x, y)[0], clear, "{depth} view {}: ({x},{y}) with --sky-first is not at the clear depth", a.view);
+            }
+        }
+        let pane = run("translucent", &["--translucent"]);
+        for (a, b) in last.views(FRAME).iter().zip(pane.views(FRAME)) {
+            let (dl, dp) = (last.image(&a.depth.as_ref().unwrap().file), pane.image(&b.depth.as_ref().unwrap().file));
+            assert_eq!(dl.count_different(&dp), 0, "{depth} view {}: the translucent pane changed depth", a.view);
+            assert!(last.image(&a.file).count_different(&pane.image(&b.file)) > 0, "{depth} view {}: no pane", a.view);
         }
     }
 }
