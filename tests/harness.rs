@@ -501,7 +501,7 @@ fn xr_scene_links_libvulkan() {
 /// numbers confirm (recording time exactly in the frames that record).
 #[test]
 fn record_once_matches_recording_every_frame() {
-    let variants: [(&[&str], Option<u64>); 7] = [
+    let variants: [(&[&str], Option<u64>); 8] = [
         (&["--layout", "per-eye", "--rendering", "render-pass"], None),
         (&["--layout", "multiview", "--rendering", "dynamic", "--secondary"], None),
         (&["--layout", "side-by-side", "--rendering", "render-pass2", "--intermediate"], None),
@@ -509,6 +509,8 @@ fn record_once_matches_recording_every_frame() {
         (&["--layout", "multiview", "--rendering", "render-pass2", "--intermediate", "--samples", "1", "--depth", "reverse", "--depth-clear", "attachments"], None),
         (&["--layout", "side-by-side", "--rendering", "render-pass", "--secondary", "--vulkan-api", "1.0"], None),
         (&["--layout", "per-eye", "--rendering", "render-pass2", "--secondary"], Some(2)),
+        // The far-field options: a far mover moved through the uniforms, extra pipelines and draws.
+        (&["--layout", "multiview", "--rendering", "dynamic", "--far-movers", "--sky-first", "--translucent"], None),
     ];
     const FRAMES: u64 = 7;
     for (i, (args, rerecord)) in variants.iter().enumerate() {
