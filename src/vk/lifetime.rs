@@ -164,6 +164,44 @@ pub(crate) fn destroy(d: &DeviceState) {
     empty_trash(d);
 }
 
+/// The first memory type among `bits` with all of `wanted`.
+pub(crate) fn memory_type(props: &vk::PhysicalDeviceMemoryProperties, bits: u32, wanted: vk::MemoryPropertyFlags) -> Option<u32> {
+    (0..props.memory_type_count).find(|&i| bits & (1 << i) != 0 && props.memory_types[i as usize].property_flags.contains(wanted))
+}
+
+/// A host buffer that goes back to its device's pool (bounded) when its last holder lets go:
+/// what a recording's injected draws read.
+pub(crate) struct PooledBuffer {
+    buf: Option<HostBuffer>,
+    pool: Arc<Mutex<Vec<HostBuffer>>>,
+}
+
+impl PooledBuffer {
+    /// A pooled buffer of at least `size` bytes, or a new one.
+    pub(crate) fn take(d: &DeviceState, size: u64, memory: &vk::PhysicalDeviceMemoryProperties) -> Result<PooledBuffer, String> {
+        Ok(PooledBuffer { buf: Some(HostBuffer::take(d, size, memory)?), pool: d.lifetime.buffers.clone() })
+    }
+}
+
+impl std::ops::Deref for PooledBuffer {
+    type Target = HostBuffer;
+    fn deref(&self) -> &HostBuffer {
+        // Only `Drop` takes it out.
+        self.buf.as_ref().expect("a pooled buffer is present until dropped")
+    }
+}
+
+impl Drop for PooledBuffer {
+    fn drop(&mut self) {
+        if let Some(b) = self.buf.take() {
+            let mut p = lock(&self.pool);
+            if p.len() < 32 {
+                p.push(b);
+            }
+        }
+    }
+}
+
 /// A persistently mapped, host-visible, coherent buffer of the layer's. Dropped: back to the
 /// device's pool (up to a bound) or into its trash.
 pub(crate) struct HostBuffer {
@@ -183,7 +221,7 @@ unsafe impl Sync for HostBuffer {}
 
 impl HostBuffer {
     /// A pooled buffer of at least `size` bytes (vertex and indirect usage), or a new one.
-    pub(crate) fn take(d: &DeviceState, size: u64, memory: &vk::PhysicalDeviceMemoryProperties) -> Result<HostBuffer, String> {
+    fn take(d: &DeviceState, size: u64, memory: &vk::PhysicalDeviceMemoryProperties) -> Result<HostBuffer, String> {
         {
             let mut pool = lock(&d.lifetime.buffers);
             if let Some(i) = pool.iter().position(|b| b.size >= size && b.size <= size.max(4096) * 4) {
@@ -198,7 +236,7 @@ impl HostBuffer {
         // SAFETY: our buffer.
         let req = unsafe { d.fns.get_buffer_memory_requirements(buffer) };
         let wanted = vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
-        let Some(t) = (0..memory.memory_type_count).find(|&i| req.memory_type_bits & (1 << i) != 0 && memory.memory_types[i as usize].property_flags.contains(wanted)) else {
+        let Some(t) = memory_type(memory, req.memory_type_bits, wanted) else {
             // SAFETY: our unused buffer.
             unsafe { d.fns.destroy_buffer(buffer, None) };
             return Err("no host-visible coherent memory type".into());
@@ -232,14 +270,6 @@ impl HostBuffer {
         // every later queue submission.
         unsafe { std::ptr::copy_nonoverlapping(data.as_ptr().cast::<u8>(), self.ptr.add(offset as usize), len as usize) };
         true
-    }
-
-    /// Returns the buffer to `pool` (bounded) instead of destroying it.
-    pub(crate) fn recycle(self, pool: &Mutex<Vec<HostBuffer>>) {
-        let mut p = lock(pool);
-        if p.len() < 32 {
-            p.push(self);
-        }
     }
 }
 

@@ -18,7 +18,7 @@ use crate::track::cmd::PassInstance;
 use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan};
 use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
 use crate::vk::inject::{self, pipeline, Awaiting, Injection};
-use crate::vk::lifetime::{self, HostBuffer};
+use crate::vk::lifetime::{self, PooledBuffer};
 use crate::vk::DeviceState;
 use ash::vk;
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -74,11 +74,10 @@ enum Target {
 
 /// A recording's mask data: indirect arguments first, then the vertices.
 struct MaskData {
-    buffer: Option<HostBuffer>,
+    buffer: PooledBuffer,
     target: Target,
     /// What the buffer holds now.
     filled: Mutex<Filled>,
-    pool: Arc<Mutex<Vec<HostBuffer>>>,
 }
 
 /// The content of a recording's buffer: for which mask generation and eyes, and the pixels each
@@ -88,16 +87,6 @@ struct Filled {
     key: Option<(u64, Vec<EyeDraw>)>,
     pixels: Vec<(u32, u64)>,
 }
-
-impl Drop for MaskData {
-    fn drop(&mut self) {
-        if let Some(b) = self.buffer.take() {
-            b.recycle(&self.pool);
-        }
-    }
-}
-
-const ARGS: u64 = std::mem::size_of::<vk::DrawIndirectCommand>() as u64;
 
 /// Maps NDC of `from` (a viewport) into NDC of `to` (another viewport of the same framebuffer).
 fn remap(p: [f32; 2], from: PixelRect, to: PixelRect) -> [f32; 2] {
@@ -114,12 +103,10 @@ impl MaskData {
         }
     }
     fn vertex_offset(&self) -> u64 {
-        ARGS * self.draw_slots() as u64
+        inject::DRAW_ARGS * self.draw_slots() as u64
     }
     fn clear(&self, f: &mut Filled) {
-        if let Some(buf) = &self.buffer {
-            buf.write(0, &vec![vk::DrawIndirectCommand::default(); self.draw_slots()]);
-        }
+        self.buffer.write(0, &vec![vk::DrawIndirectCommand::default(); self.draw_slots()]);
         *f = Filled::default();
     }
     /// Makes the buffer hold `g`'s mask for the target's eyes (`plan`: the eyes known now, for an
@@ -136,7 +123,7 @@ impl MaskData {
         if f.key.as_ref() == Some(&key) {
             return;
         }
-        let Some(buf) = &self.buffer else { return };
+        let buf = &self.buffer;
         let mut vertices = Vec::new();
         let mut args = Vec::new();
         for dr in &draws {
@@ -257,12 +244,12 @@ impl MaskDevice {
     /// mask usually fits when refilled).
     fn data(&self, d: &DeviceState, g: &Geometry, target: Target) -> Result<Arc<MaskData>, NotMasked> {
         let vertices: usize = g.ndc.values().map(Vec::len).sum();
-        let size = ARGS * 4 + 2 * (vertices * std::mem::size_of::<Vertex>()) as u64;
-        let buffer = HostBuffer::take(d, size, &self.memory).map_err(|e| {
+        let size = inject::DRAW_ARGS * 4 + 2 * (vertices * std::mem::size_of::<Vertex>()) as u64;
+        let buffer = PooledBuffer::take(d, size, &self.memory).map_err(|e| {
             tracing::warn!("mask buffer: {e}");
             NotMasked::LayerError
         })?;
-        Ok(Arc::new(MaskData { buffer: Some(buffer), target, filled: Mutex::default(), pool: d.lifetime.buffers.clone() }))
+        Ok(Arc::new(MaskData { buffer, target, filled: Mutex::default() }))
     }
 
     /// Records the mask draw(s) of a known eye pass; returns the pixels they cover per view.
@@ -278,7 +265,7 @@ impl MaskDevice {
         let recorded: Vec<EyeDraw> = if multiview { draws.iter().take(1).copied().collect() } else { draws.clone() };
         let data = self.data(d, &g, Target::Eyes { draws, multiview })?;
         data.refresh(self, &g, None);
-        let vk_buffer = data.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
+        let vk_buffer = data.buffer.buffer;
         let fns = d.fns.fp_v1_0();
         // SAFETY: `at.cb` is recording inside the pass the plan was made for (the chassis just
         // recorded its begin / clear); the pipeline is compatible with it; the buffer is held by
@@ -289,7 +276,7 @@ impl MaskDevice {
             for (i, dr) in recorded.iter().enumerate() {
                 (fns.cmd_set_viewport)(at.cb, 0, 1, &inject::fail_viewport(dr.viewport, plan.fail_depth));
                 (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(dr.scissor));
-                (fns.cmd_draw_indirect)(at.cb, vk_buffer, ARGS * i as u64, 1, ARGS as u32);
+                (fns.cmd_draw_indirect)(at.cb, vk_buffer, inject::DRAW_ARGS * i as u64, 1, inject::DRAW_ARGS as u32);
             }
         }
         let pixels = plan.draws.iter().map(|dr| (dr.view, self.coverage(&g, dr.view, dr.viewport, dr.scissor))).collect();
@@ -364,7 +351,7 @@ impl VkFeature for MaskDevice {
         let Ok(p) = self.pipeline(d, at.pass, &plan, at.settings.mask.debug) else { return };
         let Ok(data) = self.data(d, &g, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area }) else { return };
         data.refresh(self, &g, None);
-        let vk_buffer = data.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
+        let vk_buffer = data.buffer.buffer;
         let fns = d.fns.fp_v1_0();
         // SAFETY: `at.cb` is recording inside the pass (the chassis just recorded its begin /
         // clear); the pipeline is compatible with it; the buffer (empty draw arguments until
@@ -374,7 +361,7 @@ impl VkFeature for MaskDevice {
             (fns.cmd_bind_vertex_buffers)(at.cb, 0, 1, &vk_buffer, &data.vertex_offset());
             (fns.cmd_set_viewport)(at.cb, 0, 1, &inject::fail_viewport(area, at.fail_depth));
             (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(area));
-            (fns.cmd_draw_indirect)(at.cb, vk_buffer, 0, 1, ARGS as u32);
+            (fns.cmd_draw_indirect)(at.cb, vk_buffer, 0, 1, inject::DRAW_ARGS as u32);
         }
         lifetime::hold(d, at.owner, data);
     }
@@ -426,6 +413,6 @@ mod tests {
             assert_eq!(&s[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
         }
         assert_eq!(std::mem::size_of::<Vertex>(), 12);
-        assert_eq!(ARGS, 16);
+        assert_eq!(inject::DRAW_ARGS, 16);
     }
 }

@@ -268,20 +268,8 @@ pub(in crate::vk) unsafe extern "system" fn cmd_next_subpass(cb: vk::CommandBuff
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_end_render_pass(cb: vk::CommandBuffer) {
-    hook_decided(
-        "vkCmdEndRenderPass",
-        cb,
-        (),
-        |d| pass_ending(d, cb),
-        // SAFETY: forwarding the app's arguments unchanged.
-        |d, _| unsafe { (d.fns.fp_v1_0().cmd_end_render_pass)(cb) },
-        |d, ()| {
-            inject::on_trigger(d, cb, Trigger::End);
-            d.track.end_pass(cb.as_raw());
-            pass_ended(d, cb);
-            Ok(())
-        },
-    )
+    // SAFETY: forwarding the app's arguments unchanged.
+    end_pass("vkCmdEndRenderPass", cb, |d| unsafe { (d.fns.fp_v1_0().cmd_end_render_pass)(cb) })
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_begin_render_pass2(
@@ -322,20 +310,8 @@ pub(in crate::vk) unsafe extern "system" fn cmd_next_subpass2(cb: vk::CommandBuf
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_end_render_pass2(cb: vk::CommandBuffer, end: *const vk::SubpassEndInfo<'_>) {
-    hook_decided(
-        "vkCmdEndRenderPass2",
-        cb,
-        (),
-        |d| pass_ending(d, cb),
-        // SAFETY: forwarding the app's arguments unchanged.
-        |d, _| unsafe { (d.fns.fp_v1_2().cmd_end_render_pass2)(cb, end) },
-        |d, ()| {
-            inject::on_trigger(d, cb, Trigger::End);
-            d.track.end_pass(cb.as_raw());
-            pass_ended(d, cb);
-            Ok(())
-        },
-    )
+    // SAFETY: forwarding the app's arguments unchanged.
+    end_pass("vkCmdEndRenderPass2", cb, |d| unsafe { (d.fns.fp_v1_2().cmd_end_render_pass2)(cb, end) })
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandBuffer, info: *const vk::RenderingInfo<'_>) {
@@ -367,20 +343,8 @@ pub(in crate::vk) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandB
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_end_rendering(cb: vk::CommandBuffer) {
-    hook_decided(
-        "vkCmdEndRendering",
-        cb,
-        (),
-        |d| pass_ending(d, cb),
-        // SAFETY: forwarding the app's arguments unchanged.
-        |d, _| unsafe { (d.fns.fp_v1_3().cmd_end_rendering)(cb) },
-        |d, ()| {
-            inject::on_trigger(d, cb, Trigger::End);
-            d.track.end_pass(cb.as_raw());
-            pass_ended(d, cb);
-            Ok(())
-        },
-    )
+    // SAFETY: forwarding the app's arguments unchanged.
+    end_pass("vkCmdEndRendering", cb, |d| unsafe { (d.fns.fp_v1_3().cmd_end_rendering)(cb) })
 }
 
 fn secondary_contents(info: *const vk::SubpassBeginInfo<'_>) -> bool {
@@ -432,6 +396,17 @@ fn transfer(d: &DeviceState, cb: vk::CommandBuffer, src: vk::Image, dst: vk::Ima
     for f in d.features.all() {
         f.transfer(d, cb, src.as_raw(), dst.as_raw(), &regions);
     }
+}
+
+/// The three pass ends: `pass_ending` before the end goes down, then the end trigger, the tracked
+/// pass closed and `pass_ended`.
+fn end_pass(call: &'static str, cb: vk::CommandBuffer, next: impl Fn(&DeviceState)) {
+    hook_decided(call, cb, (), |d| pass_ending(d, cb), |d, _| next(d), |d, ()| {
+        inject::on_trigger(d, cb, Trigger::End);
+        d.track.end_pass(cb.as_raw());
+        pass_ended(d, cb);
+        Ok(())
+    })
 }
 
 /// Raises `pass_ending` over the features: the pass is still open in `cb` (the end goes down next).

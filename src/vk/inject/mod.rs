@@ -31,6 +31,10 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// The size of one `VkDrawIndirectCommand`: injected draws read their arguments from the
+/// recording's own buffer (`vk::lifetime::PooledBuffer`), so resubmissions draw current data.
+pub(crate) const DRAW_ARGS: u64 = std::mem::size_of::<vk::DrawIndirectCommand>() as u64;
+
 /// What a feature gets at the injection point.
 pub(crate) struct Injection<'a> {
     /// The command buffer to record into: the app's, inside its pass, or a secondary of the

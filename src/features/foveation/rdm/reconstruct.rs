@@ -262,11 +262,8 @@ fn ensure_temp(d: &DeviceState, slot: &mut Slot, format: vk::Format, (width, hei
         let image = d.fns.create_image(&info, None).map_err(layer_error("temp image"))?;
         let req = d.fns.get_image_memory_requirements(image);
         let mem = &d.features.rdm.reconstruct.memory;
-        let types = (0..mem.memory_type_count).filter(|&i| req.memory_type_bits & (1 << i) != 0);
-        let index = types
-            .clone()
-            .find(|&i| mem.memory_types[i as usize].property_flags.contains(vk::MemoryPropertyFlags::DEVICE_LOCAL))
-            .or_else(|| types.clone().next());
+        let index = crate::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
+            .or_else(|| crate::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
         let Some(index) = index else {
             d.fns.destroy_image(image, None);
             return Err((NotApplied::LayerError, "no memory type for the temp image".into()));

@@ -14,7 +14,7 @@ use crate::shared::shared;
 use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan, TransferRegion};
 use crate::vk::feature::{Destroyed, DeviceInit, Plugin, VkFeature};
 use crate::vk::inject::{self, pipeline, Awaiting, Injection};
-use crate::vk::lifetime::{self, HostBuffer};
+use crate::vk::lifetime::{self, PooledBuffer};
 use crate::vk::DeviceState;
 use crate::core::pass::NotMasked;
 use ash::vk;
@@ -135,10 +135,9 @@ enum Target {
 /// the rule's parameters per eye) and what it holds. Refilled for the current fovea before a
 /// submission when the recording is idle, so a command buffer recorded once follows the gaze.
 struct Drawn {
-    buffer: Option<HostBuffer>,
+    buffer: PooledBuffer,
     target: Target,
     filled: Mutex<Filled>,
-    pool: Arc<Mutex<Vec<HostBuffer>>>,
 }
 
 /// What a recording's buffer holds: for which generations and eyes, the eyes of which image it
@@ -150,16 +149,6 @@ struct Filled {
     pending: Vec<Pending>,
     skipped: Vec<(u32, SkipCount)>,
 }
-
-impl Drop for Drawn {
-    fn drop(&mut self) {
-        if let Some(b) = self.buffer.take() {
-            b.recycle(&self.pool);
-        }
-    }
-}
-
-const ARGS: u64 = std::mem::size_of::<vk::DrawIndirectCommand>() as u64;
 
 /// (foveation generation, views generation) and every eye's rule parameters under them.
 type EyeParams = ((u64, u64), Vec<(EyeDraw, RdmParams)>);
@@ -211,13 +200,11 @@ impl Drawn {
         }
     }
     fn vertex_offset(&self) -> u64 {
-        ARGS * self.draw_slots() as u64
+        inject::DRAW_ARGS * self.draw_slots() as u64
     }
     /// Draws nothing, leaves nothing to reconstruct.
     fn clear(&self, f: &mut Filled) {
-        if let Some(buf) = &self.buffer {
-            buf.write(0, &vec![vk::DrawIndirectCommand::default(); self.draw_slots()]);
-        }
+        self.buffer.write(0, &vec![vk::DrawIndirectCommand::default(); self.draw_slots()]);
         *f = Filled::default();
     }
     /// Makes the buffer hold the rule for the current fovea (`plan`: the eyes known now, for an
@@ -235,7 +222,7 @@ impl Drawn {
         if f.key.as_ref() == Some(&key) {
             return;
         }
-        let Some(buf) = &self.buffer else { return };
+        let buf = &self.buffer;
         let vertices = vertices(&eyes, area);
         let per = if area.is_some() { 6 } else { 3 };
         let args: Vec<vk::DrawIndirectCommand> = if multiview || area.is_some() {
@@ -375,12 +362,12 @@ fn pipeline(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInsta
 
 /// A recording's buffer: room for a quad per eye of two eyes.
 fn drawn(me: &RdmDevice, d: &DeviceState, target: Target) -> Result<Arc<Drawn>, NotApplied> {
-    let size = ARGS * 2 + 12 * std::mem::size_of::<Vertex>() as u64;
-    let buffer = HostBuffer::take(d, size, &me.memory).map_err(|e| {
+    let size = inject::DRAW_ARGS * 2 + 12 * std::mem::size_of::<Vertex>() as u64;
+    let buffer = PooledBuffer::take(d, size, &me.memory).map_err(|e| {
         tracing::warn!("rdm vertex buffer: {e}");
         NotApplied::LayerError
     })?;
-    Ok(Arc::new(Drawn { buffer: Some(buffer), target, filled: Mutex::default(), pool: d.lifetime.buffers.clone() }))
+    Ok(Arc::new(Drawn { buffer, target, filled: Mutex::default() }))
 }
 
 /// Records the checkerboard depth draw into the open pass (after the mask, before the chassis
@@ -393,7 +380,7 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     let data = drawn(me, d, Target::Eyes { draws: plan.draws.clone(), multiview, image: plan.image })?;
     data.refresh(me, None);
     let cb = at.cb;
-    let vk_buffer = data.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
+    let vk_buffer = data.buffer.buffer;
     let fns = d.fns.fp_v1_0();
     let viewport = |r: PixelRect| inject::fail_viewport(r, plan.fail_depth);
     // SAFETY: `cb` is recording inside the pass the plan was made for; the pipeline is compatible
@@ -406,12 +393,12 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
             let dr = plan.draws[0];
             (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
             (fns.cmd_set_scissor)(cb, 0, 1, &inject::rect2d(dr.scissor));
-            (fns.cmd_draw_indirect)(cb, vk_buffer, 0, 1, ARGS as u32);
+            (fns.cmd_draw_indirect)(cb, vk_buffer, 0, 1, inject::DRAW_ARGS as u32);
         } else {
             for (i, dr) in plan.draws.iter().enumerate().filter(|(_, dr)| dr.scissor.area() > 0) {
                 (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
                 (fns.cmd_set_scissor)(cb, 0, 1, &inject::rect2d(dr.scissor));
-                (fns.cmd_draw_indirect)(cb, vk_buffer, ARGS * i as u64, 1, ARGS as u32);
+                (fns.cmd_draw_indirect)(cb, vk_buffer, inject::DRAW_ARGS * i as u64, 1, inject::DRAW_ARGS as u32);
             }
         }
     }
@@ -440,7 +427,7 @@ fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result
     let p = pipeline(me, d, at.pass, &plan)?;
     let data = drawn(me, d, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area })?;
     data.refresh(me, None);
-    let vk_buffer = data.buffer.as_ref().map_or(vk::Buffer::null(), |b| b.buffer);
+    let vk_buffer = data.buffer.buffer;
     let fns = d.fns.fp_v1_0();
     // SAFETY: `at.cb` is recording inside the pass; the pipeline is compatible with it; the
     // buffer (empty draw arguments until filled) is held by the app's command buffer.
@@ -449,7 +436,7 @@ fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result
         (fns.cmd_bind_vertex_buffers)(at.cb, 0, 1, &vk_buffer, &data.vertex_offset());
         (fns.cmd_set_viewport)(at.cb, 0, 1, &inject::fail_viewport(area, at.fail_depth));
         (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(area));
-        (fns.cmd_draw_indirect)(at.cb, vk_buffer, 0, 1, ARGS as u32);
+        (fns.cmd_draw_indirect)(at.cb, vk_buffer, 0, 1, inject::DRAW_ARGS as u32);
     }
     lifetime::hold(d, at.owner, data);
     Ok(())

@@ -384,9 +384,8 @@ fn cached_map(d: &DeviceState, key: &MapKey, eyes: &[EyeRates], rates: DeviceRat
     Ok(img)
 }
 
-pub(super) fn memory_type(d: &DeviceState, bits: u32, wanted: vk::MemoryPropertyFlags) -> Option<u32> {
-    let mem = &d.features.vrs.memory;
-    (0..mem.memory_type_count).find(|&i| bits & (1 << i) != 0 && mem.memory_types[i as usize].property_flags.contains(wanted))
+fn memory_type(d: &DeviceState, bits: u32, wanted: vk::MemoryPropertyFlags) -> Option<u32> {
+    lifetime::memory_type(&d.features.vrs.memory, bits, wanted)
 }
 
 /// The rate image (`key`'s extent and layers) and its view, into `img`.
