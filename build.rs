@@ -15,6 +15,9 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("rdm.frag", "rdm.frag.spv", &[]),
     ("rdm_fill.vert", "rdm_fill.vert.spv", &[]),
     ("rdm_fill.frag", "rdm_fill.frag.spv", &[]),
+    ("far_field.vert", "far_field.vert.spv", &[]),
+    ("far_field.vert", "far_field_mv.vert.spv", &["-DMULTIVIEW"]),
+    ("far_field.frag", "far_field.frag.spv", &[]),
 ];
 
 fn main() {

@@ -8,6 +8,7 @@
 #![forbid(unsafe_code)]
 
 use crate::config::Config;
+use crate::features::far_field::FarFieldSettings;
 use crate::features::foveation::FoveationSettings;
 use crate::features::mask::MaskSettings;
 use std::cell::RefCell;
@@ -32,6 +33,7 @@ pub struct Settings {
     pub fragment_shading_rate: FsrSetting,
     pub mask: MaskSettings,
     pub foveation: FoveationSettings,
+    pub far_field: FarFieldSettings,
     pub stats_file: String,
     /// `debug.fail_in`, split.
     pub fail_in: Vec<String>,
@@ -49,6 +51,7 @@ impl Settings {
             },
             mask: MaskSettings::from_config(c),
             foveation: FoveationSettings::from_config(c),
+            far_field: FarFieldSettings::from_config(c),
             stats_file: c.text("stats.file").to_string(),
             fail_in: c.text("debug.fail_in").split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),
         }

@@ -134,6 +134,40 @@ pub struct Foveation {
 }
 
 /// A swapchain image as the Vulkan half sees it.
+/// One located view as the app renders it: pose in the app's locate space and FOV tangents.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViewPose {
+    /// Orientation quaternion (x, y, z, w).
+    pub orientation: [f32; 4],
+    pub position: [f32; 3],
+    pub fov: ViewFov,
+}
+
+/// `XrCompositionLayerDepthInfoKHR`'s projection range: `near_z` is the distance stored as
+/// `min_depth`, `far_z` the one stored as `max_depth` (near > far for reversed depth; far may be
+/// infinite).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DepthRange {
+    pub near_z: f32,
+    pub far_z: f32,
+    pub min_depth: f32,
+    pub max_depth: f32,
+}
+
+/// What the monoscopic far field needs from the OpenXR side: the session's frame count (frames
+/// begun), the views located for this frame and the previous one, and the app's depth range.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FarFieldViews {
+    /// `xrBeginFrame` calls so far (the frame being recorded now).
+    pub frame: u64,
+    /// (frame, views) located for the current frame.
+    pub current: Option<(u64, Vec<ViewPose>)>,
+    /// (frame, views) of the latest earlier frame that located views.
+    pub previous: Option<(u64, Vec<ViewPose>)>,
+    /// From the app's last `xrEndFrame` with depth info on its projection views.
+    pub depth: Option<DepthRange>,
+}
+
 #[derive(Debug, Clone)]
 pub struct SwapchainImage {
     pub swapchain: Arc<Swapchain>,
@@ -149,6 +183,8 @@ pub struct Shared {
     pub views: RwLock<Arc<Views>>,
     /// Foveation centre and rings per view (written by the OpenXR half; empty when off).
     pub foveation: RwLock<Arc<Foveation>>,
+    /// Views and depth range for the far field.
+    pub far_field: RwLock<Arc<FarFieldViews>>,
     /// `XrSwapchain` → swapchain.
     pub swapchains: HandleMap<u64, Swapchain>,
     /// `VkImage` → the swapchain image it is.
@@ -193,6 +229,18 @@ impl Shared {
         next.generation = cur.generation + 1;
         *cur = Arc::new(next);
         true
+    }
+    pub fn far_field(&self) -> Arc<FarFieldViews> {
+        self.far_field.read().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+    /// Changes the far field's views (copy on write: readers keep the snapshot they took).
+    pub fn update_far_field(&self, change: impl FnOnce(&mut FarFieldViews)) {
+        let mut cur = self.far_field.write().unwrap_or_else(|e| e.into_inner());
+        let mut next = (**cur).clone();
+        change(&mut next);
+        if next != **cur {
+            *cur = Arc::new(next);
+        }
     }
     pub fn foveation(&self) -> Arc<Foveation> {
         self.foveation.read().unwrap_or_else(|e| e.into_inner()).clone()

@@ -7,6 +7,7 @@
 //!
 //! Adding a feature: a folder here, and one line in `registry!` below.
 
+pub mod far_field;
 pub mod foveation;
 pub mod mask;
 
@@ -66,9 +67,11 @@ registry! {
         mask: mask::vk::MaskDevice,
         rdm: foveation::rdm::vk::RdmDevice,
         vrs: foveation::vrs::vk::VrsDevice,
+        far_field: far_field::vk::FarFieldDevice,
     }
     openxr {
         mask: mask::xr::MaskXr => mask::xr::MaskSession,
         foveation: foveation::xr::FoveationXr => foveation::xr::FoveationSession,
+        far_field: far_field::xr::FarFieldXr => far_field::xr::FarFieldSession,
     }
 }

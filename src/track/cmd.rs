@@ -421,6 +421,22 @@ impl CmdState {
         *self = CmdState { recording, usage, pass, depth_image_clears, veto, ..CmdState::default() };
     }
 
+    /// Whether a draw now would test depth: the bound pipeline's depth test (or its dynamic
+    /// value), a compare op of ALWAYS counting as no test. None for an untracked pipeline.
+    pub fn depth_tested(&self) -> Option<bool> {
+        let p = self.pipeline.as_ref()?;
+        let dynamic = |ds: vk::DynamicState| if p.is_dynamic(ds) { self.dynamic.get(&(ds.as_raw(), 0)) } else { None };
+        let enabled = match dynamic(vk::DynamicState::DEPTH_TEST_ENABLE) {
+            Some(StateCmd::DepthTestEnable(e)) => *e,
+            _ => p.depth_test_enable,
+        };
+        let op = match dynamic(vk::DynamicState::DEPTH_COMPARE_OP) {
+            Some(StateCmd::DepthCompareOp(op)) => *op,
+            _ => p.depth_compare_op,
+        };
+        Some(enabled && op != vk::CompareOp::ALWAYS)
+    }
+
     /// Commands that re-establish this state after an injected draw changed it: the pipeline
     /// first (it overwrites its static state), then every dynamic state still in effect, then push
     /// constants in their original order.

@@ -4,7 +4,7 @@
 //! needs (every method has a do-nothing default).
 //!
 //! Events, in the order a frame meets them:
-//! - creation: `amend_render_pass`, `amend_framebuffer` / `framebuffer_created`,
+//! - creation: `image_usage`, `amend_render_pass`, `amend_framebuffer` / `framebuffer_created`,
 //!   `amend_pipelines` (may return an amended copy of the app's create info; the first feature
 //!   that amends wins, and the app's own info is retried if the driver refuses the amended one);
 //! - destruction: `destroyed` (images, render passes, framebuffers);
@@ -12,7 +12,9 @@
 //!   point before begin), `pass_begun` (after), `inject` / `inject_awaiting` at the chassis'
 //!   injection point (`vk::inject`: right after the depth clear), `not_injected`, `pass_ending`
 //!   (before the end goes down), `pass_ended` (after it), `transfer` (copies, resolves, blits);
-//! - submission: `before_submit` (refresh what a recorded command buffer reads; apply what it
+//! - `injects_before_depth_test` features get `inject` at the pass's first depth-tested draw
+//!   (`vk::inject::before_draw`) instead of right after the clear;
+//! - submission: `queue_submitting` (may submit the layer's own work first), `before_submit` (refresh what a recorded command buffer reads; apply what it
 //!   recorded, in recording order);
 //! - OpenXR side: `before_release` (`xrReleaseSwapchainImage`, before it goes down);
 //! - `take_frame` at every `xrEndFrame`, `destroy` at `vkDestroyDevice`.
@@ -132,6 +134,12 @@ pub(crate) trait VkFeature: Send + Sync {
     fn injects(&self, _s: &Settings) -> bool {
         false
     }
+    /// Whether the feature's draws wait for the pass's first depth-tested draw instead of going in
+    /// right after the depth clear: draws without depth test that come first (a sky) would
+    /// otherwise paint over what the feature wrote.
+    fn injects_before_depth_test(&self) -> bool {
+        false
+    }
     /// Records the feature's draws into `at.cb` inside the app's pass (the chassis restores the
     /// app's state afterwards). Counts its own success and failure (`at.counts`).
     fn inject(&self, _d: &DeviceState, _at: &Injection<'_>) {}
@@ -146,6 +154,15 @@ pub(crate) trait VkFeature: Send + Sync {
     /// Command buffers are about to be submitted: refresh what their recordings read (only where
     /// no earlier submission of a recording may still execute) and act on what they recorded.
     fn before_submit(&self, _d: &DeviceState, _cbs: &[u64]) {}
+    /// A queue submission is about to go down on `queue` (of `family`, when known): the one
+    /// point where the layer may submit work of its own ahead of the app's (the app holds the
+    /// queue for the call).
+    fn queue_submitting(&self, _d: &DeviceState, _queue: vk::Queue, _family: Option<u32>) {}
+    /// Image usage the feature adds to an image the app creates with `usage` (e.g. TRANSFER_SRC
+    /// to copy an attachment): the app's own usage stays, so nothing it can see changes.
+    fn image_usage(&self, _s: &Settings, _usage: vk::ImageUsageFlags) -> vk::ImageUsageFlags {
+        vk::ImageUsageFlags::empty()
+    }
     /// `xrReleaseSwapchainImage` of `image` (index of `swapchain`) is about to go down; the
     /// session's queue is (`family`, `queue_index`).
     fn before_release(&self, _d: &DeviceState, _family: u32, _queue_index: u32, _swapchain: u64, _image_index: u32) {}

@@ -32,6 +32,7 @@ pub(crate) type Hold = Arc<dyn Any + Send + Sync>;
 pub(crate) enum Garbage {
     Buffer(vk::Buffer, vk::DeviceMemory),
     Image(vk::ImageView, vk::Image, vk::DeviceMemory),
+    DescriptorPool(vk::DescriptorPool),
 }
 
 /// Per-device lifetime state.
@@ -146,6 +147,8 @@ fn empty_trash(d: &DeviceState) {
                 d.fns.destroy_image(i, None);
                 d.fns.free_memory(m, None);
             },
+            // SAFETY: as above; destroying the pool frees its sets.
+            Garbage::DescriptorPool(p) => unsafe { d.fns.destroy_descriptor_pool(p, None) },
         }
     }
 }

@@ -13,7 +13,7 @@ mod hooks;
 pub(crate) mod inject;
 pub(crate) mod lifetime;
 pub mod loader;
-mod secondary;
+pub(crate) mod secondary;
 
 use crate::config::Config;
 use crate::guard::{self, PassThrough};
@@ -241,6 +241,14 @@ intercepts! {
     Device "vkBeginCommandBuffer" => hooks::begin_command_buffer as vk::PFN_vkBeginCommandBuffer;
     Device "vkResetCommandBuffer" => hooks::reset_command_buffer as vk::PFN_vkResetCommandBuffer;
     Device "vkCmdExecuteCommands" => hooks::cmd_execute_commands as vk::PFN_vkCmdExecuteCommands;
+    Device "vkCmdDraw" => hooks::cmd_draw as vk::PFN_vkCmdDraw;
+    Device "vkCmdDrawIndexed" => hooks::cmd_draw_indexed as vk::PFN_vkCmdDrawIndexed;
+    Device "vkCmdDrawIndirect" => hooks::cmd_draw_indirect as vk::PFN_vkCmdDrawIndirect;
+    Device "vkCmdDrawIndexedIndirect" => hooks::cmd_draw_indexed_indirect as vk::PFN_vkCmdDrawIndexedIndirect;
+    Device "vkCmdDrawIndirectCount" => hooks::cmd_draw_indirect_count as vk::PFN_vkCmdDrawIndirectCount;
+    Device "vkCmdDrawIndirectCountKHR" => hooks::cmd_draw_indirect_count as vk::PFN_vkCmdDrawIndirectCount;
+    Device "vkCmdDrawIndexedIndirectCount" => hooks::cmd_draw_indexed_indirect_count as vk::PFN_vkCmdDrawIndexedIndirectCount;
+    Device "vkCmdDrawIndexedIndirectCountKHR" => hooks::cmd_draw_indexed_indirect_count as vk::PFN_vkCmdDrawIndexedIndirectCount;
     Device "vkCmdBindPipeline" => hooks::cmd_bind_pipeline as vk::PFN_vkCmdBindPipeline;
     Device "vkCmdPushConstants" => hooks::cmd_push_constants as vk::PFN_vkCmdPushConstants;
     Device "vkCmdBindDescriptorSets" => hooks::cmd_bind_descriptor_sets as vk::PFN_vkCmdBindDescriptorSets;

@@ -145,6 +145,63 @@ pub(crate) fn record(
     Ok(cb)
 }
 
+/// Records `record` into a one-time primary of the layer's and submits it to `queue` (of
+/// `family`) ahead of the app's submission that is about to go down. For rare set-up work (image
+/// layout initialisation); the command buffer stays allocated until the device goes.
+pub(crate) fn submit_once(d: &DeviceState, queue: vk::Queue, family: u32, record: impl FnOnce(vk::CommandBuffer)) -> Result<(), String> {
+    let pool = {
+        let pools = lock(&d.secondary.pools);
+        pools.get(&family).map(|p| lock(p).pool)
+    };
+    let pool = match pool {
+        Some(p) => p,
+        None => {
+            let info = vk::CommandPoolCreateInfo::default().flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER).queue_family_index(family);
+            // SAFETY: a valid create info for a queue family the app submits to.
+            let pool = unsafe { d.fns.create_command_pool(&info, None) }.map_err(|e| format!("vkCreateCommandPool: {e}"))?;
+            let mut pools = lock(&d.secondary.pools);
+            match pools.entry(family) {
+                std::collections::hash_map::Entry::Occupied(o) => {
+                    // SAFETY: ours, never used (another thread made one meanwhile).
+                    unsafe { d.fns.destroy_command_pool(pool, None) };
+                    lock(o.get()).pool
+                }
+                std::collections::hash_map::Entry::Vacant(v) => {
+                    v.insert(Mutex::new(Pool { pool, free: Vec::new() }));
+                    pool
+                }
+            }
+        }
+    };
+    let cb = {
+        // The pool is externally synchronized: held while allocating and recording, released
+        // before the submission goes down.
+        let pools = lock(&d.secondary.pools);
+        let _pool_guard = pools.get(&family).map(lock);
+        let info = vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1);
+        // SAFETY: our pool, synchronized by its mutex (held).
+        let cb = unsafe { d.fns.allocate_command_buffers(&info) }.map_err(|e| format!("vkAllocateCommandBuffers: {e}"))?[0];
+        let set = d.set_loader_data.ok_or("the loader gave no vkSetDeviceLoaderData")?;
+        // SAFETY: the loader's callback for this device and a command buffer allocated on it.
+        let r = unsafe { set(d.handle, cb.as_raw() as usize as *mut std::ffi::c_void) };
+        if r != vk::Result::SUCCESS {
+            return Err(format!("vkSetDeviceLoaderData: {r:?}"));
+        }
+        let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+        // SAFETY: our new command buffer, its pool locked.
+        unsafe { d.fns.begin_command_buffer(cb, &begin) }.map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
+        record(cb);
+        // SAFETY: as above, recording.
+        unsafe { d.fns.end_command_buffer(cb) }.map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
+        cb
+    };
+    let cbs = [cb];
+    let submit = vk::SubmitInfo::default().command_buffers(&cbs);
+    // SAFETY: the app's queue, held by the app's vkQueueSubmit that called us (external
+    // synchronization); our executable command buffer, never freed before the device.
+    unsafe { (d.fns.fp_v1_0().queue_submit)(queue, 1, &submit, vk::Fence::null()) }.result().map_err(|e| format!("vkQueueSubmit: {e}"))
+}
+
 /// The app begins, resets or frees `primaries` (or their pool): they are not pending, so the
 /// layer's secondaries executed in them can be reused.
 pub(crate) fn release(d: &DeviceState, primaries: &[u64]) {

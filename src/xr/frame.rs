@@ -130,6 +130,41 @@ unsafe fn read_fovs(info: *const xr::FrameEndInfo) -> Option<Vec<crate::shared::
     }
 }
 
+/// Reads the depth range of the first projection view that carries `XrCompositionLayerDepthInfoKHR`.
+///
+/// # Safety
+/// As for `read_projection_layers`.
+unsafe fn read_depth_range(info: *const xr::FrameEndInfo) -> Option<crate::shared::DepthRange> {
+    // SAFETY: per the caller's contract, every non-null pointer is valid for its count.
+    unsafe {
+        let info = info.as_ref()?;
+        if info.layers.is_null() {
+            return None;
+        }
+        for i in 0..info.layer_count as usize {
+            let base = (*info.layers.add(i)).as_ref()?;
+            if base.ty != xr::StructureType::COMPOSITION_LAYER_PROJECTION {
+                continue;
+            }
+            let proj = &*(base as *const xr::CompositionLayerBaseHeader as *const xr::CompositionLayerProjection);
+            if proj.views.is_null() {
+                return None;
+            }
+            for v in std::slice::from_raw_parts(proj.views, proj.view_count as usize) {
+                let mut next = v.next as *const xr::BaseInStructure;
+                while let Some(s) = next.as_ref() {
+                    if s.ty == xr::StructureType::COMPOSITION_LAYER_DEPTH_INFO_KHR {
+                        let d = &*(next as *const xr::CompositionLayerDepthInfoKHR);
+                        return Some(crate::shared::DepthRange { near_z: d.near_z, far_z: d.far_z, min_depth: d.min_depth, max_depth: d.max_depth });
+                    }
+                    next = s.next;
+                }
+            }
+        }
+        None
+    }
+}
+
 /// Reads the projection layers of a frame. Anything malformed yields `None`: the runtime will
 /// reject the frame, and the layer must not learn from it.
 ///
@@ -187,6 +222,8 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
         let layers = if known { unsafe { read_projection_layers(frame_end_info) } } else { None };
         // SAFETY: as above.
         let fovs = if known { unsafe { read_fovs(frame_end_info) } } else { None };
+        // SAFETY: as above.
+        let depth_range = if known { unsafe { read_depth_range(frame_end_info) } } else { None };
         // What the app rendered (above) is what the Vulkan half works with; a feature may give the
         // runtime an amended frame.
         // SAFETY: the app's frame end info, valid for this call (null is handled).
@@ -207,6 +244,9 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
         write_frame_stats(&inst, session::lookup(session).ok().as_deref(), frame);
         reload_config(&inst);
         let shared = shared::shared();
+        if let Some(range) = depth_range {
+            shared.update_far_field(|f| f.depth = Some(range));
+        }
         if let (Some(fovs), Ok(s)) = (fovs, session::lookup(session)) {
             s.fov_submitted.store(true, Ordering::Release);
             shared.update_views(None, Some(fovs));

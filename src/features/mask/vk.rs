@@ -230,6 +230,9 @@ impl MaskDevice {
                 vk::VertexInputAttributeDescription { location: 1, binding: 0, format: vk::Format::R32_UINT, offset: 8 },
             ],
             write_first_color: debug,
+            per_instance: false,
+            layout: None,
+            depth_compare_op: vk::CompareOp::ALWAYS,
         })
         .map_err(|e| match e {
             pipeline::PipelineError::DeviceLacks => NotMasked::DeviceLacks,

@@ -15,8 +15,10 @@ use crate::track::cmd::StateCmd;
 use ash::vk::{self, Handle};
 use std::sync::Arc;
 
+mod draw;
 mod record;
 mod submit;
+pub(super) use draw::*;
 pub(super) use record::*;
 pub(super) use submit::*;
 
@@ -139,12 +141,27 @@ pub(super) unsafe extern "system" fn create_image(
     allocator: *const vk::AllocationCallbacks<'_>,
     out: *mut vk::Image,
 ) -> vk::Result {
+    let added = std::cell::Cell::new(vk::ImageUsageFlags::empty());
     hook(
         "vkCreateImage",
         device,
         vk::Result::ERROR_INITIALIZATION_FAILED,
-        // SAFETY: forwarding the app's arguments unchanged.
-        |d| unsafe { (d.fns.fp_v1_0().create_image)(device, ci, allocator, out) },
+        // SAFETY: the app's create info, with the usage the features add (retried unchanged if
+        // the driver refuses it), forwarded to the next layer.
+        |d| unsafe {
+            let settings = d.settings();
+            let extra = d.features.all().iter().fold(vk::ImageUsageFlags::empty(), |u, f| u | f.image_usage(&settings, (*ci).usage));
+            if !extra.is_empty() && !(*ci).usage.contains(extra) {
+                let amended = vk::ImageCreateInfo { usage: (*ci).usage | extra, ..*ci };
+                let r = (d.fns.fp_v1_0().create_image)(device, &amended, allocator, out);
+                if r == vk::Result::SUCCESS {
+                    added.set(extra);
+                    return r;
+                }
+                tracing::debug!(?r, "vkCreateImage with the layer's added usage failed; the app's own create info is used");
+            }
+            (d.fns.fp_v1_0().create_image)(device, ci, allocator, out)
+        },
         |d, r| {
             if r == vk::Result::SUCCESS {
                 // SAFETY: on success the handle was written; the create info is valid during the
@@ -159,7 +176,10 @@ pub(super) unsafe extern "system" fn create_image(
                     samples: ci.samples.as_raw(),
                     mip_levels: ci.mip_levels,
                 });
-                d.track.images.insert(h.as_raw(), Arc::new(convert::image(h, ci)));
+                let mut image = convert::image(h, ci);
+                // What the image really has: the app's usage and whatever the layer added.
+                image.usage |= added.get();
+                d.track.images.insert(h.as_raw(), Arc::new(image));
             }
             Ok(())
         },

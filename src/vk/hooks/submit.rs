@@ -6,9 +6,14 @@ use super::super::{convert, lifetime, DeviceState};
 use super::hook_decided;
 use ash::vk::{self, Handle};
 
-/// Raises `before_submit` over the features; keeps the command buffers for `after`.
-fn before(d: &DeviceState, cbs: Vec<u64>, keep: &std::cell::RefCell<Vec<u64>>) {
+/// Raises `queue_submitting` and `before_submit` over the features; keeps the command buffers
+/// for `after`.
+fn before(d: &DeviceState, queue: vk::Queue, cbs: Vec<u64>, keep: &std::cell::RefCell<Vec<u64>>) {
     lifetime::poll(d);
+    let family = cbs.first().and_then(|cb| d.track.command_buffers.get(*cb)).and_then(|c| d.track.pools.get(c.pool)).map(|p| p.queue_family_index);
+    for f in d.features.all() {
+        f.queue_submitting(d, queue, family);
+    }
     for f in d.features.all() {
         f.before_submit(d, &cbs);
     }
@@ -33,7 +38,7 @@ pub(in crate::vk) unsafe extern "system" fn queue_submit(queue: vk::Queue, count
                 // SAFETY: as above.
                 .flat_map(|s| unsafe { convert::slice(s.p_command_buffers, s.command_buffer_count) }.iter().map(|c| c.as_raw()))
                 .collect();
-            before(d, cbs, &keep)
+            before(d, queue, cbs, &keep)
         },
         // SAFETY: forwarding the app's arguments unchanged.
         |d, _| unsafe { (d.fns.fp_v1_0().queue_submit)(queue, count, submits, fence) },
@@ -59,7 +64,7 @@ pub(in crate::vk) unsafe extern "system" fn queue_submit2(queue: vk::Queue, coun
                 // SAFETY: as above.
                 .flat_map(|s| unsafe { convert::slice(s.p_command_buffer_infos, s.command_buffer_info_count) }.iter().map(|c| c.command_buffer.as_raw()))
                 .collect();
-            before(d, cbs, &keep)
+            before(d, queue, cbs, &keep)
         },
         // SAFETY: forwarding the app's arguments unchanged.
         |d, _| unsafe { (d.fns.fp_v1_3().queue_submit2)(queue, count, submits, fence) },

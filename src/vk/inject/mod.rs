@@ -24,6 +24,7 @@ use crate::track::cmd::{AttachmentUse, PassInstance, StateCmd};
 use crate::track::eye_pass::{self, EyeSource, Eyes, Learned, MaskPlan};
 use ash::vk::{self, Handle};
 use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, MutexGuard};
 pub(crate) use trigger::Trigger;
 
@@ -92,6 +93,16 @@ struct Pending {
 pub(crate) struct InjectDevice {
     books: Mutex<Books>,
     pub(crate) pipelines: pipeline::Cache,
+    /// Passes armed for an injection at their first depth-tested draw: while zero, a draw costs
+    /// the layer one atomic load.
+    armed_count: AtomicUsize,
+}
+
+/// An eye pass whose `injects_before_depth_test` features wait for its first depth-tested draw.
+struct Armed {
+    pass: PassInstance,
+    plan: MaskPlan,
+    counts: bool,
 }
 
 #[derive(Default)]
@@ -106,6 +117,8 @@ struct Books {
     logged_vetoes: HashSet<&'static str>,
     /// Injections vetoed, by reason (the command the layer cannot restore after).
     vetoed: HashMap<&'static str, u64>,
+    /// Command buffer → its armed open pass.
+    armed: HashMap<u64, Armed>,
 }
 
 impl InjectDevice {
@@ -139,6 +152,11 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
         return;
     }
     let key = cb.as_raw();
+    if !matches!(trigger, Trigger::Clear { .. }) {
+        // A new pass or subpass, or the end: an armed injection that met no depth-tested draw
+        // had nothing to save.
+        disarm(d, key);
+    }
     if trigger == Trigger::End && !lock(&d.inject.books).deferred.contains(&key) {
         return;
     }
@@ -300,14 +318,89 @@ fn veto(d: &DeviceState, settings: &Settings, counts: bool, reason: &'static str
 
 /// Records every injecting feature's draws for an eye pass into `cb`, then the app's state after
 /// them when `cb` is the app's own (a secondary of the layer's needs no restore: the app's
-/// secondaries set their own state).
+/// secondaries set their own state). Features that wait for the first depth-tested draw are
+/// armed instead (only in the app's own command buffer: the layer's secondary runs ahead of all
+/// of the app's draws, so it cannot wait for one).
 #[allow(clippy::too_many_arguments)]
 fn inject(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, plan: &MaskPlan, settings: &Settings, counts: bool, restore: bool) {
     let at = Injection { cb, pass: &snap.pass, plan, settings, counts, owner, bound_sets: Default::default() };
-    // Dropped last: the app's state goes back after every feature's draws.
-    let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore, &snap.sets, &at.bound_sets));
+    {
+        // Dropped here: the app's state goes back after every feature's draws.
+        let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore, &snap.sets, &at.bound_sets));
+        for f in d.features.all() {
+            if f.injects(settings) && !f.injects_before_depth_test() {
+                f.inject(d, &at);
+            }
+        }
+    }
+    let waiting: Vec<_> = d.features.all().into_iter().filter(|f| f.injects(settings) && f.injects_before_depth_test()).collect();
+    if waiting.is_empty() {
+        return;
+    }
+    if !restore {
+        for f in waiting {
+            if counts {
+                f.not_injected(d, settings, NotMasked::Secondary);
+            }
+        }
+        return;
+    }
+    let armed = Armed { pass: snap.pass.clone(), plan: plan.clone(), counts };
+    if lock(&d.inject.books).armed.insert(owner, armed).is_none() {
+        d.inject.armed_count.fetch_add(1, Ordering::AcqRel);
+    }
+}
+
+/// Counts a veto met by an armed pass for the waiting features only.
+fn veto_waiting(d: &DeviceState, settings: &Settings, reason: &'static str) {
+    *lock(&d.inject.books).vetoed.entry(reason).or_insert(0) += 1;
     for f in d.features.all() {
-        if f.injects(settings) {
+        if f.injects(settings) && f.injects_before_depth_test() {
+            f.not_injected(d, settings, NotMasked::Unsupported);
+        }
+    }
+}
+
+fn disarm(d: &DeviceState, cb: u64) {
+    if d.inject.armed_count.load(Ordering::Acquire) == 0 {
+        return;
+    }
+    if lock(&d.inject.books).armed.remove(&cb).is_some() {
+        d.inject.armed_count.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+/// Entry from the draw hooks, before the app's draw goes down: the first depth-tested draw of an
+/// armed pass gets the waiting features' draws in front of it, with the app's state as it is now
+/// restored afterwards.
+pub(crate) fn before_draw(d: &DeviceState, cb: vk::CommandBuffer) {
+    if d.inject.armed_count.load(Ordering::Acquire) == 0 {
+        return;
+    }
+    let key = cb.as_raw();
+    if !lock(&d.inject.books).armed.contains_key(&key) {
+        return;
+    }
+    let Some((tested, restore, sets, veto)) = d.track.with_cb(key, |s| (s.depth_tested(), s.restore_commands(), s.descriptor_set_commands(), s.veto)) else { return };
+    if let Some(reason) = veto {
+        // State the layer cannot restore was set after the pass was armed.
+        disarm(d, key);
+        let settings = d.settings();
+        veto_waiting(d, &settings, reason);
+        return;
+    }
+    // An untracked pipeline counts as depth-tested: injecting before it is the safe side only
+    // if it tests depth, which every pipeline drawing scenery does.
+    if tested == Some(false) {
+        return;
+    }
+    let Some(armed) = lock(&d.inject.books).armed.remove(&key) else { return };
+    d.inject.armed_count.fetch_sub(1, Ordering::AcqRel);
+    let settings = d.settings();
+    let at = Injection { cb, pass: &armed.pass, plan: &armed.plan, settings: &settings, counts: armed.counts, owner: key, bound_sets: Default::default() };
+    let _restore = restore::Restore::new(d, cb, &restore, &sets, &at.bound_sets);
+    for f in d.features.all() {
+        if f.injects(&settings) && f.injects_before_depth_test() {
             f.inject(d, &at);
         }
     }

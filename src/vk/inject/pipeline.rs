@@ -61,6 +61,13 @@ pub(crate) struct PipelineDesc {
     pub attributes: Vec<vk::VertexInputAttributeDescription>,
     /// Colour writes to the pass's first attachment (a debug tint); none otherwise.
     pub write_first_color: bool,
+    /// Binding 0 advances per instance, not per vertex (per-draw parameters as attributes).
+    pub per_instance: bool,
+    /// The feature's own pipeline layout (descriptor sets); None: the shared empty one.
+    pub layout: Option<vk::PipelineLayout>,
+    /// The depth test: ALWAYS replaces the cleared depth whatever the app's compare op is; a
+    /// draw that must not cover what the app already drew uses the app's "nearer" op.
+    pub depth_compare_op: vk::CompareOp,
 }
 
 /// Why the layer has no pipeline for a key.
@@ -132,7 +139,10 @@ pub(crate) fn get(d: &DeviceState, key: &PipelineKey, desc: impl FnOnce() -> Pip
         return Ok(*p);
     }
     let desc = desc();
-    let layout = layout(d)?;
+    let layout = match desc.layout {
+        Some(l) => l,
+        None => layout(d)?,
+    };
     let vert = module(d, if key.pass.multiview() { desc.vert_multiview } else { desc.vert })?;
     let frag = desc.frag.map(|f| module(d, f)).transpose()?;
     let mut stages = vec![vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vert).name(c"main")];
@@ -143,7 +153,7 @@ pub(crate) fn get(d: &DeviceState, key: &PipelineKey, desc: impl FnOnce() -> Pip
         PassKey::RenderPass { samples, colors, .. } => (*samples, *colors as usize),
         PassKey::Dynamic { colors, samples, .. } => (*samples, colors.len()),
     };
-    let bindings = [vk::VertexInputBindingDescription { binding: 0, stride: desc.stride, input_rate: vk::VertexInputRate::VERTEX }];
+    let bindings = [vk::VertexInputBindingDescription { binding: 0, stride: desc.stride, input_rate: if desc.per_instance { vk::VertexInputRate::INSTANCE } else { vk::VertexInputRate::VERTEX } }];
     let vertex_input = vk::PipelineVertexInputStateCreateInfo::default().vertex_binding_descriptions(&bindings).vertex_attribute_descriptions(&desc.attributes);
     let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
     let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
@@ -155,7 +165,7 @@ pub(crate) fn get(d: &DeviceState, key: &PipelineKey, desc: impl FnOnce() -> Pip
     let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::from_raw(samples));
     // ALWAYS + write: the draw replaces the cleared depth with the failing value, whatever the
     // app's compare op is.
-    let depth = vk::PipelineDepthStencilStateCreateInfo::default().depth_test_enable(true).depth_write_enable(true).depth_compare_op(vk::CompareOp::ALWAYS);
+    let depth = vk::PipelineDepthStencilStateCreateInfo::default().depth_test_enable(true).depth_write_enable(true).depth_compare_op(desc.depth_compare_op);
     let blend_atts: Vec<vk::PipelineColorBlendAttachmentState> = (0..colors)
         .map(|i| {
             let mask = if desc.write_first_color && i == 0 { vk::ColorComponentFlags::RGBA } else { vk::ColorComponentFlags::empty() };

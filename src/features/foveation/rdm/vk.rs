@@ -349,7 +349,7 @@ fn pipeline(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInsta
     pipeline::get(d, &key, || {
         let (stride, attributes) = vertex_layout();
         // A fragment shader that discards kept quads; colour writes stay off.
-        pipeline::PipelineDesc { vert: VERT, vert_multiview: VERT_MV, frag: Some(FRAG), stride, attributes, write_first_color: false }
+        pipeline::PipelineDesc { vert: VERT, vert_multiview: VERT_MV, frag: Some(FRAG), stride, attributes, write_first_color: false, per_instance: false, layout: None, depth_compare_op: vk::CompareOp::ALWAYS }
     })
     .map_err(|e| match e {
         pipeline::PipelineError::DeviceLacks => NotApplied::DeviceLacks,

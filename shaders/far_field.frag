@@ -1,0 +1,67 @@
+#version 450
+// stereoshim's monoscopic far field: map this destination pixel into the source eye's copy
+// (rotation + both FOVs; with the depth shift also the disparity of the source's own depth there),
+// and write the source's colour only where every source sample of the footprint lies beyond the
+// split distance. Anywhere else nothing is written: the app renders the pixel itself.
+layout(set = 0, binding = 0) uniform sampler2D color0;
+layout(set = 0, binding = 1) uniform sampler2D depth0;
+layout(set = 0, binding = 2) uniform sampler2D color1;
+layout(set = 0, binding = 3) uniform sampler2D depth1;
+
+layout(location = 0) flat in vec4 m0;
+layout(location = 1) flat in vec4 m1;
+layout(location = 2) flat in vec4 m2;
+// xyz: the destination's position in source pixels; w: 1 for the depth shift.
+layout(location = 3) flat in vec4 k;
+// 1/z = x + y * depth; z: 1/split distance; w: the split plane's depth.
+layout(location = 4) flat in vec4 depth;
+// The copy's extent (pixels).
+layout(location = 5) flat in vec4 size;
+layout(location = 6) flat in uvec4 flags;
+
+layout(location = 0) out vec4 out_color;
+
+float stored_depth(ivec2 t) {
+    return flags.x == 0u ? texelFetch(depth0, t, 0).r : texelFetch(depth1, t, 0).r;
+}
+
+bool inside(ivec2 t) {
+    return t.x >= 0 && t.y >= 0 && t.x < int(size.x) && t.y < int(size.y);
+}
+
+// Beyond the split: 1/z below the split's (the clear value's 1/z is the farthest there is).
+bool far_at(ivec2 t) {
+    return inside(t) && depth.x + depth.y * stored_depth(t) < depth.z;
+}
+
+void main() {
+    mat3 m = mat3(m0.xyz, m1.xyz, m2.xyz);
+    vec3 h = m * vec3(gl_FragCoord.xy, 1.0);
+    if (h.z <= 0.0) {
+        discard;
+    }
+    vec2 uv = h.xy / h.z;
+    if (k.w > 0.5) {
+        ivec2 t = ivec2(floor(uv));
+        if (!far_at(t)) {
+            discard;
+        }
+        float inv_z = max(depth.x + depth.y * stored_depth(t), 0.0);
+        vec3 shifted = h + k.xyz * inv_z;
+        if (shifted.z <= 0.0) {
+            discard;
+        }
+        uv = shifted.xy / shifted.z;
+    }
+    // The bilinear footprint: all four samples must be far.
+    ivec2 t0 = ivec2(floor(uv - 0.5));
+    if (!far_at(t0) || !far_at(t0 + ivec2(1, 0)) || !far_at(t0 + ivec2(0, 1)) || !far_at(t0 + ivec2(1, 1))) {
+        discard;
+    }
+    vec2 st = uv / size.xy;
+    vec4 c = flags.x == 0u ? texture(color0, st) : texture(color1, st);
+    if (flags.z != 0u) {
+        c = vec4(mix(c.rgb, vec3(1.0, 0.0, 1.0), 0.4), c.a);
+    }
+    out_color = c;
+}

@@ -1,0 +1,102 @@
+//! The far field's per-frame counters (`stats.file`, the device's stats line).
+#![forbid(unsafe_code)]
+
+use crate::core::stats::{json_counts, FeatureStats};
+use std::collections::BTreeMap;
+
+/// Counted per submission: a command buffer recorded once counts every time it runs.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct FarFieldStats {
+    /// Destination views that reused the source's far field, by view.
+    pub views_reused: BTreeMap<u32, u64>,
+    /// Copies of eye images the layer made (sources for later reuse).
+    pub copies: u64,
+    /// Eye passes (or destination views) left alone, by reason.
+    pub not_applied: BTreeMap<&'static str, u64>,
+    /// Destination views that had no fresh source this time.
+    pub no_fresh_source: u64,
+}
+
+impl FarFieldStats {
+    pub fn count_not_applied(&mut self, why: &'static str) {
+        *self.not_applied.entry(why).or_insert(0) += 1;
+    }
+}
+
+impl FeatureStats for FarFieldStats {
+    fn id(&self) -> &'static str {
+        "far_field"
+    }
+    fn label(&self) -> &'static str {
+        "monoscopic far field"
+    }
+    fn add(&mut self, other: &dyn FeatureStats) {
+        let Some(o) = other.as_any().downcast_ref::<FarFieldStats>() else { return };
+        for (k, v) in &o.views_reused {
+            *self.views_reused.entry(*k).or_insert(0) += v;
+        }
+        for (k, v) in &o.not_applied {
+            *self.not_applied.entry(*k).or_insert(0) += v;
+        }
+        self.copies += o.copies;
+        self.no_fresh_source += o.no_fresh_source;
+    }
+    fn is_empty(&self) -> bool {
+        *self == FarFieldStats::default()
+    }
+    fn passes(&self) -> u64 {
+        self.views_reused.values().sum()
+    }
+    fn not_applied(&self) -> Vec<(&'static str, u64)> {
+        self.not_applied.iter().map(|(k, v)| (*k, *v)).collect()
+    }
+    fn hint(&self, reason: &str) -> &'static str {
+        match reason {
+            "no_depth_range" => "the app submits no XrCompositionLayerDepthInfoKHR: set far_field.near_z and far_field.far_z to its projection range",
+            "several_colour_attachments" => "the pass writes several colour attachments (a G-buffer): the far field only reuses a lit eye image",
+            "multisampled" => "the eye pass is multisampled: not handled yet",
+            "not_stored" => "the pass does not store its colour or depth: there is nothing to reuse",
+            "no_transfer_src" => "the eye or depth image was created before the layer could add TRANSFER_SRC to its usage",
+            "not_depth_tested" => "the pass has no depth-tested draw: nothing to save",
+            _ => crate::core::stats::common_hint(reason),
+        }
+    }
+    fn summary(&self) -> String {
+        format!(
+            "far_field_views_reused={} far_field_copies={} far_field_no_fresh_source={} far_field_not_applied={:?}",
+            self.passes(),
+            self.copies,
+            self.no_fresh_source,
+            self.not_applied
+        )
+    }
+    fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+        let mut o = serde_json::Map::new();
+        o.insert("views_reused".into(), json_counts(self.views_reused.iter().map(|(k, v)| (*k, *v))));
+        o.insert("copies".into(), self.copies.into());
+        o.insert("no_fresh_source".into(), self.no_fresh_source.into());
+        o.insert("not_applied".into(), json_counts(self.not_applied.iter().map(|(k, v)| (*k, *v))));
+        record.insert("far_field".into(), o.into());
+    }
+    crate::feature_stats_any!();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn adds_and_writes() {
+        let mut a = FarFieldStats::default();
+        assert!(a.is_empty());
+        let mut b = FarFieldStats { copies: 2, ..Default::default() };
+        b.views_reused.insert(1, 3);
+        b.count_not_applied("multisampled");
+        a.add(&b);
+        a.add(&b);
+        assert_eq!((a.passes(), a.copies, a.not_applied()), (6, 4, vec![("multisampled", 2)]));
+        let mut rec = serde_json::Map::new();
+        a.write_json(&mut rec);
+        assert_eq!(rec["far_field"]["views_reused"]["1"], 6);
+    }
+}

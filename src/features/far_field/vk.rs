@@ -1,0 +1,754 @@
+//! The far field on the Vulkan side. At the end of an eye pass whose view may be a source, the
+//! layer copies the view's colour and depth into a *slot* of its own (one per view). In a
+//! destination view's pass, in front of its first depth-tested draw (`injects_before_depth_test`),
+//! it draws one full-screen triangle per view that writes the slot's far pixels at the split
+//! plane's depth (`shaders/far_field.*`). Which slot, frame and pose each draw uses is decided at
+//! every submission (`before_submit`, `rules::check_source`) and written into the recording's own
+//! buffer, so command buffers recorded once follow the head and the alternation.
+//!
+//! Slots stay in the GENERAL layout for their whole life (set once by a one-time submission ahead
+//! of the first app submission that uses them); copies and reads are ordered by barriers the
+//! layer records next to them. The app's images go to TRANSFER_SRC for the copy and back to the
+//! layout the pass left them in.
+
+use super::rules::{self, InverseDepth, NoSource, PixelMap, Stamp, ViewGeometry};
+use super::stats::FarFieldStats;
+use crate::core::rect::PixelRect;
+use crate::core::stats::FeatureStats;
+use crate::settings::Settings;
+use crate::shared::{shared, FarFieldViews, ViewPose};
+use crate::track::cmd::{AttachmentUse, PassInstance};
+use crate::track::eye_pass::{EyeDraw, EyeLayout};
+use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
+use crate::vk::inject::{self, pipeline, Injection};
+use crate::vk::lifetime::{self, Garbage, PooledBuffer};
+use crate::vk::DeviceState;
+use ash::vk::{self, Handle};
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/far_field.vert.spv"));
+static VERT_MV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/far_field_mv.vert.spv"));
+static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/far_field.frag.spv"));
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// One destination view's draw parameters (instance attributes, `far_field.vert`).
+#[repr(C)]
+#[derive(Clone, Copy, Default)]
+struct Instance {
+    m: [[f32; 4]; 3],
+    k: [f32; 4],
+    depth: [f32; 4],
+    size: [f32; 4],
+    /// (slot read, active, debug tint, view)
+    flags: [u32; 4],
+}
+
+const INSTANCE: u64 = std::mem::size_of::<Instance>() as u64;
+
+/// A layer image with its memory and view.
+struct Owned {
+    image: vk::Image,
+    memory: vk::DeviceMemory,
+    view: vk::ImageView,
+}
+
+/// The copies of both views: colour and depth per view, one descriptor set reading all four.
+pub(crate) struct Slots {
+    images: [[Owned; 2]; 2],
+    pool: vk::DescriptorPool,
+    set: vk::DescriptorSet,
+    extent: vk::Extent2D,
+    color_format: vk::Format,
+    depth_format: vk::Format,
+    initialized: AtomicBool,
+    /// What each slot holds, as of the submissions seen so far: the copy's stamp and its extent.
+    copied: Mutex<[Option<(Stamp, PixelRect)>; 2]>,
+    trash: Arc<Mutex<Vec<Garbage>>>,
+}
+
+impl Drop for Slots {
+    fn drop(&mut self) {
+        let mut t = lock(&self.trash);
+        for slot in &mut self.images {
+            for o in slot.iter_mut() {
+                t.push(Garbage::Image(std::mem::take(&mut o.view), std::mem::take(&mut o.image), std::mem::take(&mut o.memory)));
+            }
+        }
+        t.push(Garbage::DescriptorPool(std::mem::take(&mut self.pool)));
+    }
+}
+
+/// A recording copies `view`'s pixels (`rect` of its image) into its slot.
+struct CopyOp {
+    view: u32,
+    rect: PixelRect,
+    slots: Arc<Slots>,
+}
+
+/// A recording's reuse draw(s): one indirect draw per destination view, arguments and instance
+/// data in `buffer`.
+struct ReuseOp {
+    buffer: PooledBuffer,
+    slots: Arc<Slots>,
+    views: Vec<ReuseView>,
+    multiview: bool,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct ReuseView {
+    view: u32,
+    /// Which slot the draw reads (decided at recording: `rules::slot_to_read`).
+    slot: u32,
+    /// The view's pixels in the destination image.
+    rect: PixelRect,
+}
+
+/// An attachment to copy at the pass's end.
+#[derive(Clone, Copy)]
+struct Source {
+    image: vk::Image,
+    layout: vk::ImageLayout,
+    aspect: vk::ImageAspectFlags,
+    base_layer: u32,
+}
+
+/// What the end of an injected pass copies.
+struct PendingCopy {
+    slots: Arc<Slots>,
+    color: Source,
+    depth: Source,
+    draws: Vec<EyeDraw>,
+    multiview: bool,
+}
+
+#[derive(Default)]
+struct Objects {
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    linear: vk::Sampler,
+    nearest: vk::Sampler,
+    slots: Option<Arc<Slots>>,
+}
+
+#[derive(Default)]
+struct Books {
+    frame: FarFieldStats,
+    total: FarFieldStats,
+    pending: HashMap<u64, PendingCopy>,
+    logged: HashSet<&'static str>,
+    /// (frame, views that reused pixels in it so far): a copy of such a view is not a source.
+    reused: (u64, [bool; 2]),
+}
+
+/// The far field's per-device state. Locks guard bookkeeping only, never a call down.
+pub(crate) struct FarFieldDevice {
+    layer_enabled: bool,
+    used: AtomicBool,
+    memory: vk::PhysicalDeviceMemoryProperties,
+    books: Mutex<Books>,
+    objects: Mutex<Objects>,
+}
+
+impl Plugin for FarFieldDevice {
+    const KEYS: &'static [crate::config::KeySpec] = super::KEYS;
+    fn new(init: &DeviceInit<'_>) -> FarFieldDevice {
+        FarFieldDevice { layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default(), objects: Mutex::default() }
+    }
+    fn empty_stats() -> Box<dyn FeatureStats> {
+        Box::new(FarFieldStats::default())
+    }
+    fn enabled(s: &Settings, _frame: &crate::core::stats::FrameStats) -> bool {
+        s.far_field.enabled
+    }
+}
+
+/// The pose of `view` located for `frame`, if the layer still has it.
+fn pose_of(v: &FarFieldViews, frame: u64, view: u32) -> Option<ViewPose> {
+    [&v.current, &v.previous].into_iter().flatten().find(|(f, _)| *f == frame).and_then(|(_, views)| views.get(view as usize).copied())
+}
+
+impl FarFieldDevice {
+    fn count(&self, f: impl Fn(&mut FarFieldStats)) {
+        let mut b = lock(&self.books);
+        f(&mut b.frame);
+        f(&mut b.total);
+    }
+
+    fn not_applied(&self, why: &'static str) {
+        let first = {
+            let mut b = lock(&self.books);
+            b.frame.count_not_applied(why);
+            b.total.count_not_applied(why);
+            b.logged.insert(why)
+        };
+        if first {
+            tracing::warn!("far field not applied to an eye pass: {why}: {} (logged once per reason)", FarFieldStats::default().hint(why));
+        }
+    }
+
+    /// The descriptor set layout, pipeline layout and samplers (made once per device).
+    fn objects(&self, d: &DeviceState) -> Result<(vk::DescriptorSetLayout, vk::PipelineLayout, vk::Sampler, vk::Sampler), String> {
+        let mut o = lock(&self.objects);
+        if o.layout != vk::PipelineLayout::null() {
+            return Ok((o.set_layout, o.layout, o.linear, o.nearest));
+        }
+        let bindings: Vec<_> = (0..4)
+            .map(|b| vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::FRAGMENT))
+            .collect();
+        let sampler = |filter: vk::Filter| {
+            vk::SamplerCreateInfo::default()
+                .mag_filter(filter)
+                .min_filter(filter)
+                .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+                .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                .max_lod(0.0)
+        };
+        // SAFETY: valid create infos; the objects are ours until `destroy` (the lock serializes
+        // creation; no call goes down to the app's queue or command buffers).
+        unsafe {
+            let set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
+            let layouts = [set_layout];
+            let layout = d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts), None).map_err(|e| e.to_string())?;
+            let linear = d.fns.create_sampler(&sampler(vk::Filter::LINEAR), None).map_err(|e| e.to_string())?;
+            let nearest = d.fns.create_sampler(&sampler(vk::Filter::NEAREST), None).map_err(|e| e.to_string())?;
+            *o = Objects { set_layout, layout, linear, nearest, slots: o.slots.take() };
+        }
+        Ok((o.set_layout, o.layout, o.linear, o.nearest))
+    }
+
+    /// The slots, made (again) when they are missing, too small or of other formats.
+    fn slots(&self, d: &DeviceState, extent: vk::Extent2D, color_format: vk::Format, depth_format: vk::Format) -> Result<Arc<Slots>, String> {
+        if let Some(s) = &lock(&self.objects).slots {
+            if s.color_format == color_format && s.depth_format == depth_format && s.extent.width >= extent.width && s.extent.height >= extent.height {
+                return Ok(s.clone());
+            }
+        }
+        let (set_layout, _, linear, nearest) = self.objects(d)?;
+        let slots = Arc::new(make_slots(d, &self.memory, extent, color_format, depth_format, set_layout, linear, nearest)?);
+        tracing::info!(width = extent.width, height = extent.height, ?color_format, ?depth_format, "far field source slots created");
+        lock(&self.objects).slots = Some(slots.clone());
+        Ok(slots)
+    }
+
+    fn pipeline(&self, d: &DeviceState, at: &Injection<'_>, reversed: bool, debug: bool) -> Result<vk::Pipeline, &'static str> {
+        let pass = pipeline::pass_key(d, at.pass, at.plan).ok_or("unsupported")?;
+        let (_, layout, _, _) = self.objects(d).map_err(|e| {
+            tracing::warn!("far field objects: {e}");
+            "layer_error"
+        })?;
+        let key = pipeline::PipelineKey { feature: self.id(), variant: debug as u32 | (reversed as u32) << 1, pass };
+        let attr = |location: u32, format: vk::Format, offset: u32| vk::VertexInputAttributeDescription { location, binding: 0, format, offset };
+        let f4 = vk::Format::R32G32B32A32_SFLOAT;
+        pipeline::get(d, &key, || pipeline::PipelineDesc {
+            vert: VERT,
+            vert_multiview: VERT_MV,
+            frag: Some(FRAG),
+            stride: INSTANCE as u32,
+            attributes: vec![
+                attr(0, f4, 0),
+                attr(1, f4, 16),
+                attr(2, f4, 32),
+                attr(3, f4, 48),
+                attr(4, f4, 64),
+                attr(5, f4, 80),
+                attr(6, vk::Format::R32G32B32A32_UINT, 96),
+            ],
+            write_first_color: true,
+            per_instance: true,
+            layout: Some(layout),
+            // Only where nothing nearer than the split was drawn yet (the mask's depth included).
+            depth_compare_op: if reversed { vk::CompareOp::GREATER } else { vk::CompareOp::LESS },
+        })
+        .map_err(|e| match e {
+            pipeline::PipelineError::DeviceLacks => "device_lacks",
+            pipeline::PipelineError::Vulkan(e) => {
+                tracing::warn!(?key, "far field pipeline: {e}");
+                "layer_error"
+            }
+        })
+    }
+
+    /// Records the reuse draws of an eye pass and notes its copy for the pass's end.
+    fn record(&self, d: &DeviceState, at: &Injection<'_>) -> Result<(), &'static str> {
+        let s = &at.settings.far_field;
+        let views = shared().far_field();
+        let range = rules::depth_range(views.depth, s.configured_range).ok_or("no_depth_range")?;
+        let inverse = InverseDepth::of(&range).ok_or("no_depth_range")?;
+        if at.pass.rendering.as_ref().is_some_and(|r| r.suspending()) {
+            return Err("unsupported");
+        }
+        let (color, depth, color_info, depth_info) = attachments(d, at.pass)?;
+        let multiview = at.plan.layout == EyeLayout::Multiview;
+        let draws: Vec<EyeDraw> = at.plan.draws.iter().filter(|dr| dr.view < 2 && dr.viewport.area() > 0).copied().collect();
+        let extent = draws.iter().fold(vk::Extent2D::default(), |e, dr| vk::Extent2D { width: e.width.max(dr.viewport.width), height: e.height.max(dr.viewport.height) });
+        let slots = self.slots(d, extent, color_info.0, depth_info.0).map_err(|e| {
+            tracing::warn!("far field slots: {e}");
+            "layer_error"
+        })?;
+        let dests: Vec<EyeDraw> = draws.iter().filter(|dr| s.alternate || dr.view != s.source_view).copied().collect();
+        if !dests.is_empty() {
+            let mut copied = [false; 2];
+            lifetime::with_holds(d, at.owner, |holds| {
+                for c in holds.iter().filter_map(|h| h.downcast_ref::<CopyOp>()) {
+                    copied[c.view as usize] = true;
+                }
+            });
+            let reuse: Vec<ReuseView> = dests
+                .iter()
+                .map(|dr| ReuseView { view: dr.view, slot: rules::slot_to_read(dr.view, copied[1 - dr.view as usize], s.source, s.source_view, s.alternate), rect: dr.viewport })
+                .collect();
+            let p = self.pipeline(d, at, inverse.reversed(), s.debug)?;
+            let n = reuse.len() as u64;
+            let buffer = PooledBuffer::take(d, inject::DRAW_ARGS * n + INSTANCE * n, &self.memory).map_err(|e| {
+                tracing::warn!("far field buffer: {e}");
+                "layer_error"
+            })?;
+            // Nothing is drawn until a submission finds a fresh source.
+            buffer.write(0, &vec![vk::DrawIndirectCommand::default(); n as usize]);
+            let op = Arc::new(ReuseOp { buffer, slots: slots.clone(), views: reuse, multiview });
+            let (_, layout, _, _) = self.objects(d).map_err(|_| "layer_error")?;
+            let fns = d.fns.fp_v1_0();
+            let recorded = if multiview { &dests[..1] } else { &dests[..] };
+            // SAFETY: `at.cb` is the app's command buffer inside the pass the plan was made for,
+            // in front of its first depth-tested draw; the pipeline is compatible with the pass;
+            // the descriptor set, buffer and slots are held by the recording (`lifetime::hold`)
+            // until its submissions completed. The chassis restores the app's state afterwards
+            // (`bound_sets` asks for its descriptor sets too).
+            unsafe {
+                (fns.cmd_bind_pipeline)(at.cb, vk::PipelineBindPoint::GRAPHICS, p);
+                (fns.cmd_bind_descriptor_sets)(at.cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, 1, &slots.set, 0, std::ptr::null());
+                (fns.cmd_bind_vertex_buffers)(at.cb, 0, 1, &op.buffer.buffer, &(inject::DRAW_ARGS * n));
+                for (i, dr) in recorded.iter().enumerate() {
+                    let r = dr.viewport;
+                    let viewport = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
+                    (fns.cmd_set_viewport)(at.cb, 0, 1, &viewport);
+                    (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(dr.scissor));
+                    (fns.cmd_draw_indirect)(at.cb, op.buffer.buffer, inject::DRAW_ARGS * i as u64, 1, inject::DRAW_ARGS as u32);
+                }
+            }
+            at.bound_sets.set(true);
+            lifetime::hold(d, at.owner, op);
+        }
+        let pending = PendingCopy { slots, color, depth, draws, multiview };
+        lock(&self.books).pending.insert(at.owner, pending);
+        Ok(())
+    }
+
+    /// Records the copies of the source views of the pass that just ended in `cb`.
+    fn copy(&self, d: &DeviceState, cb: vk::CommandBuffer, p: PendingCopy, s: &Settings) {
+        let sources: Vec<EyeDraw> = p.draws.iter().filter(|dr| s.far_field.alternate || dr.view == s.far_field.source_view).copied().collect();
+        if sources.is_empty() {
+            return;
+        }
+        let color_layer = |dr: &EyeDraw| dr.layer;
+        let depth_layer = |dr: &EyeDraw| p.depth.base_layer + if p.multiview { dr.view } else { 0 };
+        let range = |src: &Source, layers: (u32, u32)| vk::ImageSubresourceRange { aspect_mask: src.aspect, base_mip_level: 0, level_count: 1, base_array_layer: layers.0, layer_count: layers.1 - layers.0 + 1 };
+        let span = |f: &dyn Fn(&EyeDraw) -> u32| sources.iter().fold((u32::MAX, 0), |(lo, hi), dr| (lo.min(f(dr)), hi.max(f(dr))));
+        let (cl, dl) = (span(&color_layer), span(&depth_layer));
+        let app_barrier = |src: &Source, layers, to_copy: bool| {
+            let (old, new) = if to_copy { (src.layout, vk::ImageLayout::TRANSFER_SRC_OPTIMAL) } else { (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, src.layout) };
+            let (src_access, dst_access) = if to_copy {
+                (vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE, vk::AccessFlags::TRANSFER_READ)
+            } else {
+                (vk::AccessFlags::empty(), vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE)
+            };
+            vk::ImageMemoryBarrier::default()
+                .image(src.image)
+                .old_layout(old)
+                .new_layout(new)
+                .src_access_mask(src_access)
+                .dst_access_mask(dst_access)
+                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .subresource_range(range(src, layers))
+        };
+        let slot_barrier = |image: vk::Image, aspect, before_copy: bool| {
+            let (src_access, dst_access) = if before_copy { (vk::AccessFlags::SHADER_READ, vk::AccessFlags::TRANSFER_WRITE) } else { (vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ) };
+            vk::ImageMemoryBarrier::default()
+                .image(image)
+                .old_layout(vk::ImageLayout::GENERAL)
+                .new_layout(vk::ImageLayout::GENERAL)
+                .src_access_mask(src_access)
+                .dst_access_mask(dst_access)
+                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 })
+        };
+        let slot_images = |before: bool| -> Vec<vk::ImageMemoryBarrier<'static>> {
+            sources
+                .iter()
+                .flat_map(|dr| {
+                    let slot = &p.slots.images[dr.view as usize];
+                    [slot_barrier(slot[0].image, vk::ImageAspectFlags::COLOR, before), slot_barrier(slot[1].image, vk::ImageAspectFlags::DEPTH, before)]
+                })
+                .collect()
+        };
+        let mut before = vec![app_barrier(&p.color, cl, true), app_barrier(&p.depth, dl, true)];
+        before.extend(slot_images(true));
+        let mut after = vec![app_barrier(&p.color, cl, false), app_barrier(&p.depth, dl, false)];
+        after.extend(slot_images(false));
+        let fns = d.fns.fp_v1_0();
+        let attachment_stages = vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
+        // SAFETY: `cb` is the app's command buffer outside any pass (the pass just ended); the
+        // barriers name the app's attachments in the layouts its pass left them in (and put them
+        // back) and the layer's slots, which stay GENERAL; the slots are held by the recording.
+        unsafe {
+            (fns.cmd_pipeline_barrier)(cb, attachment_stages | vk::PipelineStageFlags::FRAGMENT_SHADER, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), before.len() as u32, before.as_ptr());
+            for dr in &sources {
+                let r = dr.viewport;
+                let slot = &p.slots.images[dr.view as usize];
+                let region = |aspect, layer| vk::ImageCopy {
+                    src_subresource: vk::ImageSubresourceLayers { aspect_mask: aspect, mip_level: 0, base_array_layer: layer, layer_count: 1 },
+                    src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+                    dst_subresource: vk::ImageSubresourceLayers { aspect_mask: aspect, mip_level: 0, base_array_layer: 0, layer_count: 1 },
+                    dst_offset: vk::Offset3D::default(),
+                    extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
+                };
+                (fns.cmd_copy_image)(cb, p.color.image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, slot[0].image, vk::ImageLayout::GENERAL, 1, &region(vk::ImageAspectFlags::COLOR, color_layer(dr)));
+                (fns.cmd_copy_image)(cb, p.depth.image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, slot[1].image, vk::ImageLayout::GENERAL, 1, &region(vk::ImageAspectFlags::DEPTH, depth_layer(dr)));
+            }
+            (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), after.len() as u32, after.as_ptr());
+        }
+        for dr in sources {
+            lifetime::hold(d, cb.as_raw(), Arc::new(CopyOp { view: dr.view, rect: dr.viewport, slots: p.slots.clone() }));
+        }
+    }
+
+    /// Fills a reuse op's draws for this submission.
+    fn refresh(&self, op: &ReuseOp, s: &Settings, views: &FarFieldViews, inverse: Option<InverseDepth>) {
+        let f = &s.far_field;
+        let frame = views.current.as_ref().map_or(0, |c| c.0);
+        let copied = *lock(&op.slots.copied);
+        let mut args = vec![vk::DrawIndirectCommand::default(); op.views.len()];
+        let mut instances = vec![Instance::default(); op.views.len()];
+        for (i, v) in op.views.iter().enumerate() {
+            let slot = copied[v.slot as usize];
+            let checked = rules::check_source(frame, v.view, f.source_view, f.alternate, slot.map(|c| c.0));
+            let stamp = match checked {
+                Ok(st) => st,
+                Err(NoSource::NotDestination) => continue,
+                Err(NoSource::NoFreshCopy) => {
+                    self.count(|st| st.no_fresh_source += 1);
+                    continue;
+                }
+            };
+            let src_rect = slot.map_or(PixelRect { x: 0, y: 0, width: 0, height: 0 }, |c| c.1);
+            let (Some(inverse), Some(src_pose), Some(dst_pose)) = (inverse, pose_of(views, stamp.frame, stamp.view), pose_of(views, frame, v.view)) else {
+                self.count(|st| st.no_fresh_source += 1);
+                continue;
+            };
+            let src = ViewGeometry::of(&src_pose, PixelRect { x: 0, y: 0, ..src_rect });
+            let dst = ViewGeometry::of(&dst_pose, v.rect);
+            let z = rules::split_distance(f.split_px, f.split_m, &src, &dst);
+            let map = PixelMap::new(&src, &dst);
+            let col = |c: glam::DVec3| [c.x as f32, c.y as f32, c.z as f32, 0.0];
+            let split_depth = inverse.depth_of(z).clamp(0.0, 1.0);
+            instances[i] = Instance {
+                m: [col(map.m.x_axis), col(map.m.y_axis), col(map.m.z_axis)],
+                k: [map.k.x as f32, map.k.y as f32, map.k.z as f32, if f.shift == super::Shift::Depth { 1.0 } else { 0.0 }],
+                depth: [inverse.a as f32, inverse.b as f32, (1.0 / z) as f32, split_depth as f32],
+                size: [src_rect.width as f32, src_rect.height as f32, 0.0, 0.0],
+                flags: [v.slot, 1, f.debug as u32, v.view],
+            };
+            args[i] = vk::DrawIndirectCommand { vertex_count: 3, instance_count: 1, first_vertex: 0, first_instance: i as u32 };
+            self.mark_reused(frame, v.view);
+            self.count(|st| *st.views_reused.entry(v.view).or_insert(0) += 1);
+        }
+        if op.multiview {
+            // One draw: every active view's instance (inactive ones cull themselves).
+            let active = args.iter().any(|a| a.vertex_count > 0);
+            args = vec![vk::DrawIndirectCommand { vertex_count: if active { 3 } else { 0 }, instance_count: instances.len() as u32, first_vertex: 0, first_instance: 0 }];
+            args.resize(op.views.len(), vk::DrawIndirectCommand::default());
+        }
+        op.buffer.write(0, &args);
+        op.buffer.write(inject::DRAW_ARGS * op.views.len() as u64, &instances);
+    }
+
+    fn mark_reused(&self, frame: u64, view: u32) {
+        let mut b = lock(&self.books);
+        if b.reused.0 != frame {
+            b.reused = (frame, [false; 2]);
+        }
+        b.reused.1[view as usize & 1] = true;
+    }
+
+    fn reused_in(&self, frame: u64, view: u32) -> bool {
+        let b = lock(&self.books);
+        b.reused.0 == frame && b.reused.1[view as usize & 1]
+    }
+}
+
+/// The pass's colour and depth sources and their (format, samples).
+#[allow(clippy::type_complexity)]
+fn attachments(d: &DeviceState, pass: &PassInstance) -> Result<(Source, Source, (vk::Format, vk::SampleCountFlags), (vk::Format, vk::SampleCountFlags)), &'static str> {
+    let (color, depth, color_layout, depth_layout): (&AttachmentUse, &AttachmentUse, vk::ImageLayout, vk::ImageLayout) = match (&pass.rendering, &pass.render_pass) {
+        (Some(r), _) => {
+            if r.color.len() != 1 {
+                return Err("several_colour_attachments");
+            }
+            let depth = r.depth.as_ref().ok_or("no_depth_attachment")?;
+            (&r.color[0].attachment, &depth.attachment, r.color[0].attachment.layout, depth.attachment.layout)
+        }
+        (None, Some(rp)) => {
+            let sub = rp.subpasses.get(pass.subpass as usize).ok_or("unsupported")?;
+            if sub.color.len() != 1 {
+                return Err("several_colour_attachments");
+            }
+            let ci = sub.color[0].used().ok_or("unsupported")? as usize;
+            let di = sub.depth_stencil.and_then(|r| r.used()).ok_or("no_depth_attachment")? as usize;
+            let (c, dd) = (pass.attachments.get(ci).ok_or("unsupported")?, pass.attachments.get(di).ok_or("unsupported")?);
+            (c, dd, rp.attachments[ci].final_layout, rp.attachments[di].final_layout)
+        }
+        _ => return Err("unsupported"),
+    };
+    if color.store_op != vk::AttachmentStoreOp::STORE || depth.store_op != vk::AttachmentStoreOp::STORE {
+        return Err("not_stored");
+    }
+    let info = |a: &AttachmentUse| {
+        let v = a.image_view.as_ref()?;
+        let i = d.track.images.get(v.image)?;
+        Some((v.image, v.range.base_array_layer, i.format, i.samples, i.usage))
+    };
+    let (ci, cl, cf, cs, cu) = info(color).ok_or("unsupported")?;
+    let (di, dl, df, ds, du) = info(depth).ok_or("unsupported")?;
+    if cs != vk::SampleCountFlags::TYPE_1 || ds != vk::SampleCountFlags::TYPE_1 {
+        return Err("multisampled");
+    }
+    if !cu.contains(vk::ImageUsageFlags::TRANSFER_SRC) || !du.contains(vk::ImageUsageFlags::TRANSFER_SRC) {
+        return Err("no_transfer_src");
+    }
+    let stencil = matches!(df, vk::Format::D16_UNORM_S8_UINT | vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT);
+    let depth_aspect = if stencil { vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL } else { vk::ImageAspectFlags::DEPTH };
+    Ok((
+        Source { image: vk::Image::from_raw(ci), layout: color_layout, aspect: vk::ImageAspectFlags::COLOR, base_layer: cl },
+        Source { image: vk::Image::from_raw(di), layout: depth_layout, aspect: depth_aspect, base_layer: dl },
+        (cf, cs),
+        (df, ds),
+    ))
+}
+
+/// Creates both views' slot images and the descriptor set reading them.
+#[allow(clippy::too_many_arguments)]
+fn make_slots(
+    d: &DeviceState,
+    memory: &vk::PhysicalDeviceMemoryProperties,
+    extent: vk::Extent2D,
+    color_format: vk::Format,
+    depth_format: vk::Format,
+    set_layout: vk::DescriptorSetLayout,
+    linear: vk::Sampler,
+    nearest: vk::Sampler,
+) -> Result<Slots, String> {
+    let trash = d.lifetime.trash.clone();
+    let image = |format: vk::Format, aspect: vk::ImageAspectFlags| -> Result<Owned, String> {
+        let info = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(format)
+            .extent(vk::Extent3D { width: extent.width, height: extent.height, depth: 1 })
+            .mip_levels(1)
+            .array_layers(1)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        // SAFETY: valid create infos; every object made here is destroyed on failure or handed to
+        // `Slots`, whose drop puts it in the device's trash.
+        unsafe {
+            let image = d.fns.create_image(&info, None).map_err(|e| e.to_string())?;
+            let req = d.fns.get_image_memory_requirements(image);
+            let t = lifetime::memory_type(memory, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
+                .or_else(|| lifetime::memory_type(memory, req.memory_type_bits, vk::MemoryPropertyFlags::empty()))
+                .ok_or("no memory type for the far field's images")?;
+            let mem = match d.fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(t), None) {
+                Ok(m) => m,
+                Err(e) => {
+                    d.fns.destroy_image(image, None);
+                    return Err(e.to_string());
+                }
+            };
+            let view = d.fns.bind_image_memory(image, mem, 0).and_then(|_| {
+                let range = vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
+                d.fns.create_image_view(&vk::ImageViewCreateInfo::default().image(image).view_type(vk::ImageViewType::TYPE_2D).format(format).subresource_range(range), None)
+            });
+            match view {
+                Ok(view) => Ok(Owned { image, memory: mem, view }),
+                Err(e) => {
+                    d.fns.destroy_image(image, None);
+                    d.fns.free_memory(mem, None);
+                    Err(e.to_string())
+                }
+            }
+        }
+    };
+    let mut made: Vec<Owned> = Vec::new();
+    let result = (|| {
+        for _ in 0..2 {
+            made.push(image(color_format, vk::ImageAspectFlags::COLOR)?);
+            made.push(image(depth_format, vk::ImageAspectFlags::DEPTH)?);
+        }
+        let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 4 }];
+        // SAFETY: valid create / allocate infos on our own objects.
+        let pool = unsafe { d.fns.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None) }.map_err(|e| e.to_string())?;
+        let layouts = [set_layout];
+        // SAFETY: as above.
+        let set = match unsafe { d.fns.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts)) } {
+            Ok(s) => s[0],
+            Err(e) => {
+                // SAFETY: ours, unused.
+                unsafe { d.fns.destroy_descriptor_pool(pool, None) };
+                return Err(e.to_string());
+            }
+        };
+        Ok((pool, set))
+    })();
+    let (pool, set) = match result {
+        Ok(x) => x,
+        Err(e) => {
+            let mut t = lock(&trash);
+            t.extend(made.into_iter().map(|o| Garbage::Image(o.view, o.image, o.memory)));
+            return Err(e);
+        }
+    };
+    let infos: Vec<[vk::DescriptorImageInfo; 1]> = made
+        .iter()
+        .enumerate()
+        .map(|(i, o)| [vk::DescriptorImageInfo { sampler: if i % 2 == 0 { linear } else { nearest }, image_view: o.view, image_layout: vk::ImageLayout::GENERAL }])
+        .collect();
+    let writes: Vec<vk::WriteDescriptorSet> =
+        infos.iter().enumerate().map(|(i, info)| vk::WriteDescriptorSet::default().dst_set(set).dst_binding(i as u32).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(info)).collect();
+    // SAFETY: our set, not in use by any command buffer yet.
+    unsafe { d.fns.update_descriptor_sets(&writes, &[]) };
+    let mut it = made.into_iter();
+    let mut next = || it.next().expect("four images");
+    let images = [[next(), next()], [next(), next()]];
+    Ok(Slots { images, pool, set, extent, color_format, depth_format, initialized: AtomicBool::new(false), copied: Mutex::new([None, None]), trash })
+}
+
+impl VkFeature for FarFieldDevice {
+    fn id(&self) -> &'static str {
+        "far_field"
+    }
+    fn take_frame(&self) -> Box<dyn FeatureStats> {
+        Box::new(std::mem::take(&mut lock(&self.books).frame))
+    }
+    fn summary(&self) -> Option<String> {
+        self.used.load(Ordering::Relaxed).then(|| lock(&self.books).total.summary())
+    }
+    fn injects(&self, s: &Settings) -> bool {
+        let on = self.layer_enabled && s.far_field.enabled;
+        if on {
+            self.used.store(true, Ordering::Relaxed);
+        }
+        on
+    }
+    fn injects_before_depth_test(&self) -> bool {
+        true
+    }
+    fn inject(&self, d: &DeviceState, at: &Injection<'_>) {
+        if let Err(why) = self.record(d, at) {
+            if at.counts {
+                self.not_applied(why);
+            }
+        }
+    }
+    fn not_injected(&self, _d: &DeviceState, _s: &Settings, why: crate::core::pass::NotMasked) {
+        if why != crate::core::pass::NotMasked::NotEyePass {
+            self.count(|st| st.count_not_applied(why.name()));
+        }
+    }
+    fn pass_ended(&self, d: &DeviceState, cb: vk::CommandBuffer) {
+        let Some(p) = lock(&self.books).pending.remove(&cb.as_raw()) else { return };
+        let s = d.settings();
+        self.copy(d, cb, p, &s);
+    }
+    /// Attachments can be copied: TRANSFER_SRC whenever the layer is on (the far field can be
+    /// switched on live). Transient attachments never hold anything to copy.
+    fn image_usage(&self, _s: &Settings, usage: vk::ImageUsageFlags) -> vk::ImageUsageFlags {
+        let attachment = usage.intersects(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT);
+        if self.layer_enabled && attachment && !usage.contains(vk::ImageUsageFlags::TRANSIENT_ATTACHMENT) {
+            vk::ImageUsageFlags::TRANSFER_SRC
+        } else {
+            vk::ImageUsageFlags::empty()
+        }
+    }
+    fn queue_submitting(&self, d: &DeviceState, queue: vk::Queue, family: Option<u32>) {
+        let Some(slots) = lock(&self.objects).slots.clone() else { return };
+        if slots.initialized.load(Ordering::Acquire) {
+            return;
+        }
+        let Some(family) = family else { return };
+        let barriers: Vec<vk::ImageMemoryBarrier> = slots
+            .images
+            .iter()
+            .flat_map(|s| [(&s[0], vk::ImageAspectFlags::COLOR), (&s[1], vk::ImageAspectFlags::DEPTH)])
+            .map(|(o, aspect)| {
+                vk::ImageMemoryBarrier::default()
+                    .image(o.image)
+                    .old_layout(vk::ImageLayout::UNDEFINED)
+                    .new_layout(vk::ImageLayout::GENERAL)
+                    .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_READ)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 })
+            })
+            .collect();
+        let done = crate::vk::secondary::submit_once(d, queue, family, |cb| {
+            // SAFETY: our one-time command buffer, recording; the slots are ours and unused so far.
+            unsafe {
+                (d.fns.fp_v1_0().cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), barriers.len() as u32, barriers.as_ptr())
+            };
+        });
+        match done {
+            Ok(()) => slots.initialized.store(true, Ordering::Release),
+            Err(e) => tracing::warn!("far field slot layouts: {e}"),
+        }
+    }
+    fn before_submit(&self, d: &DeviceState, cbs: &[u64]) {
+        let s = d.settings();
+        let views = shared().far_field();
+        let frame = views.current.as_ref().map_or(0, |c| c.0);
+        let inverse = rules::depth_range(views.depth, s.far_field.configured_range).and_then(|r| InverseDepth::of(&r));
+        let on = self.layer_enabled && s.far_field.enabled;
+        for &cb in cbs {
+            let idle = !lifetime::in_flight(d, cb);
+            lifetime::with_holds(d, cb, |holds| {
+                for h in holds {
+                    if let Some(c) = h.downcast_ref::<CopyOp>() {
+                        let rendered = !self.reused_in(frame, c.view);
+                        lock(&c.slots.copied)[c.view as usize & 1] = Some((Stamp { view: c.view, frame, rendered }, c.rect));
+                        self.count(|st| st.copies += 1);
+                    } else if let Some(r) = h.downcast_ref::<ReuseOp>() {
+                        if !idle {
+                            continue;
+                        }
+                        if on && r.slots.initialized.load(Ordering::Acquire) {
+                            self.refresh(r, &s, &views, inverse);
+                        } else {
+                            r.buffer.write(0, &vec![vk::DrawIndirectCommand::default(); r.views.len()]);
+                        }
+                    }
+                }
+            });
+        }
+    }
+    fn destroy(&self, d: &DeviceState) {
+        let o = std::mem::take(&mut *lock(&self.objects));
+        drop(o.slots);
+        // SAFETY: our objects; the device is idle.
+        unsafe {
+            if o.layout != vk::PipelineLayout::null() {
+                d.fns.destroy_pipeline_layout(o.layout, None);
+                d.fns.destroy_descriptor_set_layout(o.set_layout, None);
+                d.fns.destroy_sampler(o.linear, None);
+                d.fns.destroy_sampler(o.nearest, None);
+            }
+        }
+    }
+}
