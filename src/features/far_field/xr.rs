@@ -43,7 +43,8 @@ impl XrFeature for FarFieldXr {
         let time = info.display_time.as_nanos();
         let new_frame = s.features.far_field.last_display_time.swap(time, std::sync::atomic::Ordering::AcqRel) != time;
         shared().update_far_field(|f| {
-            if new_frame || f.current.is_none() {
+            // The first located frame is frame 0.
+            if new_frame && f.current.is_some() {
                 f.frame += 1;
                 f.previous = f.current.take();
             }
