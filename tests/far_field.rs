@@ -378,3 +378,41 @@ fn analyse_translucent(case: &Case, plain: &RunOutput, far: &RunOutput, src_fram
     // where the PSNR check covers them.
     analyse(case, plain, far, case.frame, 1, 0, src_frame)
 }
+
+/// Without the app's depth info and without `far_field.near_z` / `far_z`, the distance of a depth
+/// value is unknown: not applied (one log line, counted), captures byte-identical. With the range
+/// configured, the same app gets the far field.
+#[test]
+fn depth_range_from_depth_info_or_config_never_guessed() {
+    let plain = Run::new("ff-no-range-plain").args(["--layout", "per-eye"]).run();
+    plain.assert_ok();
+    let far = Run::new("ff-no-range").args(["--layout", "per-eye"]).with_layer().env("STEREOSHIM_FAR_FIELD_ENABLED", "1").run();
+    far.assert_ok();
+    far.assert_layer_loaded(Half::Both);
+    common::assert_same_captures("ff-no-range", &far, &plain);
+    let lines = far.log_lines("far field not applied to an eye pass: no_depth_range");
+    assert_eq!(lines.len(), 1, "want one log line:\n{}", far.log);
+    let configured = Run::new("ff-configured-range")
+        .args(["--layout", "per-eye"])
+        .with_layer()
+        .env("STEREOSHIM_FAR_FIELD_ENABLED", "1")
+        .env("STEREOSHIM_FAR_FIELD_DEBUG", "1")
+        .config("[far_field]\nnear_z = 0.05\nfar_z = 2000.0\n")
+        .run();
+    configured.assert_ok();
+    let differing: usize = common::views_to_compare("ff-configured", &configured, 1, &plain, 1).iter().map(|(a, b)| configured.image(&a.file).count_different(&plain.image(&b.file))).sum();
+    assert!(differing > 10_000, "the configured range did not apply the far field ({differing} tinted pixels):\n{}", configured.log);
+}
+
+/// `far_field.enabled = false` with the layer on: byte-identical captures.
+#[test]
+fn disabled_is_byte_identical() {
+    for layout in ["per-eye", "multiview"] {
+        let plain = Run::new(&format!("ff-off-{layout}-plain")).args(["--layout", layout, "--submit-depth"]).run();
+        plain.assert_ok();
+        let off = Run::new(&format!("ff-off-{layout}")).args(["--layout", layout, "--submit-depth"]).with_layer().env("STEREOSHIM_FAR_FIELD_ENABLED", "0").run();
+        off.assert_ok();
+        off.assert_layer_loaded(Half::Both);
+        common::assert_same_captures(&format!("ff-off-{layout}"), &off, &plain);
+    }
+}

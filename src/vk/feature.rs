@@ -158,6 +158,11 @@ pub(crate) trait VkFeature: Send + Sync {
     /// point where the layer may submit work of its own ahead of the app's (the app holds the
     /// queue for the call).
     fn queue_submitting(&self, _d: &DeviceState, _queue: vk::Queue, _family: Option<u32>) {}
+    /// Whether the feature reads the depth attachment after an eye pass ends: the chassis then
+    /// makes passes store their depth (`vk::keep_depth`).
+    fn keeps_depth(&self, _s: &Settings) -> bool {
+        false
+    }
     /// Image usage the feature adds to an image the app creates with `usage` (e.g. TRANSFER_SRC
     /// to copy an attachment): the app's own usage stays, so nothing it can see changes.
     fn image_usage(&self, _s: &Settings, _usage: vk::ImageUsageFlags) -> vk::ImageUsageFlags {

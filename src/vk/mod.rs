@@ -11,6 +11,7 @@ mod chain;
 pub(crate) mod feature;
 mod hooks;
 pub(crate) mod inject;
+mod keep_depth;
 pub(crate) mod lifetime;
 pub mod loader;
 pub(crate) mod secondary;

@@ -651,6 +651,10 @@ impl VkFeature for FarFieldDevice {
     fn injects_before_depth_test(&self) -> bool {
         true
     }
+    /// The source eye's depth is copied when its pass ends.
+    fn keeps_depth(&self, s: &Settings) -> bool {
+        self.layer_enabled && s.far_field.enabled
+    }
     fn inject(&self, d: &DeviceState, at: &Injection<'_>) {
         if let Err(why) = self.record(d, at) {
             if at.counts {

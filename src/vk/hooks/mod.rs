@@ -250,13 +250,16 @@ pub(super) unsafe extern "system" fn create_render_pass(
     allocator: *const vk::AllocationCallbacks<'_>,
     out: *mut vk::RenderPass,
 ) -> vk::Result {
+    // SAFETY: the app's create info, valid during its call (which outlives `kept`).
+    let kept = if device_of(device).is_some_and(|d| super::keep_depth::wanted(&d)) { unsafe { super::keep_depth::render_pass(ci) } } else { None };
+    let ci = kept.as_ref().map_or(ci, |k| &k.info as *const _);
     create_render_pass_common(
         "vkCreateRenderPass",
         device,
         allocator,
         out,
         RenderPassInfo::V1(ci.cast()),
-        // SAFETY: forwarding the app's arguments unchanged.
+        // SAFETY: the app's arguments, the create info with depth kept when a feature reads it.
         |d| unsafe { (d.fns.fp_v1_0().create_render_pass)(device, ci, allocator, out) },
         // SAFETY: the create info is valid during the app's call.
         |h| unsafe { convert::render_pass(h, &*ci) },
@@ -269,13 +272,16 @@ pub(super) unsafe extern "system" fn create_render_pass2(
     allocator: *const vk::AllocationCallbacks<'_>,
     out: *mut vk::RenderPass,
 ) -> vk::Result {
+    // SAFETY: the app's create info, valid during its call (which outlives `kept`).
+    let kept = if device_of(device).is_some_and(|d| super::keep_depth::wanted(&d)) { unsafe { super::keep_depth::render_pass2(ci) } } else { None };
+    let ci = kept.as_ref().map_or(ci, |k| &k.info as *const _);
     create_render_pass_common(
         "vkCreateRenderPass2",
         device,
         allocator,
         out,
         RenderPassInfo::V2(ci.cast()),
-        // SAFETY: forwarding the app's arguments unchanged.
+        // SAFETY: the app's arguments, the create info with depth kept when a feature reads it.
         |d| unsafe { (d.fns.fp_v1_2().create_render_pass2)(device, ci, allocator, out) },
         // SAFETY: the create info is valid during the app's call.
         |h| unsafe { convert::render_pass2(h, &*ci) },

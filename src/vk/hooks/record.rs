@@ -315,6 +315,9 @@ pub(in crate::vk) unsafe extern "system" fn cmd_end_render_pass2(cb: vk::Command
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandBuffer, info: *const vk::RenderingInfo<'_>) {
+    // SAFETY: the app's rendering info, valid during its call (which outlives `kept`).
+    let kept = if super::super::device_of(cb).is_some_and(|d| super::super::keep_depth::wanted(&d)) { unsafe { super::super::keep_depth::rendering(info) } } else { None };
+    let info = kept.as_ref().map_or(info, |k| &k.info as *const _);
     hook_decided(
         "vkCmdBeginRendering",
         cb,
@@ -326,7 +329,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandB
             match decided {
                 // SAFETY: the app's info with only the feature's additions.
                 Some(Some(v)) => unsafe { begin(cb, &v.info) },
-                // SAFETY: forwarding the app's arguments unchanged.
+                // SAFETY: the app's arguments (depth kept when a feature reads it).
                 _ => unsafe { begin(cb, info) },
             }
         },

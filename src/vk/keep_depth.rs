@@ -1,0 +1,115 @@
+//! Depth kept past the pass for features that read it afterwards (the far field copies the source
+//! eye's depth when its pass ends): an app that never reads its depth back usually stores it with
+//! `DONT_CARE`, which leaves the contents undefined after the pass. The chassis then creates render
+//! passes and begins renderings with `STORE` for the depth aspect of the depth attachment instead
+//! — a change the app cannot see (undefined contents become defined ones), made only while such a
+//! feature is on. Stencil store ops are left as the app chose.
+
+use ash::vk;
+
+/// Whether any feature reads depth after the pass under the device's live settings.
+pub(crate) fn wanted(d: &super::DeviceState) -> bool {
+    let s = d.settings();
+    d.features.all().iter().any(|f| f.keeps_depth(&s))
+}
+
+fn keep(op: vk::AttachmentStoreOp) -> vk::AttachmentStoreOp {
+    if op == vk::AttachmentStoreOp::STORE {
+        op
+    } else {
+        vk::AttachmentStoreOp::STORE
+    }
+}
+
+/// A `VkRenderPassCreateInfo` whose depth attachments store; `info` points into `_attachments`.
+pub(crate) struct RenderPassV1 {
+    _attachments: Vec<vk::AttachmentDescription>,
+    pub info: vk::RenderPassCreateInfo<'static>,
+}
+
+/// The app's render pass with depth stored, or None when every depth attachment already stores.
+///
+/// # Safety
+/// `ci` is the app's valid create info (valid for the duration of the app's call, which outlives
+/// the returned copy's use).
+pub(crate) unsafe fn render_pass(ci: *const vk::RenderPassCreateInfo<'_>) -> Option<Box<RenderPassV1>> {
+    // SAFETY: per the contract, the arrays are valid with their counts.
+    unsafe {
+        let ci = &*ci;
+        let subpasses = super::convert::slice(ci.p_subpasses, ci.subpass_count);
+        let mut attachments = super::convert::slice(ci.p_attachments, ci.attachment_count).to_vec();
+        let mut changed = false;
+        for s in subpasses {
+            if let Some(r) = s.p_depth_stencil_attachment.as_ref() {
+                if let Some(a) = attachments.get_mut(r.attachment as usize) {
+                    changed |= a.store_op != vk::AttachmentStoreOp::STORE;
+                    a.store_op = keep(a.store_op);
+                }
+            }
+        }
+        if !changed {
+            return None;
+        }
+        let mut out = Box::new(RenderPassV1 { _attachments: attachments, info: std::mem::transmute::<vk::RenderPassCreateInfo<'_>, vk::RenderPassCreateInfo<'static>>(*ci) });
+        out.info.p_attachments = out._attachments.as_ptr();
+        Some(out)
+    }
+}
+
+/// A `VkRenderPassCreateInfo2` whose depth attachments store.
+pub(crate) struct RenderPassV2 {
+    _attachments: Vec<vk::AttachmentDescription2<'static>>,
+    pub info: vk::RenderPassCreateInfo2<'static>,
+}
+
+/// # Safety
+/// As for [`render_pass`].
+pub(crate) unsafe fn render_pass2(ci: *const vk::RenderPassCreateInfo2<'_>) -> Option<Box<RenderPassV2>> {
+    // SAFETY: per the contract, the arrays are valid with their counts; the copied attachment
+    // descriptions keep their `pNext` chains, which live as long as the app's call.
+    unsafe {
+        let ci = &*ci;
+        let subpasses = super::convert::slice(ci.p_subpasses, ci.subpass_count);
+        let mut attachments: Vec<vk::AttachmentDescription2<'static>> =
+            super::convert::slice(ci.p_attachments, ci.attachment_count).iter().map(|a| std::mem::transmute::<vk::AttachmentDescription2<'_>, vk::AttachmentDescription2<'static>>(*a)).collect();
+        let mut changed = false;
+        for s in subpasses {
+            if let Some(r) = s.p_depth_stencil_attachment.as_ref() {
+                if let Some(a) = attachments.get_mut(r.attachment as usize) {
+                    changed |= a.store_op != vk::AttachmentStoreOp::STORE;
+                    a.store_op = keep(a.store_op);
+                }
+            }
+        }
+        if !changed {
+            return None;
+        }
+        let mut out = Box::new(RenderPassV2 { _attachments: attachments, info: std::mem::transmute::<vk::RenderPassCreateInfo2<'_>, vk::RenderPassCreateInfo2<'static>>(*ci) });
+        out.info.p_attachments = out._attachments.as_ptr();
+        Some(out)
+    }
+}
+
+/// A `VkRenderingInfo` whose depth attachment stores.
+pub(crate) struct Rendering {
+    _depth: Box<vk::RenderingAttachmentInfo<'static>>,
+    pub info: vk::RenderingInfo<'static>,
+}
+
+/// # Safety
+/// `info` is the app's valid rendering info (valid for the duration of its call).
+pub(crate) unsafe fn rendering(info: *const vk::RenderingInfo<'_>) -> Option<Box<Rendering>> {
+    // SAFETY: per the contract; the copy keeps the app's other pointers, valid during its call.
+    unsafe {
+        let info = &*info;
+        let depth = info.p_depth_attachment.as_ref()?;
+        if depth.image_view == vk::ImageView::null() || depth.store_op == vk::AttachmentStoreOp::STORE {
+            return None;
+        }
+        let mut kept = Box::new(std::mem::transmute::<vk::RenderingAttachmentInfo<'_>, vk::RenderingAttachmentInfo<'static>>(*depth));
+        kept.store_op = vk::AttachmentStoreOp::STORE;
+        let mut out = Box::new(Rendering { info: std::mem::transmute::<vk::RenderingInfo<'_>, vk::RenderingInfo<'static>>(*info), _depth: kept });
+        out.info.p_depth_attachment = &*out._depth;
+        Some(out)
+    }
+}
