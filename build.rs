@@ -18,6 +18,7 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("far_field.vert", "far_field.vert.spv", &[]),
     ("far_field.vert", "far_field_mv.vert.spv", &["-DMULTIVIEW"]),
     ("far_field.frag", "far_field.frag.spv", &[]),
+    ("far_field.frag", "far_field_msaa.frag.spv", &["-DMSAA"]),
 ];
 
 fn main() {

@@ -3,10 +3,19 @@
 // (rotation + both FOVs; with the depth shift also the disparity of the source's own depth there),
 // and write the source's colour only where every source sample of the footprint lies beyond the
 // split distance. Anywhere else nothing is written: the app renders the pixel itself.
-layout(set = 0, binding = 0) uniform sampler2D color0;
-layout(set = 0, binding = 1) uniform sampler2D depth0;
-layout(set = 0, binding = 2) uniform sampler2D color1;
-layout(set = 0, binding = 3) uniform sampler2D depth1;
+//
+// MSAA (multisampled eye passes): the copies are multisampled too; a source texel is far only if
+// every sample is, and its colour is the mean of its samples (what a resolve gives), filtered
+// bilinearly by hand.
+#ifdef MSAA
+#define SAMPLER sampler2DMS
+#else
+#define SAMPLER sampler2D
+#endif
+layout(set = 0, binding = 0) uniform SAMPLER color0;
+layout(set = 0, binding = 1) uniform SAMPLER depth0;
+layout(set = 0, binding = 2) uniform SAMPLER color1;
+layout(set = 0, binding = 3) uniform SAMPLER depth1;
 
 layout(location = 0) flat in vec4 m0;
 layout(location = 1) flat in vec4 m1;
@@ -15,15 +24,40 @@ layout(location = 2) flat in vec4 m2;
 layout(location = 3) flat in vec4 k;
 // 1/z = x + y * depth; z: 1/split distance; w: the split plane's depth.
 layout(location = 4) flat in vec4 depth;
-// The copy's extent (pixels).
+// The copy's extent (pixels); z: samples per pixel.
 layout(location = 5) flat in vec4 size;
 layout(location = 6) flat in uvec4 flags;
 
 layout(location = 0) out vec4 out_color;
 
+#ifdef MSAA
+// The farthest-looking test needs every sample: the nearest sample decides (largest 1/z).
+float stored_depth(ivec2 t) {
+    float nearest_inv_z = -1.0e30;
+    float chosen = 0.0;
+    for (int s = 0; s < int(size.z); s++) {
+        float d = flags.x == 0u ? texelFetch(depth0, t, s).r : texelFetch(depth1, t, s).r;
+        float inv_z = depth.x + depth.y * d;
+        if (inv_z > nearest_inv_z) {
+            nearest_inv_z = inv_z;
+            chosen = d;
+        }
+    }
+    return chosen;
+}
+
+vec4 texel(ivec2 t) {
+    vec4 sum = vec4(0.0);
+    for (int s = 0; s < int(size.z); s++) {
+        sum += flags.x == 0u ? texelFetch(color0, t, s) : texelFetch(color1, t, s);
+    }
+    return sum / size.z;
+}
+#else
 float stored_depth(ivec2 t) {
     return flags.x == 0u ? texelFetch(depth0, t, 0).r : texelFetch(depth1, t, 0).r;
 }
+#endif
 
 bool inside(ivec2 t) {
     return t.x >= 0 && t.y >= 0 && t.x < int(size.x) && t.y < int(size.y);
@@ -58,8 +92,13 @@ void main() {
     if (!far_at(t0) || !far_at(t0 + ivec2(1, 0)) || !far_at(t0 + ivec2(0, 1)) || !far_at(t0 + ivec2(1, 1))) {
         discard;
     }
+#ifdef MSAA
+    vec2 f = fract(uv - 0.5);
+    vec4 c = mix(mix(texel(t0), texel(t0 + ivec2(1, 0)), f.x), mix(texel(t0 + ivec2(0, 1)), texel(t0 + ivec2(1, 1)), f.x), f.y);
+#else
     vec2 st = uv / size.xy;
     vec4 c = flags.x == 0u ? texture(color0, st) : texture(color1, st);
+#endif
     if (flags.z != 0u) {
         c = vec4(mix(c.rgb, vec3(1.0, 0.0, 1.0), 0.4), c.a);
     }

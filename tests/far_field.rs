@@ -416,3 +416,60 @@ fn disabled_is_byte_identical() {
         common::assert_same_captures(&format!("ff-off-{layout}"), &off, &plain);
     }
 }
+
+/// A multisampled intermediate target (4×, resolved into the swapchain image by the app): the
+/// copies are multisampled, a source pixel counts as far only if all its samples are, and the
+/// reused colour is the samples' mean. The app submits no depth here (the range comes from
+/// config); near/far is classified from a single-sampled run of the same scene that submits depth,
+/// leaving out pixels next to a depth edge (their samples straddle it).
+#[test]
+fn msaa_intermediate() {
+    for layout in ["per-eye", "multiview"] {
+        let name = format!("ff-msaa-{layout}");
+        let frames = "3";
+        let base = |n: &str| Run::new(&format!("{name}-{n}")).args(["--layout", layout, "--intermediate"]).env("MOCK_XR_EXIT_AFTER", frames).env("MOCK_XR_HEAD_YAW_DEG_PER_S", "20");
+        let plain = base("plain").run();
+        plain.assert_ok();
+        let depth_ref = base("depth").args(["--samples", "1", "--submit-depth"]).run();
+        depth_ref.assert_ok();
+        let far = base("far")
+            .with_layer()
+            .env("STEREOSHIM_FAR_FIELD_ENABLED", "1")
+            .env("STEREOSHIM_FAR_FIELD_SPLIT_M", "40")
+            .config("[far_field]\nnear_z = 0.05\nfar_z = 2000.0\n")
+            .run();
+        far.assert_ok();
+        far.assert_layer_loaded(Half::Both);
+        let f = 2;
+        let views = plain.views(f);
+        let (src, dst) = (views.iter().find(|v| v.view == 0).unwrap(), views.iter().find(|v| v.view == 1).unwrap());
+        let fviews = far.views(f);
+        let far_src = fviews.iter().find(|v| v.view == 0).unwrap();
+        common::image::assert_identical(&format!("{name}-source"), &far.image(&far_src.file), &plain.image(&src.file));
+        let far_dst = fviews.iter().find(|v| v.view == 1).unwrap();
+        let dref = depth_ref.views(f).into_iter().find(|v| v.view == 1).unwrap();
+        let z = distances(&depth_ref.image(&dref.depth.as_ref().unwrap().file), dref);
+        let (got, want) = (far.image(&far_dst.file), plain.image(&dst.file));
+        let (w, h) = (want.width, want.height);
+        let near_at = |x: u32, y: u32| z[(y * w + x) as usize] < 40.0;
+        let (mut near, mut far_px) = (Vec::new(), Vec::new());
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let around: Vec<bool> = [(x - 1, y), (x + 1, y), (x, y - 1), (x, y + 1), (x, y)].iter().map(|&(a, b)| near_at(a, b)).collect();
+                if around.iter().all(|n| *n) {
+                    near.push((x, y));
+                } else if around.iter().all(|n| !*n) {
+                    far_px.push((x, y));
+                }
+            }
+        }
+        let differing = near.iter().filter(|&&(x, y)| got.pixel(x, y) != want.pixel(x, y)).count();
+        assert_eq!(differing, 0, "{name}: {differing} of {} near pixels differ", near.len());
+        let reused = far_px.iter().filter(|&&(x, y)| got.pixel(x, y) != want.pixel(x, y)).count();
+        let p = psnr(&got, &want, &far_px);
+        eprintln!("{name}: near {} far {} (differing {reused}) PSNR {p:.1} dB", near.len(), far_px.len());
+        assert!(p >= 35.0, "{name}: far-pixel PSNR {p:.1} dB");
+        let st = far.log_lines("far_field_views_reused=");
+        assert!(st.iter().any(|l| !l.contains("far_field_views_reused=0")), "{name}: nothing reused:\n{}", far.log);
+    }
+}

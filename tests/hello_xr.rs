@@ -320,3 +320,25 @@ fn masked_under_validation_from_vk_instance_layers() {
         }
     }
 }
+
+/// The monoscopic far field on a real app: hello_xr submits no depth info, so its projection
+/// range comes from config (it renders with near 0.05 m, far 100 m); its passes store no depth,
+/// so the layer keeps it. hello_xr's scene is all near cubes over its clear colour: the reused
+/// far field is the clear colour, and every frame is bit-identical to the run without the layer
+/// (both plugins: Vulkan 1.0 render passes), validation clean, with destination views reused.
+#[test]
+fn far_field_on_hello_xr_is_bit_identical() {
+    for plugin in ["Vulkan2", "Vulkan"] {
+        let tag = format!("hello-xr-far-{}", plugin.to_lowercase());
+        let plain = run(&format!("{tag}-plain"), plugin, false, &[]);
+        plain.assert_clean_exit();
+        let env = [("STEREOSHIM_MASK_ENABLED", "0"), ("STEREOSHIM_FAR_FIELD_ENABLED", "1"), ("STEREOSHIM_FAR_FIELD_NEAR_Z", "0.05"), ("STEREOSHIM_FAR_FIELD_FAR_Z", "100")];
+        let far = run(&format!("{tag}-far"), plugin, true, &env);
+        far.assert_clean_exit();
+        far.out.assert_log_lacks(Half::Both, "internal failure");
+        assert!(far.validation_errors.is_empty(), "{tag}: {} validation errors:\n{}", far.validation_errors.len(), far.validation_errors.join("\n"));
+        common::assert_same_captures(&tag, &far.out, &plain.out);
+        let reused: u64 = far.stats.iter().filter_map(|r| r["far_field"]["views_reused"]["1"].as_u64()).sum();
+        assert!(reused >= FRAMES - 2, "{tag}: the destination view reused the far field in {reused} frames: {:?}\n{}", far.stats, far.out.log);
+    }
+}

@@ -54,7 +54,7 @@ impl FeatureStats for FarFieldStats {
         match reason {
             "no_depth_range" => "the app submits no XrCompositionLayerDepthInfoKHR: set far_field.near_z and far_field.far_z to its projection range",
             "several_colour_attachments" => "the pass writes several colour attachments (a G-buffer): the far field only reuses a lit eye image",
-            "multisampled" => "the eye pass is multisampled: not handled yet",
+            "unsupported" => "a pass shape the far field does not handle (suspended rendering, mixed sample counts)",
             "not_stored" => "the pass does not store its colour or depth: there is nothing to reuse",
             "no_transfer_src" => "the eye or depth image was created before the layer could add TRANSFER_SRC to its usage",
             "not_depth_tested" => "the pass has no depth-tested draw: nothing to save",
@@ -91,10 +91,10 @@ mod tests {
         assert!(a.is_empty());
         let mut b = FarFieldStats { copies: 2, ..Default::default() };
         b.views_reused.insert(1, 3);
-        b.count_not_applied("multisampled");
+        b.count_not_applied("not_stored");
         a.add(&b);
         a.add(&b);
-        assert_eq!((a.passes(), a.copies, a.not_applied()), (6, 4, vec![("multisampled", 2)]));
+        assert_eq!((a.passes(), a.copies, a.not_applied()), (6, 4, vec![("not_stored", 2)]));
         let mut rec = serde_json::Map::new();
         a.write_json(&mut rec);
         assert_eq!(rec["far_field"]["views_reused"]["1"], 6);

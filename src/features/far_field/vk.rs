@@ -31,6 +31,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/far_field.vert.spv"));
 static VERT_MV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/far_field_mv.vert.spv"));
 static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/far_field.frag.spv"));
+static FRAG_MSAA: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/far_field_msaa.frag.spv"));
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
@@ -65,6 +66,7 @@ pub(crate) struct Slots {
     extent: vk::Extent2D,
     color_format: vk::Format,
     depth_format: vk::Format,
+    samples: vk::SampleCountFlags,
     initialized: AtomicBool,
     /// What each slot holds, as of the submissions seen so far: the copy's stamp and its extent.
     copied: Mutex<[Option<(Stamp, PixelRect)>; 2]>,
@@ -224,32 +226,32 @@ impl FarFieldDevice {
     }
 
     /// The slots, made (again) when they are missing, too small or of other formats.
-    fn slots(&self, d: &DeviceState, extent: vk::Extent2D, color_format: vk::Format, depth_format: vk::Format) -> Result<Arc<Slots>, String> {
+    fn slots(&self, d: &DeviceState, extent: vk::Extent2D, color_format: vk::Format, depth_format: vk::Format, samples: vk::SampleCountFlags) -> Result<Arc<Slots>, String> {
         if let Some(s) = &lock(&self.objects).slots {
-            if s.color_format == color_format && s.depth_format == depth_format && s.extent.width >= extent.width && s.extent.height >= extent.height {
+            if s.color_format == color_format && s.depth_format == depth_format && s.samples == samples && s.extent.width >= extent.width && s.extent.height >= extent.height {
                 return Ok(s.clone());
             }
         }
         let (set_layout, _, linear, nearest) = self.objects(d)?;
-        let slots = Arc::new(make_slots(d, &self.memory, extent, color_format, depth_format, set_layout, linear, nearest)?);
-        tracing::info!(width = extent.width, height = extent.height, ?color_format, ?depth_format, "far field source slots created");
+        let slots = Arc::new(make_slots(d, &self.memory, extent, (color_format, depth_format, samples), set_layout, linear, nearest)?);
+        tracing::info!(width = extent.width, height = extent.height, ?color_format, ?depth_format, samples = samples.as_raw(), "far field source slots created");
         lock(&self.objects).slots = Some(slots.clone());
         Ok(slots)
     }
 
-    fn pipeline(&self, d: &DeviceState, at: &Injection<'_>, reversed: bool, debug: bool) -> Result<vk::Pipeline, &'static str> {
+    fn pipeline(&self, d: &DeviceState, at: &Injection<'_>, reversed: bool, debug: bool, msaa: bool) -> Result<vk::Pipeline, &'static str> {
         let pass = pipeline::pass_key(d, at.pass, at.plan).ok_or("unsupported")?;
         let (_, layout, _, _) = self.objects(d).map_err(|e| {
             tracing::warn!("far field objects: {e}");
             "layer_error"
         })?;
-        let key = pipeline::PipelineKey { feature: self.id(), variant: debug as u32 | (reversed as u32) << 1, pass };
+        let key = pipeline::PipelineKey { feature: self.id(), variant: debug as u32 | (reversed as u32) << 1 | (msaa as u32) << 2, pass };
         let attr = |location: u32, format: vk::Format, offset: u32| vk::VertexInputAttributeDescription { location, binding: 0, format, offset };
         let f4 = vk::Format::R32G32B32A32_SFLOAT;
         pipeline::get(d, &key, || pipeline::PipelineDesc {
             vert: VERT,
             vert_multiview: VERT_MV,
-            frag: Some(FRAG),
+            frag: Some(if msaa { FRAG_MSAA } else { FRAG }),
             stride: INSTANCE as u32,
             attributes: vec![
                 attr(0, f4, 0),
@@ -288,7 +290,8 @@ impl FarFieldDevice {
         let multiview = at.plan.layout == EyeLayout::Multiview;
         let draws: Vec<EyeDraw> = at.plan.draws.iter().filter(|dr| dr.view < 2 && dr.viewport.area() > 0).copied().collect();
         let extent = draws.iter().fold(vk::Extent2D::default(), |e, dr| vk::Extent2D { width: e.width.max(dr.viewport.width), height: e.height.max(dr.viewport.height) });
-        let slots = self.slots(d, extent, color_info.0, depth_info.0).map_err(|e| {
+        let samples = color_info.1;
+        let slots = self.slots(d, extent, color_info.0, depth_info.0, samples).map_err(|e| {
             tracing::warn!("far field slots: {e}");
             "layer_error"
         })?;
@@ -304,7 +307,7 @@ impl FarFieldDevice {
                 .iter()
                 .map(|dr| ReuseView { view: dr.view, slot: rules::slot_to_read(dr.view, copied[1 - dr.view as usize], s.source, s.source_view, s.alternate), rect: dr.viewport })
                 .collect();
-            let p = self.pipeline(d, at, inverse.reversed(), s.debug)?;
+            let p = self.pipeline(d, at, inverse.reversed(), s.debug, samples != vk::SampleCountFlags::TYPE_1)?;
             let n = reuse.len() as u64;
             let buffer = PooledBuffer::take(d, inject::DRAW_ARGS * n + INSTANCE * n, &self.memory).map_err(|e| {
                 tracing::warn!("far field buffer: {e}");
@@ -454,7 +457,7 @@ impl FarFieldDevice {
                 m: [col(map.m.x_axis), col(map.m.y_axis), col(map.m.z_axis)],
                 k: [map.k.x as f32, map.k.y as f32, map.k.z as f32, if f.shift == super::Shift::Depth { 1.0 } else { 0.0 }],
                 depth: [inverse.a as f32, inverse.b as f32, (1.0 / z) as f32, split_depth as f32],
-                size: [src_rect.width as f32, src_rect.height as f32, 0.0, 0.0],
+                size: [src_rect.width as f32, src_rect.height as f32, op.slots.samples.as_raw() as f32, 0.0],
                 flags: [v.slot, 1, f.debug as u32, v.view],
             };
             args[i] = vk::DrawIndirectCommand { vertex_count: 3, instance_count: 1, first_vertex: 0, first_instance: i as u32 };
@@ -518,8 +521,9 @@ fn attachments(d: &DeviceState, pass: &PassInstance) -> Result<(Source, Source, 
     };
     let (ci, cl, cf, cs, cu) = info(color).ok_or("unsupported")?;
     let (di, dl, df, ds, du) = info(depth).ok_or("unsupported")?;
-    if cs != vk::SampleCountFlags::TYPE_1 || ds != vk::SampleCountFlags::TYPE_1 {
-        return Err("multisampled");
+    if cs != ds {
+        // Mixed-sample passes (VK_AMD_mixed_attachment_samples and the like).
+        return Err("unsupported");
     }
     if !cu.contains(vk::ImageUsageFlags::TRANSFER_SRC) || !du.contains(vk::ImageUsageFlags::TRANSFER_SRC) {
         return Err("no_transfer_src");
@@ -540,8 +544,7 @@ fn make_slots(
     d: &DeviceState,
     memory: &vk::PhysicalDeviceMemoryProperties,
     extent: vk::Extent2D,
-    color_format: vk::Format,
-    depth_format: vk::Format,
+    (color_format, depth_format, samples): (vk::Format, vk::Format, vk::SampleCountFlags),
     set_layout: vk::DescriptorSetLayout,
     linear: vk::Sampler,
     nearest: vk::Sampler,
@@ -554,7 +557,7 @@ fn make_slots(
             .extent(vk::Extent3D { width: extent.width, height: extent.height, depth: 1 })
             .mip_levels(1)
             .array_layers(1)
-            .samples(vk::SampleCountFlags::TYPE_1)
+            .samples(samples)
             .tiling(vk::ImageTiling::OPTIMAL)
             .usage(vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST)
             .initial_layout(vk::ImageLayout::UNDEFINED);
@@ -628,7 +631,7 @@ fn make_slots(
     let mut it = made.into_iter();
     let mut next = || it.next().expect("four images");
     let images = [[next(), next()], [next(), next()]];
-    Ok(Slots { images, pool, set, extent, color_format, depth_format, initialized: AtomicBool::new(false), copied: Mutex::new([None, None]), trash })
+    Ok(Slots { images, pool, set, extent, color_format, depth_format, samples, initialized: AtomicBool::new(false), copied: Mutex::new([None, None]), trash })
 }
 
 impl VkFeature for FarFieldDevice {
