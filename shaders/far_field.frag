@@ -17,6 +17,7 @@ layout(set = 0, binding = 1) uniform SAMPLER depth0;
 layout(set = 0, binding = 2) uniform SAMPLER color1;
 layout(set = 0, binding = 3) uniform SAMPLER depth1;
 
+// xyz: the map's columns; m0.w, m1.w: 1 / the slot image's extent (it may be larger than the copy).
 layout(location = 0) flat in vec4 m0;
 layout(location = 1) flat in vec4 m1;
 layout(location = 2) flat in vec4 m2;
@@ -96,7 +97,7 @@ void main() {
     vec2 f = fract(uv - 0.5);
     vec4 c = mix(mix(texel(t0), texel(t0 + ivec2(1, 0)), f.x), mix(texel(t0 + ivec2(0, 1)), texel(t0 + ivec2(1, 1)), f.x), f.y);
 #else
-    vec2 st = uv / size.xy;
+    vec2 st = uv * vec2(m0.w, m1.w);
     vec4 c = flags.x == 0u ? texture(color0, st) : texture(color1, st);
 #endif
     if (flags.z != 0u) {

@@ -473,3 +473,19 @@ fn msaa_intermediate() {
         assert!(st.iter().any(|l| !l.contains("far_field_views_reused=0")), "{name}: nothing reused:\n{}", far.log);
     }
 }
+
+/// Command buffers recorded once and resubmitted: the reuse draws' sources, poses and activity
+/// are refreshed at every submission, so every frame whose recording saw its eyes matches the
+/// reference — also the set recorded in the session's first frame, before the eyes were known
+/// (xr-scene records one set per swapchain-image combination: frames 3 and 6 run the set of
+/// frame 0, frames 4 and 5 those of frames 1 and 2).
+#[test]
+fn record_once() {
+    for layout in ["per-eye", "multiview"] {
+        for f in [4, 5, 6] {
+            let mut case = Case::new(&format!("ff-record-once-{layout}-f{f}"), &["--layout", layout, "--record-once"]).env("MOCK_XR_HEAD_YAW_DEG_PER_S", "20").frame(f);
+            case.previous_frame = layout == "multiview";
+            check(case, 35.0);
+        }
+    }
+}

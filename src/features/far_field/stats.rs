@@ -55,6 +55,7 @@ impl FeatureStats for FarFieldStats {
             "no_depth_range" => "the app submits no XrCompositionLayerDepthInfoKHR: set far_field.near_z and far_field.far_z to its projection range",
             "several_colour_attachments" => "the pass writes several colour attachments (a G-buffer): the far field only reuses a lit eye image",
             "unsupported" => "a pass shape the far field does not handle (suspended rendering, mixed sample counts)",
+            "depth_range_mismatch" => "the configured or submitted depth range has the other depth convention than the pass's clear: check far_field.near_z / far_z",
             "not_stored" => "the pass does not store its colour or depth: there is nothing to reuse",
             "no_transfer_src" => "the eye or depth image was created before the layer could add TRANSFER_SRC to its usage",
             "not_depth_tested" => "the pass has no depth-tested draw: nothing to save",

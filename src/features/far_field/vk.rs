@@ -85,20 +85,41 @@ impl Drop for Slots {
     }
 }
 
-/// A recording copies `view`'s pixels (`rect` of its image) into its slot.
+/// A pass recorded before its eyes were known (`inject::Awaiting`): which view a guessed draw
+/// really is gets decided at submission, from the eyes known then.
+struct AwaitPass {
+    pass: PassInstance,
+    fail_depth: f32,
+}
+
+impl AwaitPass {
+    /// The view the guessed eye (`view`, `rect`, `layer`) of this pass turns out to be, if any.
+    fn resolve(&self, d: &DeviceState, intermediate: bool, view: u32, rect: PixelRect, layer: u32) -> Option<u32> {
+        let plan = inject::plan_now(d, &self.pass, self.fail_depth, intermediate).ok()?;
+        let multiview = plan.layout == EyeLayout::Multiview;
+        plan.draws.iter().find(|dr| dr.viewport == rect && dr.layer == layer && (!multiview || dr.view == view) && dr.view < 2).map(|dr| dr.view)
+    }
+}
+
+/// A recording copies `view`'s pixels (`rect` of layer `layer` of its image) into slot `view`.
 struct CopyOp {
     view: u32,
     rect: PixelRect,
+    layer: u32,
     slots: Arc<Slots>,
+    awaiting: Option<Arc<AwaitPass>>,
 }
 
 /// A recording's reuse draw(s): one indirect draw per destination view, arguments and instance
 /// data in `buffer`.
 struct ReuseOp {
+    /// The pass's depth convention (its pipeline's compare op).
+    reversed: bool,
     buffer: PooledBuffer,
     slots: Arc<Slots>,
     views: Vec<ReuseView>,
     multiview: bool,
+    awaiting: Option<Arc<AwaitPass>>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -106,8 +127,23 @@ struct ReuseView {
     view: u32,
     /// Which slot the draw reads (decided at recording: `rules::slot_to_read`).
     slot: u32,
-    /// The view's pixels in the destination image.
+    /// The view's pixels in the destination image, and its layer.
     rect: PixelRect,
+    layer: u32,
+}
+
+/// Where a pass's reuse draws and copies go: a known eye pass, or one awaiting its eyes with
+/// guessed draws.
+struct Target<'a> {
+    cb: vk::CommandBuffer,
+    owner: u64,
+    pass: &'a PassInstance,
+    /// The plan the pipeline is made for (its shape for an awaiting pass).
+    plan: &'a crate::track::eye_pass::MaskPlan,
+    draws: Vec<EyeDraw>,
+    settings: &'a Settings,
+    bound_sets: &'a std::cell::Cell<bool>,
+    awaiting: Option<Arc<AwaitPass>>,
 }
 
 /// An attachment to copy at the pass's end.
@@ -126,6 +162,7 @@ struct PendingCopy {
     depth: Source,
     draws: Vec<EyeDraw>,
     multiview: bool,
+    awaiting: Option<Arc<AwaitPass>>,
 }
 
 #[derive(Default)]
@@ -239,8 +276,8 @@ impl FarFieldDevice {
         Ok(slots)
     }
 
-    fn pipeline(&self, d: &DeviceState, at: &Injection<'_>, reversed: bool, debug: bool, msaa: bool) -> Result<vk::Pipeline, &'static str> {
-        let pass = pipeline::pass_key(d, at.pass, at.plan).ok_or("unsupported")?;
+    fn pipeline(&self, d: &DeviceState, t: &Target<'_>, reversed: bool, debug: bool, msaa: bool) -> Result<vk::Pipeline, &'static str> {
+        let pass = pipeline::pass_key(d, t.pass, t.plan).ok_or("unsupported")?;
         let (_, layout, _, _) = self.objects(d).map_err(|e| {
             tracing::warn!("far field objects: {e}");
             "layer_error"
@@ -278,17 +315,17 @@ impl FarFieldDevice {
     }
 
     /// Records the reuse draws of an eye pass and notes its copy for the pass's end.
-    fn record(&self, d: &DeviceState, at: &Injection<'_>) -> Result<(), &'static str> {
+    fn record(&self, d: &DeviceState, at: Target<'_>) -> Result<(), &'static str> {
         let s = &at.settings.far_field;
-        let views = shared().far_field();
-        let range = rules::depth_range(views.depth, s.configured_range).ok_or("no_depth_range")?;
-        let inverse = InverseDepth::of(&range).ok_or("no_depth_range")?;
+        // The depth convention from the clear (the depth range itself is only needed at
+        // submission, when a pass recorded before the app's first frame end has it too).
+        let reversed = at.plan.fail_depth == 1.0;
         if at.pass.rendering.as_ref().is_some_and(|r| r.suspending()) {
             return Err("unsupported");
         }
         let (color, depth, color_info, depth_info) = attachments(d, at.pass)?;
         let multiview = at.plan.layout == EyeLayout::Multiview;
-        let draws: Vec<EyeDraw> = at.plan.draws.iter().filter(|dr| dr.view < 2 && dr.viewport.area() > 0).copied().collect();
+        let draws: Vec<EyeDraw> = at.draws.iter().filter(|dr| dr.view < 2 && dr.viewport.area() > 0).copied().collect();
         let extent = draws.iter().fold(vk::Extent2D::default(), |e, dr| vk::Extent2D { width: e.width.max(dr.viewport.width), height: e.height.max(dr.viewport.height) });
         let samples = color_info.1;
         let slots = self.slots(d, extent, color_info.0, depth_info.0, samples).map_err(|e| {
@@ -305,9 +342,9 @@ impl FarFieldDevice {
             });
             let reuse: Vec<ReuseView> = dests
                 .iter()
-                .map(|dr| ReuseView { view: dr.view, slot: rules::slot_to_read(dr.view, copied[1 - dr.view as usize], s.source, s.source_view, s.alternate), rect: dr.viewport })
+                .map(|dr| ReuseView { view: dr.view, slot: rules::slot_to_read(dr.view, copied[1 - dr.view as usize], s.source, s.source_view, s.alternate), rect: dr.viewport, layer: dr.layer })
                 .collect();
-            let p = self.pipeline(d, at, inverse.reversed(), s.debug, samples != vk::SampleCountFlags::TYPE_1)?;
+            let p = self.pipeline(d, &at, reversed, s.debug, samples != vk::SampleCountFlags::TYPE_1)?;
             let n = reuse.len() as u64;
             let buffer = PooledBuffer::take(d, inject::DRAW_ARGS * n + INSTANCE * n, &self.memory).map_err(|e| {
                 tracing::warn!("far field buffer: {e}");
@@ -315,7 +352,7 @@ impl FarFieldDevice {
             })?;
             // Nothing is drawn until a submission finds a fresh source.
             buffer.write(0, &vec![vk::DrawIndirectCommand::default(); n as usize]);
-            let op = Arc::new(ReuseOp { buffer, slots: slots.clone(), views: reuse, multiview });
+            let op = Arc::new(ReuseOp { reversed, buffer, slots: slots.clone(), views: reuse, multiview, awaiting: at.awaiting.clone() });
             let (_, layout, _, _) = self.objects(d).map_err(|_| "layer_error")?;
             let fns = d.fns.fp_v1_0();
             let recorded = if multiview { &dests[..1] } else { &dests[..] };
@@ -339,7 +376,7 @@ impl FarFieldDevice {
             at.bound_sets.set(true);
             lifetime::hold(d, at.owner, op);
         }
-        let pending = PendingCopy { slots, color, depth, draws, multiview };
+        let pending = PendingCopy { slots, color, depth, draws, multiview, awaiting: at.awaiting };
         lock(&self.books).pending.insert(at.owner, pending);
         Ok(())
     }
@@ -420,18 +457,25 @@ impl FarFieldDevice {
             (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), after.len() as u32, after.as_ptr());
         }
         for dr in sources {
-            lifetime::hold(d, cb.as_raw(), Arc::new(CopyOp { view: dr.view, rect: dr.viewport, slots: p.slots.clone() }));
+            lifetime::hold(d, cb.as_raw(), Arc::new(CopyOp { view: dr.view, rect: dr.viewport, layer: dr.layer, slots: p.slots.clone(), awaiting: p.awaiting.clone() }));
         }
     }
 
     /// Fills a reuse op's draws for this submission.
-    fn refresh(&self, op: &ReuseOp, s: &Settings, views: &FarFieldViews, inverse: Option<InverseDepth>) {
+    fn refresh(&self, d: &DeviceState, op: &ReuseOp, s: &Settings, views: &FarFieldViews, inverse: Option<InverseDepth>) {
         let f = &s.far_field;
         let frame = views.current.as_ref().map_or(0, |c| c.0);
         let copied = *lock(&op.slots.copied);
         let mut args = vec![vk::DrawIndirectCommand::default(); op.views.len()];
         let mut instances = vec![Instance::default(); op.views.len()];
-        for (i, v) in op.views.iter().enumerate() {
+        for (i, guessed) in op.views.iter().enumerate() {
+            // A draw recorded before the eyes were known is the eye it turns out to be, or none.
+            let view = match &op.awaiting {
+                None => Some(guessed.view),
+                Some(a) => a.resolve(d, s.intermediate, guessed.view, guessed.rect, guessed.layer),
+            };
+            let Some(view) = view else { continue };
+            let v = &ReuseView { view, ..*guessed };
             let slot = copied[v.slot as usize];
             let checked = rules::check_source(frame, v.view, f.source_view, f.alternate, slot.map(|c| c.0));
             let stamp = match checked {
@@ -443,7 +487,15 @@ impl FarFieldDevice {
                 }
             };
             let src_rect = slot.map_or(PixelRect { x: 0, y: 0, width: 0, height: 0 }, |c| c.1);
-            let (Some(inverse), Some(src_pose), Some(dst_pose)) = (inverse, pose_of(views, stamp.frame, stamp.view), pose_of(views, frame, v.view)) else {
+            let Some(inverse) = inverse else {
+                self.not_applied("no_depth_range");
+                continue;
+            };
+            if inverse.reversed() != op.reversed {
+                self.not_applied("depth_range_mismatch");
+                continue;
+            }
+            let (Some(src_pose), Some(dst_pose)) = (pose_of(views, stamp.frame, stamp.view), pose_of(views, frame, v.view)) else {
                 self.count(|st| st.no_fresh_source += 1);
                 continue;
             };
@@ -452,13 +504,22 @@ impl FarFieldDevice {
             let z = rules::split_distance(f.split_px, f.split_m, &src, &dst);
             let map = PixelMap::new(&src, &dst);
             let col = |c: glam::DVec3| [c.x as f32, c.y as f32, c.z as f32, 0.0];
+            let with_w = |mut c: [f32; 4], w: f32| {
+                c[3] = w;
+                c
+            };
             let split_depth = inverse.depth_of(z).clamp(0.0, 1.0);
             instances[i] = Instance {
-                m: [col(map.m.x_axis), col(map.m.y_axis), col(map.m.z_axis)],
+                m: [
+                    with_w(col(map.m.x_axis), 1.0 / op.slots.extent.width as f32),
+                    with_w(col(map.m.y_axis), 1.0 / op.slots.extent.height as f32),
+                    col(map.m.z_axis),
+                ],
                 k: [map.k.x as f32, map.k.y as f32, map.k.z as f32, if f.shift == super::Shift::Depth { 1.0 } else { 0.0 }],
                 depth: [inverse.a as f32, inverse.b as f32, (1.0 / z) as f32, split_depth as f32],
                 size: [src_rect.width as f32, src_rect.height as f32, op.slots.samples.as_raw() as f32, 0.0],
-                flags: [v.slot, 1, f.debug as u32, v.view],
+                // The shader's view is the multiview index, the same as the guess there.
+                flags: [v.slot, 1, f.debug as u32, guessed.view],
             };
             args[i] = vk::DrawIndirectCommand { vertex_count: 3, instance_count: 1, first_vertex: 0, first_instance: i as u32 };
             self.mark_reused(frame, v.view);
@@ -659,10 +720,43 @@ impl VkFeature for FarFieldDevice {
         self.layer_enabled && s.far_field.enabled
     }
     fn inject(&self, d: &DeviceState, at: &Injection<'_>) {
-        if let Err(why) = self.record(d, at) {
+        let t = Target { cb: at.cb, owner: at.owner, pass: at.pass, plan: at.plan, draws: at.plan.draws.clone(), settings: at.settings, bound_sets: &at.bound_sets, awaiting: None };
+        if let Err(why) = self.record(d, t) {
             if at.counts {
                 self.not_applied(why);
             }
+        }
+    }
+    /// A pass whose eyes are not known yet (recorded in the session's first frame): the draws and
+    /// copies are guessed — a multiview pass's views by its view mask, a per-eye pass's view by
+    /// its order among such passes of the recording, both over the render area — and each
+    /// submission checks the guess against the eyes known then (`AwaitPass::resolve`): a wrong
+    /// guess reuses nothing and leaves its slot invalid.
+    fn inject_awaiting(&self, d: &DeviceState, at: &inject::Awaiting<'_>) {
+        let area = inject::render_area(at.pass);
+        let layer = |a: &AttachmentUse| a.image_view.as_ref().map_or(0, |v| v.range.base_array_layer);
+        let color = match (&at.pass.rendering, &at.pass.render_pass) {
+            (Some(r), _) => r.color.first().map(|c| &c.attachment),
+            (None, Some(rp)) => rp.subpasses.get(at.pass.subpass as usize).and_then(|s| s.color.first()).and_then(|r| r.used()).and_then(|i| at.pass.attachments.get(i as usize)),
+            _ => None,
+        };
+        let Some(base) = color.map(layer) else { return };
+        let mask = at.pass.view_mask();
+        let draws: Vec<EyeDraw> = if mask != 0 {
+            (0..2).filter(|v| mask & (1 << v) != 0).map(|v| EyeDraw { view: v, layer: base + v, viewport: area, scissor: area }).collect()
+        } else {
+            let mut earlier = 0;
+            lifetime::with_holds(d, at.owner, |holds| earlier = holds.iter().filter_map(|h| h.downcast_ref::<CopyOp>()).filter(|c| c.awaiting.is_some()).count());
+            if earlier >= 2 {
+                return;
+            }
+            vec![EyeDraw { view: earlier as u32, layer: base, viewport: area, scissor: area }]
+        };
+        let plan = inject::shape_only(at.pass, at.fail_depth);
+        let awaiting = Some(Arc::new(AwaitPass { pass: at.pass.clone(), fail_depth: at.fail_depth }));
+        let t = Target { cb: at.cb, owner: at.owner, pass: at.pass, plan: &plan, draws, settings: at.settings, bound_sets: &at.bound_sets, awaiting };
+        if let Err(why) = self.record(d, t) {
+            tracing::debug!("far field: a pass awaiting its eyes got no reuse draw: {why}");
         }
     }
     fn not_injected(&self, _d: &DeviceState, _s: &Settings, why: crate::core::pass::NotMasked) {
@@ -728,15 +822,20 @@ impl VkFeature for FarFieldDevice {
             lifetime::with_holds(d, cb, |holds| {
                 for h in holds {
                     if let Some(c) = h.downcast_ref::<CopyOp>() {
-                        let rendered = !self.reused_in(frame, c.view);
-                        lock(&c.slots.copied)[c.view as usize & 1] = Some((Stamp { view: c.view, frame, rendered }, c.rect));
+                        // A guessed copy holds the view it turns out to be, or nothing usable.
+                        let view = match &c.awaiting {
+                            None => Some(c.view),
+                            Some(a) => a.resolve(d, s.intermediate, c.view, c.rect, c.layer),
+                        };
+                        let stamp = view.map(|v| (Stamp { view: v, frame, rendered: !self.reused_in(frame, v) }, c.rect));
+                        lock(&c.slots.copied)[c.view as usize & 1] = stamp;
                         self.count(|st| st.copies += 1);
                     } else if let Some(r) = h.downcast_ref::<ReuseOp>() {
                         if !idle {
                             continue;
                         }
                         if on && r.slots.initialized.load(Ordering::Acquire) {
-                            self.refresh(r, &s, &views, inverse);
+                            self.refresh(d, r, &s, &views, inverse);
                         } else {
                             r.buffer.write(0, &vec![vk::DrawIndirectCommand::default(); r.views.len()]);
                         }

@@ -62,6 +62,8 @@ pub(crate) struct Awaiting<'a> {
     pub pass: &'a PassInstance,
     pub fail_depth: f32,
     pub settings: &'a Settings,
+    /// Set by a feature that bound descriptor sets: the app's are rebound afterwards.
+    pub bound_sets: std::cell::Cell<bool>,
 }
 
 /// The plan for a pass recorded earlier, with the eyes known now.
@@ -103,6 +105,8 @@ struct Armed {
     pass: PassInstance,
     plan: MaskPlan,
     counts: bool,
+    /// The pass awaits its eyes (`Awaiting`, with this fail depth); `plan` only has its shape.
+    awaiting: Option<f32>,
 }
 
 #[derive(Default)]
@@ -345,7 +349,10 @@ fn inject(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, p
         }
         return;
     }
-    let armed = Armed { pass: snap.pass.clone(), plan: plan.clone(), counts };
+    arm(d, owner, Armed { pass: snap.pass.clone(), plan: plan.clone(), counts, awaiting: None });
+}
+
+fn arm(d: &DeviceState, owner: u64, armed: Armed) {
     if lock(&d.inject.books).armed.insert(owner, armed).is_none() {
         d.inject.armed_count.fetch_add(1, Ordering::AcqRel);
     }
@@ -397,6 +404,16 @@ pub(crate) fn before_draw(d: &DeviceState, cb: vk::CommandBuffer) {
     let Some(armed) = lock(&d.inject.books).armed.remove(&key) else { return };
     d.inject.armed_count.fetch_sub(1, Ordering::AcqRel);
     let settings = d.settings();
+    if let Some(fail_depth) = armed.awaiting {
+        let at = Awaiting { cb, owner: key, pass: &armed.pass, fail_depth, settings: &settings, bound_sets: Default::default() };
+        let _restore = restore::Restore::new(d, cb, &restore, &sets, &at.bound_sets);
+        for f in d.features.all() {
+            if f.injects(&settings) && f.injects_before_depth_test() {
+                f.inject_awaiting(d, &at);
+            }
+        }
+        return;
+    }
     let at = Injection { cb, pass: &armed.pass, plan: &armed.plan, settings: &settings, counts: armed.counts, owner: key, bound_sets: Default::default() };
     let _restore = restore::Restore::new(d, cb, &restore, &sets, &at.bound_sets);
     for f in d.features.all() {
@@ -410,13 +427,19 @@ pub(crate) fn before_draw(d: &DeviceState, cb: vk::CommandBuffer) {
 /// app's state when `cb` is the app's own.
 #[allow(clippy::too_many_arguments)]
 fn inject_awaiting(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, fail_depth: f32, settings: &Settings, restore: bool) {
-    let at = Awaiting { cb, owner, pass: &snap.pass, fail_depth, settings };
-    let bound_sets = Default::default();
-    let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore, &snap.sets, &bound_sets));
-    for f in d.features.all() {
-        if f.injects(settings) {
-            f.inject_awaiting(d, &at);
+    let at = Awaiting { cb, owner, pass: &snap.pass, fail_depth, settings, bound_sets: Default::default() };
+    {
+        let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore, &snap.sets, &at.bound_sets));
+        for f in d.features.all() {
+            if f.injects(settings) && !f.injects_before_depth_test() {
+                f.inject_awaiting(d, &at);
+            }
         }
+    }
+    let waiting = d.features.all().into_iter().any(|f| f.injects(settings) && f.injects_before_depth_test());
+    // Only the app's own command buffer can wait for a draw (see `inject`).
+    if waiting && restore {
+        arm(d, owner, Armed { pass: snap.pass.clone(), plan: shape_only(&snap.pass, fail_depth), counts: false, awaiting: Some(fail_depth) });
     }
 }
 
