@@ -45,10 +45,16 @@ impl InverseDepth {
     }
 }
 
-/// The projection range to use: the app's depth info, else the configured range, else none (the
-/// feature is then not applied: a guessed range could reuse near pixels).
-pub fn depth_range(submitted: Option<DepthRange>, configured: Option<(f64, f64)>) -> Option<DepthRange> {
-    submitted.or_else(|| configured.map(|(n, f)| DepthRange { near_z: n as f32, far_z: f as f32, min_depth: 0.0, max_depth: 1.0 }))
+/// The projection range to use: the app's depth info, else the configured range (near and far
+/// plane distances, stored the other way round when the pass clears depth to 0: reversed Z), else
+/// none (the feature is then not applied: a guessed range could reuse near pixels).
+pub fn depth_range(submitted: Option<DepthRange>, configured: Option<(f64, f64)>, reversed: bool) -> Option<DepthRange> {
+    submitted.or_else(|| {
+        configured.map(|(n, f)| {
+            let (at_min, at_max) = if reversed { (f, n) } else { (n, f) };
+            DepthRange { near_z: at_min as f32, far_z: at_max as f32, min_depth: 0.0, max_depth: 1.0 }
+        })
+    })
 }
 
 /// A view as the far field sees it: where it is, where it looks, its FOV and its pixels.
@@ -241,9 +247,12 @@ mod tests {
     #[test]
     fn configured_range_only_without_depth_info() {
         let info = DepthRange { near_z: 0.1, far_z: 100.0, min_depth: 0.0, max_depth: 1.0 };
-        assert_eq!(depth_range(Some(info), Some((1.0, 2.0))), Some(info));
-        assert_eq!(depth_range(None, Some((1.0, 2.0))).unwrap().far_z, 2.0);
-        assert_eq!(depth_range(None, None), None);
+        assert_eq!(depth_range(Some(info), Some((1.0, 2.0)), true), Some(info));
+        assert_eq!(depth_range(None, Some((1.0, 2.0)), false).unwrap().far_z, 2.0);
+        let rev = depth_range(None, Some((1.0, 2.0)), true).unwrap();
+        assert_eq!((rev.near_z, rev.far_z), (2.0, 1.0));
+        assert!(InverseDepth::of(&rev).unwrap().reversed());
+        assert_eq!(depth_range(None, None, false), None);
     }
 
     #[test]

@@ -11,6 +11,7 @@
 //! layer records next to them. The app's images go to TRANSFER_SRC for the copy and back to the
 //! layout the pass left them in.
 
+use super::copy::{attachments, make_slots, AwaitPass, CopyOp, PendingCopy, Slots};
 use super::rules::{self, InverseDepth, NoSource, PixelMap, Stamp, ViewGeometry};
 use super::stats::FarFieldStats;
 use crate::core::rect::PixelRect;
@@ -21,7 +22,7 @@ use crate::track::cmd::{AttachmentUse, PassInstance};
 use crate::track::eye_pass::{EyeDraw, EyeLayout};
 use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
 use crate::vk::inject::{self, pipeline, Injection};
-use crate::vk::lifetime::{self, Garbage, PooledBuffer};
+use crate::vk::lifetime::{self, PooledBuffer};
 use crate::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::collections::{HashMap, HashSet};
@@ -50,65 +51,6 @@ struct Instance {
 }
 
 const INSTANCE: u64 = std::mem::size_of::<Instance>() as u64;
-
-/// A layer image with its memory and view.
-struct Owned {
-    image: vk::Image,
-    memory: vk::DeviceMemory,
-    view: vk::ImageView,
-}
-
-/// The copies of both views: colour and depth per view, one descriptor set reading all four.
-pub(crate) struct Slots {
-    images: [[Owned; 2]; 2],
-    pool: vk::DescriptorPool,
-    set: vk::DescriptorSet,
-    extent: vk::Extent2D,
-    color_format: vk::Format,
-    depth_format: vk::Format,
-    samples: vk::SampleCountFlags,
-    initialized: AtomicBool,
-    /// What each slot holds, as of the submissions seen so far: the copy's stamp and its extent.
-    copied: Mutex<[Option<(Stamp, PixelRect)>; 2]>,
-    trash: Arc<Mutex<Vec<Garbage>>>,
-}
-
-impl Drop for Slots {
-    fn drop(&mut self) {
-        let mut t = lock(&self.trash);
-        for slot in &mut self.images {
-            for o in slot.iter_mut() {
-                t.push(Garbage::Image(std::mem::take(&mut o.view), std::mem::take(&mut o.image), std::mem::take(&mut o.memory)));
-            }
-        }
-        t.push(Garbage::DescriptorPool(std::mem::take(&mut self.pool)));
-    }
-}
-
-/// A pass recorded before its eyes were known (`inject::Awaiting`): which view a guessed draw
-/// really is gets decided at submission, from the eyes known then.
-struct AwaitPass {
-    pass: PassInstance,
-    fail_depth: f32,
-}
-
-impl AwaitPass {
-    /// The view the guessed eye (`view`, `rect`, `layer`) of this pass turns out to be, if any.
-    fn resolve(&self, d: &DeviceState, intermediate: bool, view: u32, rect: PixelRect, layer: u32) -> Option<u32> {
-        let plan = inject::plan_now(d, &self.pass, self.fail_depth, intermediate).ok()?;
-        let multiview = plan.layout == EyeLayout::Multiview;
-        plan.draws.iter().find(|dr| dr.viewport == rect && dr.layer == layer && (!multiview || dr.view == view) && dr.view < 2).map(|dr| dr.view)
-    }
-}
-
-/// A recording copies `view`'s pixels (`rect` of layer `layer` of its image) into slot `view`.
-struct CopyOp {
-    view: u32,
-    rect: PixelRect,
-    layer: u32,
-    slots: Arc<Slots>,
-    awaiting: Option<Arc<AwaitPass>>,
-}
 
 /// A recording's reuse draw(s): one indirect draw per destination view, arguments and instance
 /// data in `buffer`.
@@ -143,25 +85,6 @@ struct Target<'a> {
     draws: Vec<EyeDraw>,
     settings: &'a Settings,
     bound_sets: &'a std::cell::Cell<bool>,
-    awaiting: Option<Arc<AwaitPass>>,
-}
-
-/// An attachment to copy at the pass's end.
-#[derive(Clone, Copy)]
-struct Source {
-    image: vk::Image,
-    layout: vk::ImageLayout,
-    aspect: vk::ImageAspectFlags,
-    base_layer: u32,
-}
-
-/// What the end of an injected pass copies.
-struct PendingCopy {
-    slots: Arc<Slots>,
-    color: Source,
-    depth: Source,
-    draws: Vec<EyeDraw>,
-    multiview: bool,
     awaiting: Option<Arc<AwaitPass>>,
 }
 
@@ -381,86 +304,6 @@ impl FarFieldDevice {
         Ok(())
     }
 
-    /// Records the copies of the source views of the pass that just ended in `cb`.
-    fn copy(&self, d: &DeviceState, cb: vk::CommandBuffer, p: PendingCopy, s: &Settings) {
-        let sources: Vec<EyeDraw> = p.draws.iter().filter(|dr| s.far_field.alternate || dr.view == s.far_field.source_view).copied().collect();
-        if sources.is_empty() {
-            return;
-        }
-        let color_layer = |dr: &EyeDraw| dr.layer;
-        let depth_layer = |dr: &EyeDraw| p.depth.base_layer + if p.multiview { dr.view } else { 0 };
-        let range = |src: &Source, layers: (u32, u32)| vk::ImageSubresourceRange { aspect_mask: src.aspect, base_mip_level: 0, level_count: 1, base_array_layer: layers.0, layer_count: layers.1 - layers.0 + 1 };
-        let span = |f: &dyn Fn(&EyeDraw) -> u32| sources.iter().fold((u32::MAX, 0), |(lo, hi), dr| (lo.min(f(dr)), hi.max(f(dr))));
-        let (cl, dl) = (span(&color_layer), span(&depth_layer));
-        let app_barrier = |src: &Source, layers, to_copy: bool| {
-            let (old, new) = if to_copy { (src.layout, vk::ImageLayout::TRANSFER_SRC_OPTIMAL) } else { (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, src.layout) };
-            let (src_access, dst_access) = if to_copy {
-                (vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE, vk::AccessFlags::TRANSFER_READ)
-            } else {
-                (vk::AccessFlags::empty(), vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE)
-            };
-            vk::ImageMemoryBarrier::default()
-                .image(src.image)
-                .old_layout(old)
-                .new_layout(new)
-                .src_access_mask(src_access)
-                .dst_access_mask(dst_access)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .subresource_range(range(src, layers))
-        };
-        let slot_barrier = |image: vk::Image, aspect, before_copy: bool| {
-            let (src_access, dst_access) = if before_copy { (vk::AccessFlags::SHADER_READ, vk::AccessFlags::TRANSFER_WRITE) } else { (vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ) };
-            vk::ImageMemoryBarrier::default()
-                .image(image)
-                .old_layout(vk::ImageLayout::GENERAL)
-                .new_layout(vk::ImageLayout::GENERAL)
-                .src_access_mask(src_access)
-                .dst_access_mask(dst_access)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 })
-        };
-        let slot_images = |before: bool| -> Vec<vk::ImageMemoryBarrier<'static>> {
-            sources
-                .iter()
-                .flat_map(|dr| {
-                    let slot = &p.slots.images[dr.view as usize];
-                    [slot_barrier(slot[0].image, vk::ImageAspectFlags::COLOR, before), slot_barrier(slot[1].image, vk::ImageAspectFlags::DEPTH, before)]
-                })
-                .collect()
-        };
-        let mut before = vec![app_barrier(&p.color, cl, true), app_barrier(&p.depth, dl, true)];
-        before.extend(slot_images(true));
-        let mut after = vec![app_barrier(&p.color, cl, false), app_barrier(&p.depth, dl, false)];
-        after.extend(slot_images(false));
-        let fns = d.fns.fp_v1_0();
-        let attachment_stages = vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
-        // SAFETY: `cb` is the app's command buffer outside any pass (the pass just ended); the
-        // barriers name the app's attachments in the layouts its pass left them in (and put them
-        // back) and the layer's slots, which stay GENERAL; the slots are held by the recording.
-        unsafe {
-            (fns.cmd_pipeline_barrier)(cb, attachment_stages | vk::PipelineStageFlags::FRAGMENT_SHADER, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), before.len() as u32, before.as_ptr());
-            for dr in &sources {
-                let r = dr.viewport;
-                let slot = &p.slots.images[dr.view as usize];
-                let region = |aspect, layer| vk::ImageCopy {
-                    src_subresource: vk::ImageSubresourceLayers { aspect_mask: aspect, mip_level: 0, base_array_layer: layer, layer_count: 1 },
-                    src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
-                    dst_subresource: vk::ImageSubresourceLayers { aspect_mask: aspect, mip_level: 0, base_array_layer: 0, layer_count: 1 },
-                    dst_offset: vk::Offset3D::default(),
-                    extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
-                };
-                (fns.cmd_copy_image)(cb, p.color.image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, slot[0].image, vk::ImageLayout::GENERAL, 1, &region(vk::ImageAspectFlags::COLOR, color_layer(dr)));
-                (fns.cmd_copy_image)(cb, p.depth.image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, slot[1].image, vk::ImageLayout::GENERAL, 1, &region(vk::ImageAspectFlags::DEPTH, depth_layer(dr)));
-            }
-            (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), after.len() as u32, after.as_ptr());
-        }
-        for dr in sources {
-            lifetime::hold(d, cb.as_raw(), Arc::new(CopyOp { view: dr.view, rect: dr.viewport, layer: dr.layer, slots: p.slots.clone(), awaiting: p.awaiting.clone() }));
-        }
-    }
-
     /// Fills a reuse op's draws for this submission.
     fn refresh(&self, d: &DeviceState, op: &ReuseOp, s: &Settings, views: &FarFieldViews, inverse: Option<InverseDepth>) {
         let f = &s.far_field;
@@ -549,152 +392,6 @@ impl FarFieldDevice {
     }
 }
 
-/// The pass's colour and depth sources and their (format, samples).
-#[allow(clippy::type_complexity)]
-fn attachments(d: &DeviceState, pass: &PassInstance) -> Result<(Source, Source, (vk::Format, vk::SampleCountFlags), (vk::Format, vk::SampleCountFlags)), &'static str> {
-    let (color, depth, color_layout, depth_layout): (&AttachmentUse, &AttachmentUse, vk::ImageLayout, vk::ImageLayout) = match (&pass.rendering, &pass.render_pass) {
-        (Some(r), _) => {
-            if r.color.len() != 1 {
-                return Err("several_colour_attachments");
-            }
-            let depth = r.depth.as_ref().ok_or("no_depth_attachment")?;
-            (&r.color[0].attachment, &depth.attachment, r.color[0].attachment.layout, depth.attachment.layout)
-        }
-        (None, Some(rp)) => {
-            let sub = rp.subpasses.get(pass.subpass as usize).ok_or("unsupported")?;
-            if sub.color.len() != 1 {
-                return Err("several_colour_attachments");
-            }
-            let ci = sub.color[0].used().ok_or("unsupported")? as usize;
-            let di = sub.depth_stencil.and_then(|r| r.used()).ok_or("no_depth_attachment")? as usize;
-            let (c, dd) = (pass.attachments.get(ci).ok_or("unsupported")?, pass.attachments.get(di).ok_or("unsupported")?);
-            (c, dd, rp.attachments[ci].final_layout, rp.attachments[di].final_layout)
-        }
-        _ => return Err("unsupported"),
-    };
-    if color.store_op != vk::AttachmentStoreOp::STORE || depth.store_op != vk::AttachmentStoreOp::STORE {
-        return Err("not_stored");
-    }
-    let info = |a: &AttachmentUse| {
-        let v = a.image_view.as_ref()?;
-        let i = d.track.images.get(v.image)?;
-        Some((v.image, v.range.base_array_layer, i.format, i.samples, i.usage))
-    };
-    let (ci, cl, cf, cs, cu) = info(color).ok_or("unsupported")?;
-    let (di, dl, df, ds, du) = info(depth).ok_or("unsupported")?;
-    if cs != ds {
-        // Mixed-sample passes (VK_AMD_mixed_attachment_samples and the like).
-        return Err("unsupported");
-    }
-    if !cu.contains(vk::ImageUsageFlags::TRANSFER_SRC) || !du.contains(vk::ImageUsageFlags::TRANSFER_SRC) {
-        return Err("no_transfer_src");
-    }
-    let stencil = matches!(df, vk::Format::D16_UNORM_S8_UINT | vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT);
-    let depth_aspect = if stencil { vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL } else { vk::ImageAspectFlags::DEPTH };
-    Ok((
-        Source { image: vk::Image::from_raw(ci), layout: color_layout, aspect: vk::ImageAspectFlags::COLOR, base_layer: cl },
-        Source { image: vk::Image::from_raw(di), layout: depth_layout, aspect: depth_aspect, base_layer: dl },
-        (cf, cs),
-        (df, ds),
-    ))
-}
-
-/// Creates both views' slot images and the descriptor set reading them.
-#[allow(clippy::too_many_arguments)]
-fn make_slots(
-    d: &DeviceState,
-    memory: &vk::PhysicalDeviceMemoryProperties,
-    extent: vk::Extent2D,
-    (color_format, depth_format, samples): (vk::Format, vk::Format, vk::SampleCountFlags),
-    set_layout: vk::DescriptorSetLayout,
-    linear: vk::Sampler,
-    nearest: vk::Sampler,
-) -> Result<Slots, String> {
-    let trash = d.lifetime.trash.clone();
-    let image = |format: vk::Format, aspect: vk::ImageAspectFlags| -> Result<Owned, String> {
-        let info = vk::ImageCreateInfo::default()
-            .image_type(vk::ImageType::TYPE_2D)
-            .format(format)
-            .extent(vk::Extent3D { width: extent.width, height: extent.height, depth: 1 })
-            .mip_levels(1)
-            .array_layers(1)
-            .samples(samples)
-            .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST)
-            .initial_layout(vk::ImageLayout::UNDEFINED);
-        // SAFETY: valid create infos; every object made here is destroyed on failure or handed to
-        // `Slots`, whose drop puts it in the device's trash.
-        unsafe {
-            let image = d.fns.create_image(&info, None).map_err(|e| e.to_string())?;
-            let req = d.fns.get_image_memory_requirements(image);
-            let t = lifetime::memory_type(memory, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
-                .or_else(|| lifetime::memory_type(memory, req.memory_type_bits, vk::MemoryPropertyFlags::empty()))
-                .ok_or("no memory type for the far field's images")?;
-            let mem = match d.fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(t), None) {
-                Ok(m) => m,
-                Err(e) => {
-                    d.fns.destroy_image(image, None);
-                    return Err(e.to_string());
-                }
-            };
-            let view = d.fns.bind_image_memory(image, mem, 0).and_then(|_| {
-                let range = vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
-                d.fns.create_image_view(&vk::ImageViewCreateInfo::default().image(image).view_type(vk::ImageViewType::TYPE_2D).format(format).subresource_range(range), None)
-            });
-            match view {
-                Ok(view) => Ok(Owned { image, memory: mem, view }),
-                Err(e) => {
-                    d.fns.destroy_image(image, None);
-                    d.fns.free_memory(mem, None);
-                    Err(e.to_string())
-                }
-            }
-        }
-    };
-    let mut made: Vec<Owned> = Vec::new();
-    let result = (|| {
-        for _ in 0..2 {
-            made.push(image(color_format, vk::ImageAspectFlags::COLOR)?);
-            made.push(image(depth_format, vk::ImageAspectFlags::DEPTH)?);
-        }
-        let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 4 }];
-        // SAFETY: valid create / allocate infos on our own objects.
-        let pool = unsafe { d.fns.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None) }.map_err(|e| e.to_string())?;
-        let layouts = [set_layout];
-        // SAFETY: as above.
-        let set = match unsafe { d.fns.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts)) } {
-            Ok(s) => s[0],
-            Err(e) => {
-                // SAFETY: ours, unused.
-                unsafe { d.fns.destroy_descriptor_pool(pool, None) };
-                return Err(e.to_string());
-            }
-        };
-        Ok((pool, set))
-    })();
-    let (pool, set) = match result {
-        Ok(x) => x,
-        Err(e) => {
-            let mut t = lock(&trash);
-            t.extend(made.into_iter().map(|o| Garbage::Image(o.view, o.image, o.memory)));
-            return Err(e);
-        }
-    };
-    let infos: Vec<[vk::DescriptorImageInfo; 1]> = made
-        .iter()
-        .enumerate()
-        .map(|(i, o)| [vk::DescriptorImageInfo { sampler: if i % 2 == 0 { linear } else { nearest }, image_view: o.view, image_layout: vk::ImageLayout::GENERAL }])
-        .collect();
-    let writes: Vec<vk::WriteDescriptorSet> =
-        infos.iter().enumerate().map(|(i, info)| vk::WriteDescriptorSet::default().dst_set(set).dst_binding(i as u32).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(info)).collect();
-    // SAFETY: our set, not in use by any command buffer yet.
-    unsafe { d.fns.update_descriptor_sets(&writes, &[]) };
-    let mut it = made.into_iter();
-    let mut next = || it.next().expect("four images");
-    let images = [[next(), next()], [next(), next()]];
-    Ok(Slots { images, pool, set, extent, color_format, depth_format, samples, initialized: AtomicBool::new(false), copied: Mutex::new([None, None]), trash })
-}
-
 impl VkFeature for FarFieldDevice {
     fn id(&self) -> &'static str {
         "far_field"
@@ -767,7 +464,7 @@ impl VkFeature for FarFieldDevice {
     fn pass_ended(&self, d: &DeviceState, cb: vk::CommandBuffer) {
         let Some(p) = lock(&self.books).pending.remove(&cb.as_raw()) else { return };
         let s = d.settings();
-        self.copy(d, cb, p, &s);
+        super::copy::record(d, cb, p, &s);
     }
     /// Attachments can be copied: TRANSFER_SRC whenever the layer is on (the far field can be
     /// switched on live). Transient attachments never hold anything to copy.
@@ -815,7 +512,7 @@ impl VkFeature for FarFieldDevice {
         let s = d.settings();
         let views = shared().far_field();
         let frame = views.current.as_ref().map_or(0, |c| c.0);
-        let inverse = rules::depth_range(views.depth, s.far_field.configured_range).and_then(|r| InverseDepth::of(&r));
+        let inverse = |reversed| rules::depth_range(views.depth, s.far_field.configured_range, reversed).and_then(|r| InverseDepth::of(&r));
         let on = self.layer_enabled && s.far_field.enabled;
         for &cb in cbs {
             let idle = !lifetime::in_flight(d, cb);
@@ -835,7 +532,7 @@ impl VkFeature for FarFieldDevice {
                             continue;
                         }
                         if on && r.slots.initialized.load(Ordering::Acquire) {
-                            self.refresh(d, r, &s, &views, inverse);
+                            self.refresh(d, r, &s, &views, inverse(r.reversed));
                         } else {
                             r.buffer.write(0, &vec![vk::DrawIndirectCommand::default(); r.views.len()]);
                         }
