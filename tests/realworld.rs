@@ -814,3 +814,32 @@ fn harness_reports_hang_with_backtrace() {
     assert_eq!(out.status.code(), Some(124), "{text}");
     assert!(text.contains("=== HANG: app") && text.contains("Thread 1") && text.contains("#0 "), "no backtrace:\n{text}");
 }
+
+/// The monoscopic far field on Monado (hello_xr submits no depth info: its projection range comes
+/// from config; its passes discard depth: the layer keeps it): the destination view reuses the far
+/// field in every frame after the first rendered one, nothing is reported as not applied,
+/// validation stays clean and the frames keep coming as without the layer.
+#[test]
+fn vulkan2_layer_far_field() {
+    let Some(root) = root() else { return };
+    let base = baseline(&root, "Vulkan2");
+    let env = [("STEREOSHIM_FAR_FIELD_ENABLED", "true"), ("STEREOSHIM_FAR_FIELD_NEAR_Z", "0.05"), ("STEREOSHIM_FAR_FIELD_FAR_Z", "100")];
+    let spec = Spec { layer: Layer::Explicit, env: env.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect(), ..Spec::new("vulkan2-far-field", "Vulkan2") };
+    let o = run(&root, &spec);
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, base);
+    check_clean_exit(&mut c, &o);
+    check_layer_loaded(&mut c, &o);
+    check_validation(&mut c, &o);
+    let first_rendered = o.frames.iter().position(|f| f.layer_count > 0).unwrap_or(usize::MAX);
+    let judged: Vec<&serde_json::Value> = o.stats.iter().filter(|s| s["frame"].as_u64().is_some_and(|n| n as usize > first_rendered + 1 && o.frames.get(n as usize).is_some_and(|f| f.layer_count > 0))).collect();
+    c.check(!judged.is_empty(), || format!("{}: no rendered frame to judge", o.name));
+    let bad: Vec<String> = judged
+        .iter()
+        .filter(|s| s["far_field"]["views_reused"]["1"].as_u64() != Some(1) || s["far_field"]["not_applied"].as_object().is_some_and(|m| !m.is_empty()))
+        .map(|s| format!("frame {}: {}", s["frame"], s["far_field"]))
+        .collect();
+    c.check(bad.is_empty(), || format!("{}: {} of {} frames without the far field; first: {}", o.name, bad.len(), judged.len(), bad[0]));
+    check_frames_kept(&mut c, &root, base, &o, &spec);
+    c.finish(&[&o, base]);
+}
