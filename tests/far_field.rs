@@ -16,6 +16,8 @@ use glam::{DQuat, DVec3};
 struct Outcome {
     /// Destination pixels the test expects the layer to reuse (independent computation).
     expected: usize,
+    /// Destination pixels the reuse draw writes (before the app's near geometry covers some).
+    written: usize,
     /// Of those, pixels the reference filled with far geometry (not the clear colour).
     expected_geometry: usize,
     /// Pixels the layer reused, as the debug tint shows them (debug runs only).
@@ -220,6 +222,7 @@ fn analyse(case: &Case, plain: &RunOutput, far: &RunOutput, f: u64, dst_view: u3
                 let (tx, ty) = ((u - 0.5).floor() as i64, (v - 0.5).floor() as i64);
                 reused[i] = far_at(tx, ty) && far_at(tx + 1, ty) && far_at(tx, ty + 1) && far_at(tx + 1, ty + 1);
             }
+            out.written += reused[i] as usize;
             // The reference's own near geometry wins over any reuse.
             if ref_z[i] < case.split_m {
                 reused[i] = false;
@@ -266,7 +269,27 @@ fn check(case: Case, min_psnr: f64) -> Outcome {
     let src_frame = if case.previous_frame { case.frame - 1 } else { case.frame };
     let out = analyse(&case, &plain, &far, case.frame, 1, 0, src_frame);
     judge(&case, &out, min_psnr);
+    // The layer's own count (occlusion queries, totalled over the run) against the pixels the
+    // test expects the reuse draw to write in every frame that reuses.
+    let first = if case.previous_frame { 2 } else { 1 };
+    let (mut written, mut outline) = (0, 0);
+    for f in first..=case.frame {
+        let o = analyse(&case, &plain, &far, f, 1, 0, if case.previous_frame { f - 1 } else { f });
+        written += o.written;
+        outline += o.outline;
+    }
+    let counted = layer_count(&far);
+    eprintln!("{}: layer counted {counted}, expected {written} (outline {outline})", case.name);
+    assert!(counted.abs_diff(written as u64) <= outline as u64, "{}: the layer counted {counted} reused pixels, the test expects {written} (outline {outline})", case.name);
     out
+}
+
+/// `far_field_pixels_reused` of the run's device stats line.
+fn layer_count(run: &RunOutput) -> u64 {
+    let lines = run.log_lines("far_field_pixels_reused=");
+    let line = lines.last().unwrap_or_else(|| panic!("{}: no far field counters in the log:\n{}", run.name, run.log));
+    let v = line.split("far_field_pixels_reused=").nth(1).unwrap().split(' ').next().unwrap();
+    v.parse().unwrap()
 }
 
 fn judge(case: &Case, out: &Outcome, min_psnr: f64) {

@@ -502,6 +502,9 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
     guard::catch("vkDestroyDevice", (), || {
         let key = dispatch_key(device);
         let Some(dev) = layer().devices.get(key) else { return };
+        // The app waited for the device to go idle: every recording's holds go now, so what
+        // they counted on completion (e.g. the far field's reused pixels) is in the stats line.
+        super::lifetime::release_holds(&dev);
         let mut line = dev.track.stats.summary();
         for summary in dev.features.all().iter().filter_map(|f| f.summary()) {
             line.push(' ');

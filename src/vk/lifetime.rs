@@ -33,6 +33,7 @@ pub(crate) enum Garbage {
     Buffer(vk::Buffer, vk::DeviceMemory),
     Image(vk::ImageView, vk::Image, vk::DeviceMemory),
     DescriptorPool(vk::DescriptorPool),
+    QueryPool(vk::QueryPool),
 }
 
 /// Per-device lifetime state.
@@ -149,8 +150,17 @@ fn empty_trash(d: &DeviceState) {
             },
             // SAFETY: as above; destroying the pool frees its sets.
             Garbage::DescriptorPool(p) => unsafe { d.fns.destroy_descriptor_pool(p, None) },
+            // SAFETY: as above.
+            Garbage::QueryPool(p) => unsafe { d.fns.destroy_query_pool(p, None) },
         }
     }
+}
+
+/// At vkDestroyDevice (the device is idle): every recording's holds go (their objects to the
+/// trash, emptied by `destroy`).
+pub(crate) fn release_holds(d: &DeviceState) {
+    let all = lock(&d.lifetime.lifetimes).drain();
+    drop(all);
 }
 
 /// At vkDestroyDevice (the device is idle): everything goes.
@@ -232,7 +242,8 @@ impl HostBuffer {
             }
         }
         let size = size.next_power_of_two().max(4096);
-        let usage = vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER;
+        // TRANSFER_DST: query results are copied into some.
+        let usage = vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
         let info = vk::BufferCreateInfo::default().size(size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
         // SAFETY: a valid create info.
         let buffer = unsafe { d.fns.create_buffer(&info, None) }.map_err(|e| e.to_string())?;
@@ -273,6 +284,21 @@ impl HostBuffer {
         // every later queue submission.
         unsafe { std::ptr::copy_nonoverlapping(data.as_ptr().cast::<u8>(), self.ptr.add(offset as usize), len as usize) };
         true
+    }
+}
+
+impl HostBuffer {
+    /// Reads `n` values at `offset` (what the GPU wrote, once the writing submission completed
+    /// and made it visible to the host); empty when out of bounds.
+    pub(crate) fn read<T: Copy + Default>(&self, offset: u64, n: usize) -> Vec<T> {
+        let len = (n * std::mem::size_of::<T>()) as u64;
+        if offset + len > self.size {
+            return Vec::new();
+        }
+        let mut out = vec![T::default(); n];
+        // SAFETY: in bounds of the mapping (checked); coherent memory; `T` is plain data.
+        unsafe { std::ptr::copy_nonoverlapping(self.ptr.add(offset as usize), out.as_mut_ptr().cast::<u8>(), len as usize) };
+        out
     }
 }
 

@@ -7,6 +7,7 @@
 
 pub mod rules;
 mod copy;
+mod count;
 pub mod stats;
 pub(crate) mod vk;
 pub(crate) mod xr;

@@ -15,6 +15,8 @@ pub struct FarFieldStats {
     pub not_applied: BTreeMap<&'static str, u64>,
     /// Destination views that had no fresh source this time.
     pub no_fresh_source: u64,
+    /// Pixels reused (counted by occlusion queries as their submissions complete).
+    pub pixels_reused: u64,
 }
 
 impl FarFieldStats {
@@ -40,6 +42,7 @@ impl FeatureStats for FarFieldStats {
         }
         self.copies += o.copies;
         self.no_fresh_source += o.no_fresh_source;
+        self.pixels_reused += o.pixels_reused;
     }
     fn is_empty(&self) -> bool {
         *self == FarFieldStats::default()
@@ -64,8 +67,9 @@ impl FeatureStats for FarFieldStats {
     }
     fn summary(&self) -> String {
         format!(
-            "far_field_views_reused={} far_field_copies={} far_field_no_fresh_source={} far_field_not_applied={:?}",
+            "far_field_views_reused={} far_field_pixels_reused={} far_field_copies={} far_field_no_fresh_source={} far_field_not_applied={:?}",
             self.passes(),
+            self.pixels_reused,
             self.copies,
             self.no_fresh_source,
             self.not_applied
@@ -75,6 +79,7 @@ impl FeatureStats for FarFieldStats {
         let mut o = serde_json::Map::new();
         o.insert("views_reused".into(), json_counts(self.views_reused.iter().map(|(k, v)| (*k, *v))));
         o.insert("copies".into(), self.copies.into());
+        o.insert("pixels_reused".into(), self.pixels_reused.into());
         o.insert("no_fresh_source".into(), self.no_fresh_source.into());
         o.insert("not_applied".into(), json_counts(self.not_applied.iter().map(|(k, v)| (*k, *v))));
         record.insert("far_field".into(), o.into());

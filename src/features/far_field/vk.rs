@@ -11,6 +11,7 @@
 //! layer records next to them. The app's images go to TRANSFER_SRC for the copy and back to the
 //! layout the pass left them in.
 
+use super::count::Counter;
 use super::copy::{attachments, make_slots, AwaitPass, CopyOp, PendingCopy, Slots};
 use super::rules::{self, InverseDepth, NoSource, PixelMap, Stamp, ViewGeometry};
 use super::stats::FarFieldStats;
@@ -62,6 +63,8 @@ struct ReuseOp {
     views: Vec<ReuseView>,
     multiview: bool,
     awaiting: Option<Arc<AwaitPass>>,
+    /// Counts the reused pixels (None where the layer could not make its queries).
+    counter: Option<Arc<Counter>>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -105,10 +108,18 @@ struct Books {
     logged: HashSet<&'static str>,
     /// (frame, views that reused pixels in it so far): a copy of such a view is not a source.
     reused: (u64, [bool; 2]),
+    /// Counters whose results are copied out when their pass ends in a command buffer.
+    readbacks: HashMap<u64, Vec<Arc<Counter>>>,
+    /// Query pools made since the last submission: reset once, ahead of it.
+    uninit_queries: Vec<(vk::QueryPool, u32)>,
+    /// The reused-pixel total at the last `take_frame`.
+    pixels_taken: u64,
 }
 
 /// The far field's per-device state. Locks guard bookkeeping only, never a call down.
 pub(crate) struct FarFieldDevice {
+    /// Reused pixels counted so far (occlusion queries, collected after completion).
+    pixels_reused: Arc<std::sync::atomic::AtomicU64>,
     layer_enabled: bool,
     used: AtomicBool,
     memory: vk::PhysicalDeviceMemoryProperties,
@@ -119,7 +130,7 @@ pub(crate) struct FarFieldDevice {
 impl Plugin for FarFieldDevice {
     const KEYS: &'static [crate::config::KeySpec] = super::KEYS;
     fn new(init: &DeviceInit<'_>) -> FarFieldDevice {
-        FarFieldDevice { layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default(), objects: Mutex::default() }
+        FarFieldDevice { pixels_reused: Arc::default(), layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default(), objects: Mutex::default() }
     }
     fn empty_stats() -> Box<dyn FeatureStats> {
         Box::new(FarFieldStats::default())
@@ -275,7 +286,17 @@ impl FarFieldDevice {
             })?;
             // Nothing is drawn until a submission finds a fresh source.
             buffer.write(0, &vec![vk::DrawIndirectCommand::default(); n as usize]);
-            let op = Arc::new(ReuseOp { reversed, buffer, slots: slots.clone(), views: reuse, multiview, awaiting: at.awaiting.clone() });
+            let recorded_count = if multiview { 1 } else { dests.len() };
+            // In a multiview pass one query takes as many consecutive indices as the pass has views.
+            let queries = if multiview { at.pass.view_mask().count_ones().max(1) } else { recorded_count as u32 };
+            let counter = match Counter::new(d, &self.memory, queries, samples.as_raw(), self.pixels_reused.clone()) {
+                Ok(c) => Some(Arc::new(c)),
+                Err(e) => {
+                    tracing::warn!("far field: reused pixels are not counted for a pass: {e}");
+                    None
+                }
+            };
+            let op = Arc::new(ReuseOp { reversed, buffer, slots: slots.clone(), views: reuse, multiview, awaiting: at.awaiting.clone(), counter });
             let (_, layout, _, _) = self.objects(d).map_err(|_| "layer_error")?;
             let fns = d.fns.fp_v1_0();
             let recorded = if multiview { &dests[..1] } else { &dests[..] };
@@ -293,8 +314,20 @@ impl FarFieldDevice {
                     let viewport = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
                     (fns.cmd_set_viewport)(at.cb, 0, 1, &viewport);
                     (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(dr.scissor));
+                    // Multiview: one query spans the pass's views (consecutive indices).
+                    if let Some(c) = &op.counter {
+                        (fns.cmd_begin_query)(at.cb, c.pool, i as u32, vk::QueryControlFlags::empty());
+                    }
                     (fns.cmd_draw_indirect)(at.cb, op.buffer.buffer, inject::DRAW_ARGS * i as u64, 1, inject::DRAW_ARGS as u32);
+                    if let Some(c) = &op.counter {
+                        (fns.cmd_end_query)(at.cb, c.pool, i as u32);
+                    }
                 }
+            }
+            if let Some(c) = &op.counter {
+                let mut b = lock(&self.books);
+                b.uninit_queries.push((c.pool, c.queries));
+                b.readbacks.entry(at.owner).or_default().push(c.clone());
             }
             at.bound_sets.set(true);
             lifetime::hold(d, at.owner, op);
@@ -396,11 +429,23 @@ impl VkFeature for FarFieldDevice {
     fn id(&self) -> &'static str {
         "far_field"
     }
+    /// Reused pixels are counted as their submissions complete: a frame's count is what
+    /// completed since the last frame end (frames in flight shift it by a frame or two; totals are
+    /// exact).
     fn take_frame(&self) -> Box<dyn FeatureStats> {
-        Box::new(std::mem::take(&mut lock(&self.books).frame))
+        let now = self.pixels_reused.load(Ordering::Relaxed);
+        let mut b = lock(&self.books);
+        let pixels = now - std::mem::replace(&mut b.pixels_taken, now);
+        b.frame.pixels_reused += pixels;
+        b.total.pixels_reused += pixels;
+        Box::new(std::mem::take(&mut b.frame))
     }
     fn summary(&self) -> Option<String> {
-        self.used.load(Ordering::Relaxed).then(|| lock(&self.books).total.summary())
+        self.used.load(Ordering::Relaxed).then(|| {
+            let mut total = lock(&self.books).total.clone();
+            total.pixels_reused = self.pixels_reused.load(Ordering::Relaxed);
+            total.summary()
+        })
     }
     fn injects(&self, s: &Settings) -> bool {
         let on = self.layer_enabled && s.far_field.enabled;
@@ -462,7 +507,14 @@ impl VkFeature for FarFieldDevice {
         }
     }
     fn pass_ended(&self, d: &DeviceState, cb: vk::CommandBuffer) {
-        let Some(p) = lock(&self.books).pending.remove(&cb.as_raw()) else { return };
+        let (pending, readbacks) = {
+            let mut b = lock(&self.books);
+            (b.pending.remove(&cb.as_raw()), b.readbacks.remove(&cb.as_raw()))
+        };
+        for c in readbacks.into_iter().flatten() {
+            c.record_readback(d, cb);
+        }
+        let Some(p) = pending else { return };
         let s = d.settings();
         super::copy::record(d, cb, p, &s);
     }
@@ -477,6 +529,19 @@ impl VkFeature for FarFieldDevice {
         }
     }
     fn queue_submitting(&self, d: &DeviceState, queue: vk::Queue, family: Option<u32>) {
+        let pools = std::mem::take(&mut lock(&self.books).uninit_queries);
+        if let (false, Some(family)) = (pools.is_empty(), family) {
+            let done = crate::vk::secondary::submit_once(d, queue, family, |cb| {
+                for (pool, n) in &pools {
+                    // SAFETY: our one-time command buffer, recording, outside any pass; our pools,
+                    // not yet used by any submission (this one goes ahead of theirs).
+                    unsafe { (d.fns.fp_v1_0().cmd_reset_query_pool)(cb, *pool, 0, *n) };
+                }
+            });
+            if let Err(e) = done {
+                tracing::warn!("far field query reset: {e}");
+            }
+        }
         let Some(slots) = lock(&self.objects).slots.clone() else { return };
         if slots.initialized.load(Ordering::Acquire) {
             return;
@@ -530,6 +595,10 @@ impl VkFeature for FarFieldDevice {
                     } else if let Some(r) = h.downcast_ref::<ReuseOp>() {
                         if !idle {
                             continue;
+                        }
+                        // The recording's previous submission completed: its count is in.
+                        if let Some(c) = &r.counter {
+                            c.collect();
                         }
                         if on && r.slots.initialized.load(Ordering::Acquire) {
                             self.refresh(d, r, &s, &views, inverse(r.reversed));

@@ -1,0 +1,71 @@
+//! Counting the pixels the far field reuses, exactly: an occlusion query around each reuse draw
+//! counts the samples that survive its depth test and its `discard`, i.e. the reused ones. After
+//! the pass the results are copied into a host buffer and the queries reset (both outside the pass,
+//! so a command buffer recorded once counts every submission); the host adds them up once the
+//! submission has completed (before the recording's next submission, or when its hold goes).
+
+use crate::vk::lifetime::{Garbage, PooledBuffer};
+use crate::vk::DeviceState;
+use ash::vk;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// One reuse op's queries.
+pub(super) struct Counter {
+    pub(super) pool: vk::QueryPool,
+    pub(super) queries: u32,
+    results: PooledBuffer,
+    /// Samples per pixel of the pass (occlusion queries count samples).
+    samples: u64,
+    /// Where collected counts go: the device's running total of reused pixels.
+    total: Arc<AtomicU64>,
+    trash: Arc<Mutex<Vec<Garbage>>>,
+}
+
+impl Counter {
+    pub(super) fn new(d: &DeviceState, memory: &vk::PhysicalDeviceMemoryProperties, queries: u32, samples: u32, total: Arc<AtomicU64>) -> Result<Counter, String> {
+        let results = PooledBuffer::take(d, 8 * queries as u64, memory)?;
+        // A pooled buffer may hold an earlier user's numbers.
+        results.write(0, &vec![0u64; queries as usize]);
+        let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::OCCLUSION).query_count(queries);
+        // SAFETY: a valid create info; the pool is ours until `Drop` hands it to the trash.
+        let pool = unsafe { d.fns.create_query_pool(&info, None) }.map_err(|e| e.to_string())?;
+        Ok(Counter { pool, queries, results, samples: samples.max(1) as u64, total, trash: d.lifetime.trash.clone() })
+    }
+
+    /// Records, after the pass that used the queries: their results into the host buffer (waiting
+    /// for them on the GPU), made visible to the host, then the reset for the next submission.
+    pub(super) fn record_readback(&self, d: &DeviceState, cb: vk::CommandBuffer) {
+        let fns = d.fns.fp_v1_0();
+        let barrier = vk::MemoryBarrier::default().src_access_mask(vk::AccessFlags::TRANSFER_WRITE).dst_access_mask(vk::AccessFlags::HOST_READ);
+        // SAFETY: `cb` is the app's command buffer outside any pass; the pool and the buffer are
+        // held by its recording (the op owning this counter).
+        unsafe {
+            (fns.cmd_copy_query_pool_results)(cb, self.pool, 0, self.queries, self.results.buffer, 0, 8, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT);
+            (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::HOST, vk::DependencyFlags::empty(), 1, &barrier, 0, std::ptr::null(), 0, std::ptr::null());
+            (fns.cmd_reset_query_pool)(cb, self.pool, 0, self.queries);
+        }
+    }
+
+    /// Adds what the last completed submission counted to the total (and clears it, so nothing
+    /// is counted twice). Only called while no submission of the recording may execute.
+    pub(super) fn collect(&self) -> u64 {
+        let counts = self.results.read::<u64>(0, self.queries as usize);
+        let samples: u64 = counts.iter().sum();
+        if samples == 0 {
+            return 0;
+        }
+        self.results.write(0, &vec![0u64; self.queries as usize]);
+        let pixels = samples / self.samples;
+        self.total.fetch_add(pixels, Ordering::Relaxed);
+        pixels
+    }
+}
+
+impl Drop for Counter {
+    /// The hold is released once every submission completed: the last one's count is in.
+    fn drop(&mut self) {
+        self.collect();
+        self.trash.lock().unwrap_or_else(|e| e.into_inner()).push(Garbage::QueryPool(std::mem::take(&mut self.pool)));
+    }
+}
