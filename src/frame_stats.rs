@@ -116,8 +116,7 @@ impl Sink {
     pub fn frame(&self, path: &str, mut record: FrameRecord, wants_time: bool, times: &[(u64, GpuFrameTime)]) {
         let ready = {
             let mut w = self.waiting.lock().unwrap_or_else(|e| e.into_inner());
-            w.times(times);
-            if w.is_empty() && !wants_time {
+            if w.is_empty() && !wants_time && times.is_empty() {
                 // The common case (timer off): straight through.
                 drop(w);
                 self.writer.write(path, &record);
@@ -126,7 +125,10 @@ impl Sink {
             if wants_time {
                 record.gpu_ms = Some(None);
             }
+            // Pushed before the times go in: the frame's own time may be among them (an idle GPU
+            // finishes a frame before its xrEndFrame).
             w.push(record.frame, wants_time, (path.to_string(), record));
+            w.times(times);
             w.ready(false)
         };
         self.write(ready);

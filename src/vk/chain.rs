@@ -513,6 +513,10 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
             line.push(' ');
             line.push_str(&summary);
         }
+        if let Some(summary) = super::gpu_time::summary(&dev) {
+            line.push(' ');
+            line.push_str(&summary);
+        }
         for (reason, n) in dev.inject.vetoed() {
             line.push_str(&format!(" vetoed.{reason}={n}"));
         }

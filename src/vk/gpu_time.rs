@@ -21,7 +21,7 @@ use super::DeviceState;
 use crate::core::gpu_time::{valid_mask, Frames, GpuFrameTime, Ring, Ticket};
 use ash::vk::{self, Handle};
 use std::collections::{HashMap, HashSet};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 /// Slots per queue: submissions whose results may be outstanding at once (several frames of
@@ -60,6 +60,9 @@ pub(crate) struct GpuTimeDevice {
     used: AtomicBool,
     failed: AtomicBool,
     logged: Mutex<HashSet<String>>,
+    /// Submissions timed / not timed (the device's stats line).
+    timed: AtomicU64,
+    untimed: AtomicU64,
 }
 
 struct Slot {
@@ -97,6 +100,8 @@ impl GpuTimeDevice {
             used: AtomicBool::new(false),
             failed: AtomicBool::new(false),
             logged: Mutex::default(),
+            timed: AtomicU64::new(0),
+            untimed: AtomicU64::new(0),
         }
     }
 }
@@ -272,6 +277,7 @@ pub(crate) fn start(d: &DeviceState, queue: vk::Queue, batches: u32, timeable: b
             log_once(d, "untimeable", || "a protected or device-group submission is not timed".into());
         }
         lock(&d.gpu_time.frames).untimed();
+        d.gpu_time.untimed.fetch_add(1, Ordering::Relaxed);
         return None;
     };
     poll_queue(d, &timer);
@@ -281,8 +287,10 @@ pub(crate) fn start(d: &DeviceState, queue: vk::Queue, batches: u32, timeable: b
         let mut f = lock(&d.gpu_time.frames);
         f.cancel(ticket);
         f.untimed();
+        d.gpu_time.untimed.fetch_add(1, Ordering::Relaxed);
         return None;
     };
+    d.gpu_time.timed.fetch_add(1, Ordering::Relaxed);
     let s = &timer.slots[slot as usize];
     Some(Bracket { begin: s.begin, end: s.end, slot, ticket, timer })
 }
@@ -398,6 +406,11 @@ pub(crate) fn complete(d: &DeviceState) -> Vec<(u64, GpuFrameTime)> {
     poll(d);
     let p = props(d);
     lock(&d.gpu_time.frames).take_complete(p.bits, p.period_ns)
+}
+
+/// `gpu_timed=… gpu_untimed=…` for the device's stats line; None when the timer never ran.
+pub(crate) fn summary(d: &DeviceState) -> Option<String> {
+    d.gpu_time.used.load(Ordering::Relaxed).then(|| format!("gpu_timed={} gpu_untimed={}", d.gpu_time.timed.load(Ordering::Relaxed), d.gpu_time.untimed.load(Ordering::Relaxed)))
 }
 
 /// At vkDestroyDevice (the app waited for the device to go idle).
