@@ -391,6 +391,12 @@ pub(crate) fn end_frame(d: &DeviceState, frame: u64) -> Vec<(u64, GpuFrameTime)>
     if !d.gpu_time.used.load(Ordering::Relaxed) {
         return Vec::new();
     }
+    if d.gpu_time.failed.load(Ordering::Relaxed) {
+        // A stopped timer may have slots that never come back: keep nothing per frame (the
+        // frames' lines go out without a time).
+        *lock(&d.gpu_time.frames) = Frames::default();
+        return Vec::new();
+    }
     poll(d);
     let p = props(d);
     let mut f = lock(&d.gpu_time.frames);
