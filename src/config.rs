@@ -76,7 +76,7 @@ const CORE_KEYS: &[KeySpec] = &[
         key: "debug.fail_in",
         kind: Kind::Text,
         default: "",
-        doc: "names of intercepted calls (comma separated) whose layer logic fails on purpose, to prove the fallback to pass-through",
+        doc: "names of intercepted calls (comma separated) whose layer logic fails on purpose, to prove the fallback to pass-through; `stats.gpu_time` makes the GPU timer fail to set up",
     },
 ];
 

@@ -14,6 +14,10 @@ const FRAMES: u64 = 8;
 /// xr-scene with RDM on (so the layer submits work of its own every frame), through the layer,
 /// writing `stats.file`; `gpu_time`: the timer's setting.
 fn run(name: &str, gpu_time: bool, args: &[&str]) -> (common::RunOutput, Vec<serde_json::Value>) {
+    run_env(name, gpu_time, args, &[])
+}
+
+fn run_env(name: &str, gpu_time: bool, args: &[&str], env: &[(&str, &str)]) -> (common::RunOutput, Vec<serde_json::Value>) {
     let stats = common::target_dir().join("test-output").join(format!("{name}.layer-stats.jsonl"));
     let _ = std::fs::remove_file(&stats);
     let out = Run::new(name)
@@ -26,8 +30,8 @@ fn run(name: &str, gpu_time: bool, args: &[&str]) -> (common::RunOutput, Vec<ser
         .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
         .env("STEREOSHIM_FOVEATION_EYE_TRACKING", "off")
         .env("STEREOSHIM_STATS_GPU_TIME", if gpu_time { "true" } else { "false" })
-        .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap())
-        .run();
+        .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap());
+    let out = env.iter().fold(out, |r, (k, v)| r.env(k, v)).run();
     out.assert_ok();
     out.assert_layer_loaded(Half::Both);
     out.assert_log_lacks(Half::Both, "internal failure");
@@ -97,4 +101,17 @@ fn off_adds_no_query_no_submission_and_no_field() {
     let (on, _) = run("gpu-time-on-captures", true, &[]);
     common::assert_same_captures("gpu time on vs off", &off, &on);
     common::assert_same_stats("gpu time on vs off", &off, &on);
+}
+
+/// A timer that cannot be set up stops, says so once, and leaves the app alone: every line says
+/// `"gpu_ms": null`, the frames are the same as without it.
+#[test]
+fn a_failing_timer_stops_and_changes_nothing_else() {
+    let (out, records) = run_env("gpu-time-failing", true, &[], &[("STEREOSHIM_DEBUG_FAIL_IN", "stats.gpu_time")]);
+    assert_eq!(records.len() as u64, FRAMES);
+    assert!(records.iter().all(|r| r["gpu_ms"].is_null()), "{records:#?}");
+    let failed = out.log_lines("no more GPU times on this device");
+    assert_eq!(failed.len(), 1, "logged once:\n{}", out.log);
+    let (off, _) = run("gpu-time-failing-off", false, &[]);
+    common::assert_same_captures("failing gpu time vs off", &off, &out);
 }

@@ -200,6 +200,9 @@ fn queue_timer(d: &DeviceState, queue: vk::Queue) -> Option<Arc<QueueTimer>> {
 }
 
 fn create_queue_timer(d: &DeviceState, family: u32) -> Result<QueueTimer, String> {
+    if d.settings().fails_in("stats.gpu_time") {
+        return Err("failing on purpose (debug.fail_in)".into());
+    }
     let set_loader_data = d.set_loader_data.ok_or("the loader gave no vkSetDeviceLoaderData")?;
     let mut t = QueueTimer { query_pool: vk::QueryPool::null(), command_pool: vk::CommandPool::null(), slots: Vec::new(), ring: Mutex::new(Ring::new(SLOTS)) };
     // SAFETY: valid create infos on our device; on failure everything made so far is destroyed
