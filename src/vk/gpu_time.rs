@@ -265,8 +265,9 @@ unsafe fn destroy_queue_timer(d: &DeviceState, t: QueueTimer) {
     }
 }
 
-/// Before a submission of `batches` batches to `queue`: the bracket to add, or None (timer off,
-/// nothing to time, or this submission cannot be timed — then counted untimed for its frame).
+/// Before a submission of `batches` batches to `queue` (0: no command buffer in any, nothing to
+/// time): the bracket to add, or None (timer off, nothing to time, or this submission cannot be
+/// timed — then counted untimed for its frame).
 /// `timeable`: false for submissions the layer must not add command buffers to (protected ones,
 /// device-group masks per command buffer).
 pub(crate) fn start(d: &DeviceState, queue: vk::Queue, batches: u32, timeable: bool) -> Option<Bracket> {

@@ -93,16 +93,18 @@ pub(in crate::vk) unsafe extern "system" fn queue_submit(queue: vk::Queue, count
         |d| {
             // SAFETY: `count` valid submit infos, each with its command buffer array.
             let infos = unsafe { convert::slice(submits, count) };
-            let cbs = infos
+            let cbs: Vec<u64> = infos
                 .iter()
                 // SAFETY: as above.
                 .flat_map(|s| unsafe { convert::slice(s.p_command_buffers, s.command_buffer_count) }.iter().map(|c| c.as_raw()))
                 .collect();
+            // Semaphore-only submissions carry no work to time.
+            let batches = if cbs.is_empty() { 0 } else { count };
             before(d, queue, cbs, &keep);
             // SAFETY: the app's valid pNext chains.
             let timeable = !infos.iter().any(|s| unsafe { untimeable_chain(s.p_next) });
-            let b = gpu_time::start(d, queue, count, timeable)?;
-            // SAFETY: `count` ≥ 1 valid submit infos (`start` times no empty submission).
+            let b = gpu_time::start(d, queue, batches, timeable)?;
+            // SAFETY: `count` ≥ 1 valid submit infos (`start` times no submission without work).
             let timed = unsafe { bracket_submit(submits, count, &b) };
             *bracket.borrow_mut() = Some(b);
             Some(timed)
@@ -165,15 +167,17 @@ pub(in crate::vk) unsafe extern "system" fn queue_submit2(queue: vk::Queue, coun
         |d| {
             // SAFETY: `count` valid submit infos, each with its command buffer info array.
             let infos = unsafe { convert::slice(submits, count) };
-            let cbs = infos
+            let cbs: Vec<u64> = infos
                 .iter()
                 // SAFETY: as above.
                 .flat_map(|s| unsafe { convert::slice(s.p_command_buffer_infos, s.command_buffer_info_count) }.iter().map(|c| c.command_buffer.as_raw()))
                 .collect();
+            // Semaphore-only submissions carry no work to time.
+            let batches = if cbs.is_empty() { 0 } else { count };
             before(d, queue, cbs, &keep);
             let timeable = !infos.iter().any(|s| s.flags.contains(vk::SubmitFlags::PROTECTED));
-            let b = gpu_time::start(d, queue, count, timeable)?;
-            // SAFETY: `count` ≥ 1 valid submit infos (`start` times no empty submission).
+            let b = gpu_time::start(d, queue, batches, timeable)?;
+            // SAFETY: `count` ≥ 1 valid submit infos (`start` times no submission without work).
             let timed = unsafe { bracket_submit2(submits, count, &b) };
             *bracket.borrow_mut() = Some(b);
             Some(timed)
