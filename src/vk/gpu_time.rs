@@ -1,8 +1,8 @@
 //! The layer's GPU frame timer (`stats.gpu_time`), the Vulkan shell of `core::gpu_time`: every
 //! queue submission — the app's (`vkQueueSubmit`, `vkQueueSubmit2`) and the layer's own work
-//! (RDM's reconstruction) — is bracketed by two command buffers of the layer's, one writing a
-//! `TOP_OF_PIPE` timestamp put first into the first batch, one writing a `BOTTOM_OF_PIPE` timestamp
-//! put last into the last batch. Inside the app's own batches, the batches' semaphore waits come
+//! (RDM's reconstruction, `vk::secondary::submit_once`) — is bracketed by two command buffers of
+//! the layer's, one writing a `TOP_OF_PIPE` timestamp put first into the first batch, one writing
+//! a `BOTTOM_OF_PIPE` timestamp put last into the last batch. Inside the app's own batches, the batches' semaphore waits come
 //! before the first and their signals and the app's fence after the last, so the app's
 //! synchronization is unchanged; a timestamp's synchronization scope is every command earlier in
 //! submission order, so the second one is written when all of the submission's work is done.
