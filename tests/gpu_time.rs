@@ -115,3 +115,34 @@ fn a_failing_timer_stops_and_changes_nothing_else() {
     let (off, _) = run("gpu-time-failing-off", false, &[]);
     common::assert_same_captures("failing gpu time vs off", &off, &out);
 }
+
+/// The far field's one-time set-up submission (`vk::secondary::submit_once`, slot image layouts)
+/// is work of the layer's too: with the far field on, the frames count exactly one submission
+/// more than without it, and every frame is still timed.
+#[test]
+fn the_far_fields_setup_submission_is_timed() {
+    let submissions = |name: &str, far_field: bool| {
+        let stats = common::target_dir().join("test-output").join(format!("{name}.layer-stats.jsonl"));
+        let _ = std::fs::remove_file(&stats);
+        let out = Run::new(name)
+            .args(["--submit-depth"])
+            .with_layer()
+            .env("MOCK_XR_EXIT_AFTER", &FRAMES.to_string())
+            .env("STEREOSHIM_FAR_FIELD_ENABLED", if far_field { "1" } else { "0" })
+            .env("STEREOSHIM_STATS_GPU_TIME", "true")
+            .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap())
+            .run();
+        out.assert_ok();
+        out.assert_log_lacks(Half::Both, "internal failure");
+        let records: Vec<serde_json::Value> = std::fs::read_to_string(&stats).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+        assert_eq!(records.len() as u64, FRAMES, "{name}");
+        for r in &records {
+            let g = &r["gpu_ms"];
+            let (busy, span) = (g["busy"].as_f64().unwrap_or(-1.0), g["span"].as_f64().unwrap_or(-1.0));
+            assert!(busy > 0.0 && busy <= span + 1e-9 && g["untimed"] == 0, "{name}: {r}");
+        }
+        records.iter().map(|r| r["gpu_ms"]["submissions"].as_u64().unwrap()).sum::<u64>()
+    };
+    let (off, on) = (submissions("gpu-time-no-far-field", false), submissions("gpu-time-far-field", true));
+    assert_eq!(on, off + 1, "the far field's set-up submission, timed once");
+}
