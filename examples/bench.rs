@@ -3,6 +3,9 @@
 //! on" (B) every `--period` frames within ONE run, so both halves see the same machine state. Per
 //! frame, the layer's `stats.file` says which mode the frame ran in and what it masked; xr-scene's
 //! `--stats` gives the GPU time and the exactly counted shaded fragments of the same frame.
+//! The layer's own GPU timer (`stats.gpu_time`, on in both modes) adds the frame's end-to-end GPU
+//! busy time: every submission of the frame, the layer's own work (RDM's reconstruction) included,
+//! which the app's timestamps around its command buffer cannot see.
 //!
 //! cargo build --release --workspace && cargo build --release --examples &&
 //!   target/release/examples/bench [--hmd index] [--layout per-eye] [--scale 0.5]
@@ -64,7 +67,7 @@ fn parse_args() -> Args {
 
 /// The config text for mode B (features on) or A (off).
 fn config_text(feature: &str, on: bool, stats: &Path, extra: &str) -> String {
-    format!("stats.file = {:?}\n{feature}.enabled = {on}\n{extra}\n", stats.to_string_lossy())
+    format!("stats.file = {:?}\nstats.gpu_time = true\n{feature}.enabled = {on}\n{extra}\n", stats.to_string_lossy())
 }
 
 /// Rewrites the config through a rename, so the layer never reads half a file and sees a new
@@ -142,10 +145,16 @@ fn main() {
 
     // Join the layer's per-frame record with the app's by frame number.
     let mut mode: BTreeMap<u64, (bool, u64)> = BTreeMap::new();
+    // The layer's end-to-end GPU busy time per frame (None: not measured for that frame).
+    let mut layer_busy: BTreeMap<u64, f64> = BTreeMap::new();
     for line in std::fs::read_to_string(&layer_stats).unwrap().lines() {
         let v: serde_json::Value = serde_json::from_str(line).unwrap();
         let pixels: u64 = v["pixels_masked"].as_object().map(|m| m.values().filter_map(|x| x.as_u64()).sum()).unwrap_or(0);
-        mode.insert(v["frame"].as_u64().unwrap(), (v[format!("{}_enabled", a.feature)].as_bool().unwrap_or(false), pixels));
+        let n = v["frame"].as_u64().unwrap();
+        mode.insert(n, (v[format!("{}_enabled", a.feature)].as_bool().unwrap_or(false), pixels));
+        if let Some(busy) = v["gpu_ms"]["busy"].as_f64() {
+            layer_busy.insert(n, busy);
+        }
     }
     let app: serde_json::Value = serde_json::from_slice(&std::fs::read(&app_stats).unwrap()).unwrap();
     let frames_json: serde_json::Value = serde_json::from_slice(&std::fs::read(capture.join("frames.json")).unwrap()).unwrap();
@@ -155,7 +164,7 @@ fn main() {
         .iter()
         .map(|v| v["image_rect"]["width"].as_u64().unwrap() * v["image_rect"]["height"].as_u64().unwrap())
         .sum();
-    let (mut gpu, mut shaded, mut masked) = ([vec![], vec![]], [vec![], vec![]], vec![]);
+    let (mut gpu, mut shaded, mut masked, mut busy) = ([vec![], vec![]], [vec![], vec![]], vec![], [vec![], vec![]]);
     for f in app["frames"].as_array().unwrap() {
         let n = f["frame"].as_u64().unwrap();
         let Some(&(is_on, pixels)) = mode.get(&n) else { continue };
@@ -165,6 +174,9 @@ fn main() {
         }
         let i = is_on as usize;
         gpu[i].push(f["gpu_time_ms"].as_f64().unwrap());
+        if let Some(&b) = layer_busy.get(&n) {
+            busy[i].push(b);
+        }
         shaded[i].push(f["views"].as_array().unwrap().iter().map(|v| v["shaded_fragments"].as_u64().unwrap()).sum::<u64>() as f64);
         if is_on {
             masked.push(pixels as f64);
@@ -172,19 +184,23 @@ fn main() {
     }
     let (g_off, g_on) = (median(gpu[0].clone()), median(gpu[1].clone()));
     let (s_off, s_on) = (median(shaded[0].clone()), median(shaded[1].clone()));
+    let (b_off, b_on) = (median(busy[0].clone()), median(busy[1].clone()));
     let masked_fraction = median(masked) / pixels_total as f64;
     let time_saved = 1.0 - g_on / g_off;
     let shaded_saved = 1.0 - s_on / s_off;
-    println!("| hmd | layout | frames off/on | GPU ms off | GPU ms on | saved | shaded off | shaded on | saved | masked fraction | time saved / masked |");
+    // "GPU ms": xr-scene's timestamps around its own command buffer. "frame GPU ms": the layer's
+    // timer, the union of every submission of the frame (the layer's own work included).
+    println!("| hmd | layout | frames off/on | GPU ms off | GPU ms on | saved | frame GPU ms off | frame GPU ms on | saved | shaded off | shaded on | saved | masked fraction | time saved / masked |");
     // (With `--app-args --empty` nothing is shaded: "GPU ms on − off" is then the layer's own cost.)
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     println!(
-        "| {} | {} | {}/{} | {g_off:.3} | {g_on:.3} | {:.1} % | {s_off:.0} | {s_on:.0} | {:.1} % | {:.1} % | {:.2} |",
+        "| {} | {} | {}/{} | {g_off:.3} | {g_on:.3} | {:.1} % | {b_off:.3} | {b_on:.3} | {:.1} % | {s_off:.0} | {s_on:.0} | {:.1} % | {:.1} % | {:.2} |",
         a.hmd,
         a.layout,
         gpu[0].len(),
         gpu[1].len(),
         time_saved * 100.0,
+        (1.0 - b_on / b_off) * 100.0,
         shaded_saved * 100.0,
         masked_fraction * 100.0,
         time_saved / masked_fraction

@@ -67,10 +67,16 @@ const CORE_KEYS: &[KeySpec] = &[
         doc: "append the layer's per-frame statistics (JSON lines) to this file",
     },
     KeySpec {
+        key: "stats.gpu_time",
+        kind: Kind::Bool,
+        default: "false",
+        doc: "time every queue submission on the GPU (the app's and the layer's own) and write each frame's busy time and span to stats.file as gpu_ms",
+    },
+    KeySpec {
         key: "debug.fail_in",
         kind: Kind::Text,
         default: "",
-        doc: "names of intercepted calls (comma separated) whose layer logic fails on purpose, to prove the fallback to pass-through",
+        doc: "names of intercepted calls (comma separated) whose layer logic fails on purpose, to prove the fallback to pass-through; `stats.gpu_time` makes the GPU timer fail to set up",
     },
 ];
 

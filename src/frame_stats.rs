@@ -1,8 +1,14 @@
 //! The layer's own per-frame statistics (`stats.file`): one JSON line per `xrEndFrame`, so that a
 //! benchmark or a test can check what the layer did in each frame against what the app measured
 //! (shaded fragments, GPU time) for the same frame number.
+//!
+//! With `stats.gpu_time` on, a frame's line waits (`core::gpu_time::Waiting`) until the layer's
+//! GPU timer has read back that frame's timestamps, so every line carries its own frame's
+//! `gpu_ms`; lines stay in frame order, and one whose time does not come within `GPU_WAIT_FRAMES`
+//! frames, or by the end of the session, is written with `"gpu_ms": null`.
 #![forbid(unsafe_code)]
 
+use crate::core::gpu_time::{GpuFrameTime, Waiting};
 use crate::core::stats::FrameStats;
 use std::fs::File;
 use std::io::Write;
@@ -27,6 +33,9 @@ pub struct FrameRecord {
     /// Whether the layer's Vulkan half tracks the session's device (None: no session known).
     /// False means nothing enabled can be applied.
     pub vulkan_half: Option<bool>,
+    /// `stats.gpu_time`: None when the timer was off (no field), Some(None) when the frame's time
+    /// could not be had (`null`), else the layer-side GPU time of the frame.
+    pub gpu_ms: Option<Option<GpuFrameTime>>,
 }
 
 impl FrameRecord {
@@ -42,6 +51,12 @@ impl FrameRecord {
         record.insert("fovea_source".into(), self.fovea_source.clone().into());
         record.insert("vulkan_half".into(), self.vulkan_half.into());
         self.stats.write_json(&mut record);
+        if let Some(gpu) = &self.gpu_ms {
+            let value = gpu.map_or(serde_json::Value::Null, |t| {
+                serde_json::json!({"busy": t.busy_ms, "span": t.span_ms, "submissions": t.submissions, "untimed": t.untimed})
+            });
+            record.insert("gpu_ms".into(), value);
+        }
         serde_json::Value::Object(record).to_string()
     }
 }
@@ -77,6 +92,68 @@ impl Writer {
     }
 }
 
+/// How many frames a line waits for its GPU time at most (results normally arrive one to three
+/// frames later).
+pub const GPU_WAIT_FRAMES: u64 = 16;
+
+/// The process's `stats.file` output: records waiting for their GPU time, then the writer.
+#[derive(Debug)]
+pub struct Sink {
+    writer: Writer,
+    waiting: Mutex<Waiting<(String, FrameRecord)>>,
+}
+
+/// The one sink of the process (both halves feed it).
+pub fn sink() -> &'static Sink {
+    static SINK: std::sync::OnceLock<Sink> = std::sync::OnceLock::new();
+    SINK.get_or_init(|| Sink { writer: Writer::default(), waiting: Mutex::new(Waiting::new(GPU_WAIT_FRAMES)) })
+}
+
+impl Sink {
+    /// Frame `record.frame` ended; `times`: GPU times that completed meanwhile (of it or earlier
+    /// frames); `wants_time`: the timer ran while the frame was recorded. Writes every line that
+    /// is ready, in frame order.
+    pub fn frame(&self, path: &str, mut record: FrameRecord, wants_time: bool, times: &[(u64, GpuFrameTime)]) {
+        let ready = {
+            let mut w = self.waiting.lock().unwrap_or_else(|e| e.into_inner());
+            if w.is_empty() && !wants_time && times.is_empty() {
+                // The common case (timer off): straight through.
+                drop(w);
+                self.writer.write(path, &record);
+                return;
+            }
+            if wants_time {
+                record.gpu_ms = Some(None);
+            }
+            // Pushed before the times go in: the frame's own time may be among them (an idle GPU
+            // finishes a frame before its xrEndFrame).
+            w.push(record.frame, wants_time, (path.to_string(), record));
+            w.times(times);
+            w.ready(false)
+        };
+        self.write(ready);
+    }
+
+    /// The session ends: times that completed meanwhile, then every waiting line.
+    pub fn finish(&self, times: &[(u64, GpuFrameTime)]) {
+        let ready = {
+            let mut w = self.waiting.lock().unwrap_or_else(|e| e.into_inner());
+            w.times(times);
+            w.ready(true)
+        };
+        self.write(ready);
+    }
+
+    fn write(&self, ready: Vec<((String, FrameRecord), Option<GpuFrameTime>)>) {
+        for ((path, mut record), time) in ready {
+            if record.gpu_ms.is_some() || time.is_some() {
+                record.gpu_ms = Some(time);
+            }
+            self.writer.write(&path, &record);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -93,7 +170,7 @@ mod tests {
         };
         *stats.get_mut::<RdmFrameStats>().unwrap() = RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() };
         *stats.get_mut::<VrsFrameStats>().unwrap() = VrsFrameStats { passes: 3, ..Default::default() };
-        let r = FrameRecord { frame: 7, mask_enabled: true, foveation_enabled: true, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true) };
+        let r = FrameRecord { frame: 7, mask_enabled: true, foveation_enabled: true, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true), gpu_ms: None };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
         assert_eq!(v["frame"], 7);
         assert_eq!(v["vulkan_half"], true);
@@ -103,6 +180,12 @@ mod tests {
         assert_eq!(v["rdm"]["passes"], 1);
         assert_eq!(v["rdm"]["quads_skipped"]["1"], 77);
         assert_eq!((v["vrs"]["passes"].as_u64(), v["foveation_enabled"].as_bool()), (Some(3), Some(true)));
+        assert!(v.get("gpu_ms").is_none(), "timer off: no field");
+        let t = GpuFrameTime { busy_ms: 1.5, span_ms: 2.0, submissions: 3, untimed: 0 };
+        let timed: serde_json::Value = serde_json::from_str(&FrameRecord { gpu_ms: Some(Some(t)), ..r.clone() }.to_json()).unwrap();
+        assert_eq!((timed["gpu_ms"]["busy"].as_f64(), timed["gpu_ms"]["span"].as_f64(), timed["gpu_ms"]["submissions"].as_u64()), (Some(1.5), Some(2.0), Some(3)));
+        let lost: serde_json::Value = serde_json::from_str(&FrameRecord { gpu_ms: Some(None), ..r.clone() }.to_json()).unwrap();
+        assert!(lost["gpu_ms"].is_null());
 
         let dir = std::env::temp_dir().join(format!("stereoshim-stats-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();

@@ -35,6 +35,8 @@ pub struct Settings {
     pub foveation: FoveationSettings,
     pub far_field: FarFieldSettings,
     pub stats_file: String,
+    /// `stats.gpu_time`: the submit hooks bracket submissions with timestamps (`vk::gpu_time`).
+    pub stats_gpu_time: bool,
     /// `debug.fail_in`, split.
     pub fail_in: Vec<String>,
 }
@@ -53,6 +55,7 @@ impl Settings {
             foveation: FoveationSettings::from_config(c),
             far_field: FarFieldSettings::from_config(c),
             stats_file: c.text("stats.file").to_string(),
+            stats_gpu_time: c.bool("stats.gpu_time"),
             fail_in: c.text("debug.fail_in").split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),
         }
     }

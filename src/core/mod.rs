@@ -1,9 +1,11 @@
 //! The pure core every feature and both shells build on: rectangles, fovea geometry, the eye-pass
-//! vocabulary, the per-feature statistics registry and the lifetime rules of layer objects. Nothing
-//! here touches Vulkan or OpenXR, and nothing here knows a feature.
+//! vocabulary, the per-feature statistics registry, the lifetime rules of layer objects and the
+//! bookkeeping of the layer's GPU frame timer. Nothing here touches Vulkan or OpenXR, and nothing
+//! here knows a feature.
 #![forbid(unsafe_code)]
 
 pub mod fovea;
+pub mod gpu_time;
 pub mod lifetime;
 pub mod pass;
 pub mod rect;

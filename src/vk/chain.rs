@@ -424,6 +424,11 @@ pub(super) unsafe extern "system" fn create_device(
         };
         tracing::info!(?caps, "vulkan device capabilities the layer's objects are checked against");
         let device_settings = Arc::new(crate::settings::Settings::from_config(&inst.config));
+        // SAFETY: the app's queue create infos, valid with their count during this call.
+        let queue_infos = unsafe { convert::slice(ci_ref.p_queue_create_infos, ci_ref.queue_create_info_count) }
+            .iter()
+            .map(|q| (q.queue_family_index, q.queue_count, q.flags))
+            .collect();
         let state = DeviceState {
             caps,
             handle: device,
@@ -439,6 +444,7 @@ pub(super) unsafe extern "system" fn create_device(
             inject: Default::default(),
             lifetime: Default::default(),
             secondary: Default::default(),
+            gpu_time: super::gpu_time::GpuTimeDevice::new(inst.fns.clone(), pd, queue_infos),
         };
         layer().devices.insert(dispatch_key(device), Arc::new(state));
         r
@@ -510,6 +516,10 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
             line.push(' ');
             line.push_str(&summary);
         }
+        if let Some(summary) = super::gpu_time::summary(&dev) {
+            line.push(' ');
+            line.push_str(&summary);
+        }
         for (reason, n) in dev.inject.vetoed() {
             line.push_str(&format!(" vetoed.{reason}={n}"));
         }
@@ -520,6 +530,7 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
         }
         super::inject::pipeline::destroy(&dev);
         super::secondary::destroy(&dev);
+        super::gpu_time::destroy(&dev);
         super::lifetime::destroy(&dev);
         // SAFETY: forwarding the app's arguments.
         unsafe { (dev.fns.fp_v1_0().destroy_device)(device, allocator) };

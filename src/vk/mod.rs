@@ -9,6 +9,7 @@
 pub(crate) mod convert;
 mod chain;
 pub(crate) mod feature;
+pub(crate) mod gpu_time;
 mod hooks;
 pub(crate) mod inject;
 mod keep_depth;
@@ -87,6 +88,8 @@ pub(crate) struct DeviceState {
     pub lifetime: lifetime::LifetimeDevice,
     /// The layer's secondary command buffers for eye passes with secondary contents.
     pub secondary: secondary::SecondaryDevice,
+    /// The GPU frame timer (`stats.gpu_time`).
+    pub gpu_time: gpu_time::GpuTimeDevice,
 }
 
 /// The loader's `PFN_vkSetDeviceLoaderData`: a layer must call it on dispatchable objects it
@@ -166,6 +169,28 @@ pub fn take_frame_stats() -> crate::core::stats::FrameStats {
         lifetime::poll(&d);
         let device = crate::core::stats::FrameStats::new(d.features.all().iter().map(|f| f.take_frame()).collect());
         all.add(&device);
+    }
+    all
+}
+
+/// `xrEndFrame` closed frame `frame` (`stats.gpu_time`): every device's submissions since the last
+/// close belong to it. Returns the frames whose GPU times are complete now, summed over devices
+/// (usually earlier frames: results are read back without waiting).
+pub fn end_gpu_frame(frame: u64) -> Vec<(u64, crate::core::gpu_time::GpuFrameTime)> {
+    merge_gpu_times(layer().devices.values().into_iter().flat_map(|(_, d)| gpu_time::end_frame(&d, frame)))
+        .into_iter()
+        .collect()
+}
+
+/// The frames whose GPU times completed since the last frame end (at the end of a session).
+pub fn completed_gpu_frames() -> Vec<(u64, crate::core::gpu_time::GpuFrameTime)> {
+    merge_gpu_times(layer().devices.values().into_iter().flat_map(|(_, d)| gpu_time::complete(&d))).into_iter().collect()
+}
+
+fn merge_gpu_times(times: impl Iterator<Item = (u64, crate::core::gpu_time::GpuFrameTime)>) -> std::collections::BTreeMap<u64, crate::core::gpu_time::GpuFrameTime> {
+    let mut all = std::collections::BTreeMap::new();
+    for (frame, t) in times {
+        all.entry(frame).and_modify(|a: &mut crate::core::gpu_time::GpuFrameTime| a.add(&t)).or_insert(t);
     }
     all
 }

@@ -195,11 +195,22 @@ pub(crate) fn submit_once(d: &DeviceState, queue: vk::Queue, family: u32, record
         unsafe { d.fns.end_command_buffer(cb) }.map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
         cb
     };
-    let cbs = [cb];
+    // `stats.gpu_time`: the layer's own work is timed like the app's, in the frame it is
+    // submitted in.
+    let bracket = super::gpu_time::start(d, queue, 1, true);
+    let cbs = match &bracket {
+        Some(b) => vec![b.begin, cb, b.end],
+        None => vec![cb],
+    };
     let submit = vk::SubmitInfo::default().command_buffers(&cbs);
     // SAFETY: the app's queue, held by the app's vkQueueSubmit that called us (external
-    // synchronization); our executable command buffer, never freed before the device.
-    unsafe { (d.fns.fp_v1_0().queue_submit)(queue, 1, &submit, vk::Fence::null()) }.result().map_err(|e| format!("vkQueueSubmit: {e}"))
+    // synchronization); our executable command buffer, never freed before the device, and the
+    // timer's, if any.
+    let r = unsafe { (d.fns.fp_v1_0().queue_submit)(queue, 1, &submit, vk::Fence::null()) };
+    if let Some(b) = bracket {
+        super::gpu_time::submitted(d, b, queue, r == vk::Result::SUCCESS);
+    }
+    r.result().map_err(|e| format!("vkQueueSubmit: {e}"))
 }
 
 /// The app begins, resets or frees `primaries` (or their pool): they are not pending, so the

@@ -35,7 +35,6 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
 /// Closes the frame's statistics: what the Vulkan half did since the last `xrEndFrame`, under the
 /// configuration that was live while the frame was recorded (reloads apply after this).
 fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>, frame: u64) {
-    static WRITER: std::sync::OnceLock<crate::frame_stats::Writer> = std::sync::OnceLock::new();
     let stats = crate::vk::take_frame_stats();
     let settings = super::settings(inst);
     let fovea = shared::shared().foveation().views.clone();
@@ -59,6 +58,7 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
         fovea,
         fovea_source,
         vulkan_half,
+        gpu_ms: None,
     };
     if let Some(s) = session {
         let enabled = crate::features::enabled(&settings, &record.stats);
@@ -69,7 +69,10 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
     if frame == 0 || !record.stats.is_empty() {
         tracing::debug!("frame stats: {}", record.to_json());
     }
-    WRITER.get_or_init(Default::default).write(&settings.stats_file, &record);
+    // `stats.gpu_time`: the GPU work submitted since the last frame end is this frame's; the
+    // times that came back meanwhile (usually of earlier frames) go to their own lines.
+    let times = crate::vk::end_gpu_frame(frame);
+    crate::frame_stats::sink().frame(&settings.stats_file, record, settings.stats_gpu_time, &times);
 }
 
 /// Applies a changed config file from the next frame on (frame boundaries keep every frame's

@@ -166,6 +166,10 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
             }
             st.swapchains.retain(|_, s| s.session.handle != session);
             st.sessions.remove(session.into_raw());
+            // The app has waited for its GPU work by now (it may not destroy a session whose
+            // images are in use): the last frames' GPU times are in, and every waiting
+            // `stats.file` line is written.
+            crate::frame_stats::sink().finish(&crate::vk::completed_gpu_frames());
         }
         Ok(r)
     }, plain)

@@ -126,6 +126,8 @@ pub struct Options {
     pub translucent: bool,
     /// `--far-movers`: a far object that orbits the stage with the frame number.
     pub far_movers: bool,
+    /// `--submit2`: frames go down with vkQueueSubmit2 (Vulkan 1.3, synchronization2).
+    pub submit2: bool,
 }
 
 impl Default for Options {
@@ -158,6 +160,7 @@ impl Default for Options {
             sky_first: false,
             translucent: false,
             far_movers: false,
+            submit2: false,
         }
     }
 }
@@ -204,6 +207,7 @@ usage: xr-scene [options]
   --translucent                             a translucent near pane blended over the far field, drawn
                                             after the opaque geometry, depth write off
   --far-movers                              a far object (~250 m) that orbits the stage by frame number
+  --submit2                                 submit frames with vkQueueSubmit2 (needs --vulkan-api 1.3)
   --help                                    show this text";
 
 /// Parses the arguments after the program name. `Err` carries the message for a usage error;
@@ -329,7 +333,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
             "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
             "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary"
-            | "--record-once" | "--sync-hazard" | "--sky-first" | "--translucent" | "--far-movers"
+            | "--record-once" | "--sync-hazard" | "--sky-first" | "--translucent" | "--far-movers" | "--submit2"
                 if inline.is_some() =>
             {
                 return Err(format!("{flag} takes no value"))
@@ -346,6 +350,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--sky-first" => o.sky_first = true,
             "--translucent" => o.translucent = true,
             "--far-movers" => o.far_movers = true,
+            "--submit2" => o.submit2 = true,
             _ => return Err(format!("unknown argument {arg:?}")),
         }
     }
@@ -367,6 +372,9 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
         if o.rendering == Rendering::Dynamic {
             return Err("--rendering dynamic needs Vulkan 1.1 (VK_KHR_dynamic_rendering) or 1.3".into());
         }
+    }
+    if o.submit2 && o.vulkan_api != VulkanApi::V1_3 {
+        return Err("--submit2 needs Vulkan 1.3 (vkQueueSubmit2, synchronization2)".into());
     }
     // State bound in a primary command buffer is not inherited by secondaries.
     if o.secondary && o.bind_before_pass {
@@ -418,6 +426,8 @@ mod tests {
         assert!(p(&["--vulkan-api", "1.0", "--rendering", "render-pass2", "--layout", "side-by-side"]).is_ok());
         assert!(p(&["--vulkan-api", "1.1", "--rendering", "dynamic", "--layout", "multiview"]).is_ok());
         assert!(p(&["--secondary"]).unwrap().unwrap().secondary);
+        assert!(p(&["--submit2"]).unwrap().unwrap().submit2);
+        assert!(p(&["--submit2", "--vulkan-api", "1.1"]).is_err());
         assert!(p(&["--secondary=1"]).is_err());
         assert!(p(&["--secondary", "--bind-before-pass"]).is_err());
     }

@@ -78,6 +78,8 @@ pub struct Gpu {
     pub props: vk::PhysicalDeviceProperties,
     pub mem_props: vk::PhysicalDeviceMemoryProperties,
     pub timestamp_valid_bits: u32,
+    /// `--submit2`: frames go down with vkQueueSubmit2 (synchronization2 enabled).
+    pub submit2: bool,
     pub dynamic_rendering: Option<DynamicRendering>,
     pub render_pass2: Option<RenderPass2>,
 }
@@ -210,6 +212,7 @@ impl Gpu {
             props: vk::PhysicalDeviceProperties::default(),
             mem_props: vk::PhysicalDeviceMemoryProperties::default(),
             timestamp_valid_bits: 0,
+            submit2: false,
             dynamic_rendering: None,
             render_pass2: None,
         };
@@ -300,9 +303,13 @@ impl Gpu {
         if at_least(1) {
             let mut mv_q = vk::PhysicalDeviceMultiviewFeatures::default();
             let mut dr_q = vk::PhysicalDeviceDynamicRenderingFeatures::default();
+            let mut s2_q = vk::PhysicalDeviceSynchronization2Features::default();
             let mut f2_q = vk::PhysicalDeviceFeatures2::default().push_next(&mut mv_q);
             if dynamic {
                 f2_q = f2_q.push_next(&mut dr_q);
+            }
+            if opts.submit2 {
+                f2_q = f2_q.push_next(&mut s2_q);
             }
             // SAFETY: valid chain of output structs; vkGetPhysicalDeviceFeatures2 is core in 1.1.
             unsafe { inst.get_physical_device_features2(physical, &mut f2_q) };
@@ -314,6 +321,9 @@ impl Gpu {
             }
             if dynamic && dr_q.dynamic_rendering == vk::FALSE {
                 return fail("the device lacks dynamic rendering");
+            }
+            if opts.submit2 && s2_q.synchronization2 == vk::FALSE {
+                return fail("the device lacks synchronization2 (--submit2)");
             }
         } else {
             debug_assert!(opts.layout != Layout::Multiview && !dynamic, "refused by the command line");
@@ -331,10 +341,15 @@ impl Gpu {
         let features = vk::PhysicalDeviceFeatures::default().fragment_stores_and_atomics(true);
         let mut mv = vk::PhysicalDeviceMultiviewFeatures::default().multiview(true);
         let mut dr = vk::PhysicalDeviceDynamicRenderingFeatures::default().dynamic_rendering(true);
+        let mut s2 = vk::PhysicalDeviceSynchronization2Features::default().synchronization2(true);
         let mut f2 = vk::PhysicalDeviceFeatures2::default().features(features).push_next(&mut mv);
         if dynamic {
             f2 = f2.push_next(&mut dr);
         }
+        if opts.submit2 {
+            f2 = f2.push_next(&mut s2);
+        }
+        self.submit2 = opts.submit2;
         let mut device_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_info)
             .enabled_extension_names(&ext_ptrs);

@@ -572,9 +572,16 @@ impl Renderer {
         };
         let set = &mut self.sets[index];
         let cmds = [set.cmd];
-        // SAFETY: the command buffer is fully recorded and not pending (its fence was waited for);
-        // the fence is unsignalled (reset after every wait).
-        unsafe { gpu.device.queue_submit(gpu.queue, &[vk::SubmitInfo::default().command_buffers(&cmds)], set.fence) }.ctx("vkQueueSubmit")?;
+        // Both submissions below: the command buffer is fully recorded and not pending (its fence
+        // was waited for); the fence is unsignalled (reset after every wait).
+        if gpu.submit2 {
+            let infos = [vk::CommandBufferSubmitInfo::default().command_buffer(set.cmd)];
+            // SAFETY: see above; synchronization2 is enabled with --submit2.
+            unsafe { gpu.device.queue_submit2(gpu.queue, &[vk::SubmitInfo2::default().command_buffer_infos(&infos)], set.fence) }.ctx("vkQueueSubmit2")?;
+        } else {
+            // SAFETY: see above.
+            unsafe { gpu.device.queue_submit(gpu.queue, &[vk::SubmitInfo::default().command_buffers(&cmds)], set.fence) }.ctx("vkQueueSubmit")?;
+        }
         set.pending = Some((frame, record_us));
         if !self.record_once {
             // One frame at a time: measured before the next one is recorded.

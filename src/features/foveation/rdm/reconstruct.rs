@@ -469,9 +469,19 @@ fn record_and_submit(
         }
         d.fns.end_command_buffer(cb).map_err(layer_error("end"))?;
         let queue = d.fns.get_device_queue(family, queue_index);
-        let cbs = [cb];
+        // `stats.gpu_time`: the layer's own work is timed like the app's, in the frame it is
+        // submitted in.
+        let bracket = crate::vk::gpu_time::start(d, queue, 1, true);
+        let cbs = match &bracket {
+            Some(b) => vec![b.begin, cb, b.end],
+            None => vec![cb],
+        };
         let submit = vk::SubmitInfo::default().command_buffers(&cbs);
-        d.fns.queue_submit(queue, &[submit], slot.fence).map_err(layer_error("vkQueueSubmit"))?;
+        let r = d.fns.queue_submit(queue, &[submit], slot.fence);
+        if let Some(b) = bracket {
+            crate::vk::gpu_time::submitted(d, b, queue, r.is_ok());
+        }
+        r.map_err(layer_error("vkQueueSubmit"))?;
     }
     Ok(())
 }
