@@ -116,9 +116,10 @@ fn a_failing_timer_stops_and_changes_nothing_else() {
     common::assert_same_captures("failing gpu time vs off", &off, &out);
 }
 
-/// The far field's one-time set-up submission (`vk::secondary::submit_once`, slot image layouts)
-/// is work of the layer's too: with the far field on, the frames count exactly one submission
-/// more than without it, and every frame is still timed.
+/// The far field's one-time set-up submissions (`vk::secondary::submit_once`: slot image layouts,
+/// the first reset of new query pools) are work of the layer's too: with the far field on, the
+/// first frames count more submissions than without it, every frame is still timed, and once its
+/// objects are made (query pools are recycled) the frames count as many as without it.
 #[test]
 fn the_far_fields_setup_submission_is_timed() {
     let submissions = |name: &str, far_field: bool| {
@@ -141,8 +142,9 @@ fn the_far_fields_setup_submission_is_timed() {
             let (busy, span) = (g["busy"].as_f64().unwrap_or(-1.0), g["span"].as_f64().unwrap_or(-1.0));
             assert!(busy > 0.0 && busy <= span + 1e-9 && g["untimed"] == 0, "{name}: {r}");
         }
-        records.iter().map(|r| r["gpu_ms"]["submissions"].as_u64().unwrap()).sum::<u64>()
+        records.iter().map(|r| r["gpu_ms"]["submissions"].as_u64().unwrap()).collect::<Vec<u64>>()
     };
     let (off, on) = (submissions("gpu-time-no-far-field", false), submissions("gpu-time-far-field", true));
-    assert_eq!(on, off + 1, "the far field's set-up submission, timed once");
+    assert!(on.iter().sum::<u64>() > off.iter().sum::<u64>(), "the far field's set-up submissions are timed: {on:?} vs {off:?}");
+    assert_eq!(on.last(), off.last(), "set-up done, the last frame submits as without the far field: {on:?} vs {off:?}");
 }

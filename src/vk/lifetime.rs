@@ -33,7 +33,6 @@ pub(crate) enum Garbage {
     Buffer(vk::Buffer, vk::DeviceMemory),
     Image(vk::ImageView, vk::Image, vk::DeviceMemory),
     DescriptorPool(vk::DescriptorPool),
-    QueryPool(vk::QueryPool),
 }
 
 /// Per-device lifetime state.
@@ -150,8 +149,7 @@ fn empty_trash(d: &DeviceState) {
             },
             // SAFETY: as above; destroying the pool frees its sets.
             Garbage::DescriptorPool(p) => unsafe { d.fns.destroy_descriptor_pool(p, None) },
-            // SAFETY: as above.
-            Garbage::QueryPool(p) => unsafe { d.fns.destroy_query_pool(p, None) },
+
         }
     }
 }

@@ -3,8 +3,12 @@
 //! the pass the results are copied into a host buffer and the queries reset (both outside the pass,
 //! so a command buffer recorded once counts every submission); the host adds them up once the
 //! submission has completed (before the recording's next submission, or when its hold goes).
+//!
+//! Query pools are recycled: a counter whose hold went has had its queries reset by its own
+//! readback (or never used them), so the next counter takes them as they are; only new pools need
+//! the one-time reset ahead of their first submission.
 
-use crate::vk::lifetime::{Garbage, PooledBuffer};
+use crate::vk::lifetime::PooledBuffer;
 use crate::vk::DeviceState;
 use ash::vk;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -19,18 +23,32 @@ pub(super) struct Counter {
     samples: u64,
     /// Where collected counts go: the device's running total of reused pixels.
     total: Arc<AtomicU64>,
-    trash: Arc<Mutex<Vec<Garbage>>>,
+    /// Reset pools ready for reuse, by query count.
+    free: Arc<Mutex<Vec<(vk::QueryPool, u32)>>>,
 }
 
+/// The device's pools ready for reuse.
+pub(super) type FreePools = Arc<Mutex<Vec<(vk::QueryPool, u32)>>>;
+
 impl Counter {
-    pub(super) fn new(d: &DeviceState, memory: &vk::PhysicalDeviceMemoryProperties, queries: u32, samples: u32, total: Arc<AtomicU64>) -> Result<Counter, String> {
+    /// A counter of `queries` queries, and whether its pool is new (it needs the one-time reset).
+    pub(super) fn new(d: &DeviceState, memory: &vk::PhysicalDeviceMemoryProperties, queries: u32, samples: u32, total: Arc<AtomicU64>, free: &FreePools) -> Result<(Counter, bool), String> {
         let results = PooledBuffer::take(d, 8 * queries as u64, memory)?;
         // A pooled buffer may hold an earlier user's numbers.
         results.write(0, &vec![0u64; queries as usize]);
-        let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::OCCLUSION).query_count(queries);
-        // SAFETY: a valid create info; the pool is ours until `Drop` hands it to the trash.
-        let pool = unsafe { d.fns.create_query_pool(&info, None) }.map_err(|e| e.to_string())?;
-        Ok(Counter { pool, queries, results, samples: samples.max(1) as u64, total, trash: d.lifetime.trash.clone() })
+        let reused = {
+            let mut f = free.lock().unwrap_or_else(|e| e.into_inner());
+            f.iter().position(|(_, n)| *n == queries).map(|i| f.swap_remove(i).0)
+        };
+        let (pool, new) = match reused {
+            Some(p) => (p, false),
+            None => {
+                let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::OCCLUSION).query_count(queries);
+                // SAFETY: a valid create info; the pool is ours until the device goes (`destroy`).
+                (unsafe { d.fns.create_query_pool(&info, None) }.map_err(|e| e.to_string())?, true)
+            }
+        };
+        Ok((Counter { pool, queries, results, samples: samples.max(1) as u64, total, free: free.clone() }, new))
     }
 
     /// Records, after the pass that used the queries: their results into the host buffer (waiting
@@ -66,6 +84,14 @@ impl Drop for Counter {
     /// The hold is released once every submission completed: the last one's count is in.
     fn drop(&mut self) {
         self.collect();
-        self.trash.lock().unwrap_or_else(|e| e.into_inner()).push(Garbage::QueryPool(std::mem::take(&mut self.pool)));
+        self.free.lock().unwrap_or_else(|e| e.into_inner()).push((std::mem::take(&mut self.pool), self.queries));
+    }
+}
+
+/// Destroys the pools ready for reuse (at `vkDestroyDevice`, after every hold went).
+pub(super) fn destroy(d: &DeviceState, free: &FreePools) {
+    for (pool, _) in std::mem::take(&mut *free.lock().unwrap_or_else(|e| e.into_inner())) {
+        // SAFETY: our pool; the device is idle and no recording holds it any more.
+        unsafe { d.fns.destroy_query_pool(pool, None) };
     }
 }

@@ -120,6 +120,7 @@ struct Books {
 pub(crate) struct FarFieldDevice {
     /// Reused pixels counted so far (occlusion queries, collected after completion).
     pixels_reused: Arc<std::sync::atomic::AtomicU64>,
+    query_pools: super::count::FreePools,
     layer_enabled: bool,
     used: AtomicBool,
     memory: vk::PhysicalDeviceMemoryProperties,
@@ -130,7 +131,7 @@ pub(crate) struct FarFieldDevice {
 impl Plugin for FarFieldDevice {
     const KEYS: &'static [crate::config::KeySpec] = super::KEYS;
     fn new(init: &DeviceInit<'_>) -> FarFieldDevice {
-        FarFieldDevice { pixels_reused: Arc::default(), layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default(), objects: Mutex::default() }
+        FarFieldDevice { pixels_reused: Arc::default(), query_pools: Arc::default(), layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default(), objects: Mutex::default() }
     }
     fn empty_stats() -> Box<dyn FeatureStats> {
         Box::new(FarFieldStats::default())
@@ -289,8 +290,13 @@ impl FarFieldDevice {
             let recorded_count = if multiview { 1 } else { dests.len() };
             // In a multiview pass one query takes as many consecutive indices as the pass has views.
             let queries = if multiview { at.pass.view_mask().count_ones().max(1) } else { recorded_count as u32 };
-            let counter = match Counter::new(d, &self.memory, queries, samples.as_raw(), self.pixels_reused.clone()) {
-                Ok(c) => Some(Arc::new(c)),
+            let counter = match Counter::new(d, &self.memory, queries, samples.as_raw(), self.pixels_reused.clone(), &self.query_pools) {
+                Ok((c, new)) => {
+                    if new {
+                        lock(&self.books).uninit_queries.push((c.pool, c.queries));
+                    }
+                    Some(Arc::new(c))
+                }
                 Err(e) => {
                     tracing::warn!("far field: reused pixels are not counted for a pass: {e}");
                     None
@@ -325,9 +331,7 @@ impl FarFieldDevice {
                 }
             }
             if let Some(c) = &op.counter {
-                let mut b = lock(&self.books);
-                b.uninit_queries.push((c.pool, c.queries));
-                b.readbacks.entry(at.owner).or_default().push(c.clone());
+                lock(&self.books).readbacks.entry(at.owner).or_default().push(c.clone());
             }
             at.bound_sets.set(true);
             lifetime::hold(d, at.owner, op);
@@ -611,6 +615,7 @@ impl VkFeature for FarFieldDevice {
         }
     }
     fn destroy(&self, d: &DeviceState) {
+        super::count::destroy(d, &self.query_pools);
         let o = std::mem::take(&mut *lock(&self.objects));
         drop(o.slots);
         // SAFETY: our objects; the device is idle.
