@@ -65,9 +65,11 @@ fn parse_args() -> Args {
     a
 }
 
-/// The config text for mode B (features on) or A (off).
+/// The config text for mode B (features on) or A (off); `feature` may list several, comma
+/// separated (`mask,foveation,far_field`), switched together.
 fn config_text(feature: &str, on: bool, stats: &Path, extra: &str) -> String {
-    format!("stats.file = {:?}\nstats.gpu_time = true\n{feature}.enabled = {on}\n{extra}\n", stats.to_string_lossy())
+    let switches: String = feature.split(',').map(|f| format!("{f}.enabled = {on}\n")).collect();
+    format!("stats.file = {:?}\nstats.gpu_time = true\n{switches}{extra}\n", stats.to_string_lossy())
 }
 
 /// Rewrites the config through a rename, so the layer never reads half a file and sees a new
@@ -119,7 +121,8 @@ fn main() {
     // Switch modes by the layer's own account: once it has reported `period` frames in the
     // requested mode, request the other one (the layer applies a config change at a frame
     // boundary, within its reload interval).
-    let key = format!("\"{}_enabled\":", a.feature);
+    let first = a.feature.split(',').next().unwrap_or_default().to_string();
+    let key = format!("\"{first}_enabled\":");
     let (mut on, mut in_mode) = (false, 0u64);
     let mut seen = 0usize;
     loop {
@@ -147,11 +150,16 @@ fn main() {
     let mut mode: BTreeMap<u64, (bool, u64)> = BTreeMap::new();
     // The layer's end-to-end GPU busy time per frame (None: not measured for that frame).
     let mut layer_busy: BTreeMap<u64, f64> = BTreeMap::new();
+    // Pixels the far field reused per frame (counted as submissions complete).
+    let mut reused: BTreeMap<u64, u64> = BTreeMap::new();
     for line in std::fs::read_to_string(&layer_stats).unwrap().lines() {
         let v: serde_json::Value = serde_json::from_str(line).unwrap();
         let pixels: u64 = v["pixels_masked"].as_object().map(|m| m.values().filter_map(|x| x.as_u64()).sum()).unwrap_or(0);
         let n = v["frame"].as_u64().unwrap();
-        mode.insert(n, (v[format!("{}_enabled", a.feature)].as_bool().unwrap_or(false), pixels));
+        mode.insert(n, (v[format!("{first}_enabled")].as_bool().unwrap_or(false), pixels));
+        if let Some(p) = v["far_field"]["pixels_reused"].as_u64() {
+            reused.insert(n, p);
+        }
         if let Some(busy) = v["gpu_ms"]["busy"].as_f64() {
             layer_busy.insert(n, busy);
         }
@@ -164,7 +172,7 @@ fn main() {
         .iter()
         .map(|v| v["image_rect"]["width"].as_u64().unwrap() * v["image_rect"]["height"].as_u64().unwrap())
         .sum();
-    let (mut gpu, mut shaded, mut masked, mut busy) = ([vec![], vec![]], [vec![], vec![]], vec![], [vec![], vec![]]);
+    let (mut gpu, mut shaded, mut masked, mut busy, mut reused_on) = ([vec![], vec![]], [vec![], vec![]], vec![], [vec![], vec![]], vec![]);
     for f in app["frames"].as_array().unwrap() {
         let n = f["frame"].as_u64().unwrap();
         let Some(&(is_on, pixels)) = mode.get(&n) else { continue };
@@ -180,6 +188,9 @@ fn main() {
         shaded[i].push(f["views"].as_array().unwrap().iter().map(|v| v["shaded_fragments"].as_u64().unwrap()).sum::<u64>() as f64);
         if is_on {
             masked.push(pixels as f64);
+            if let Some(&r) = reused.get(&n) {
+                reused_on.push(r as f64);
+            }
         }
     }
     let (g_off, g_on) = (median(gpu[0].clone()), median(gpu[1].clone()));
@@ -205,4 +216,8 @@ fn main() {
         masked_fraction * 100.0,
         time_saved / masked_fraction
     );
+    if !reused_on.is_empty() {
+        // The far field reuses pixels of the destination view: its share of one eye's pixels.
+        println!("far field: reused {:.1} % of the destination view (median {:.0} pixels per frame)", 100.0 * median(reused_on.clone()) * 2.0 / pixels_total as f64, median(reused_on));
+    }
 }

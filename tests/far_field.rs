@@ -7,29 +7,8 @@
 
 mod common;
 
-use common::image::Image;
-use common::{Half, Run, RunOutput, View};
-use glam::{DQuat, DVec3};
-
-/// What one comparison found in the destination view.
-#[derive(Debug, Default)]
-struct Outcome {
-    /// Destination pixels the test expects the layer to reuse (independent computation).
-    expected: usize,
-    /// Destination pixels the reuse draw writes (before the app's near geometry covers some).
-    written: usize,
-    /// Of those, pixels the reference filled with far geometry (not the clear colour).
-    expected_geometry: usize,
-    /// Pixels the layer reused, as the debug tint shows them (debug runs only).
-    tinted: Option<usize>,
-    /// Pixels of the expected set's outline (a pixel with a neighbour on the other side).
-    outline: usize,
-    near_pixels: usize,
-    far_pixels: usize,
-    psnr_far: f64,
-    /// Shaded fragments of the destination: reference minus layered.
-    fragments_saved: i64,
-}
+use common::far_field::{analyse, distances, psnr, Analysis, Outcome};
+use common::{Half, Run, RunOutput};
 
 /// How a case is run and judged.
 #[derive(Clone)]
@@ -50,6 +29,9 @@ struct Case {
 }
 
 impl Case {
+    fn analysis(&self) -> Analysis {
+        Analysis { name: self.name.clone(), split_m: self.split_m, depth_shift: self.depth_shift, debug: self.debug, shaded_before: self.shaded_before }
+    }
     fn new(name: &str, args: &[&str]) -> Case {
         Case {
             name: name.into(),
@@ -103,178 +85,18 @@ impl Case {
     }
 }
 
-/// Distance along the view axis of each pixel of a captured depth image.
-fn distances(img: &Image, v: &View) -> Vec<f64> {
-    let d = v.depth.as_ref().expect("submitted depth");
-    let (n, f) = (d.near_z as f64, d.far_z as f64);
-    let inv_f = if f.is_infinite() { 0.0 } else { 1.0 / f };
-    (0..img.height)
-        .flat_map(|y| (0..img.width).map(move |x| (x, y)))
-        .map(|(x, y)| {
-            let depth = img.pixel(x, y)[0] as f64 / 65535.0;
-            let t = (depth - d.min_depth as f64) / (d.max_depth - d.min_depth) as f64;
-            let inv_z = 1.0 / n + t * (inv_f - 1.0 / n);
-            if inv_z <= 0.0 {
-                f64::INFINITY
-            } else {
-                1.0 / inv_z
-            }
-        })
-        .collect()
-}
-
-fn tangents(v: &View) -> (f64, f64, f64, f64) {
-    let f = v.fov;
-    (f.angle_left.tan() as f64, f.angle_right.tan() as f64, f.angle_up.tan() as f64, f.angle_down.tan() as f64)
-}
-
-fn orientation(v: &View) -> DQuat {
-    let [x, y, z, w] = v.pose.orientation.map(f64::from);
-    DQuat::from_xyzw(x, y, z, w).normalize()
-}
-
-fn position(v: &View) -> DVec3 {
-    let [x, y, z] = v.pose.position.map(f64::from);
-    DVec3::new(x, y, z)
-}
-
-/// The source pixel (continuous, rect-local) that destination pixel centre (x, y) sees at
-/// infinity, or at distance `z` along the destination's axis.
-fn source_pixel(dst: &View, src: &View, x: f64, y: f64, z: Option<f64>) -> Option<(f64, f64)> {
-    let (l, r, u, d) = tangents(dst);
-    let (w, h) = (dst.image_rect.width as f64, dst.image_rect.height as f64);
-    let dir = DVec3::new(l + x / w * (r - l), u - y / h * (u - d), -1.0);
-    let in_src = match z {
-        None => orientation(src).inverse() * (orientation(dst) * dir),
-        Some(z) => orientation(src).inverse() * (orientation(dst) * (dir * z) + position(dst) - position(src)),
-    };
-    if in_src.z >= 0.0 {
-        return None;
-    }
-    let (tx, ty) = (in_src.x / -in_src.z, in_src.y / -in_src.z);
-    let (l, r, u, d) = tangents(src);
-    let (w, h) = (src.image_rect.width as f64, src.image_rect.height as f64);
-    Some(((tx - l) / (r - l) * w, (u - ty) / (u - d) * h))
-}
-
-fn psnr(a: &Image, b: &Image, pixels: &[(u32, u32)]) -> f64 {
-    if pixels.is_empty() {
-        return f64::INFINITY;
-    }
-    let max = if a.bit_depth == 16 { 65535.0 } else { 255.0 };
-    let mut se = 0.0;
-    for &(x, y) in pixels {
-        for c in 0..3 {
-            let e = a.pixel(x, y)[c] as f64 - b.pixel(x, y)[c] as f64;
-            se += e * e;
-        }
-    }
-    let mse = se / (pixels.len() * 3) as f64;
-    if mse == 0.0 {
-        f64::INFINITY
-    } else {
-        10.0 * (max * max / mse).log10()
-    }
-}
-
-fn is_black(img: &Image, x: u32, y: u32) -> bool {
-    img.pixel(x, y)[..3].iter().all(|c| *c == 0)
-}
-
-/// Compares destination view `dst_view` of frame `f` of the layered run with the reference,
-/// reading the source from view `src_view` of frame `src_frame` of the reference (the source's
-/// pixels are the app's own, so the reference has them).
-fn analyse(case: &Case, plain: &RunOutput, far: &RunOutput, f: u64, dst_view: u32, src_view: u32, src_frame: u64) -> Outcome {
-    let views = plain.views(f);
-    let dst = *views.iter().find(|v| v.view == dst_view).expect("destination view");
-    let src = *plain.views(src_frame).iter().find(|v| v.view == src_view).expect("source view");
-    let fviews = far.views(f);
-    let far_dst = *fviews.iter().find(|v| v.view == dst.view).expect("layered destination view");
-    let label = &format!("{}-frame{f}", case.name);
-    // The eye that is not the destination renders everything itself: bit-identical.
-    if !case.debug {
-        for (a, b) in fviews.iter().zip(&views).filter(|(a, _)| a.view != dst_view) {
-            common::image::assert_identical(&format!("{label}-source"), &far.image(&a.file), &plain.image(&b.file));
-        }
-    }
-    let (ref_img, got) = (plain.image(&dst.file), far.image(&far_dst.file));
-    let ref_z = distances(&plain.image(&dst.depth.as_ref().unwrap().file), dst);
-    let src_z = distances(&plain.image(&src.depth.as_ref().unwrap().file), src);
-    let (w, h) = (ref_img.width, ref_img.height);
-    let (sw, sh) = (src.image_rect.width as i64, src.image_rect.height as i64);
-    let far_at = |tx: i64, ty: i64| tx >= 0 && ty >= 0 && tx < sw && ty < sh && src_z[(ty * sw + tx) as usize] > case.split_m;
-    let mut reused = vec![false; (w * h) as usize];
-    let ref_counts = plain.pixel_counts(f, dst.view);
-    let mut out = Outcome::default();
-    let (mut near, mut far_px) = (Vec::new(), Vec::new());
-    for y in 0..h {
-        for x in 0..w {
-            let i = (y * w + x) as usize;
-            let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
-            let mut uv = source_pixel(dst, src, cx, cy, None);
-            if case.depth_shift {
-                uv = uv.and_then(|(u, v)| {
-                    let (tx, ty) = (u.floor() as i64, v.floor() as i64);
-                    far_at(tx, ty).then(|| src_z[(ty * sw + tx) as usize]).and_then(|z| source_pixel(dst, src, cx, cy, Some(z.min(1.0e9))))
-                });
-            }
-            if let Some((u, v)) = uv {
-                let (tx, ty) = ((u - 0.5).floor() as i64, (v - 0.5).floor() as i64);
-                reused[i] = far_at(tx, ty) && far_at(tx + 1, ty) && far_at(tx, ty + 1) && far_at(tx + 1, ty + 1);
-            }
-            out.written += reused[i] as usize;
-            // The reference's own near geometry wins over any reuse.
-            if ref_z[i] < case.split_m {
-                reused[i] = false;
-                near.push((x, y));
-            } else {
-                far_px.push((x, y));
-            }
-            if reused[i] {
-                out.expected += 1;
-                if !is_black(&ref_img, x, y) && ref_counts[i] > case.shaded_before {
-                    out.expected_geometry += 1;
-                }
-            }
-            assert!(!is_black(&got, x, y) || is_black(&ref_img, x, y), "{label}: ({x},{y}) of view {} is left at the clear colour", dst.view);
-        }
-    }
-    for y in 0..h {
-        for x in 0..w {
-            let i = (y * w + x) as usize;
-            let neighbours = [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)];
-            if neighbours.iter().any(|&(nx, ny)| nx < w && ny < h && reused[(ny * w + nx) as usize] != reused[i]) {
-                out.outline += 1;
-            }
-        }
-    }
-    out.near_pixels = near.len();
-    out.far_pixels = far_px.len();
-    if case.debug {
-        let tinted = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).filter(|&(x, y)| got.pixel(x, y) != ref_img.pixel(x, y)).count();
-        out.tinted = Some(tinted);
-    } else {
-        let differing: Vec<_> = near.iter().filter(|&&(x, y)| got.pixel(x, y) != ref_img.pixel(x, y)).collect();
-        assert!(differing.is_empty(), "{label}: {} of {} near pixels of view {} differ, e.g. {:?}", differing.len(), near.len(), dst.view, &differing[..differing.len().min(5)]);
-        out.psnr_far = psnr(&got, &ref_img, &far_px);
-    }
-    let sum = |r: &RunOutput| r.pixel_counts(f, dst.view).iter().map(|c| *c as i64).sum::<i64>();
-    out.fragments_saved = sum(plain) - sum(far);
-    out
-}
-
 /// Runs a case and applies the thresholds.
 fn check(case: Case, min_psnr: f64) -> Outcome {
     let (plain, far) = case.run();
     let src_frame = if case.previous_frame { case.frame - 1 } else { case.frame };
-    let out = analyse(&case, &plain, &far, case.frame, 1, 0, src_frame);
+    let out = analyse(&case.analysis(), &plain, &far, case.frame, 1, 0, src_frame);
     judge(&case, &out, min_psnr);
     // The layer's own count (occlusion queries, totalled over the run) against the pixels the
     // test expects the reuse draw to write in every frame that reuses.
     let first = if case.previous_frame { 2 } else { 1 };
     let (mut written, mut outline) = (0, 0);
     for f in first..=case.frame {
-        let o = analyse(&case, &plain, &far, f, 1, 0, if case.previous_frame { f - 1 } else { f });
+        let o = analyse(&case.analysis(), &plain, &far, f, 1, 0, if case.previous_frame { f - 1 } else { f });
         written += o.written;
         outline += o.outline;
     }
@@ -366,7 +188,7 @@ fn alternate_eye_keeps_moving_far_objects_in_place() {
                 ("per-eye", 1) => (src, f),
                 _ => (dst, f - 1),
             };
-            let out = analyse(&case, &plain, &far, f, dst, src_view, src_frame);
+            let out = analyse(&case.analysis(), &plain, &far, f, dst, src_view, src_frame);
             judge(&Case { name: format!("{}-frame{f}", case.name), ..case.clone() }, &out, 35.0);
         }
     }
@@ -389,7 +211,7 @@ fn sky_first_translucent_and_movers() {
             let out = analyse_translucent(&case, &plain, &far, src_frame);
             judge(&case, &out, 35.0);
         } else {
-            let out = analyse(&case, &plain, &far, 2, 1, 0, src_frame);
+            let out = analyse(&case.analysis(), &plain, &far, 2, 1, 0, src_frame);
             judge(&case, &out, 35.0);
         }
     }
@@ -399,7 +221,7 @@ fn sky_first_translucent_and_movers() {
 fn analyse_translucent(case: &Case, plain: &RunOutput, far: &RunOutput, src_frame: u64) -> Outcome {
     // The pane writes no depth: the near/far split from depth puts its pixels on the far side,
     // where the PSNR check covers them.
-    analyse(case, plain, far, case.frame, 1, 0, src_frame)
+    analyse(&case.analysis(), plain, far, case.frame, 1, 0, src_frame)
 }
 
 /// Without the app's depth info and without `far_field.near_z` / `far_z`, the distance of a depth

@@ -2,6 +2,7 @@
 //! collects what the runtime captured, and compares images with artifacts a person can look at.
 #![allow(dead_code)] // each test binary uses a different subset
 
+pub mod far_field;
 pub mod image;
 pub mod rdm;
 
