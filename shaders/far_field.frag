@@ -90,9 +90,22 @@ void main() {
     }
     // The bilinear footprint: all four samples must be far.
     ivec2 t0 = ivec2(floor(uv - 0.5));
+#ifdef MSAA
     if (!far_at(t0) || !far_at(t0 + ivec2(1, 0)) || !far_at(t0 + ivec2(0, 1)) || !far_at(t0 + ivec2(1, 1))) {
         discard;
     }
+#else
+    // One gather fetches the four depths (fragment shading is the scarce resource on some GPUs:
+    // one fetch instead of four).
+    if (!inside(t0) || !inside(t0 + ivec2(1, 1))) {
+        discard;
+    }
+    vec2 centre = (vec2(t0) + 1.0) * vec2(m0.w, m1.w);
+    vec4 d4 = flags.x == 0u ? textureGather(depth0, centre, 0) : textureGather(depth1, centre, 0);
+    if (any(greaterThanEqual(depth.x + depth.y * d4, vec4(depth.z)))) {
+        discard;
+    }
+#endif
 #ifdef MSAA
     vec2 f = fract(uv - 0.5);
     vec4 c = mix(mix(texel(t0), texel(t0 + ivec2(1, 0)), f.x), mix(texel(t0 + ivec2(0, 1)), texel(t0 + ivec2(1, 1)), f.x), f.y);
