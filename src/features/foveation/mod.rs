@@ -22,7 +22,7 @@ pub const KEYS: &[KeySpec] = &[
         key: "foveation.method",
         kind: Kind::Choice(&["auto", "vrs", "rdm"]),
         default: "auto",
-        doc: "vrs: VK_KHR_fragment_shading_rate attachment; rdm: radial density masking with reconstruction; auto: vrs where the GPU has it, else rdm",
+        doc: "vrs: VK_KHR_fragment_shading_rate attachment; rdm: radial density masking with reconstruction; auto: vrs where the GPU has it, else rdm on a GPU, none on a CPU implementation (lavapipe: RDM is slower there for most apps)",
     },
     KeySpec {
         key: "foveation.preset",
@@ -59,12 +59,21 @@ pub enum Method {
 }
 
 impl Method {
-    /// The method in effect on a device with (`fsr_attachment`) or without attachment rates.
-    pub fn resolve(self, fsr_attachment: bool) -> Method {
+    /// The method in effect on a device with (`fsr_attachment`) or without attachment rates, a
+    /// CPU implementation (`software`) or a GPU; None: no foveation.
+    ///
+    /// `auto` never picks a method that is known to make frames slower: VRS where the device has
+    /// attachment rates (it costs almost nothing); RDM on a GPU without them (its depth draw and
+    /// reconstruction are a few full-rate passes, small against fragment-bound shading); nothing
+    /// on a CPU implementation, where RDM's own passes cost as much per pixel as a cheap app's
+    /// shading (lavapipe, docs/benchmarks.md "RDM reconstruction as compute": hello_xr is 1.5–2.4×
+    /// slower with it; only shading-heavy frames gain). `rdm` forces it there.
+    pub fn resolve(self, fsr_attachment: bool, software: bool) -> Option<Method> {
         match self {
-            Method::Auto if fsr_attachment => Method::Vrs,
-            Method::Auto => Method::Rdm,
-            m => m,
+            Method::Auto if fsr_attachment => Some(Method::Vrs),
+            Method::Auto if software => None,
+            Method::Auto => Some(Method::Rdm),
+            m => Some(m),
         }
     }
 }
@@ -101,9 +110,12 @@ mod tests {
 
     #[test]
     fn auto_resolves_by_device() {
-        assert_eq!(Method::Auto.resolve(true), Method::Vrs);
-        assert_eq!(Method::Auto.resolve(false), Method::Rdm);
-        assert_eq!(Method::Rdm.resolve(true), Method::Rdm);
-        assert_eq!(Method::Vrs.resolve(false), Method::Vrs);
+        assert_eq!(Method::Auto.resolve(true, false), Some(Method::Vrs));
+        assert_eq!(Method::Auto.resolve(false, false), Some(Method::Rdm));
+        // A CPU implementation: never RDM by itself (measured slower), VRS if it had rates.
+        assert_eq!(Method::Auto.resolve(false, true), None);
+        assert_eq!(Method::Auto.resolve(true, true), Some(Method::Vrs));
+        assert_eq!(Method::Rdm.resolve(true, true), Some(Method::Rdm));
+        assert_eq!(Method::Vrs.resolve(false, false), Some(Method::Vrs));
     }
 }
