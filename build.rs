@@ -16,7 +16,6 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("rdm_fill.vert", "rdm_fill.vert.spv", &[]),
     ("rdm_fill.frag", "rdm_fill.frag.spv", &[]),
     ("rdm_recon.comp", "rdm_recon.comp.spv", &[]),
-    ("rdm_recon.comp", "rdm_recon_half.comp.spv", &["-DHALF_FLOAT"]),
 ];
 
 fn main() {

@@ -1,30 +1,35 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // Reconstruction of the quads radial density masking skipped, as a compute pass over the eye's
-// periphery tiles only (src/features/foveation/rdm/rules.rs `periphery_tiles`: every tile of 8×8
-// quads that may hold a skipped quad; tiles wholly inside the inner ring are never dispatched).
-// One workgroup per tile, one invocation per quad. The workgroup evaluates the skip rule once per
-// quad of its tile and the one-quad border around it (shared memory), so a skipped quad knows
-// which of its 8 neighbour quads were shaded without re-evaluating the rule per pixel; it then
-// reads the shaded pixels among the 12 bordering it once and writes its 4 pixels, each the
-// inverse-squared-distance weighted mean of them (`reconstruction_weight`, as rdm_fill.frag).
+// periphery tiles only (src/features/foveation/rdm/rules.rs `periphery_tiles`: every tile of
+// 16×16 quads that may hold a skipped quad; tiles wholly inside the inner ring are never
+// dispatched). One workgroup per tile, 4 quads per invocation. A skipped quad evaluates the rule for
+// its 8 neighbour quads (which were shaded), reads the shaded pixels among the 12 bordering it once
+// and writes its 4 pixels, each the inverse-squared-distance weighted mean of them
+// (`reconstruction_weight`, as rdm_fill.frag).
 //
-// `img` is the layer's temp copy of the swapchain image: reads touch only shaded pixels and
-// writes only skipped ones, so the pass works in place without a hazard between invocations. With
-// an sRGB swapchain the temp image is the UNORM format of the same bytes (storage images cannot
-// be sRGB on most GPUs): the shader decodes to linear, averages, and encodes, as the sampler and
-// the colour attachment of the fallback fill do.
+// `px` holds the eye's pixels (its rect within the image, row by row from `clip.xy`), copied out
+// of the swapchain image just before and copied back (the tiles) just after: 4-byte RGBA8 / BGRA8
+// texels as plain words, which a software rasterizer reads far faster than an image (no format
+// conversion per access; the channel order does not matter to a per-channel filter). Reads touch
+// only shaded pixels and writes only skipped ones, so the pass works in place without a hazard.
+// With an sRGB swapchain the filter works on linear values, as the fill's sRGB sampler and
+// attachment do: decoded by the table at the start of `tiles` (a lookup per channel is far cheaper
+// than pow() on a software rasterizer; a constant array in the shader would be copied per
+// invocation there), encoded with the curve.
+//
+// Written without local arrays or loops over neighbours: every neighbour's four weights are
+// constants (TAKE below), so the code is straight-line — what a SIMD-on-CPU compiler wants.
 #include "rdm_rule.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
-#ifdef HALF_FLOAT
-layout(set = 0, binding = 0, rgba16f) uniform image2DArray img;
-#else
-layout(set = 0, binding = 0, rgba8) uniform image2DArray img;
-#endif
+layout(std430, set = 0, binding = 0) buffer Pixels {
+    uint px[];
+};
 
-// Tiles of this dispatch from `first`: x | y << 16, in tiles of the eye rect.
+// Words 0..255: the sRGB-to-linear table (f32 bits, `rules::srgb_to_linear_table`); then the
+// tiles, from `misc.y` for this dispatch: x | y << 16, in tiles of the eye rect.
 layout(std430, set = 0, binding = 1) readonly buffer Tiles {
     uint tiles[];
 };
@@ -33,96 +38,96 @@ layout(push_constant) uniform Params {
     ivec4 rect;   // x, y, width, height of the eye rect (image pixels)
     vec4 tanp;
     vec4 fovea;
-    ivec4 misc;   // array layer, first tile of this eye in `tiles`, sRGB (1) or linear (0), unused
-    ivec4 size;   // image width, height, unused, unused: pixels outside the image are never touched
+    ivec4 misc;   // first word of the eye in `px`, first tile of the eye in `tiles`, sRGB (1), unused
+    ivec4 clip;   // the rect within the image (image pixels): what `px` holds, rows of clip.z words
 } p;
 
-// Per quad of the tile plus a one-quad border: 0 shaded, 1 skipped, 2 outside the rect.
-shared uint state[10 * 10];
-
-float to_linear(float c) {
-    return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
-}
 
 float to_srgb(float l) {
     return l <= 0.0031308 ? l * 12.92 : 1.055 * pow(l, 1.0 / 2.4) - 0.055;
 }
 
+bool inside_clip(ivec2 pix) {
+    return all(greaterThanEqual(pix, p.clip.xy)) && all(lessThan(pix, p.clip.xy + p.clip.zw));
+}
+
+uint word_index(ivec2 pix) {
+    return uint(p.misc.x) + uint((pix.y - p.clip.y) * p.clip.z + (pix.x - p.clip.x));
+}
+
 vec4 load(ivec2 pix) {
-    vec4 c = imageLoad(img, ivec3(pix, p.misc.x));
+    vec4 c = unpackUnorm4x8(px[word_index(pix)]);
     if (p.misc.z == 1) {
-        c.rgb = vec3(to_linear(c.r), to_linear(c.g), to_linear(c.b));
+        c.rgb *= c.rgb;
     }
     return c;
 }
 
-void main() {
-    uint t = tiles[uint(p.misc.y) + gl_WorkGroupID.x];
-    ivec2 q0 = ivec2(int(t & 0xffffu), int(t >> 16)) * 8;
-    ivec2 quads = (p.rect.zw + 1) / 2;
-    for (uint i = gl_LocalInvocationIndex; i < 100u; i += 64u) {
-        ivec2 q = q0 - 1 + ivec2(int(i % 10u), int(i / 10u));
-        uint v = 2u;
-        if (all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, quads))) {
-            v = rdm_skipped(q, p.tanp, p.fovea) ? 1u : 0u;
-        }
-        state[i] = v;
-    }
-    barrier();
-    ivec2 l = ivec2(gl_LocalInvocationID.xy);
-    if (state[(l.y + 1) * 10 + l.x + 1] != 1u) {
+// Writes pixel (px, py) of the quad at rect-relative pixel q2 (image pixel base): the weighted
+// mean, when any neighbour counted and the pixel lies inside the rect and the image.
+void store(ivec2 q2, ivec2 base, int px_, int py, vec4 sum, float wsum) {
+    ivec2 rel = q2 + ivec2(px_, py);
+    ivec2 pix = base + ivec2(px_, py);
+    if (wsum == 0.0 || any(greaterThanEqual(rel, p.rect.zw)) || !inside_clip(pix)) {
         return;
     }
-    ivec2 q = q0 + l;
-    ivec2 base = p.rect.xy + q * 2;
-    // The 12 pixels around the quad, row by row; a pixel counts when its quad was shaded and it
-    // lies inside the rect and the image.
-    vec4 c[12];
-    ivec2 o[12];
-    bool ok[12];
-    int n = 0;
-    for (int dy = -1; dy <= 2; dy++) {
-        for (int dx = -1; dx <= 2; dx++) {
-            if (dx >= 0 && dx <= 1 && dy >= 0 && dy <= 1) {
-                continue;
-            }
-            ivec2 nq = ivec2(dx < 0 ? 0 : (dx > 1 ? 2 : 1), dy < 0 ? 0 : (dy > 1 ? 2 : 1));
-            ivec2 rel = q * 2 + ivec2(dx, dy);
-            ivec2 pix = base + ivec2(dx, dy);
-            bool shaded = state[(l.y + nq.y) * 10 + l.x + nq.x] == 0u && all(lessThan(rel, p.rect.zw)) && all(greaterThanEqual(rel, ivec2(0)))
-                && all(greaterThanEqual(pix, ivec2(0))) && all(lessThan(pix, p.size.xy));
-            o[n] = ivec2(dx, dy);
-            ok[n] = shaded;
-            c[n] = shaded ? load(pix) : vec4(0.0);
-            n++;
-        }
+    vec4 r = sum / wsum;
+    if (p.misc.z == 1) {
+        r.rgb = sqrt(r.rgb);
     }
-    for (int py = 0; py <= 1; py++) {
-        for (int px = 0; px <= 1; px++) {
-            ivec2 rel = q * 2 + ivec2(px, py);
-            ivec2 pix = base + ivec2(px, py);
-            if (any(greaterThanEqual(rel, p.rect.zw)) || any(lessThan(pix, ivec2(0))) || any(greaterThanEqual(pix, p.size.xy))) {
-                continue;
-            }
-            vec4 sum = vec4(0.0);
-            float wsum = 0.0;
-            for (int i = 0; i < 12; i++) {
-                if (!ok[i]) {
-                    continue;
-                }
-                vec2 d = vec2(o[i] - ivec2(px, py));
-                float w = 1.0 / dot(d, d);
-                sum += w * c[i];
-                wsum += w;
-            }
-            if (wsum == 0.0) {
-                continue;
-            }
-            vec4 r = sum / wsum;
-            if (p.misc.z == 1) {
-                r.rgb = vec3(to_srgb(r.r), to_srgb(r.g), to_srgb(r.b));
-            }
-            imageStore(img, ivec3(pix, p.misc.x), r);
-        }
+    px[word_index(pix)] = packUnorm4x8(r);
+}
+
+// Fills quad q (rect-relative quad coordinates) when the rule skipped it.
+void quad(ivec2 q) {
+    ivec2 quads = (p.rect.zw + 1) / 2;
+    if (any(greaterThanEqual(q, quads)) || !rdm_skipped(q, p.tanp, p.fovea)) {
+        return;
+    }
+    // Which of the 8 neighbour quads were shaded: the rule once per neighbour (no shared memory:
+    // a workgroup barrier costs a software rasterizer far more than 8 evaluations of the rule).
+#define SHADED(ox, oy) (all(greaterThanEqual(q + ivec2(ox, oy), ivec2(0))) && all(lessThan(q + ivec2(ox, oy), quads)) && !rdm_skipped(q + ivec2(ox, oy), p.tanp, p.fovea))
+    bool n00 = SHADED(-1, -1), n10 = SHADED(0, -1), n20 = SHADED(1, -1);
+    bool n01 = SHADED(-1, 0), n21 = SHADED(1, 0);
+    bool n02 = SHADED(-1, 1), n12 = SHADED(0, 1), n22 = SHADED(1, 1);
+    ivec2 q2 = q * 2;
+    ivec2 base = p.rect.xy + q2;
+    vec4 s00 = vec4(0.0), s10 = vec4(0.0), s01 = vec4(0.0), s11 = vec4(0.0);
+    float w00 = 0.0, w10 = 0.0, w01 = 0.0, w11 = 0.0;
+    // Neighbour pixel (dx, dy) of the quad's top-left pixel counts when its quad was shaded and it
+    // lies inside the rect and the image; it adds to each of the quad's four pixels with weight
+    // 1 / squared distance (constants folded at compile time).
+#define W(dx, dy, px, py) (1.0 / float(((dx) - (px)) * ((dx) - (px)) + ((dy) - (py)) * ((dy) - (py))))
+#define TAKE(shaded, dx, dy) { \
+        ivec2 rel_ = q2 + ivec2(dx, dy); \
+        ivec2 pix_ = base + ivec2(dx, dy); \
+        if (shaded && all(lessThan(rel_, p.rect.zw)) && inside_clip(pix_)) { \
+            vec4 v_ = load(pix_); \
+            s00 += W(dx, dy, 0, 0) * v_; w00 += W(dx, dy, 0, 0); \
+            s10 += W(dx, dy, 1, 0) * v_; w10 += W(dx, dy, 1, 0); \
+            s01 += W(dx, dy, 0, 1) * v_; w01 += W(dx, dy, 0, 1); \
+            s11 += W(dx, dy, 1, 1) * v_; w11 += W(dx, dy, 1, 1); \
+        } \
+    }
+    TAKE(n00, -1, -1) TAKE(n10, 0, -1) TAKE(n10, 1, -1) TAKE(n20, 2, -1)
+    TAKE(n01, -1, 0) TAKE(n21, 2, 0)
+    TAKE(n01, -1, 1) TAKE(n21, 2, 1)
+    TAKE(n02, -1, 2) TAKE(n12, 0, 2) TAKE(n12, 1, 2) TAKE(n22, 2, 2)
+    store(q2, base, 0, 0, s00, w00);
+    store(q2, base, 1, 0, s10, w10);
+    store(q2, base, 0, 1, s01, w01);
+    store(q2, base, 1, 1, s11, w11);
+}
+
+void main() {
+    uint t = tiles[uint(p.misc.y) + gl_WorkGroupID.x];
+    ivec2 q0 = ivec2(int(t & 0xffffu), int(t >> 16)) * 16;
+    // Each invocation takes 2×2 quads of the 16×16-quad tile, a row of invocations every other
+    // quad, so neighbouring SIMD lanes hold quads of one parity (the same skip pattern within a
+    // ring); 4 quads per invocation make 4× fewer workgroups, each of which a software rasterizer
+    // pays a fixed cost for.
+    ivec2 i = ivec2(gl_LocalInvocationID.xy) * 2;
+    for (int k = 0; k < 4; k++) {
+        quad(q0 + i + ivec2(k & 1, k >> 1));
     }
 }

@@ -43,6 +43,12 @@ pub const KEYS: &[KeySpec] = &[
         doc: "half-rate ring's outer radius, degrees; quarter rate beyond (0: from the preset)",
     },
     KeySpec {
+        key: "foveation.rdm_reconstruction",
+        kind: Kind::Choice(&["auto", "fill", "off"]),
+        default: "auto",
+        doc: "how RDM fills its skipped quads: auto = a compute pass over the periphery tiles where the swapchain image allows it, else the full-screen fill; fill = always the full-screen fill; off = not at all (leaves holes: only for measuring the masking alone)",
+    },
+    KeySpec {
         key: "foveation.eye_tracking",
         kind: Kind::Choice(&["auto", "off"]),
         default: "auto",
@@ -87,6 +93,19 @@ pub struct FoveationSettings {
     pub rings: Rings,
     /// `foveation.eye_tracking = auto`.
     pub eye_tracking: bool,
+    /// `foveation.rdm_reconstruction`.
+    pub rdm_reconstruction: Reconstruction,
+}
+
+/// `foveation.rdm_reconstruction`: how radial density masking fills its skipped quads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reconstruction {
+    /// The compute pass over periphery tiles where possible, else the full-screen fill.
+    Auto,
+    /// Always the full-screen fragment fill (the pre-compute behaviour, for comparison).
+    Fill,
+    /// None: skipped quads stay as the app left them (benchmarks of the masking alone).
+    Off,
 }
 
 impl FoveationSettings {
@@ -100,6 +119,11 @@ impl FoveationSettings {
             },
             rings: Rings::from_config(c),
             eye_tracking: c.choice("foveation.eye_tracking") == "auto",
+            rdm_reconstruction: match c.choice("foveation.rdm_reconstruction") {
+                "fill" => Reconstruction::Fill,
+                "off" => Reconstruction::Off,
+                _ => Reconstruction::Auto,
+            },
         }
     }
 }

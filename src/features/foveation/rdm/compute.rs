@@ -1,18 +1,18 @@
 //! Radial density masking's reconstruction as a compute pass over periphery tiles only: the eye
-//! rects are copied into a storage temp image, `shaders/rdm_recon.comp` fills the skipped quads of
-//! the tiles `rules::RdmParams::periphery_tiles` lists (a pooled host buffer), and the tiles are
-//! copied back. The full-screen fragment fill (`reconstruct`) stays as the fallback for images
-//! this cannot handle (`rules::compute_path`).
+//! rects are copied into a storage buffer of the layer's, `shaders/rdm_recon.comp` fills the
+//! skipped quads of the tiles `rules::RdmParams::periphery_tiles` lists (a pooled host buffer),
+//! and the tiles' rows are copied back. The full-screen fragment fill (`reconstruct`) stays as the
+//! fallback for images this cannot handle (`rules::compute_path`).
 //!
 //! Why compute and not an indirect draw of the skipped quads: the draw needs a primitive per quad
 //! (hundreds of thousands per eye), which a software rasterizer pays for in setup and binning; a
 //! workgroup per 8×8-quad tile evaluates the rule once per quad (shared memory) instead of 13 times
-//! per pixel, and reads each neighbour once per quad. Writing through a storage image of the
-//! layer's own temp copy needs no STORAGE usage on the app's images (and works for sRGB
-//! swapchains, which no GPU can bind as storage); the copy back needs TRANSFER_DST, which the
-//! foveation feature adds to colour swapchains.
+//! per pixel, and reads each neighbour once per quad. Why a buffer and not a storage image: the
+//! app's images need no STORAGE usage (sRGB swapchains cannot have it on most GPUs), and on
+//! lavapipe a word load is far cheaper than an image load (measured: docs/benchmarks.md). The copy
+//! back needs TRANSFER_DST, which the foveation feature adds to colour swapchains.
 
-use super::reconstruct::{layer_error, make_temp, Failure, Temp};
+use super::reconstruct::{layer_error, Failure};
 use super::rules::{ComputeStorage, NotApplied, Pending, RdmParams};
 use super::vk::lock;
 use crate::core::rect::PixelRect;
@@ -23,7 +23,6 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 static RECON: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_recon.comp.spv"));
-static RECON_HALF: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_recon_half.comp.spv"));
 
 /// Push constants of shaders/rdm_recon.comp.
 #[repr(C)]
@@ -32,18 +31,19 @@ struct ReconParams {
     rect: [i32; 4],
     tan: [f32; 4],
     fovea: [f32; 4],
-    /// Array layer, first tile of the eye in the tile buffer, sRGB, unused.
+    /// First word of the eye in the pixel buffer, first tile of the eye in the tile buffer, sRGB,
+    /// unused.
     misc: [i32; 4],
-    /// Image width and height, unused × 2.
-    size: [i32; 4],
+    /// The eye's rect within the image: what the pixel buffer holds of it.
+    clip: [i32; 4],
 }
 
 /// The compute pass's shared objects of one device, made on first use.
 pub(super) struct ComputeObjects {
     set_layout: vk::DescriptorSetLayout,
     layout: vk::PipelineLayout,
-    /// Per storage kind (rgba8, rgba16f): module and pipeline.
-    pipelines: HashMap<bool, (vk::ShaderModule, vk::Pipeline)>,
+    module: vk::ShaderModule,
+    pipeline: vk::Pipeline,
 }
 
 /// Per device: the objects and the tile lists of recent eyes (the rule's parameters change with
@@ -99,10 +99,8 @@ impl Compute {
         if let Some(o) = lock(&self.objects).take() {
             // SAFETY: our objects; the device is idle, nothing uses them.
             unsafe {
-                for (module, pipeline) in o.pipelines.values() {
-                    d.fns.destroy_pipeline(*pipeline, None);
-                    d.fns.destroy_shader_module(*module, None);
-                }
+                d.fns.destroy_pipeline(o.pipeline, None);
+                d.fns.destroy_shader_module(o.module, None);
                 d.fns.destroy_pipeline_layout(o.layout, None);
                 d.fns.destroy_descriptor_set_layout(o.set_layout, None);
             }
@@ -114,81 +112,113 @@ impl Compute {
 #[derive(Default)]
 pub(super) struct SlotData {
     set: vk::DescriptorSet,
-    temp: Option<Temp>,
+    /// Device-local storage buffer of the eyes' pixels, with its size.
+    pixels: Option<(vk::Buffer, vk::DeviceMemory, u64)>,
     tiles: Option<PooledBuffer>,
 }
 
 impl SlotData {
-    /// The temp image, for the slot's destruction.
-    pub(super) fn take_temp(&mut self) -> Option<Temp> {
-        self.temp.take()
+    /// # Safety
+    /// No pending GPU work may use the slot's objects (its fence signalled).
+    pub(super) unsafe fn destroy(&mut self, d: &DeviceState) {
+        if let Some((b, m, _)) = self.pixels.take() {
+            // SAFETY: per the contract.
+            unsafe {
+                d.fns.destroy_buffer(b, None);
+                d.fns.free_memory(m, None);
+            }
+        }
+        self.tiles = None;
     }
 }
 
-/// (pipeline layout, descriptor set layout, pipeline) for `storage`.
-fn objects(d: &DeviceState, storage: ComputeStorage) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::Pipeline), String> {
-    let half = storage == ComputeStorage::Rgba16f;
+/// (pipeline layout, pipeline), made on first use.
+fn objects(d: &DeviceState) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::Pipeline), String> {
     let mut guard = lock(&d.features.rdm.reconstruct.compute.objects);
+    if let Some(o) = guard.as_ref() {
+        return Ok((o.layout, o.set_layout, o.pipeline));
+    }
     // Creating a few objects under this lock is fine: these calls never re-enter the layer.
-    if guard.is_none() {
-        let bindings = [
-            vk::DescriptorSetLayoutBinding::default().binding(0).descriptor_type(vk::DescriptorType::STORAGE_IMAGE).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE),
-            vk::DescriptorSetLayoutBinding::default().binding(1).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE),
-        ];
-        // SAFETY: valid create infos on our device; on failure what was made is destroyed.
-        unsafe {
-            let set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
-            let set_layouts = [set_layout];
-            let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::COMPUTE, offset: 0, size: std::mem::size_of::<ReconParams>() as u32 }];
-            let layout = d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges), None);
-            let layout = layout.inspect_err(|_| d.fns.destroy_descriptor_set_layout(set_layout, None)).map_err(|e| e.to_string())?;
-            *guard = Some(ComputeObjects { set_layout, layout, pipelines: HashMap::new() });
-        }
-    }
-    let o = guard.as_mut().expect("just set");
-    if let Some(&(_, p)) = o.pipelines.get(&half) {
-        return Ok((o.layout, o.set_layout, p));
-    }
-    let words = ash::util::read_spv(&mut std::io::Cursor::new(if half { RECON_HALF } else { RECON })).map_err(|e| e.to_string())?;
-    // SAFETY: valid SPIR-V compiled at build time (SPIR-V 1.0, nothing beyond Vulkan 1.0 core:
-    // storage images of rgba8 / rgba16f need no feature); valid create infos.
+    let binding = |b: u32| vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE);
+    let bindings = [binding(0), binding(1)];
+    let words = ash::util::read_spv(&mut std::io::Cursor::new(RECON)).map_err(|e| e.to_string())?;
+    // SAFETY: valid create infos on our device (SPIR-V 1.0 compiled at build time, nothing beyond
+    // Vulkan 1.0 core); on failure what was made is destroyed.
     unsafe {
-        let module = d.fns.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None).map_err(|e| e.to_string())?;
-        let stage = vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::COMPUTE).module(module).name(c"main");
-        let info = vk::ComputePipelineCreateInfo::default().stage(stage).layout(o.layout);
-        match d.fns.create_compute_pipelines(vk::PipelineCache::null(), &[info], None) {
-            Ok(p) => {
-                o.pipelines.insert(half, (module, p[0]));
-                Ok((o.layout, o.set_layout, p[0]))
+        let set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
+        let set_layouts = [set_layout];
+        let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::COMPUTE, offset: 0, size: std::mem::size_of::<ReconParams>() as u32 }];
+        let layout = match d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges), None) {
+            Ok(l) => l,
+            Err(e) => {
+                d.fns.destroy_descriptor_set_layout(set_layout, None);
+                return Err(e.to_string());
             }
-            Err((_, e)) => {
-                d.fns.destroy_shader_module(module, None);
-                Err(e.to_string())
+        };
+        let made = d.fns.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None).map_err(|e| e.to_string()).and_then(|module| {
+            let stage = vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::COMPUTE).module(module).name(c"main");
+            let info = vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout);
+            match d.fns.create_compute_pipelines(vk::PipelineCache::null(), &[info], None) {
+                Ok(p) => Ok((module, p[0])),
+                Err((_, e)) => {
+                    d.fns.destroy_shader_module(module, None);
+                    Err(e.to_string())
+                }
+            }
+        });
+        match made {
+            Ok((module, pipeline)) => {
+                *guard = Some(ComputeObjects { set_layout, layout, module, pipeline });
+                Ok((layout, set_layout, pipeline))
+            }
+            Err(e) => {
+                d.fns.destroy_pipeline_layout(layout, None);
+                d.fns.destroy_descriptor_set_layout(set_layout, None);
+                Err(e)
             }
         }
     }
 }
 
-/// The slot's storage temp image of the swapchain image's shape (created or kept), its compute
-/// descriptor set (allocated once from the slot's pool), and a tile buffer of `tile_bytes`;
-/// points the set at both.
-fn prepare(
-    d: &DeviceState,
-    data: &mut SlotData,
-    descriptor_pool: vk::DescriptorPool,
-    set_layout: vk::DescriptorSetLayout,
-    storage: ComputeStorage,
-    shape: (u32, u32, u32),
-    tile_bytes: u64,
-) -> Result<(), Failure> {
-    let format = storage.temp_format();
-    let usage = vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::STORAGE;
-    if data.temp.as_ref().map_or(true, |t| t.key != (format, shape.0, shape.1, shape.2)) {
-        if let Some(t) = data.temp.take() {
-            // SAFETY: the slot's fence signalled: nothing uses it.
-            unsafe { super::reconstruct::destroy_temp(d, t) };
+/// A device-local buffer for `size` bytes of pixels (copy target and source, storage).
+fn pixel_buffer(d: &DeviceState, size: u64) -> Result<(vk::Buffer, vk::DeviceMemory, u64), Failure> {
+    let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST;
+    let info = vk::BufferCreateInfo::default().size(size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
+    // SAFETY: valid create / allocate infos on our device; failures destroy what was made.
+    unsafe {
+        let buffer = d.fns.create_buffer(&info, None).map_err(layer_error("pixel buffer"))?;
+        let req = d.fns.get_buffer_memory_requirements(buffer);
+        let mem = &d.features.rdm.reconstruct.memory;
+        let index = crate::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
+            .or_else(|| crate::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
+        let Some(index) = index else {
+            d.fns.destroy_buffer(buffer, None);
+            return Err((NotApplied::LayerError, "no memory type for the pixel buffer".into()));
+        };
+        let memory = d.fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(index), None);
+        let bound = memory.and_then(|m| d.fns.bind_buffer_memory(buffer, m, 0).map(|_| m).inspect_err(|_| d.fns.free_memory(m, None)));
+        match bound {
+            Ok(m) => Ok((buffer, m, size)),
+            Err(e) => {
+                d.fns.destroy_buffer(buffer, None);
+                Err((NotApplied::LayerError, format!("pixel memory: {e}")))
+            }
         }
-        data.temp = Some(make_temp(d, format, usage, shape)?);
+    }
+}
+
+/// The slot's pixel buffer (at least `pixel_bytes`), tile buffer (at least `tile_bytes`) and
+/// compute descriptor set (allocated once from the slot's pool), the set pointed at both.
+fn prepare(d: &DeviceState, data: &mut SlotData, descriptor_pool: vk::DescriptorPool, set_layout: vk::DescriptorSetLayout, pixel_bytes: u64, tile_bytes: u64) -> Result<(), Failure> {
+    if data.pixels.map_or(true, |(_, _, size)| size < pixel_bytes) {
+        if let Some((b, m, _)) = data.pixels.take() {
+            // SAFETY: the slot's fence signalled: nothing uses them.
+            unsafe {
+                d.fns.destroy_buffer(b, None);
+                d.fns.free_memory(m, None);
+            }
+        }
+        data.pixels = Some(pixel_buffer(d, pixel_bytes)?);
     }
     if data.tiles.as_ref().map_or(true, |b| b.size < tile_bytes) {
         // The old buffer (if any) goes back to the pool: the slot's fence signalled.
@@ -200,12 +230,11 @@ fn prepare(
         data.set = unsafe { d.fns.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(descriptor_pool).set_layouts(&layouts)) }
             .map_err(layer_error("compute descriptor set"))?[0];
     }
-    let (temp, tiles) = (data.temp.as_ref().expect("just made"), data.tiles.as_ref().expect("just taken"));
-    let images = [vk::DescriptorImageInfo { sampler: vk::Sampler::null(), image_view: temp.view, image_layout: vk::ImageLayout::GENERAL }];
-    let buffers = [vk::DescriptorBufferInfo { buffer: tiles.buffer, offset: 0, range: vk::WHOLE_SIZE }];
+    let (pixels, tiles) = (data.pixels.expect("just made").0, data.tiles.as_ref().expect("just taken").buffer);
+    let infos = [vk::DescriptorBufferInfo { buffer: pixels, offset: 0, range: vk::WHOLE_SIZE }, vk::DescriptorBufferInfo { buffer: tiles, offset: 0, range: vk::WHOLE_SIZE }];
     let writes = [
-        vk::WriteDescriptorSet::default().dst_set(data.set).dst_binding(0).descriptor_type(vk::DescriptorType::STORAGE_IMAGE).image_info(&images),
-        vk::WriteDescriptorSet::default().dst_set(data.set).dst_binding(1).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&buffers),
+        vk::WriteDescriptorSet::default().dst_set(data.set).dst_binding(0).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&infos[..1]),
+        vk::WriteDescriptorSet::default().dst_set(data.set).dst_binding(1).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&infos[1..]),
     ];
     // SAFETY: the set is not in use (the slot's fence signalled); valid handles.
     unsafe { d.fns.update_descriptor_sets(&writes, &[]) };
@@ -213,8 +242,9 @@ fn prepare(
 }
 
 /// Records into `cb` (begun, the slot's) the reconstruction of `eyes` of the swapchain image
-/// `image` (in COLOR_ATTACHMENT_OPTIMAL, as the app released it; left so): copy in, one dispatch
-/// per eye over its periphery tiles, copy the tiles back. Returns the tiles dispatched.
+/// `image` (in COLOR_ATTACHMENT_OPTIMAL, as the app released it; left so): copy the eyes' rects
+/// into the pixel buffer, one dispatch per eye over its periphery tiles, copy the tiles' rows
+/// back. Returns the tiles dispatched.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn record(
     d: &DeviceState,
@@ -223,100 +253,115 @@ pub(super) fn record(
     cb: vk::CommandBuffer,
     image: vk::Image,
     storage: ComputeStorage,
-    shape: (u32, u32, u32),
+    (width, height): (u32, u32),
     eyes: &[Pending],
 ) -> Result<u64, Failure> {
-    let (layout, set_layout, pipeline) = objects(d, storage).map_err(|e| (NotApplied::LayerError, e))?;
-    let (width, height, layers_total) = shape;
+    let (layout, set_layout, pipeline) = objects(d).map_err(|e| (NotApplied::LayerError, e))?;
     let whole = PixelRect { x: 0, y: 0, width, height };
     let me = &d.features.rdm.reconstruct.compute;
     let lists: Vec<Arc<Vec<u32>>> = eyes.iter().map(|p| me.tiles_of(&p.params, whole)).collect();
+    let clips: Vec<PixelRect> = eyes.iter().map(|p| p.params.rect.intersect(&whole)).collect();
+    // Each eye's pixels from word `bases[i]`, rows of its clip's width.
+    let mut bases = Vec::with_capacity(eyes.len());
+    let mut words = 0u64;
+    for c in &clips {
+        bases.push(words);
+        words += c.area();
+    }
     let total: usize = lists.iter().map(|l| l.len()).sum();
-    prepare(d, data, descriptor_pool, set_layout, storage, shape, (total.max(1) * 4) as u64)?;
+    // The tile buffer: the sRGB table, then each eye's tiles.
+    let table = super::rules::srgb_to_linear_table();
+    let table_bytes = std::mem::size_of_val(&table) as u64;
+    prepare(d, data, descriptor_pool, set_layout, words.max(1) * 4, table_bytes + (total * 4) as u64)?;
     let tiles_buf = data.tiles.as_ref().expect("prepared");
+    tiles_buf.write(0, &table);
     let mut firsts = Vec::with_capacity(lists.len());
-    let mut offset = 0u64;
+    let mut offset = table_bytes;
     for l in &lists {
-        firsts.push(offset as i32 / 4);
+        firsts.push((offset / 4) as i32);
         tiles_buf.write(offset, l);
         offset += 4 * l.len() as u64;
     }
-    let temp = data.temp.as_ref().expect("prepared").image;
+    let pixels = data.pixels.expect("prepared").0;
     let mut layers: Vec<u32> = eyes.iter().map(|p| p.layer).collect();
     layers.sort_unstable();
     layers.dedup();
-    let range = |layer: u32, count: u32| vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: count };
-    let layer_of = |layer: u32| vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: layer, layer_count: 1 };
-    let barrier = |img: vk::Image, r: vk::ImageSubresourceRange, (from, src): (vk::ImageLayout, vk::AccessFlags), (to, dst): (vk::ImageLayout, vk::AccessFlags)| {
-        vk::ImageMemoryBarrier::default()
-            .src_access_mask(src)
-            .dst_access_mask(dst)
-            .old_layout(from)
-            .new_layout(to)
-            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .image(img)
-            .subresource_range(r)
+    let range = |layer: u32| vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: 1 };
+    let swapchain_layers = |(from, src): (vk::ImageLayout, vk::AccessFlags), (to, dst): (vk::ImageLayout, vk::AccessFlags)| -> Vec<vk::ImageMemoryBarrier> {
+        layers
+            .iter()
+            .map(|&l| {
+                vk::ImageMemoryBarrier::default()
+                    .src_access_mask(src)
+                    .dst_access_mask(dst)
+                    .old_layout(from)
+                    .new_layout(to)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .image(image)
+                    .subresource_range(range(l))
+            })
+            .collect()
     };
-    let swapchain_layers = |from, to| -> Vec<vk::ImageMemoryBarrier> { layers.iter().map(|&l| barrier(image, range(l, 1), from, to)).collect() };
-    let copy = |r: PixelRect, layer: u32| vk::ImageCopy {
-        src_subresource: layer_of(layer),
-        src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
-        dst_subresource: layer_of(layer),
-        dst_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
-        extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
-    };
-    let copy_in: Vec<vk::ImageCopy> = eyes.iter().map(|p| copy(p.params.rect.intersect(&whole), p.layer)).filter(|c| c.extent.width > 0 && c.extent.height > 0).collect();
-    // Back: only the tiles' pixels can have changed; a run of neighbouring tiles in a row is one
-    // region (regions of one eye never overlap; eyes' rects do not overlap either).
-    let mut copy_back = Vec::new();
-    for (p, l) in eyes.iter().zip(&lists) {
-        for span in tile_spans(&p.params, l, whole) {
-            copy_back.push(copy(span, p.layer));
+    // A rect `r` of eye `i` (inside its clip) ↔ its words in the pixel buffer.
+    let region = |i: usize, r: PixelRect| {
+        let c = clips[i];
+        vk::BufferImageCopy {
+            buffer_offset: 4 * (bases[i] + (r.y - c.y) as u64 * c.width as u64 + (r.x - c.x) as u64),
+            buffer_row_length: c.width,
+            buffer_image_height: 0,
+            image_subresource: vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: eyes[i].layer, layer_count: 1 },
+            image_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+            image_extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
         }
-    }
-    let cm = vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::TRANSFER_WRITE;
+    };
+    let copy_in: Vec<vk::BufferImageCopy> = clips.iter().enumerate().filter(|(_, c)| c.area() > 0).map(|(i, c)| region(i, *c)).collect();
+    // Back: only the tiles' pixels can have changed; a run of neighbouring tiles in a row is one
+    // region (regions never overlap: tiles of one eye are disjoint, eyes' rects too).
+    let copy_back: Vec<vk::BufferImageCopy> = eyes.iter().zip(&lists).enumerate().flat_map(|(i, (p, l))| tile_spans(&p.params, l, clips[i]).into_iter().map(move |r| (i, r))).map(|(i, r)| region(i, r)).collect();
+    let buffer_barrier = |src, dst| vk::BufferMemoryBarrier::default().src_access_mask(src).dst_access_mask(dst).src_queue_family_index(vk::QUEUE_FAMILY_IGNORED).dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED).buffer(pixels).offset(0).size(vk::WHOLE_SIZE);
     let fns = &d.fns;
     // SAFETY: `cb` is the slot's, begun; every handle is alive (the swapchain image is acquired
-    // and not yet released; the temp image and tile buffer are the slot's, idle since its fence
+    // and not yet released; the pixel and tile buffers are the slot's, idle since its fence
     // signalled); arrays outlive the calls; push constants match the layout's range.
     unsafe {
-        // The app's writes finish before the copy reads the image; the temp's previous uses are
-        // complete (the slot's fence), so its old contents may be discarded.
-        let mut first = swapchain_layers((vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, cm), (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::TRANSFER_READ));
-        first.push(barrier(temp, range(0, layers_total), (vk::ImageLayout::UNDEFINED, vk::AccessFlags::empty()), (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE)));
+        // The app's writes (rendering, or its resolve / copy into the image) finish before the
+        // copy reads the image. The pixel buffer's earlier uses completed (the slot's fence).
+        let first = swapchain_layers(
+            (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::TRANSFER_WRITE),
+            (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::TRANSFER_READ),
+        );
         let all_before = vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::FRAGMENT_SHADER;
         fns.cmd_pipeline_barrier(cb, all_before, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &first);
-        fns.cmd_copy_image(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, temp, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &copy_in);
+        fns.cmd_copy_image_to_buffer(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, pixels, &copy_in);
         let rw = vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE;
-        let to_general = [barrier(temp, range(0, layers_total), (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE), (vk::ImageLayout::GENERAL, rw))];
-        fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::COMPUTE_SHADER, vk::DependencyFlags::empty(), &[], &[], &to_general);
+        fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::COMPUTE_SHADER, vk::DependencyFlags::empty(), &[], &[buffer_barrier(vk::AccessFlags::TRANSFER_WRITE, rw)], &[]);
         fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, pipeline);
         fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &[data.set], &[]);
-        let srgb = matches!(storage, ComputeStorage::Rgba8 { srgb: true }) as i32;
-        for ((p, l), first) in eyes.iter().zip(&lists).zip(&firsts) {
-            if l.is_empty() {
+        let ComputeStorage::Rgba8 { srgb } = storage;
+        for (i, (p, l)) in eyes.iter().zip(&lists).enumerate() {
+            if l.is_empty() || clips[i].area() == 0 {
                 continue;
             }
-            let r = p.params.rect;
+            let (r, c) = (p.params.rect, clips[i]);
             let pc = ReconParams {
                 rect: [r.x, r.y, r.width as i32, r.height as i32],
                 tan: [p.params.tan_left, p.params.tan_up, p.params.step_x, p.params.step_y],
                 fovea: [p.params.center[0], p.params.center[1], p.params.k_inner, p.params.k_middle],
-                misc: [p.layer as i32, *first, srgb, 0],
-                size: [width as i32, height as i32, 0, 0],
+                misc: [bases[i] as i32, firsts[i], srgb as i32, 0],
+                clip: [c.x, c.y, c.width as i32, c.height as i32],
             };
             let bytes = std::slice::from_raw_parts(&pc as *const ReconParams as *const u8, std::mem::size_of::<ReconParams>());
             fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, bytes);
             fns.cmd_dispatch(cb, l.len() as u32, 1, 1);
         }
-        // The shader's writes before the copy back; the copy-in's reads of the swapchain image
-        // before the copy back overwrites it.
-        let mut back = swapchain_layers((vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::TRANSFER_READ), (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE));
-        back.push(barrier(temp, range(0, layers_total), (vk::ImageLayout::GENERAL, vk::AccessFlags::SHADER_WRITE), (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::TRANSFER_READ)));
-        fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &back);
+        // The shader's writes before the copy back; the copy-in's reads of the image before the
+        // copy back overwrites it.
+        let back = swapchain_layers((vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::TRANSFER_READ), (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE));
+        let src = vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER;
+        fns.cmd_pipeline_barrier(cb, src, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[buffer_barrier(vk::AccessFlags::SHADER_WRITE, vk::AccessFlags::TRANSFER_READ)], &back);
         if !copy_back.is_empty() {
-            fns.cmd_copy_image(cb, temp, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &copy_back);
+            fns.cmd_copy_buffer_to_image(cb, pixels, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &copy_back);
         }
         // As OpenXR requires at release: COLOR_ATTACHMENT_OPTIMAL; whatever reads the image next
         // (the runtime's compositor or capture) sees the reconstructed pixels.
@@ -365,21 +410,21 @@ mod tests {
 
     #[test]
     fn shaders_are_spirv_and_spans_merge_rows() {
-        for s in [RECON, RECON_HALF] {
-            assert_eq!(&s[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
-        }
+        assert_eq!(&RECON[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
         assert_eq!(std::mem::size_of::<ReconParams>(), 80);
         let fov = crate::shared::ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
         let fovea = crate::shared::FoveaView { view: 0, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 };
-        let p = RdmParams::new(&fov, &fovea, PixelRect { x: 100, y: 0, width: 40, height: 20 }).unwrap();
-        // Row 0: tiles 0, 1, 2 → one span (clipped to the rect: 40 px); row 1: tiles 0 and 2.
+        // Tiles of 32 px: row 0 tiles 0, 1, 2 → one span, clipped to the rect's 80 px; row 1
+        // (8 px left of the rect): tiles 0 and 2, apart.
+        assert_eq!(super::super::rules::TILE_QUADS, 16);
+        let p = RdmParams::new(&fov, &fovea, PixelRect { x: 100, y: 0, width: 80, height: 40 }).unwrap();
         let spans = tile_spans(&p, &[0, 1, 2, 1 << 16, 2 | 1 << 16], PixelRect { x: 0, y: 0, width: 1000, height: 1000 });
         assert_eq!(
             spans,
             vec![
-                PixelRect { x: 100, y: 0, width: 40, height: 16 },
-                PixelRect { x: 100, y: 16, width: 16, height: 4 },
-                PixelRect { x: 132, y: 16, width: 8, height: 4 },
+                PixelRect { x: 100, y: 0, width: 80, height: 32 },
+                PixelRect { x: 100, y: 32, width: 32, height: 8 },
+                PixelRect { x: 164, y: 32, width: 16, height: 8 },
             ]
         );
     }

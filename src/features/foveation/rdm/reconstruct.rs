@@ -8,6 +8,7 @@ use super::compute;
 use super::rules::{compute_path, NotApplied, Pending};
 use super::vk::{lock, log_once, RdmDevice};
 use crate::core::rect::PixelRect;
+use crate::features::foveation::Reconstruction;
 use crate::shared::{self, shared};
 use crate::vk::DeviceState;
 use ash::vk::{self, Handle};
@@ -89,7 +90,12 @@ pub(super) fn before_release(me: &RdmDevice, d: &DeviceState, queue_family: u32,
     if pending.is_empty() {
         return;
     }
-    match reconstruct(d, &sc, image, &pending, queue_family, queue_index) {
+    let how = d.settings().foveation.rdm_reconstruction;
+    if how == Reconstruction::Off {
+        log_once(me, "reconstruction off".into(), || tracing::warn!("radial density masking: foveation.rdm_reconstruction = off: skipped quads are left as holes"));
+        return;
+    }
+    match reconstruct(d, &sc, image, &pending, queue_family, queue_index, how == Reconstruction::Fill) {
         Ok(how) => me.count(|s| {
             for p in &pending {
                 *s.reconstructed.entry(p.view).or_insert(0) += 1;
@@ -123,7 +129,7 @@ pub(super) fn layer_error(what: &str) -> impl Fn(vk::Result) -> Failure + '_ {
     move |e| (NotApplied::LayerError, format!("{what}: {e}"))
 }
 
-fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[Pending], family: u32, queue_index: u32) -> Result<How, Failure> {
+fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[Pending], family: u32, queue_index: u32, fill_only: bool) -> Result<How, Failure> {
     let usage = d.track.images.get(image).map(|img| img.usage);
     let format = vk::Format::from_raw(sc.desc.format as i32);
     let (width, height, layers) = (sc.desc.width, sc.desc.height, sc.desc.array_size.max(1));
@@ -137,7 +143,8 @@ fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[P
     if !has(vk::ImageUsageFlags::TRANSFER_SRC) {
         return Err((NotApplied::SwapchainUsage, format!("image usage {usage:?} lacks TRANSFER_SRC")));
     }
-    let fallback = match compute_path(format, has(vk::ImageUsageFlags::TRANSFER_DST)) {
+    let path = if fill_only { Err(super::rules::FillFallback::Configured) } else { compute_path(format, has(vk::ImageUsageFlags::TRANSFER_DST)) };
+    let fallback = match path {
         Ok(storage) => {
             let mut slot = take_slot(d, family)?;
             let r = record_compute(d, &mut slot, image, storage, (width, height, layers), &eyes, family, queue_index);
@@ -204,7 +211,7 @@ fn record_compute(
     let cb = slot.cb;
     // SAFETY: our command buffer, reset and not in use (its fence signalled).
     unsafe { d.fns.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)) }.map_err(layer_error("begin"))?;
-    let tiles = compute::record(d, &mut slot.compute, slot.descriptor_pool, cb, vk::Image::from_raw(image), storage, shape, eyes)?;
+    let tiles = compute::record(d, &mut slot.compute, slot.descriptor_pool, cb, vk::Image::from_raw(image), storage, (shape.0, shape.1), eyes)?;
     submit(d, slot, family, queue_index)?;
     Ok(tiles)
 }
@@ -293,8 +300,7 @@ fn new_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
             // One set for the fill, one for the compute pass, each allocated on first use.
             let sizes = [
                 vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 1 },
-                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_IMAGE, descriptor_count: 1 },
-                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 1 },
+                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 2 },
             ];
             slot.descriptor_pool =
                 d.fns.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(2).pool_sizes(&sizes), None).map_err(layer_error("descriptor pool"))?;
@@ -321,9 +327,7 @@ unsafe fn destroy_slot(d: &DeviceState, mut slot: Slot) {
         if let Some(t) = slot.temp {
             destroy_temp(d, t);
         }
-        if let Some(t) = slot.compute.take_temp() {
-            destroy_temp(d, t);
-        }
+        slot.compute.destroy(d);
         d.fns.destroy_descriptor_pool(slot.descriptor_pool, None);
         d.fns.destroy_fence(slot.fence, None);
         d.fns.destroy_command_pool(slot.pool, None);

@@ -120,8 +120,10 @@ impl RdmParams {
 }
 
 /// Quads per side of a reconstruction tile: one compute workgroup of `shaders/rdm_recon.comp`
-/// (8×8 invocations, one per quad: 16×16 pixels).
-pub const TILE_QUADS: u32 = 8;
+/// (8×8 invocations, 2×2 quads each: 32×32 pixels). Large, because a software rasterizer pays a
+/// fixed cost per workgroup (measured on lavapipe: 8×8-quad tiles spent more on that than on the
+/// fill); the fovea's tiles are few either way.
+pub const TILE_QUADS: u32 = 16;
 
 impl RdmParams {
     /// The tiles (`TILE_QUADS`² quads, counted from the rect's origin) that the reconstruction
@@ -173,16 +175,13 @@ impl RdmParams {
     }
 }
 
-/// How the compute reconstruction holds a swapchain image's pixels: the storage format of its
-/// temp copy (the same bytes: `vkCmdCopyImage` copies between formats of one texel size), and
-/// whether the shader must decode / encode sRGB itself (storage images cannot be sRGB).
+/// How the compute reconstruction reads a swapchain image's pixels: copied into a storage buffer
+/// as one 32-bit word per texel (4 × 8-bit channels; BGRA and RGBA alike, since the filter treats
+/// every channel the same and alpha is the fourth byte in both), decoded from sRGB by the shader
+/// where the format is sRGB. Other formats (16-bit float, 10-bit, …) take the fill.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ComputeStorage {
-    /// `R8G8B8A8_UNORM` (`rgba8`); BGRA images are copied byte for byte, so the temp holds them
-    /// channel-swapped: the filter treats every channel alike, alpha stays in the fourth byte.
     Rgba8 { srgb: bool },
-    /// `R16G16B16A16_SFLOAT` (`rgba16f`).
-    Rgba16f,
 }
 
 impl ComputeStorage {
@@ -192,17 +191,19 @@ impl ComputeStorage {
         match format {
             F::R8G8B8A8_UNORM | F::B8G8R8A8_UNORM => Some(ComputeStorage::Rgba8 { srgb: false }),
             F::R8G8B8A8_SRGB | F::B8G8R8A8_SRGB => Some(ComputeStorage::Rgba8 { srgb: true }),
-            F::R16G16B16A16_SFLOAT => Some(ComputeStorage::Rgba16f),
             _ => None,
         }
     }
-    /// The temp image's format.
-    pub fn temp_format(self) -> ash::vk::Format {
-        match self {
-            ComputeStorage::Rgba8 { .. } => ash::vk::Format::R8G8B8A8_UNORM,
-            ComputeStorage::Rgba16f => ash::vk::Format::R16G16B16A16_SFLOAT,
-        }
-    }
+}
+
+/// sRGB-encoded byte → linear value (IEC 61966-2-1), what a GPU's sRGB sampler returns: the
+/// compute reconstruction decodes through this table (a lookup is far cheaper than `pow` on a
+/// software rasterizer), handed to the shader at the start of its tile buffer.
+pub fn srgb_to_linear_table() -> [f32; 256] {
+    std::array::from_fn(|i| {
+        let c = i as f64 / 255.0;
+        (if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }) as f32
+    })
 }
 
 /// Which reconstruction a swapchain image of `format` gets: the compute pass over periphery
@@ -220,14 +221,15 @@ pub fn compute_path(format: ash::vk::Format, transfer_dst: bool) -> Result<Compu
 /// (statistics: `rdm_fill_fallback.<name>`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FillFallback {
-    /// The swapchain format has no storage equivalent the compute pass handles (both temp
-    /// formats are storage formats every Vulkan device supports: the spec's required formats).
+    /// The swapchain format is not one the compute pass handles (`ComputeStorage::for_format`).
     Format,
     /// The swapchain image lacks TRANSFER_DST (the runtime refused the layer's usage bit), so
     /// the reconstructed copy cannot be written back.
     TransferDst,
     /// The compute objects could not be created.
     LayerError,
+    /// `foveation.rdm_reconstruction = fill`.
+    Configured,
 }
 
 impl FillFallback {
@@ -236,6 +238,7 @@ impl FillFallback {
             FillFallback::Format => "format",
             FillFallback::TransferDst => "transfer_dst",
             FillFallback::LayerError => "layer_error",
+            FillFallback::Configured => "configured",
         }
     }
 }
@@ -614,22 +617,33 @@ mod tests {
         // (20° of a ~±55° view) are left out, about the disc's share of the eye.
         let fov = ViewFov { tan_left: -1.39, tan_right: 1.24, tan_up: 1.39, tan_down: -1.47 };
         let p = RdmParams::new(&fov, &fovea(20.0, 35.0), rect(2016, 2240)).unwrap();
-        let all = 2016u32.div_ceil(16) * 2240u32.div_ceil(16);
+        let tile_px = 2 * TILE_QUADS;
+        let all = 2016u32.div_ceil(tile_px) * 2240u32.div_ceil(tile_px);
         let tiles = p.periphery_tiles(p.rect);
         let left_out = all as usize - tiles.len();
         assert!(left_out > all as usize / 40 && left_out < all as usize / 5, "{left_out} of {all}");
         // No quad of a left-out tile is skipped (the whole rect, exhaustively).
         let visited: HashSet<u32> = tiles.iter().copied().collect();
         let n = p.count(p.rect);
-        let in_tiles: u64 = (0..1120u32).flat_map(|qy| (0..1008u32).map(move |qx| (qx, qy))).filter(|&(qx, qy)| visited.contains(&(qx / 8 | (qy / 8) << 16)) && p.quad_skipped(qx, qy)).count() as u64;
+        let in_tiles: u64 = (0..1120u32).flat_map(|qy| (0..1008u32).map(move |qx| (qx, qy))).filter(|&(qx, qy)| visited.contains(&(qx / TILE_QUADS | (qy / TILE_QUADS) << 16)) && p.quad_skipped(qx, qy)).count() as u64;
         assert_eq!(in_tiles, n.quads_skipped);
         // Packing: row by row, x in the low half.
         assert_eq!(tiles[0], 0);
         assert!(tiles.windows(2).all(|w| (w[0] >> 16, w[0] & 0xffff) < (w[1] >> 16, w[1] & 0xffff)));
         // Nothing inner (0°): every tile; an empty clip: none.
         let everything = RdmParams::new(&fov, &fovea(0.0, 10.0), rect(100, 50)).unwrap();
-        assert_eq!(everything.periphery_tiles(everything.rect).len(), 7 * 4);
+        assert_eq!(everything.periphery_tiles(everything.rect).len(), (100u32.div_ceil(tile_px) * 50u32.div_ceil(tile_px)) as usize);
         assert!(p.periphery_tiles(PixelRect { x: 5000, y: 0, width: 10, height: 10 }).is_empty());
+    }
+
+    #[test]
+    fn srgb_table_is_the_curve() {
+        let t = srgb_to_linear_table();
+        assert_eq!((t[0], t[255]), (0.0, 1.0));
+        assert!((t[10] - 10.0 / 255.0 / 12.92).abs() < 1e-7);
+        // Mid grey: 188 encodes about 0.5 linear; strictly increasing throughout.
+        assert!((t[188] - 0.5029).abs() < 1e-3, "{}", t[188]);
+        assert!(t.windows(2).all(|w| w[0] < w[1]));
     }
 
     #[test]
@@ -638,9 +652,8 @@ mod tests {
         assert_eq!(ComputeStorage::for_format(F::R8G8B8A8_SRGB), Some(ComputeStorage::Rgba8 { srgb: true }));
         assert_eq!(ComputeStorage::for_format(F::B8G8R8A8_SRGB), Some(ComputeStorage::Rgba8 { srgb: true }));
         assert_eq!(ComputeStorage::for_format(F::B8G8R8A8_UNORM), Some(ComputeStorage::Rgba8 { srgb: false }));
-        assert_eq!(ComputeStorage::for_format(F::R16G16B16A16_SFLOAT).map(|c| c.temp_format()), Some(F::R16G16B16A16_SFLOAT));
+        assert_eq!(ComputeStorage::for_format(F::R16G16B16A16_SFLOAT), None);
         assert_eq!(ComputeStorage::for_format(F::A2B10G10R10_UNORM_PACK32), None);
-        assert_eq!(ComputeStorage::Rgba8 { srgb: true }.temp_format(), F::R8G8B8A8_UNORM);
         assert_eq!(FillFallback::TransferDst.name(), "transfer_dst");
         assert_eq!(compute_path(F::R8G8B8A8_SRGB, true), Ok(ComputeStorage::Rgba8 { srgb: true }));
         assert_eq!(compute_path(F::R8G8B8A8_SRGB, false), Err(FillFallback::TransferDst));

@@ -260,7 +260,7 @@ impl VkFeature for RdmDevice {
             self.used.store(true, Ordering::Relaxed);
         } else if self.layer_enabled && s.foveation.enabled && method.is_none() {
             log_once(self, "auto declined".into(), || {
-                tracing::warn!("foveation.method = auto: no foveation on this CPU Vulkan implementation (radial density masking costs more than it saves for most apps here; docs/benchmarks.md); set foveation.method = \"rdm\" to force it")
+                tracing::warn!("foveation.method = auto: no foveation on this CPU Vulkan implementation (RDM's own passes cost more than they save for most apps here: docs/benchmarks.md); set foveation.method = \"rdm\" to force it")
             });
         }
         on
