@@ -62,15 +62,18 @@ pub struct ViewResult {
     pub holes: u64,
 }
 
+/// A skipped pixel reconstructed wrong: x, y, its colour, the colour it should have.
+pub type Hole = (u32, u32, Vec<u16>, Vec<f64>);
+
 /// Skipped pixels of `got` (the layer's capture of one view) that the reconstruction left wrong:
 /// each skipped pixel must be the inverse-squared-distance weighted mean of the shaded pixels
 /// among the 12 bordering its quad (`rules::reconstruction_weight`), computed here from `got`'s own
 /// shaded pixels (bit-identical to the plain run, checked separately) in linear light when the
 /// swapchain is sRGB (`srgb`), within `TOLERANCE` per channel (the compute pass approximates the
-/// sRGB curve by γ = 2, the fill rounds in the GPU's attachment). A quad left unreconstructed
+/// sRGB encode by square roots, the fill rounds in the GPU's attachment). A quad left unreconstructed
 /// keeps what the app left under the skipped depth (its clear colour), which fails this wherever
 /// that differs from its neighbours. Returns the count and the first few (x, y, got, want).
-pub fn reconstruction_holes(params: &RdmParams, got: &Image, srgb: bool) -> (u64, Vec<(u32, u32, Vec<u16>, Vec<f64>)>) {
+pub fn reconstruction_holes(params: &RdmParams, got: &Image, srgb: bool) -> (u64, Vec<Hole>) {
     const TOLERANCE: f64 = 3.0;
     let decode = |v: u16| {
         let c = v as f64 / 255.0;

@@ -210,7 +210,7 @@ fn pixel_buffer(d: &DeviceState, size: u64) -> Result<(vk::Buffer, vk::DeviceMem
 /// The slot's pixel buffer (at least `pixel_bytes`), tile buffer (at least `tile_bytes`) and
 /// compute descriptor set (allocated once from the slot's pool), the set pointed at both.
 fn prepare(d: &DeviceState, data: &mut SlotData, descriptor_pool: vk::DescriptorPool, set_layout: vk::DescriptorSetLayout, pixel_bytes: u64, tile_bytes: u64) -> Result<(), Failure> {
-    if data.pixels.map_or(true, |(_, _, size)| size < pixel_bytes) {
+    if data.pixels.is_none_or(|(_, _, size)| size < pixel_bytes) {
         if let Some((b, m, _)) = data.pixels.take() {
             // SAFETY: the slot's fence signalled: nothing uses them.
             unsafe {
@@ -220,7 +220,7 @@ fn prepare(d: &DeviceState, data: &mut SlotData, descriptor_pool: vk::Descriptor
         }
         data.pixels = Some(pixel_buffer(d, pixel_bytes)?);
     }
-    if data.tiles.as_ref().map_or(true, |b| b.size < tile_bytes) {
+    if data.tiles.as_ref().is_none_or(|b| b.size < tile_bytes) {
         // The old buffer (if any) goes back to the pool: the slot's fence signalled.
         data.tiles = Some(PooledBuffer::take(d, tile_bytes, &d.features.rdm.reconstruct.memory).map_err(|e| (NotApplied::LayerError, format!("tile buffer: {e}")))?);
     }

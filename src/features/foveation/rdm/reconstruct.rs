@@ -139,7 +139,7 @@ fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[P
         return Ok(How::Nothing);
     }
     // An image the layer never saw created is taken to have the usage the layer asked for.
-    let has = |u: vk::ImageUsageFlags| usage.is_none_or_contains(u);
+    let has = |u: vk::ImageUsageFlags| usage.is_none_or(|have| have.contains(u));
     if !has(vk::ImageUsageFlags::TRANSFER_SRC) {
         return Err((NotApplied::SwapchainUsage, format!("image usage {usage:?} lacks TRANSFER_SRC")));
     }
@@ -182,17 +182,6 @@ fn give_back(d: &DeviceState, slot: Slot, submitted: bool) {
         // SAFETY: nothing of the slot was submitted since its fence last signalled.
         unsafe { destroy_slot(d, slot) };
         d.features.rdm.reconstruct.slot_count.fetch_sub(1, Ordering::Relaxed);
-    }
-}
-
-/// Usage flags known or unknown (`None`: assumed present).
-trait UsageCheck {
-    fn is_none_or_contains(&self, u: vk::ImageUsageFlags) -> bool;
-}
-
-impl UsageCheck for Option<vk::ImageUsageFlags> {
-    fn is_none_or_contains(&self, u: vk::ImageUsageFlags) -> bool {
-        self.map_or(true, |have| have.contains(u))
     }
 }
 

@@ -153,7 +153,7 @@ impl RdmParams {
                 let (qx, qy) = ((tx * TILE_QUADS) as i64, (ty * TILE_QUADS) as i64);
                 let last = TILE_QUADS as i64 - 1;
                 if !self.surely_inner(qx - 1, qy - 1, qx + last + 1, qy + last + 1) {
-                    out.push(tx | ty << 16);
+                    out.push(tx | (ty << 16));
                 }
             }
         }
@@ -599,7 +599,7 @@ mod tests {
             for qy in 0..r.height.div_ceil(2) {
                 for qx in 0..r.width.div_ceil(2) {
                     if p.quad_skipped(qx, qy) {
-                        let t = qx / TILE_QUADS | (qy / TILE_QUADS) << 16;
+                        let t = (qx / TILE_QUADS) | ((qy / TILE_QUADS) << 16);
                         assert!(tiles.contains(&t), "case {case}: skipped quad ({qx}, {qy}) in tile {t:#x} not visited ({p:?})");
                     }
                 }
@@ -625,7 +625,7 @@ mod tests {
         // No quad of a left-out tile is skipped (the whole rect, exhaustively).
         let visited: HashSet<u32> = tiles.iter().copied().collect();
         let n = p.count(p.rect);
-        let in_tiles: u64 = (0..1120u32).flat_map(|qy| (0..1008u32).map(move |qx| (qx, qy))).filter(|&(qx, qy)| visited.contains(&(qx / TILE_QUADS | (qy / TILE_QUADS) << 16)) && p.quad_skipped(qx, qy)).count() as u64;
+        let in_tiles: u64 = (0..1120u32).flat_map(|qy| (0..1008u32).map(move |qx| (qx, qy))).filter(|&(qx, qy)| visited.contains(&((qx / TILE_QUADS) | ((qy / TILE_QUADS) << 16))) && p.quad_skipped(qx, qy)).count() as u64;
         assert_eq!(in_tiles, n.quads_skipped);
         // Packing: row by row, x in the low half.
         assert_eq!(tiles[0], 0);
