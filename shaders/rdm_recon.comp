@@ -1,5 +1,6 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
 // Reconstruction of the quads radial density masking skipped, as a compute pass over the eye's
 // periphery tiles only (src/features/foveation/rdm/rules.rs `periphery_tiles`: every tile of
 // 16×16 quads that may hold a skipped quad; tiles wholly inside the inner ring are never
@@ -14,9 +15,9 @@
 // conversion per access; the channel order does not matter to a per-channel filter). Reads touch
 // only shaded pixels and writes only skipped ones, so the pass works in place without a hazard.
 // With an sRGB swapchain the filter works on linear values, as the fill's sRGB sampler and
-// attachment do: decoded exactly by the table at the start of `tiles` (a lookup per channel is far
-// cheaper than pow() on a software rasterizer; a constant array in the shader would be copied per
-// invocation there), encoded by `to_srgb`.
+// attachment do: decoded by `to_linear`, encoded by `to_srgb`, both from square roots (one
+// instruction on a CPU; pow() is a long polynomial there, and a lookup table costs a gather per
+// channel), together within 0.25 levels of the exact curve for the means this filter takes.
 //
 // Written without local arrays or loops over neighbours: every neighbour's four weights are
 // constants (TAKE below), so the code is straight-line — what a SIMD-on-CPU compiler wants.
@@ -28,8 +29,7 @@ layout(std430, set = 0, binding = 0) buffer Pixels {
     uint px[];
 };
 
-// Words 0..255: the sRGB-to-linear table (f32 bits, `rules::srgb_to_linear_table`); then the
-// tiles, from `misc.y` for this dispatch: x | y << 16, in tiles of the eye rect.
+// Tiles of this dispatch from `misc.y`: x | y << 16, in tiles of the eye rect.
 layout(std430, set = 0, binding = 1) readonly buffer Tiles {
     uint tiles[];
 };
@@ -42,6 +42,18 @@ layout(push_constant) uniform Params {
     ivec4 clip;   // the rect within the image (image pixels): what `px` holds, rows of clip.z words
 } p;
 
+
+// sRGB → linear: the curve's linear segment exactly, above it ((c + 0.055) / 1.055)^2.4 as x² times
+// a least-squares fit of x^0.4 by x^(1/2), x^(1/4), x^(1/8) and x over the segment's range
+// (relative error below 1e-4).
+vec3 to_linear(vec3 c) {
+    vec3 x = (c + 0.055) / 1.055;
+    vec3 s1 = sqrt(x);
+    vec3 s2 = sqrt(s1);
+    vec3 s3 = sqrt(s2);
+    vec3 curve = x * x * (0.589384853 * s1 + 0.594640401 * s2 - 0.160445306 * s3 - 0.0236081725 * x);
+    return mix(curve, c / 12.92, lessThanEqual(c, vec3(0.04045)));
+}
 
 // Linear → sRGB: the curve's linear segment exactly, above it Ian Taylor's approximation of
 // 1.055 l^(1/2.4) − 0.055 by three square roots (within 0.25 levels of the exact curve for the
@@ -63,11 +75,11 @@ uint word_index(ivec2 pix) {
 }
 
 vec4 load(ivec2 pix) {
-    uint w = px[word_index(pix)];
+    vec4 c = unpackUnorm4x8(px[word_index(pix)]);
     if (p.misc.z == 1) {
-        return vec4(uintBitsToFloat(tiles[w & 0xffu]), uintBitsToFloat(tiles[(w >> 8) & 0xffu]), uintBitsToFloat(tiles[(w >> 16) & 0xffu]), float(w >> 24) / 255.0);
+        c.rgb = to_linear(c.rgb);
     }
-    return unpackUnorm4x8(w);
+    return c;
 }
 
 // Writes pixel (px, py) of the quad at rect-relative pixel q2 (image pixel base): the weighted
@@ -134,7 +146,9 @@ void main() {
     // ring); 4 quads per invocation make 4× fewer workgroups, each of which a software rasterizer
     // pays a fixed cost for.
     ivec2 i = ivec2(gl_LocalInvocationID.xy) * 2;
-    for (int k = 0; k < 4; k++) {
+    // Not unrolled: the body is large, and a JIT compiler (lavapipe) pays for it four times over
+    // at pipeline creation.
+    [[dont_unroll]] for (int k = 0; k < 4; k++) {
         quad(q0 + i + ivec2(k & 1, k >> 1));
     }
 }

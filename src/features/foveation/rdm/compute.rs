@@ -269,14 +269,10 @@ pub(super) fn record(
         words += c.area();
     }
     let total: usize = lists.iter().map(|l| l.len()).sum();
-    // The tile buffer: the sRGB table, then each eye's tiles.
-    let table = super::rules::srgb_to_linear_table();
-    let table_bytes = std::mem::size_of_val(&table) as u64;
-    prepare(d, data, descriptor_pool, set_layout, words.max(1) * 4, table_bytes + (total * 4) as u64)?;
+    prepare(d, data, descriptor_pool, set_layout, words.max(1) * 4, (total.max(1) * 4) as u64)?;
     let tiles_buf = data.tiles.as_ref().expect("prepared");
-    tiles_buf.write(0, &table);
     let mut firsts = Vec::with_capacity(lists.len());
-    let mut offset = table_bytes;
+    let mut offset = 0u64;
     for l in &lists {
         firsts.push((offset / 4) as i32);
         tiles_buf.write(offset, l);

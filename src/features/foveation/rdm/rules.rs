@@ -196,16 +196,6 @@ impl ComputeStorage {
     }
 }
 
-/// sRGB-encoded byte → linear value (IEC 61966-2-1), what a GPU's sRGB sampler returns: the
-/// compute reconstruction decodes through this table (a lookup is far cheaper than `pow` on a
-/// software rasterizer), handed to the shader at the start of its tile buffer.
-pub fn srgb_to_linear_table() -> [f32; 256] {
-    std::array::from_fn(|i| {
-        let c = i as f64 / 255.0;
-        (if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }) as f32
-    })
-}
-
 /// Which reconstruction a swapchain image of `format` gets: the compute pass over periphery
 /// tiles when its format has a storage equivalent and the image can be written back by a copy
 /// (`transfer_dst`), else why the fragment fill runs instead.
@@ -634,16 +624,6 @@ mod tests {
         let everything = RdmParams::new(&fov, &fovea(0.0, 10.0), rect(100, 50)).unwrap();
         assert_eq!(everything.periphery_tiles(everything.rect).len(), (100u32.div_ceil(tile_px) * 50u32.div_ceil(tile_px)) as usize);
         assert!(p.periphery_tiles(PixelRect { x: 5000, y: 0, width: 10, height: 10 }).is_empty());
-    }
-
-    #[test]
-    fn srgb_table_is_the_curve() {
-        let t = srgb_to_linear_table();
-        assert_eq!((t[0], t[255]), (0.0, 1.0));
-        assert!((t[10] - 10.0 / 255.0 / 12.92).abs() < 1e-7);
-        // Mid grey: 188 encodes about 0.5 linear; strictly increasing throughout.
-        assert!((t[188] - 0.5029).abs() < 1e-3, "{}", t[188]);
-        assert!(t.windows(2).all(|w| w[0] < w[1]));
     }
 
     #[test]
