@@ -55,13 +55,13 @@ struct FillObjects {
     passes: HashMap<vk::Format, (vk::RenderPass, vk::Pipeline)>,
 }
 
-/// A layer image of a swapchain image's shape (copy target, then sampled or storage).
-pub(super) struct Temp {
-    pub(super) image: vk::Image,
+/// A layer image of a swapchain image's shape (the fill's copy target, then sampled).
+struct Temp {
+    image: vk::Image,
     memory: vk::DeviceMemory,
-    pub(super) view: vk::ImageView,
+    view: vk::ImageView,
     /// (format, width, height, layers).
-    pub(super) key: (vk::Format, u32, u32, u32),
+    key: (vk::Format, u32, u32, u32),
 }
 
 /// A command buffer with everything one reconstruction uses, reused once its fence signalled.
@@ -325,7 +325,7 @@ unsafe fn destroy_slot(d: &DeviceState, mut slot: Slot) {
 
 /// # Safety
 /// No pending GPU work may use it.
-pub(super) unsafe fn destroy_temp(d: &DeviceState, t: Temp) {
+unsafe fn destroy_temp(d: &DeviceState, t: Temp) {
     // SAFETY: per the contract.
     unsafe {
         d.fns.destroy_image_view(t.view, None);
@@ -371,7 +371,7 @@ fn ensure_temp(d: &DeviceState, slot: &mut Slot, format: vk::Format, shape: (u32
 
 /// A device-local image of `format` and `usage` with the swapchain image's shape
 /// (width, height, layers) and a 2D-array view of it.
-pub(super) fn make_temp(d: &DeviceState, format: vk::Format, usage: vk::ImageUsageFlags, (width, height, layers): (u32, u32, u32)) -> Result<Temp, Failure> {
+fn make_temp(d: &DeviceState, format: vk::Format, usage: vk::ImageUsageFlags, (width, height, layers): (u32, u32, u32)) -> Result<Temp, Failure> {
     let key = (format, width, height, layers);
     let info = vk::ImageCreateInfo::default()
         .image_type(vk::ImageType::TYPE_2D)
