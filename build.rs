@@ -1,6 +1,6 @@
 //! Compiles the layer's GLSL shaders (`shaders/`) to SPIR-V at build time with glslangValidator, so
 //! no generated binaries live in the repository; `src/vk/mask.rs` and `src/vk/rdm.rs` embed them
-//! (`rdm_rule.glsl` is included by the RDM fragment shaders).
+//! (`rdm_rule.glsl` is included by the RDM fragment and compute shaders).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -15,6 +15,7 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("rdm.frag", "rdm.frag.spv", &[]),
     ("rdm_fill.vert", "rdm_fill.vert.spv", &[]),
     ("rdm_fill.frag", "rdm_fill.frag.spv", &[]),
+    ("rdm_recon.comp", "rdm_recon.comp.spv", &[]),
     ("far_field.vert", "far_field.vert.spv", &[]),
     ("far_field.vert", "far_field_mv.vert.spv", &["-DMULTIVIEW"]),
     ("far_field.frag", "far_field.frag.spv", &[]),

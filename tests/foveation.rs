@@ -3,7 +3,10 @@
 //! OpenXR half saw an eye use) is compared with a run without the layer:
 //! - pixels of quads the rule keeps are bit-identical, and so — computed independently here, in
 //!   f64 from frames.json's FOV and the preset's angle — is every pixel well inside the inner ring;
-//! - the skipped quads are reconstructed: periphery PSNR is reported (and ≥ 30 dB for `balanced`);
+//! - the skipped quads are reconstructed: every skipped pixel is the weighted mean of the shaded
+//!   pixels around its quad, recomputed here from the capture (no holes; `holes_are_caught` shows
+//!   the check fails without reconstruction), by the compute pass over periphery tiles unless the
+//!   fill is configured (`fill_per_eye`); periphery PSNR is reported (and ≥ 30 dB for `balanced`);
 //! - shaded fragments drop by exactly the fragments the skipped pixels had in the plain run: both
 //!   runs write xr-scene's `--pixel-stats`, and per view
 //!   shaded_rdm == shaded_plain − Σ_{p skipped by the rule} plain_counts[p] holds exactly (RDM's
@@ -80,6 +83,16 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
     let expected = Expected { center, inner_deg, middle_deg, with_mask };
     let out = rdm::check_frame(name, &plain, &rdm, 1, &expected).unwrap_or_else(|e| panic!("{e}"));
     rdm::check_layer_record(name, &stats1, &out).unwrap_or_else(|e| panic!("{e}"));
+    // The compute pass did every reconstruction (xr-scene's swapchains are 8-bit sRGB and get
+    // TRANSFER_DST), unless the fill was asked for.
+    let fill = extra_env.iter().any(|(k, v)| *k == "STEREOSHIM_FOVEATION_RDM_RECONSTRUCTION" && *v == "fill");
+    let reconstructed: u64 = stats1["rdm"]["reconstructed"].as_object().map_or(0, |m| m.values().filter_map(|v| v.as_u64()).sum());
+    let (compute, fallback) = (stats1["rdm"]["compute"].as_u64().unwrap_or(0), &stats1["rdm"]["fill_fallback"]);
+    if fill {
+        assert!(compute == 0 && fallback["configured"].as_u64() == Some(reconstructed), "{name}: the fill was configured: {stats1}");
+    } else {
+        assert!(compute == reconstructed && compute > 0, "{name}: not every reconstruction was the compute pass: {stats1}");
+    }
     rdm::check_results(name, preset_name == "balanced", with_mask, &out).unwrap_or_else(|e| panic!("{e}"));
     out
 }
@@ -162,6 +175,41 @@ fn follows_the_gaze() {
     for (layout, gaze) in [("per-eye", "15,-5"), ("multiview", "-12,8")] {
         check(&format!("gaze-{layout}"), &["--layout", layout, "--rendering", "dynamic"], "balanced", &[("MOCK_XR_GAZE", gaze)]);
     }
+}
+
+/// The fill (the full-screen fragment reconstruction, the compute pass's fallback) meets the same
+/// checks, holes included.
+#[test]
+fn fill_per_eye() {
+    check("fill_per_eye", &["--layout", "per-eye", "--rendering", "render-pass"], "balanced", &[("STEREOSHIM_FOVEATION_RDM_RECONSTRUCTION", "fill")]);
+}
+
+/// The hole check can fail: with the reconstruction off, skipped quads keep the clear colour and
+/// are reported as holes (everything else still holds: kept quads bit-identical).
+#[test]
+fn holes_are_caught() {
+    let name = "holes_are_caught";
+    let args = ["--layout", "side-by-side", "--rendering", "dynamic"];
+    let base = Run::new(name).args(args).pixel_stats().env("MOCK_XR_EYE_TRACKER", "0");
+    let plain = base.clone().run();
+    plain.assert_ok();
+    let mut layered = base
+        .with_layer()
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
+        .env("STEREOSHIM_FOVEATION_EYE_TRACKING", "off")
+        .env("STEREOSHIM_FOVEATION_RDM_RECONSTRUCTION", "off");
+    layered.name = format!("{name}-rdm");
+    let out = layered.run();
+    out.assert_ok();
+    let (inner_deg, middle_deg) = rdm::preset("balanced");
+    let expected = Expected { center: [0.0, 0.0], inner_deg, middle_deg, with_mask: false };
+    let results = rdm::check_frame(name, &plain, &out, 1, &expected).unwrap_or_else(|e| panic!("{e}"));
+    for r in &results {
+        assert!(r.holes > r.skipped / 4, "{name} view {}: only {} of {} skipped pixels reported as holes", r.view, r.holes, r.skipped);
+    }
+    let err = rdm::check_results(name, true, false, &results).expect_err("holes must fail the check");
+    assert!(err.contains("holes"), "{err}");
 }
 
 #[test]

@@ -407,6 +407,8 @@ pub(super) unsafe extern "system" fn create_device(
         // Attachment rates enabled by the layer (or kept from the app's own request): foveation
         // can use VRS on this device; `auto` then means vrs, not rdm.
         let fsr_attachment = decision.enable_fsr.is_some_and(|f| f.attachment);
+        // SAFETY: a physical device of this instance; the next layer's instance functions.
+        let software = unsafe { inst.fns.get_physical_device_properties(pd) }.device_type == vk::PhysicalDeviceType::CPU;
         let rates = if fsr_attachment { fsr_rates(&inst, pd) } else { None };
         if let Some(r) = rates {
             tracing::info!(texel_width = r.texel_width, texel_height = r.texel_height, layered = r.layered, "fragment shading rate attachment available for foveation");
@@ -438,7 +440,7 @@ pub(super) unsafe extern "system" fn create_device(
             pass_through: inst.pass_through.clone(),
             track: Default::default(),
             extension_decision: decision,
-            features: crate::features::DeviceFeatures::new(&super::feature::DeviceInit { settings: &device_settings, memory, rates, set_loader_data }),
+            features: crate::features::DeviceFeatures::new(&super::feature::DeviceInit { settings: &device_settings, memory, rates, set_loader_data, software }),
             settings: device_settings.clone(),
             set_loader_data,
             inject: Default::default(),

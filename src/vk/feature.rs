@@ -37,6 +37,9 @@ pub(crate) struct DeviceInit<'a> {
     /// The device's attachment shading rates, when the layer enabled them.
     pub rates: Option<crate::features::foveation::vrs::rules::DeviceRates>,
     pub set_loader_data: Option<super::PfnSetDeviceLoaderData>,
+    /// The device is a CPU implementation (`VK_PHYSICAL_DEVICE_TYPE_CPU`: lavapipe, SwiftShader),
+    /// where `foveation.method = auto` does not pick RDM (`Method::resolve`).
+    pub software: bool,
 }
 
 /// How a feature is registered.

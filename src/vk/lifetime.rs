@@ -231,7 +231,8 @@ unsafe impl Send for HostBuffer {}
 unsafe impl Sync for HostBuffer {}
 
 impl HostBuffer {
-    /// A pooled buffer of at least `size` bytes (vertex and indirect usage), or a new one.
+    /// A pooled buffer of at least `size` bytes (vertex, indirect and storage usage: draws read
+    /// it as either, RDM's compute reconstruction reads its tile list from it), or a new one.
     fn take(d: &DeviceState, size: u64, memory: &vk::PhysicalDeviceMemoryProperties) -> Result<HostBuffer, String> {
         {
             let mut pool = lock(&d.lifetime.buffers);
@@ -240,8 +241,9 @@ impl HostBuffer {
             }
         }
         let size = size.next_power_of_two().max(4096);
-        // TRANSFER_DST: query results are copied into some.
-        let usage = vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
+        // TRANSFER_DST: query results are copied into some; STORAGE: RDM's compute reads tile
+        // lists from some.
+        let usage = vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER | vk::BufferUsageFlags::TRANSFER_DST | vk::BufferUsageFlags::STORAGE_BUFFER;
         let info = vk::BufferCreateInfo::default().size(size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
         // SAFETY: a valid create info.
         let buffer = unsafe { d.fns.create_buffer(&info, None) }.map_err(|e| e.to_string())?;

@@ -2,7 +2,7 @@
 //! that record every frame) and tests/record_once.rs (many frames of an app that records once):
 //! one frame of a run through the layer against the same frame of a run without RDM.
 
-use super::image;
+use super::image::{self, Image};
 use super::{Fov, RunOutput};
 use stereoshim::core::rect::PixelRect;
 use stereoshim::features::foveation::rdm::rules::RdmParams;
@@ -57,6 +57,83 @@ pub struct ViewResult {
     /// Plain run's fragments beyond one per pixel.
     pub overdraw: i64,
     pub psnr_db: f64,
+    /// Skipped pixels whose colour is not the reconstruction of the shaded pixels around their
+    /// quad ([`reconstruction_holes`]); must be 0.
+    pub holes: u64,
+}
+
+/// A skipped pixel reconstructed wrong: x, y, its colour, the colour it should have.
+pub type Hole = (u32, u32, Vec<u16>, Vec<f64>);
+
+/// Skipped pixels of `got` (the layer's capture of one view) that the reconstruction left wrong:
+/// each skipped pixel must be the inverse-squared-distance weighted mean of the shaded pixels
+/// among the 12 bordering its quad (`rules::reconstruction_weight`), computed here from `got`'s own
+/// shaded pixels (bit-identical to the plain run, checked separately) in linear light when the
+/// swapchain is sRGB (`srgb`), within `TOLERANCE` per channel (the compute pass approximates the
+/// sRGB encode by square roots, the fill rounds in the GPU's attachment). A quad left unreconstructed
+/// keeps what the app left under the skipped depth (its clear colour), which fails this wherever
+/// that differs from its neighbours. Returns the count and the first few (x, y, got, want).
+pub fn reconstruction_holes(params: &RdmParams, got: &Image, srgb: bool) -> (u64, Vec<Hole>) {
+    const TOLERANCE: f64 = 3.0;
+    let decode = |v: u16| {
+        let c = v as f64 / 255.0;
+        if !srgb {
+            c
+        } else if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    let encode = |l: f64| {
+        let c = if !srgb {
+            l
+        } else if l <= 0.0031308 {
+            l * 12.92
+        } else {
+            1.055 * l.powf(1.0 / 2.4) - 0.055
+        };
+        c * 255.0
+    };
+    let (w, h) = (params.rect.width, params.rect.height);
+    let shaded = |x: i64, y: i64| x >= 0 && y >= 0 && x < w as i64 && y < h as i64 && !params.pixel_skipped(x as i32, y as i32);
+    let (mut n, mut first) = (0u64, Vec::new());
+    for y in 0..h {
+        for x in 0..w {
+            if !params.pixel_skipped(x as i32, y as i32) {
+                continue;
+            }
+            let (bx, by) = ((x / 2 * 2) as i64, (y / 2 * 2) as i64);
+            let (mut sum, mut wsum) = ([0.0f64; 3], 0.0);
+            for dy in -1..=2i64 {
+                for dx in -1..=2i64 {
+                    let (sx, sy) = (bx + dx, by + dy);
+                    if (0..=1).contains(&dx) && (0..=1).contains(&dy) || !shaded(sx, sy) {
+                        continue;
+                    }
+                    let wt = stereoshim::features::foveation::rdm::rules::reconstruction_weight((sx - x as i64) as i32, (sy - y as i64) as i32) as f64;
+                    let px = got.pixel(sx as u32, sy as u32);
+                    for c in 0..3 {
+                        // Alpha is never decoded; colour is.
+                        sum[c] += wt * decode(px[c]);
+                    }
+                    wsum += wt;
+                }
+            }
+            if wsum == 0.0 {
+                continue;
+            }
+            let want: Vec<f64> = sum.iter().map(|s| encode(s / wsum)).collect();
+            let g = &got.pixel(x, y)[..3];
+            if g.iter().zip(&want).any(|(&g, &e)| (g as f64 - e).abs() > TOLERANCE) {
+                n += 1;
+                if first.len() < 8 {
+                    first.push((x, y, g.to_vec(), want));
+                }
+            }
+        }
+    }
+    (n, first)
 }
 
 pub fn psnr(pairs: &[(f64, f64)]) -> f64 {
@@ -167,6 +244,14 @@ pub fn check_frame(name: &str, plain: &RunOutput, rdm: &RunOutput, frame: u64, e
         };
         let (shaded_plain, shaded_rdm) = (shaded(plain)?, shaded(rdm)?);
         let overdraw = (shaded_plain - (w as i64 * h as i64)).max(0);
+        // VK_FORMAT_R8G8B8A8_SRGB / VK_FORMAT_B8G8R8A8_SRGB.
+        let (holes, first_holes) = reconstruction_holes(&params, &got, matches!(a.format, 43 | 50));
+        if holes > 0 {
+            let dir = image::artifacts_dir(&format!("{name}-view{}-holes", a.view));
+            got.save(&dir.join("actual.png"));
+            want.save(&dir.join("plain.png"));
+            eprintln!("{name} view {}: {holes} skipped pixels not reconstructed, first (x, y, got, want) {first_holes:?}; artifacts in {}", a.view, dir.display());
+        }
         let r = ViewResult {
             view: a.view,
             pixels: w as u64 * h as u64,
@@ -175,9 +260,10 @@ pub fn check_frame(name: &str, plain: &RunOutput, rdm: &RunOutput, frame: u64, e
             skipped_fragments,
             overdraw,
             psnr_db: psnr(&periphery),
+            holes,
         };
         eprintln!(
-            "{name} view {}: {}x{} px, skipped {} px ({:.1} %, {} plain fragments), shaded fragments -{} (plain {}), periphery PSNR {:.2} dB",
+            "{name} view {}: {}x{} px, skipped {} px ({:.1} %, {} plain fragments), shaded fragments -{} (plain {}), periphery PSNR {:.2} dB, {} holes",
             a.view,
             w,
             h,
@@ -186,7 +272,8 @@ pub fn check_frame(name: &str, plain: &RunOutput, rdm: &RunOutput, frame: u64, e
             r.skipped_fragments,
             r.shaded_drop,
             shaded_plain,
-            r.psnr_db
+            r.psnr_db,
+            r.holes
         );
         out.push(r);
     }
@@ -212,7 +299,8 @@ pub fn check_layer_record(name: &str, record: &serde_json::Value, results: &[Vie
 /// skipped; shaded fragments down by exactly the plain run's fragments at the skipped pixels
 /// (RDM's depth makes every fragment of a skipped pixel fail early-Z, kept pixels keep theirs),
 /// within the older bounds (skipped ≤ drop ≤ skipped + overdraw; without the mask every skipped
-/// pixel had a fragment); periphery PSNR ≥ 30 dB for `balanced` rings.
+/// pixel had a fragment); every skipped pixel reconstructed (no holes); periphery PSNR ≥ 30 dB
+/// for `balanced` rings.
 pub fn check_results(name: &str, balanced: bool, with_mask: bool, results: &[ViewResult]) -> Result<(), String> {
     for r in results {
         if r.skipped == 0 {
@@ -232,6 +320,9 @@ pub fn check_results(name: &str, balanced: bool, with_mask: bool, results: &[Vie
                 "{name} view {}: shaded fragments dropped by {}, but the skipped pixels had {} fragments in the plain run",
                 r.view, r.shaded_drop, r.skipped_fragments
             ));
+        }
+        if r.holes > 0 {
+            return Err(format!("{name} view {}: {} skipped pixels are not the reconstruction of their quad's shaded neighbours (holes)", r.view, r.holes));
         }
         if balanced && r.psnr_db < 30.0 {
             return Err(format!("{name} view {}: periphery PSNR {:.2} dB < 30", r.view, r.psnr_db));

@@ -22,7 +22,7 @@ pub const KEYS: &[KeySpec] = &[
         key: "foveation.method",
         kind: Kind::Choice(&["auto", "vrs", "rdm"]),
         default: "auto",
-        doc: "vrs: VK_KHR_fragment_shading_rate attachment; rdm: radial density masking with reconstruction; auto: vrs where the GPU has it, else rdm",
+        doc: "vrs: VK_KHR_fragment_shading_rate attachment; rdm: radial density masking with reconstruction; auto: vrs where the GPU has it, else rdm on a GPU, none on a CPU implementation (lavapipe: RDM is slower there for most apps)",
     },
     KeySpec {
         key: "foveation.preset",
@@ -43,6 +43,12 @@ pub const KEYS: &[KeySpec] = &[
         doc: "half-rate ring's outer radius, degrees; quarter rate beyond (0: from the preset)",
     },
     KeySpec {
+        key: "foveation.rdm_reconstruction",
+        kind: Kind::Choice(&["auto", "fill", "off"]),
+        default: "auto",
+        doc: "how RDM fills its skipped quads: auto = a compute pass over the periphery tiles where the swapchain image allows it, else the full-screen fill; fill = always the full-screen fill; off = not at all (leaves holes: only for measuring the masking alone)",
+    },
+    KeySpec {
         key: "foveation.eye_tracking",
         kind: Kind::Choice(&["auto", "off"]),
         default: "auto",
@@ -59,12 +65,21 @@ pub enum Method {
 }
 
 impl Method {
-    /// The method in effect on a device with (`fsr_attachment`) or without attachment rates.
-    pub fn resolve(self, fsr_attachment: bool) -> Method {
+    /// The method in effect on a device with (`fsr_attachment`) or without attachment rates, a
+    /// CPU implementation (`software`) or a GPU; None: no foveation.
+    ///
+    /// `auto` never picks a method that is known to make frames slower: VRS where the device has
+    /// attachment rates (it costs almost nothing); RDM on a GPU without them (its depth draw and
+    /// reconstruction are a few full-rate passes, small against fragment-bound shading); nothing
+    /// on a CPU implementation, where RDM's own passes cost as much per pixel as a cheap app's
+    /// shading (lavapipe, docs/benchmarks.md "RDM reconstruction as compute": hello_xr is 1.5–2.4×
+    /// slower with it; only shading-heavy frames gain). `rdm` forces it there.
+    pub fn resolve(self, fsr_attachment: bool, software: bool) -> Option<Method> {
         match self {
-            Method::Auto if fsr_attachment => Method::Vrs,
-            Method::Auto => Method::Rdm,
-            m => m,
+            Method::Auto if fsr_attachment => Some(Method::Vrs),
+            Method::Auto if software => None,
+            Method::Auto => Some(Method::Rdm),
+            m => Some(m),
         }
     }
 }
@@ -78,6 +93,19 @@ pub struct FoveationSettings {
     pub rings: Rings,
     /// `foveation.eye_tracking = auto`.
     pub eye_tracking: bool,
+    /// `foveation.rdm_reconstruction`.
+    pub rdm_reconstruction: Reconstruction,
+}
+
+/// `foveation.rdm_reconstruction`: how radial density masking fills its skipped quads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reconstruction {
+    /// The compute pass over periphery tiles where possible, else the full-screen fill.
+    Auto,
+    /// Always the full-screen fragment fill (the pre-compute behaviour, for comparison).
+    Fill,
+    /// None: skipped quads stay as the app left them (benchmarks of the masking alone).
+    Off,
 }
 
 impl FoveationSettings {
@@ -91,6 +119,11 @@ impl FoveationSettings {
             },
             rings: Rings::from_config(c),
             eye_tracking: c.choice("foveation.eye_tracking") == "auto",
+            rdm_reconstruction: match c.choice("foveation.rdm_reconstruction") {
+                "fill" => Reconstruction::Fill,
+                "off" => Reconstruction::Off,
+                _ => Reconstruction::Auto,
+            },
         }
     }
 }
@@ -101,9 +134,12 @@ mod tests {
 
     #[test]
     fn auto_resolves_by_device() {
-        assert_eq!(Method::Auto.resolve(true), Method::Vrs);
-        assert_eq!(Method::Auto.resolve(false), Method::Rdm);
-        assert_eq!(Method::Rdm.resolve(true), Method::Rdm);
-        assert_eq!(Method::Vrs.resolve(false), Method::Vrs);
+        assert_eq!(Method::Auto.resolve(true, false), Some(Method::Vrs));
+        assert_eq!(Method::Auto.resolve(false, false), Some(Method::Rdm));
+        // A CPU implementation: never RDM by itself (measured slower), VRS if it had rates.
+        assert_eq!(Method::Auto.resolve(false, true), None);
+        assert_eq!(Method::Auto.resolve(true, true), Some(Method::Vrs));
+        assert_eq!(Method::Rdm.resolve(true, true), Some(Method::Rdm));
+        assert_eq!(Method::Vrs.resolve(false, false), Some(Method::Vrs));
     }
 }

@@ -151,14 +151,15 @@ impl XrFeature for FoveationXr {
             Vec::new()
         }
     }
-    /// Colour swapchains get TRANSFER_SRC: radial density masking reconstructs skipped quads from
-    /// a copy of the image. Added whenever RDM may run (the layer is on and the method is not
-    /// pinned to VRS), since foveation can be switched on while the app runs; an extra usage bit
-    /// changes nothing the app can see.
+    /// Colour swapchains get TRANSFER_SRC and TRANSFER_DST: radial density masking reconstructs
+    /// skipped quads in a copy of the image and copies the reconstructed tiles back (without
+    /// TRANSFER_DST it falls back to its full-screen fill). Added whenever RDM may run (the layer
+    /// is on and the method is not pinned to VRS), since foveation can be switched on while the
+    /// app runs; an extra usage bit changes nothing the app can see.
     fn swapchain_usage(&self, s: &Settings, usage: xr::SwapchainUsageFlags) -> xr::SwapchainUsageFlags {
         let rdm_possible = s.enabled && s.foveation.method != super::Method::Vrs;
         if rdm_possible && usage.contains(xr::SwapchainUsageFlags::COLOR_ATTACHMENT) {
-            xr::SwapchainUsageFlags::TRANSFER_SRC
+            xr::SwapchainUsageFlags::TRANSFER_SRC | xr::SwapchainUsageFlags::TRANSFER_DST
         } else {
             xr::SwapchainUsageFlags::EMPTY
         }

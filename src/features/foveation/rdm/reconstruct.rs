@@ -1,11 +1,14 @@
 //! Radial density masking on the Vulkan side, the reconstruction half: before the runtime sees a
 //! swapchain image (`xrReleaseSwapchainImage`), a layer command buffer on the session's queue
-//! fills the quads the checkerboard skipped from their shaded neighbours (`rules`' weights,
-//! `shaders/rdm_fill.frag`).
+//! fills the quads the checkerboard skipped from their shaded neighbours (`rules`' weights): by
+//! the compute pass over periphery tiles (`compute`) where `rules::compute_path` allows, else by
+//! the full-screen fragment fill here (`shaders/rdm_fill.frag`), counted by reason.
 
-use super::rules::{NotApplied, Pending};
+use super::compute;
+use super::rules::{compute_path, NotApplied, Pending};
 use super::vk::{lock, log_once, RdmDevice};
 use crate::core::rect::PixelRect;
+use crate::features::foveation::Reconstruction;
 use crate::shared::{self, shared};
 use crate::vk::DeviceState;
 use ash::vk::{self, Handle};
@@ -24,19 +27,21 @@ const SLOT_WAIT_NS: u64 = 2_000_000_000;
 /// The reconstruction's objects of one device. Locks guard bookkeeping only.
 pub(crate) struct Reconstruct {
     set_loader_data: Option<crate::vk::PfnSetDeviceLoaderData>,
-    memory: vk::PhysicalDeviceMemoryProperties,
+    pub(super) memory: vk::PhysicalDeviceMemoryProperties,
     fill: Mutex<Option<FillObjects>>,
     slots: Mutex<VecDeque<Slot>>,
     slot_count: std::sync::atomic::AtomicUsize,
+    pub(super) compute: compute::Compute,
 }
 
 impl Reconstruct {
     pub(crate) fn new(memory: vk::PhysicalDeviceMemoryProperties, set_loader_data: Option<crate::vk::PfnSetDeviceLoaderData>) -> Reconstruct {
-        Reconstruct { set_loader_data, memory, fill: Mutex::default(), slots: Mutex::default(), slot_count: Default::default() }
+        Reconstruct { set_loader_data, memory, fill: Mutex::default(), slots: Mutex::default(), slot_count: Default::default(), compute: Default::default() }
     }
     /// At vkDestroyDevice (the device is idle).
     pub(crate) fn destroy(&self, d: &DeviceState) {
         destroy_all(self, d);
+        self.compute.destroy(d);
     }
 }
 
@@ -50,10 +55,12 @@ struct FillObjects {
     passes: HashMap<vk::Format, (vk::RenderPass, vk::Pipeline)>,
 }
 
+/// A layer image of a swapchain image's shape (the fill's copy target, then sampled).
 struct Temp {
     image: vk::Image,
     memory: vk::DeviceMemory,
     view: vk::ImageView,
+    /// (format, width, height, layers).
     key: (vk::Format, u32, u32, u32),
 }
 
@@ -67,6 +74,8 @@ struct Slot {
     temp: Option<Temp>,
     /// Views and framebuffers of the swapchain image of the last use.
     transient: Vec<(vk::ImageView, vk::Framebuffer)>,
+    /// The compute pass's temp image, tile buffer and descriptor set.
+    compute: compute::SlotData,
 }
 
 /// Called by the OpenXR half in `xrReleaseSwapchainImage`, before calling down: reconstructs the
@@ -81,10 +90,23 @@ pub(super) fn before_release(me: &RdmDevice, d: &DeviceState, queue_family: u32,
     if pending.is_empty() {
         return;
     }
-    match reconstruct(d, &sc, image, &pending, queue_family, queue_index) {
-        Ok(()) => me.count(|s| {
+    let how = d.settings().foveation.rdm_reconstruction;
+    if how == Reconstruction::Off {
+        log_once(me, "reconstruction off".into(), || tracing::warn!("radial density masking: foveation.rdm_reconstruction = off: skipped quads are left as holes"));
+        return;
+    }
+    match reconstruct(d, &sc, image, &pending, queue_family, queue_index, how == Reconstruction::Fill) {
+        Ok(how) => me.count(|s| {
             for p in &pending {
                 *s.reconstructed.entry(p.view).or_insert(0) += 1;
+            }
+            match how {
+                How::Compute(tiles) => {
+                    s.compute += pending.len() as u64;
+                    s.compute_tiles += tiles;
+                }
+                How::Fill(why) => *s.fill_fallback.entry(why.name()).or_insert(0) += pending.len() as u64,
+                How::Nothing => {}
             }
         }),
         Err((why, msg)) => {
@@ -94,35 +116,121 @@ pub(super) fn before_release(me: &RdmDevice, d: &DeviceState, queue_family: u32,
     }
 }
 
-type Failure = (NotApplied, String);
+pub(super) type Failure = (NotApplied, String);
 
-fn layer_error(what: &str) -> impl Fn(vk::Result) -> Failure + '_ {
+/// Which reconstruction ran: the compute pass (tiles dispatched), or the fill and why.
+enum How {
+    Compute(u64),
+    Fill(super::rules::FillFallback),
+    Nothing,
+}
+
+pub(super) fn layer_error(what: &str) -> impl Fn(vk::Result) -> Failure + '_ {
     move |e| (NotApplied::LayerError, format!("{what}: {e}"))
 }
 
-fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[Pending], family: u32, queue_index: u32) -> Result<(), Failure> {
-    let needed = vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::COLOR_ATTACHMENT;
-    if let Some(img) = d.track.images.get(image) {
-        if !img.usage.contains(needed) {
-            return Err((NotApplied::SwapchainUsage, format!("image usage {:?} lacks {needed:?}", img.usage)));
-        }
-    }
+fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[Pending], family: u32, queue_index: u32, fill_only: bool) -> Result<How, Failure> {
+    let usage = d.track.images.get(image).map(|img| img.usage);
     let format = vk::Format::from_raw(sc.desc.format as i32);
     let (width, height, layers) = (sc.desc.width, sc.desc.height, sc.desc.array_size.max(1));
     let whole = PixelRect { x: 0, y: 0, width, height };
     let eyes: Vec<Pending> = pending.iter().filter(|p| p.layer < layers && p.params.rect.intersect(&whole).area() > 0).copied().collect();
     if eyes.is_empty() {
-        return Ok(());
+        return Ok(How::Nothing);
+    }
+    // An image the layer never saw created is taken to have the usage the layer asked for.
+    let has = |u: vk::ImageUsageFlags| usage.is_none_or(|have| have.contains(u));
+    if !has(vk::ImageUsageFlags::TRANSFER_SRC) {
+        return Err((NotApplied::SwapchainUsage, format!("image usage {usage:?} lacks TRANSFER_SRC")));
+    }
+    let path = if fill_only { Err(super::rules::FillFallback::Configured) } else { compute_path(format, has(vk::ImageUsageFlags::TRANSFER_DST)) };
+    let fallback = match path {
+        Ok(storage) => {
+            let mut slot = take_slot(d, family)?;
+            let r = record_compute(d, &mut slot, image, storage, (width, height, layers), &eyes, family, queue_index);
+            give_back(d, slot, r.is_ok());
+            match r {
+                Ok(tiles) => return Ok(How::Compute(tiles)),
+                // Nothing was submitted: the fill may still do it.
+                Err(e) => {
+                    log_once(&d.features.rdm, "compute failure".into(), || tracing::warn!("radial density masking: compute reconstruction failed ({}), using the fill", e.1));
+                    super::rules::FillFallback::LayerError
+                }
+            }
+        }
+        Err(why) => why,
+    };
+    log_once(&d.features.rdm, format!("fill {}", fallback.name()), || {
+        tracing::info!(?format, ?usage, "radial density masking: reconstruction by the full-screen fill, not the compute pass: {}", fallback.name())
+    });
+    if !has(vk::ImageUsageFlags::COLOR_ATTACHMENT) {
+        return Err((NotApplied::SwapchainUsage, format!("image usage {usage:?} lacks COLOR_ATTACHMENT")));
     }
     let (layout, set_layout, render_pass, pipeline, sampler) = fill_objects(d, format).map_err(|e| (NotApplied::LayerError, e))?;
-    let mut slot = take_slot(d, family, set_layout)?;
-    let r = record_and_submit(d, &mut slot, image, format, (width, height, layers), &eyes, family, queue_index, (layout, render_pass, pipeline, sampler));
-    lock(&d.features.rdm.reconstruct.slots).push_back(slot);
-    r
+    let mut slot = take_slot(d, family)?;
+    let r = record_and_submit(d, &mut slot, image, format, (width, height, layers), &eyes, family, queue_index, (layout, set_layout, render_pass, pipeline, sampler));
+    give_back(d, slot, r.is_ok());
+    r.map(|()| How::Fill(fallback))
+}
+
+/// Returns a slot for reuse after its submission; a slot whose recording failed was never
+/// submitted, so its fence (reset) would never signal: it is destroyed instead.
+fn give_back(d: &DeviceState, slot: Slot, submitted: bool) {
+    if submitted {
+        lock(&d.features.rdm.reconstruct.slots).push_back(slot);
+    } else {
+        // SAFETY: nothing of the slot was submitted since its fence last signalled.
+        unsafe { destroy_slot(d, slot) };
+        d.features.rdm.reconstruct.slot_count.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+/// Begins the slot's command buffer, records the compute reconstruction and submits it.
+#[allow(clippy::too_many_arguments)]
+fn record_compute(
+    d: &DeviceState,
+    slot: &mut Slot,
+    image: u64,
+    storage: super::rules::ComputeStorage,
+    shape: (u32, u32, u32),
+    eyes: &[Pending],
+    family: u32,
+    queue_index: u32,
+) -> Result<u64, Failure> {
+    let cb = slot.cb;
+    // SAFETY: our command buffer, reset and not in use (its fence signalled).
+    unsafe { d.fns.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)) }.map_err(layer_error("begin"))?;
+    let tiles = compute::record(d, &mut slot.compute, slot.descriptor_pool, cb, vk::Image::from_raw(image), storage, (shape.0, shape.1), eyes)?;
+    submit(d, slot, family, queue_index)?;
+    Ok(tiles)
+}
+
+/// Ends the slot's command buffer and submits it with the slot's fence.
+fn submit(d: &DeviceState, slot: &Slot, family: u32, queue_index: u32) -> Result<(), Failure> {
+    // SAFETY: the slot's command buffer, recording; the session's queue, which the OpenXR Vulkan
+    // binding lets a call inside xrReleaseSwapchainImage use (the app synchronizes its queue use
+    // around these calls); our unsignalled fence.
+    unsafe {
+        d.fns.end_command_buffer(slot.cb).map_err(layer_error("end"))?;
+        let queue = d.fns.get_device_queue(family, queue_index);
+        // `stats.gpu_time`: the layer's own work is timed like the app's, in the frame it is
+        // submitted in.
+        let bracket = crate::vk::gpu_time::start(d, queue, 1, true);
+        let cbs = match &bracket {
+            Some(b) => vec![b.begin, slot.cb, b.end],
+            None => vec![slot.cb],
+        };
+        let submit = vk::SubmitInfo::default().command_buffers(&cbs);
+        let r = d.fns.queue_submit(queue, &[submit], slot.fence);
+        if let Some(b) = bracket {
+            crate::vk::gpu_time::submitted(d, b, queue, r.is_ok());
+        }
+        r.map_err(layer_error("vkQueueSubmit"))
+    }
 }
 
 /// A free slot (waiting for the oldest if all are in flight), reset for recording.
-fn take_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -> Result<Slot, Failure> {
+fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
     let front = lock(&d.features.rdm.reconstruct.slots).pop_front();
     let slot = match front {
         Some(s) => {
@@ -130,12 +238,12 @@ fn take_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) 
             let ready = unsafe { d.fns.get_fence_status(s.fence) }.unwrap_or(false);
             if !ready && d.features.rdm.reconstruct.slot_count.load(Ordering::Relaxed) < MAX_SLOTS {
                 lock(&d.features.rdm.reconstruct.slots).push_back(s);
-                new_slot(d, family, set_layout)?
+                new_slot(d, family)?
             } else {
                 s
             }
         }
-        None => new_slot(d, family, set_layout)?,
+        None => new_slot(d, family)?,
     };
     // SAFETY: our fence, pool and transient objects; once the fence signalled the GPU is done
     // with everything the slot's last submission used.
@@ -158,7 +266,7 @@ fn take_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) 
     }
 }
 
-fn new_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -> Result<Slot, Failure> {
+fn new_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
     let Some(set_loader_data) = d.features.rdm.reconstruct.set_loader_data else {
         return Err((NotApplied::LayerError, "the loader gave no vkSetDeviceLoaderData".into()));
     };
@@ -177,6 +285,7 @@ fn new_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -
             set: vk::DescriptorSet::null(),
             temp: None,
             transient: Vec::new(),
+            compute: Default::default(),
         };
         let r = (|| -> Result<(), Failure> {
             let alloc = vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1);
@@ -187,14 +296,13 @@ fn new_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -
                 return Err((NotApplied::LayerError, format!("vkSetDeviceLoaderData: {r:?}")));
             }
             slot.fence = d.fns.create_fence(&vk::FenceCreateInfo::default().flags(vk::FenceCreateFlags::SIGNALED), None).map_err(layer_error("fence"))?;
-            let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 1 }];
+            // One set for the fill, one for the compute pass, each allocated on first use.
+            let sizes = [
+                vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 1 },
+                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 2 },
+            ];
             slot.descriptor_pool =
-                d.fns.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None).map_err(layer_error("descriptor pool"))?;
-            let layouts = [set_layout];
-            slot.set = d
-                .fns
-                .allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(slot.descriptor_pool).set_layouts(&layouts))
-                .map_err(layer_error("descriptor set"))?[0];
+                d.fns.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(2).pool_sizes(&sizes), None).map_err(layer_error("descriptor pool"))?;
             Ok(())
         })();
         if let Err(e) = r {
@@ -208,7 +316,7 @@ fn new_slot(d: &DeviceState, family: u32, set_layout: vk::DescriptorSetLayout) -
 
 /// # Safety
 /// The slot's work must have completed (or never been submitted).
-unsafe fn destroy_slot(d: &DeviceState, slot: Slot) {
+unsafe fn destroy_slot(d: &DeviceState, mut slot: Slot) {
     // SAFETY: per the contract; null handles are ignored by the destroy functions.
     unsafe {
         for (view, fb) in slot.transient {
@@ -218,6 +326,7 @@ unsafe fn destroy_slot(d: &DeviceState, slot: Slot) {
         if let Some(t) = slot.temp {
             destroy_temp(d, t);
         }
+        slot.compute.destroy(d);
         d.fns.destroy_descriptor_pool(slot.descriptor_pool, None);
         d.fns.destroy_fence(slot.fence, None);
         d.fns.destroy_command_pool(slot.pool, None);
@@ -235,10 +344,11 @@ unsafe fn destroy_temp(d: &DeviceState, t: Temp) {
     }
 }
 
-/// The slot's temp image (a copy target of the swapchain image's shape, sampled by the fill),
-/// recreated when the shape changes; the descriptor set then points at the new one.
-fn ensure_temp(d: &DeviceState, slot: &mut Slot, format: vk::Format, (width, height, layers): (u32, u32, u32), sampler: vk::Sampler) -> Result<vk::Image, Failure> {
-    let key = (format, width, height, layers);
+/// The slot's temp image for the fill (a copy target of the swapchain image's shape, sampled),
+/// recreated when the shape changes; the fill's descriptor set (allocated on first use) then
+/// points at the new one.
+fn ensure_temp(d: &DeviceState, slot: &mut Slot, format: vk::Format, shape: (u32, u32, u32), set_layout: vk::DescriptorSetLayout, sampler: vk::Sampler) -> Result<vk::Image, Failure> {
+    let key = (format, shape.0, shape.1, shape.2);
     if let Some(t) = slot.temp.as_ref().filter(|t| t.key == key) {
         return Ok(t.image);
     }
@@ -246,6 +356,33 @@ fn ensure_temp(d: &DeviceState, slot: &mut Slot, format: vk::Format, (width, hei
         // SAFETY: the slot's fence signalled: nothing uses it.
         unsafe { destroy_temp(d, t) };
     }
+    let t = make_temp(d, format, vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::SAMPLED, shape)?;
+    // SAFETY: the slot's pool has room for this one fill set (see `new_slot`); the set is not in
+    // use (the slot's fence signalled).
+    unsafe {
+        if slot.set == vk::DescriptorSet::null() {
+            let layouts = [set_layout];
+            match d.fns.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(slot.descriptor_pool).set_layouts(&layouts)) {
+                Ok(sets) => slot.set = sets[0],
+                Err(e) => {
+                    destroy_temp(d, t);
+                    return Err((NotApplied::LayerError, format!("descriptor set: {e}")));
+                }
+            }
+        }
+        let infos = [vk::DescriptorImageInfo { sampler, image_view: t.view, image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL }];
+        let write = vk::WriteDescriptorSet::default().dst_set(slot.set).dst_binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(&infos);
+        d.fns.update_descriptor_sets(&[write], &[]);
+    }
+    let image = t.image;
+    slot.temp = Some(t);
+    Ok(image)
+}
+
+/// A device-local image of `format` and `usage` with the swapchain image's shape
+/// (width, height, layers) and a 2D-array view of it.
+fn make_temp(d: &DeviceState, format: vk::Format, usage: vk::ImageUsageFlags, (width, height, layers): (u32, u32, u32)) -> Result<Temp, Failure> {
+    let key = (format, width, height, layers);
     let info = vk::ImageCreateInfo::default()
         .image_type(vk::ImageType::TYPE_2D)
         .format(format)
@@ -254,7 +391,7 @@ fn ensure_temp(d: &DeviceState, slot: &mut Slot, format: vk::Format, (width, hei
         .array_layers(layers)
         .samples(vk::SampleCountFlags::TYPE_1)
         .tiling(vk::ImageTiling::OPTIMAL)
-        .usage(vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::SAMPLED)
+        .usage(usage)
         .sharing_mode(vk::SharingMode::EXCLUSIVE)
         .initial_layout(vk::ImageLayout::UNDEFINED);
     // SAFETY: valid create / allocate infos on our device; failures destroy what was made.
@@ -279,19 +416,14 @@ fn ensure_temp(d: &DeviceState, slot: &mut Slot, format: vk::Format, (width, hei
         let view = d.fns.bind_image_memory(image, memory, 0).and_then(|_| {
             d.fns.create_image_view(&vk::ImageViewCreateInfo::default().image(image).view_type(vk::ImageViewType::TYPE_2D_ARRAY).format(format).subresource_range(range), None)
         });
-        let view = match view {
-            Ok(v) => v,
+        match view {
+            Ok(view) => Ok(Temp { image, memory, view, key }),
             Err(e) => {
                 d.fns.destroy_image(image, None);
                 d.fns.free_memory(memory, None);
-                return Err((NotApplied::LayerError, format!("temp view: {e}")));
+                Err((NotApplied::LayerError, format!("temp view: {e}")))
             }
-        };
-        let infos = [vk::DescriptorImageInfo { sampler, image_view: view, image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL }];
-        let write = vk::WriteDescriptorSet::default().dst_set(slot.set).dst_binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(&infos);
-        d.fns.update_descriptor_sets(&[write], &[]);
-        slot.temp = Some(Temp { image, memory, view, key });
-        Ok(image)
+        }
     }
 }
 
@@ -315,9 +447,9 @@ fn record_and_submit(
     eyes: &[Pending],
     family: u32,
     queue_index: u32,
-    (layout, render_pass, pipeline, sampler): (vk::PipelineLayout, vk::RenderPass, vk::Pipeline, vk::Sampler),
+    (layout, set_layout, render_pass, pipeline, sampler): (vk::PipelineLayout, vk::DescriptorSetLayout, vk::RenderPass, vk::Pipeline, vk::Sampler),
 ) -> Result<(), Failure> {
-    let temp = ensure_temp(d, slot, format, shape, sampler)?;
+    let temp = ensure_temp(d, slot, format, shape, set_layout, sampler)?;
     let image = vk::Image::from_raw(image);
     let (width, height, _) = shape;
     let whole = PixelRect { x: 0, y: 0, width, height };
@@ -467,23 +599,8 @@ fn record_and_submit(
             }
             d.fns.cmd_end_render_pass(cb);
         }
-        d.fns.end_command_buffer(cb).map_err(layer_error("end"))?;
-        let queue = d.fns.get_device_queue(family, queue_index);
-        // `stats.gpu_time`: the layer's own work is timed like the app's, in the frame it is
-        // submitted in.
-        let bracket = crate::vk::gpu_time::start(d, queue, 1, true);
-        let cbs = match &bracket {
-            Some(b) => vec![b.begin, cb, b.end],
-            None => vec![cb],
-        };
-        let submit = vk::SubmitInfo::default().command_buffers(&cbs);
-        let r = d.fns.queue_submit(queue, &[submit], slot.fence);
-        if let Some(b) = bracket {
-            crate::vk::gpu_time::submitted(d, b, queue, r.is_ok());
-        }
-        r.map_err(layer_error("vkQueueSubmit"))?;
     }
-    Ok(())
+    submit(d, slot, family, queue_index)
 }
 
 /// The fill pipeline's shared objects and the render pass + pipeline for `format`, made once.

@@ -119,6 +119,120 @@ impl RdmParams {
     }
 }
 
+/// Quads per side of a reconstruction tile: one compute workgroup of `shaders/rdm_recon.comp`
+/// (8×8 invocations, 2×2 quads each: 32×32 pixels). Large, because a software rasterizer pays a
+/// fixed cost per workgroup (measured on lavapipe: 8×8-quad tiles spent more on that than on the
+/// fill); the fovea's tiles are few either way.
+pub const TILE_QUADS: u32 = 16;
+
+impl RdmParams {
+    /// The tiles (`TILE_QUADS`² quads, counted from the rect's origin) that the reconstruction
+    /// visits: every tile of the rect meeting `clip` (image pixels) that may hold a skipped quad,
+    /// packed `x | y << 16`, row by row. A tile is left out only when it is certainly inside the
+    /// inner ring, where nothing is skipped; that is what makes the pass proportional to the
+    /// periphery instead of the eye.
+    ///
+    /// Certainly inside: the inner ring is a cone of directions within `inner_deg` of the centre
+    /// (≤ 90°, so convex), and quad centres map affinely onto the tangent plane, so when the four
+    /// corners of the tile *grown by one quad* are inside (in f64), every quad of the tile is at
+    /// least a quad's step inside — far beyond the f32 rounding of the rule the GPU evaluates
+    /// (`ring`), which therefore calls all of them inner too. Tiles across the ring's edge are
+    /// kept; the GPU judges each of their quads exactly.
+    pub fn periphery_tiles(&self, clip: PixelRect) -> Vec<u32> {
+        let area = self.rect.intersect(&clip);
+        if area.area() == 0 {
+            return Vec::new();
+        }
+        let tile_px = 2 * TILE_QUADS;
+        let (x0, y0) = ((area.x - self.rect.x) as u32 / tile_px, (area.y - self.rect.y) as u32 / tile_px);
+        let x1 = ((area.x - self.rect.x) as u32 + area.width).div_ceil(tile_px);
+        let y1 = ((area.y - self.rect.y) as u32 + area.height).div_ceil(tile_px);
+        let mut out = Vec::new();
+        for ty in y0..y1.min(1 << 16) {
+            for tx in x0..x1.min(1 << 16) {
+                let (qx, qy) = ((tx * TILE_QUADS) as i64, (ty * TILE_QUADS) as i64);
+                let last = TILE_QUADS as i64 - 1;
+                if !self.surely_inner(qx - 1, qy - 1, qx + last + 1, qy + last + 1) {
+                    out.push(tx | (ty << 16));
+                }
+            }
+        }
+        out
+    }
+
+    /// Whether every quad centre of quads (qx0..=qx1, qy0..=qy1) lies in the inner cone, judged in
+    /// f64 at the box's four corner quads (the cone is convex).
+    fn surely_inner(&self, qx0: i64, qy0: i64, qx1: i64, qy1: i64) -> bool {
+        let inner = |qx: i64, qy: i64| {
+            let tx = self.tan_left as f64 + (2 * qx + 1) as f64 * self.step_x as f64;
+            let ty = self.tan_up as f64 - (2 * qy + 1) as f64 * self.step_y as f64;
+            let d = tx * self.center[0] as f64 + ty * self.center[1] as f64 + 1.0;
+            let n2 = tx * tx + ty * ty + 1.0;
+            d > 0.0 && d * d >= self.k_inner as f64 * n2
+        };
+        // k_inner ≤ 0 would be an inner angle past 90°: not a convex cone, never "surely".
+        self.k_inner > 0.0 && inner(qx0, qy0) && inner(qx1, qy0) && inner(qx0, qy1) && inner(qx1, qy1)
+    }
+}
+
+/// How the compute reconstruction reads a swapchain image's pixels: copied into a storage buffer
+/// as one 32-bit word per texel (4 × 8-bit channels; BGRA and RGBA alike, since the filter treats
+/// every channel the same and alpha is the fourth byte in both), decoded from sRGB by the shader
+/// where the format is sRGB. Other formats (16-bit float, 10-bit, …) take the fill.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ComputeStorage {
+    Rgba8 { srgb: bool },
+}
+
+impl ComputeStorage {
+    /// The compute path's storage for a swapchain format; None: the fill (fragment) path only.
+    pub fn for_format(format: ash::vk::Format) -> Option<ComputeStorage> {
+        use ash::vk::Format as F;
+        match format {
+            F::R8G8B8A8_UNORM | F::B8G8R8A8_UNORM => Some(ComputeStorage::Rgba8 { srgb: false }),
+            F::R8G8B8A8_SRGB | F::B8G8R8A8_SRGB => Some(ComputeStorage::Rgba8 { srgb: true }),
+            _ => None,
+        }
+    }
+}
+
+/// Which reconstruction a swapchain image of `format` gets: the compute pass over periphery
+/// tiles when its format has a storage equivalent and the image can be written back by a copy
+/// (`transfer_dst`), else why the fragment fill runs instead.
+pub fn compute_path(format: ash::vk::Format, transfer_dst: bool) -> Result<ComputeStorage, FillFallback> {
+    let storage = ComputeStorage::for_format(format).ok_or(FillFallback::Format)?;
+    if !transfer_dst {
+        return Err(FillFallback::TransferDst);
+    }
+    Ok(storage)
+}
+
+/// Why a reconstruction took the fragment fill instead of the compute pass. Stable names
+/// (statistics: `rdm_fill_fallback.<name>`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FillFallback {
+    /// The swapchain format is not one the compute pass handles (`ComputeStorage::for_format`).
+    Format,
+    /// The swapchain image lacks TRANSFER_DST (the runtime refused the layer's usage bit), so
+    /// the reconstructed copy cannot be written back.
+    TransferDst,
+    /// The compute objects could not be created.
+    LayerError,
+    /// `foveation.rdm_reconstruction = fill`.
+    Configured,
+}
+
+impl FillFallback {
+    pub fn name(&self) -> &'static str {
+        match self {
+            FillFallback::Format => "format",
+            FillFallback::TransferDst => "transfer_dst",
+            FillFallback::LayerError => "layer_error",
+            FillFallback::Configured => "configured",
+        }
+    }
+}
+
 /// The skip rule per ring: middle: (qx + qy) odd; outer: all but qx, qy both even; inner: none.
 pub fn skipped(ring: Ring, qx: u32, qy: u32) -> bool {
     match ring {
@@ -129,12 +243,13 @@ pub fn skipped(ring: Ring, qx: u32, qy: u32) -> bool {
 }
 
 /// Whether `foveation.method` means radial density masking on a device: rdm always, vrs never,
-/// auto where the device lacks `attachmentFragmentShadingRate` (lavapipe, older GPUs).
-pub fn method_is_rdm(method: &str, fsr_attachment: bool) -> bool {
+/// auto on a GPU that lacks `attachmentFragmentShadingRate` (older GPUs), never on a CPU
+/// implementation (`software`: lavapipe; `foveation::Method::resolve` says why).
+pub fn method_is_rdm(method: &str, fsr_attachment: bool, software: bool) -> bool {
     match method {
         "rdm" => true,
         "vrs" => false,
-        _ => !fsr_attachment,
+        _ => !fsr_attachment && !software,
     }
 }
 
@@ -195,6 +310,11 @@ pub struct RdmFrameStats {
     pub reconstructed: BTreeMap<u32, u64>,
     /// Passes / images left alone, by reason (`NotApplied::name`).
     pub not_applied: BTreeMap<&'static str, u64>,
+    /// Eye rects reconstructed by the compute pass over periphery tiles, and the tiles it ran.
+    pub compute: u64,
+    pub compute_tiles: u64,
+    /// Reconstructions that took the fragment fill, by reason (`FillFallback::name`).
+    pub fill_fallback: BTreeMap<&'static str, u64>,
 }
 
 impl RdmFrameStats {
@@ -207,6 +327,11 @@ impl RdmFrameStats {
         }
         for (k, v) in &o.not_applied {
             *self.not_applied.entry(k).or_insert(0) += v;
+        }
+        self.compute += o.compute;
+        self.compute_tiles += o.compute_tiles;
+        for (k, v) in &o.fill_fallback {
+            *self.fill_fallback.entry(k).or_insert(0) += v;
         }
     }
     pub fn count_not_applied(&mut self, why: NotApplied) {
@@ -227,6 +352,12 @@ impl RdmFrameStats {
         );
         for (k, v) in &self.not_applied {
             s.push_str(&format!(" rdm_not_applied.{k}={v}"));
+        }
+        if self.compute > 0 {
+            s.push_str(&format!(" rdm_compute={} rdm_compute_tiles={}", self.compute, self.compute_tiles));
+        }
+        for (k, v) in &self.fill_fallback {
+            s.push_str(&format!(" rdm_fill_fallback.{k}={v}"));
         }
         s
     }
@@ -277,6 +408,9 @@ impl FeatureStats for RdmFrameStats {
                 "pixels_skipped": per_view(&self.pixels_skipped),
                 "reconstructed": per_view(&self.reconstructed),
                 "not_applied": json_counts(self.not_applied.iter().map(|(k, v)| (*k, *v))),
+                "compute": self.compute,
+                "compute_tiles": self.compute_tiles,
+                "fill_fallback": json_counts(self.fill_fallback.iter().map(|(k, v)| (*k, *v))),
             }),
         );
     }
@@ -326,6 +460,7 @@ pub fn hand_off(pending: Vec<Pending>, regions: &[TransferRegion]) -> HandOff {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::collections::HashSet;
 
     const FOV: ViewFov = ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
 
@@ -342,7 +477,8 @@ mod tests {
         // Inner: nothing; middle: checkerboard, half; outer: only (even, even) kept, 3 of 4.
         let all = |ring| (0..4).flat_map(|y| (0..4).map(move |x| (x, y))).filter(|&(x, y)| skipped(ring, x, y)).count();
         assert_eq!(all(Ring::Inner), 0);
-        assert!(method_is_rdm("rdm", true) && !method_is_rdm("vrs", false) && method_is_rdm("auto", false) && !method_is_rdm("auto", true));
+        assert!(method_is_rdm("rdm", true, true) && !method_is_rdm("vrs", false, false) && method_is_rdm("auto", false, false) && !method_is_rdm("auto", true, false));
+        assert!(!method_is_rdm("auto", false, true));
         assert_eq!(all(Ring::Middle), 8);
         assert_eq!(all(Ring::Outer), 12);
         assert!(!skipped(Ring::Middle, 0, 0) && skipped(Ring::Middle, 1, 0) && !skipped(Ring::Middle, 1, 1));
@@ -429,6 +565,79 @@ mod tests {
         assert_eq!(b.summary(), "rdm_passes=2 rdm_quads_skipped=10 rdm_pixels_skipped=40 rdm_reconstructed=0 rdm_not_applied.not_one_to_one=2");
         assert_eq!(reconstruction_weight(1, 0), 1.0);
         assert_eq!(reconstruction_weight(2, 1), 0.2);
+    }
+
+    /// Every skipped quad, judged by the f32 rule the GPU evaluates, lies in a tile the
+    /// reconstruction visits; `clip` drops only tiles outside it. Pseudo-random rects (odd sizes
+    /// and offsets), asymmetric FOVs, off-axis centres and ring angles from 0° to 90°.
+    #[test]
+    fn periphery_tiles_cover_every_skipped_quad() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for case in 0..160 {
+            let fov = ViewFov { tan_left: -0.6 - next() as f32 * 0.8, tan_right: 0.6 + next() as f32 * 0.8, tan_up: 0.5 + next() as f32 * 0.9, tan_down: -0.5 - next() as f32 * 0.9 };
+            let inner = if case % 10 == 0 { 0.0 } else if case % 10 == 1 { 90.0 } else { (next() * 40.0) as f32 };
+            let fovea = FoveaView { view: 0, center: [(next() - 0.5) as f32, (next() - 0.5) as f32], inner_deg: inner, middle_deg: inner + (next() * 20.0) as f32 };
+            let r = PixelRect { x: (next() * 40.0) as i32, y: (next() * 40.0) as i32, width: 1 + (next() * 300.0) as u32, height: 1 + (next() * 300.0) as u32 };
+            let p = RdmParams::new(&fov, &fovea, r).unwrap();
+            let tiles: HashSet<u32> = p.periphery_tiles(r).into_iter().collect();
+            for qy in 0..r.height.div_ceil(2) {
+                for qx in 0..r.width.div_ceil(2) {
+                    if p.quad_skipped(qx, qy) {
+                        let t = (qx / TILE_QUADS) | ((qy / TILE_QUADS) << 16);
+                        assert!(tiles.contains(&t), "case {case}: skipped quad ({qx}, {qy}) in tile {t:#x} not visited ({p:?})");
+                    }
+                }
+            }
+            // Clipped to the left half: only tiles meeting it, still every skipped quad there.
+            let half = PixelRect { width: r.width.div_ceil(2), ..r };
+            let clipped = p.periphery_tiles(half);
+            assert!(clipped.iter().all(|t| tiles.contains(t) && (t & 0xffff) * 2 * TILE_QUADS < half.width));
+        }
+    }
+
+    #[test]
+    fn periphery_tiles_leave_out_the_fovea() {
+        // 2016×2240 (Index at 100 %), balanced rings on the axis: the tiles of the inner disc
+        // (20° of a ~±55° view) are left out, about the disc's share of the eye.
+        let fov = ViewFov { tan_left: -1.39, tan_right: 1.24, tan_up: 1.39, tan_down: -1.47 };
+        let p = RdmParams::new(&fov, &fovea(20.0, 35.0), rect(2016, 2240)).unwrap();
+        let tile_px = 2 * TILE_QUADS;
+        let all = 2016u32.div_ceil(tile_px) * 2240u32.div_ceil(tile_px);
+        let tiles = p.periphery_tiles(p.rect);
+        let left_out = all as usize - tiles.len();
+        assert!(left_out > all as usize / 40 && left_out < all as usize / 5, "{left_out} of {all}");
+        // No quad of a left-out tile is skipped (the whole rect, exhaustively).
+        let visited: HashSet<u32> = tiles.iter().copied().collect();
+        let n = p.count(p.rect);
+        let in_tiles: u64 = (0..1120u32).flat_map(|qy| (0..1008u32).map(move |qx| (qx, qy))).filter(|&(qx, qy)| visited.contains(&((qx / TILE_QUADS) | ((qy / TILE_QUADS) << 16))) && p.quad_skipped(qx, qy)).count() as u64;
+        assert_eq!(in_tiles, n.quads_skipped);
+        // Packing: row by row, x in the low half.
+        assert_eq!(tiles[0], 0);
+        assert!(tiles.windows(2).all(|w| (w[0] >> 16, w[0] & 0xffff) < (w[1] >> 16, w[1] & 0xffff)));
+        // Nothing inner (0°): every tile; an empty clip: none.
+        let everything = RdmParams::new(&fov, &fovea(0.0, 10.0), rect(100, 50)).unwrap();
+        assert_eq!(everything.periphery_tiles(everything.rect).len(), (100u32.div_ceil(tile_px) * 50u32.div_ceil(tile_px)) as usize);
+        assert!(p.periphery_tiles(PixelRect { x: 5000, y: 0, width: 10, height: 10 }).is_empty());
+    }
+
+    #[test]
+    fn compute_storage_per_format() {
+        use ash::vk::Format as F;
+        assert_eq!(ComputeStorage::for_format(F::R8G8B8A8_SRGB), Some(ComputeStorage::Rgba8 { srgb: true }));
+        assert_eq!(ComputeStorage::for_format(F::B8G8R8A8_SRGB), Some(ComputeStorage::Rgba8 { srgb: true }));
+        assert_eq!(ComputeStorage::for_format(F::B8G8R8A8_UNORM), Some(ComputeStorage::Rgba8 { srgb: false }));
+        assert_eq!(ComputeStorage::for_format(F::R16G16B16A16_SFLOAT), None);
+        assert_eq!(ComputeStorage::for_format(F::A2B10G10R10_UNORM_PACK32), None);
+        assert_eq!(FillFallback::TransferDst.name(), "transfer_dst");
+        assert_eq!(compute_path(F::R8G8B8A8_SRGB, true), Ok(ComputeStorage::Rgba8 { srgb: true }));
+        assert_eq!(compute_path(F::R8G8B8A8_SRGB, false), Err(FillFallback::TransferDst));
+        assert_eq!(compute_path(F::B10G11R11_UFLOAT_PACK32, true), Err(FillFallback::Format));
     }
 
     #[test]

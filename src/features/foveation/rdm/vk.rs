@@ -71,6 +71,8 @@ pub(crate) struct RdmDevice {
     layer_enabled: bool,
     /// The device has layer-enabled attachment rates (`foveation.method = auto` is VRS there).
     fsr_attachment: bool,
+    /// A CPU implementation (`foveation.method = auto` is no foveation there).
+    software: bool,
     used: AtomicBool,
     memory: vk::PhysicalDeviceMemoryProperties,
     pub(super) books: Mutex<Books>,
@@ -88,6 +90,7 @@ impl Plugin for RdmDevice {
         RdmDevice {
             layer_enabled: init.settings.enabled,
             fsr_attachment: init.rates.is_some(),
+            software: init.software,
             used: AtomicBool::new(false),
             memory: init.memory,
             books: Mutex::default(),
@@ -251,13 +254,19 @@ impl VkFeature for RdmDevice {
         self.used.load(Ordering::Relaxed).then(|| lock(&self.books).total.summary())
     }
     fn injects(&self, s: &Settings) -> bool {
-        let on = self.layer_enabled && s.foveation.enabled && s.foveation.method.resolve(self.fsr_attachment) == crate::features::foveation::Method::Rdm;
+        let method = s.foveation.method.resolve(self.fsr_attachment, self.software);
+        let on = self.layer_enabled && s.foveation.enabled && method == Some(crate::features::foveation::Method::Rdm);
         if on {
             self.used.store(true, Ordering::Relaxed);
+        } else if self.layer_enabled && s.foveation.enabled && method.is_none() {
+            log_once(self, "auto declined".into(), || {
+                tracing::warn!("foveation.method = auto: no foveation on this CPU Vulkan implementation (RDM's own passes cost more than they save for most apps here: docs/benchmarks.md); set foveation.method = \"rdm\" to force it")
+            });
         }
         on
     }
     fn inject(&self, d: &DeviceState, at: &Injection<'_>) {
+        super::compute::warm(d);
         if let Err(why) = record_draw(self, d, at) {
             if at.counts {
                 self.count(|s| s.count_not_applied(why));
@@ -265,6 +274,7 @@ impl VkFeature for RdmDevice {
         }
     }
     fn inject_awaiting(&self, d: &DeviceState, at: &Awaiting<'_>) {
+        super::compute::warm(d);
         if let Err(why) = record_awaiting(self, d, at) {
             tracing::debug!("radial density masking: no draw for a pass awaiting its eyes: {}", why.name());
         }

@@ -160,9 +160,10 @@ impl VrsDevice {
         if !self.layer_enabled || !s.foveation.enabled {
             return Mode::Off;
         }
-        match s.foveation.method.resolve(self.rates.is_some()) {
-            Method::Vrs if self.rates.is_some() => Mode::On,
-            Method::Vrs => Mode::Unsupported,
+        // VRS does not depend on the device type: `software` only turns auto's RDM off.
+        match s.foveation.method.resolve(self.rates.is_some(), false) {
+            Some(Method::Vrs) if self.rates.is_some() => Mode::On,
+            Some(Method::Vrs) => Mode::Unsupported,
             _ => Mode::Off,
         }
     }

@@ -1,0 +1,436 @@
+//! Radial density masking's reconstruction as a compute pass over periphery tiles only: the eye
+//! rects are copied into a storage buffer of the layer's, `shaders/rdm_recon.comp` fills the
+//! skipped quads of the tiles `rules::RdmParams::periphery_tiles` lists (a pooled host buffer),
+//! and the tiles' rows are copied back. The full-screen fragment fill (`reconstruct`) stays as the
+//! fallback for images this cannot handle (`rules::compute_path`).
+//!
+//! Why compute and not an indirect draw of the skipped quads: the draw needs a primitive per quad
+//! (hundreds of thousands per eye), which a software rasterizer pays for in setup and binning; a
+//! workgroup per 8×8-quad tile evaluates the rule once per quad (shared memory) instead of 13 times
+//! per pixel, and reads each neighbour once per quad. Why a buffer and not a storage image: the
+//! app's images need no STORAGE usage (sRGB swapchains cannot have it on most GPUs), and on
+//! lavapipe a word load is far cheaper than an image load (measured: docs/benchmarks.md). The copy
+//! back needs TRANSFER_DST, which the foveation feature adds to colour swapchains.
+
+use super::reconstruct::{layer_error, Failure};
+use super::rules::{ComputeStorage, NotApplied, Pending, RdmParams};
+use super::vk::lock;
+use crate::core::rect::PixelRect;
+use crate::vk::lifetime::PooledBuffer;
+use crate::vk::DeviceState;
+use ash::vk;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+static RECON: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_recon.comp.spv"));
+
+/// Push constants of shaders/rdm_recon.comp.
+#[repr(C)]
+#[derive(Clone, Copy)]
+struct ReconParams {
+    rect: [i32; 4],
+    tan: [f32; 4],
+    fovea: [f32; 4],
+    /// First word of the eye in the pixel buffer, first tile of the eye in the tile buffer, sRGB,
+    /// unused.
+    misc: [i32; 4],
+    /// The eye's rect within the image: what the pixel buffer holds of it.
+    clip: [i32; 4],
+}
+
+/// The compute pass's shared objects of one device, made on first use.
+pub(super) struct ComputeObjects {
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    module: vk::ShaderModule,
+    pipeline: vk::Pipeline,
+}
+
+/// Per device: the objects and the tile lists of recent eyes (the rule's parameters change with
+/// the fovea; a fixed fovea reuses its list every frame).
+#[derive(Default)]
+pub(super) struct Compute {
+    objects: Mutex<Option<ComputeObjects>>,
+    tiles: Mutex<HashMap<TileKey, Arc<Vec<u32>>>>,
+}
+
+/// An eye's rule parameters and clip, bit for bit.
+type TileKey = [u32; 16];
+
+fn tile_key(p: &RdmParams, clip: PixelRect) -> TileKey {
+    let r = p.rect;
+    [
+        r.x as u32,
+        r.y as u32,
+        r.width,
+        r.height,
+        p.tan_left.to_bits(),
+        p.tan_up.to_bits(),
+        p.step_x.to_bits(),
+        p.step_y.to_bits(),
+        p.center[0].to_bits(),
+        p.center[1].to_bits(),
+        p.k_inner.to_bits(),
+        p.k_middle.to_bits(),
+        clip.x as u32,
+        clip.y as u32,
+        clip.width,
+        clip.height,
+    ]
+}
+
+impl Compute {
+    fn tiles_of(&self, p: &RdmParams, clip: PixelRect) -> Arc<Vec<u32>> {
+        let key = tile_key(p, clip);
+        if let Some(t) = lock(&self.tiles).get(&key) {
+            return t.clone();
+        }
+        let t = Arc::new(p.periphery_tiles(clip));
+        let mut cache = lock(&self.tiles);
+        if cache.len() >= 16 {
+            cache.clear();
+        }
+        cache.insert(key, t.clone());
+        t
+    }
+
+    /// At vkDestroyDevice (the device is idle).
+    pub(super) fn destroy(&self, d: &DeviceState) {
+        if let Some(o) = lock(&self.objects).take() {
+            // SAFETY: our objects; the device is idle, nothing uses them.
+            unsafe {
+                d.fns.destroy_pipeline(o.pipeline, None);
+                d.fns.destroy_shader_module(o.module, None);
+                d.fns.destroy_pipeline_layout(o.layout, None);
+                d.fns.destroy_descriptor_set_layout(o.set_layout, None);
+            }
+        }
+    }
+}
+
+/// What a reconstruction slot keeps for the compute pass between uses (reused after its fence).
+#[derive(Default)]
+pub(super) struct SlotData {
+    set: vk::DescriptorSet,
+    /// Device-local storage buffer of the eyes' pixels, with its size.
+    pixels: Option<(vk::Buffer, vk::DeviceMemory, u64)>,
+    tiles: Option<PooledBuffer>,
+}
+
+impl SlotData {
+    /// # Safety
+    /// No pending GPU work may use the slot's objects (its fence signalled).
+    pub(super) unsafe fn destroy(&mut self, d: &DeviceState) {
+        if let Some((b, m, _)) = self.pixels.take() {
+            // SAFETY: per the contract.
+            unsafe {
+                d.fns.destroy_buffer(b, None);
+                d.fns.free_memory(m, None);
+            }
+        }
+        self.tiles = None;
+    }
+}
+
+/// Makes the reconstruction's pipeline now, at the first RDM draw a command buffer records, so
+/// its compilation (over a second on a CPU implementation) falls on the session's first frame,
+/// not on a later image release in the middle of the app's frame pacing.
+pub(super) fn warm(d: &DeviceState) {
+    if let Err(e) = objects(d) {
+        tracing::debug!("RDM compute pipeline not made ahead of use: {e}");
+    }
+}
+
+/// (pipeline layout, pipeline), made on first use.
+fn objects(d: &DeviceState) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::Pipeline), String> {
+    let mut guard = lock(&d.features.rdm.reconstruct.compute.objects);
+    if let Some(o) = guard.as_ref() {
+        return Ok((o.layout, o.set_layout, o.pipeline));
+    }
+    // Creating a few objects under this lock is fine: these calls never re-enter the layer.
+    let binding = |b: u32| vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE);
+    let bindings = [binding(0), binding(1)];
+    let words = ash::util::read_spv(&mut std::io::Cursor::new(RECON)).map_err(|e| e.to_string())?;
+    // SAFETY: valid create infos on our device (SPIR-V 1.0 compiled at build time, nothing beyond
+    // Vulkan 1.0 core); on failure what was made is destroyed.
+    unsafe {
+        let set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
+        let set_layouts = [set_layout];
+        let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::COMPUTE, offset: 0, size: std::mem::size_of::<ReconParams>() as u32 }];
+        let layout = match d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges), None) {
+            Ok(l) => l,
+            Err(e) => {
+                d.fns.destroy_descriptor_set_layout(set_layout, None);
+                return Err(e.to_string());
+            }
+        };
+        let made = d.fns.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None).map_err(|e| e.to_string()).and_then(|module| {
+            let stage = vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::COMPUTE).module(module).name(c"main");
+            let info = vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout);
+            match d.fns.create_compute_pipelines(vk::PipelineCache::null(), &[info], None) {
+                Ok(p) => Ok((module, p[0])),
+                Err((_, e)) => {
+                    d.fns.destroy_shader_module(module, None);
+                    Err(e.to_string())
+                }
+            }
+        });
+        match made {
+            Ok((module, pipeline)) => {
+                *guard = Some(ComputeObjects { set_layout, layout, module, pipeline });
+                Ok((layout, set_layout, pipeline))
+            }
+            Err(e) => {
+                d.fns.destroy_pipeline_layout(layout, None);
+                d.fns.destroy_descriptor_set_layout(set_layout, None);
+                Err(e)
+            }
+        }
+    }
+}
+
+/// A device-local buffer for `size` bytes of pixels (copy target and source, storage).
+fn pixel_buffer(d: &DeviceState, size: u64) -> Result<(vk::Buffer, vk::DeviceMemory, u64), Failure> {
+    let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST;
+    let info = vk::BufferCreateInfo::default().size(size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
+    // SAFETY: valid create / allocate infos on our device; failures destroy what was made.
+    unsafe {
+        let buffer = d.fns.create_buffer(&info, None).map_err(layer_error("pixel buffer"))?;
+        let req = d.fns.get_buffer_memory_requirements(buffer);
+        let mem = &d.features.rdm.reconstruct.memory;
+        let index = crate::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
+            .or_else(|| crate::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
+        let Some(index) = index else {
+            d.fns.destroy_buffer(buffer, None);
+            return Err((NotApplied::LayerError, "no memory type for the pixel buffer".into()));
+        };
+        let memory = d.fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(index), None);
+        let bound = memory.and_then(|m| d.fns.bind_buffer_memory(buffer, m, 0).map(|_| m).inspect_err(|_| d.fns.free_memory(m, None)));
+        match bound {
+            Ok(m) => Ok((buffer, m, size)),
+            Err(e) => {
+                d.fns.destroy_buffer(buffer, None);
+                Err((NotApplied::LayerError, format!("pixel memory: {e}")))
+            }
+        }
+    }
+}
+
+/// The slot's pixel buffer (at least `pixel_bytes`), tile buffer (at least `tile_bytes`) and
+/// compute descriptor set (allocated once from the slot's pool), the set pointed at both.
+fn prepare(d: &DeviceState, data: &mut SlotData, descriptor_pool: vk::DescriptorPool, set_layout: vk::DescriptorSetLayout, pixel_bytes: u64, tile_bytes: u64) -> Result<(), Failure> {
+    if data.pixels.is_none_or(|(_, _, size)| size < pixel_bytes) {
+        if let Some((b, m, _)) = data.pixels.take() {
+            // SAFETY: the slot's fence signalled: nothing uses them.
+            unsafe {
+                d.fns.destroy_buffer(b, None);
+                d.fns.free_memory(m, None);
+            }
+        }
+        data.pixels = Some(pixel_buffer(d, pixel_bytes)?);
+    }
+    if data.tiles.as_ref().is_none_or(|b| b.size < tile_bytes) {
+        // The old buffer (if any) goes back to the pool: the slot's fence signalled.
+        data.tiles = Some(PooledBuffer::take(d, tile_bytes, &d.features.rdm.reconstruct.memory).map_err(|e| (NotApplied::LayerError, format!("tile buffer: {e}")))?);
+    }
+    if data.set == vk::DescriptorSet::null() {
+        let layouts = [set_layout];
+        // SAFETY: the slot's pool has room for this one compute set (see `new_slot`).
+        data.set = unsafe { d.fns.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(descriptor_pool).set_layouts(&layouts)) }
+            .map_err(layer_error("compute descriptor set"))?[0];
+    }
+    let (pixels, tiles) = (data.pixels.expect("just made").0, data.tiles.as_ref().expect("just taken").buffer);
+    let infos = [vk::DescriptorBufferInfo { buffer: pixels, offset: 0, range: vk::WHOLE_SIZE }, vk::DescriptorBufferInfo { buffer: tiles, offset: 0, range: vk::WHOLE_SIZE }];
+    let writes = [
+        vk::WriteDescriptorSet::default().dst_set(data.set).dst_binding(0).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&infos[..1]),
+        vk::WriteDescriptorSet::default().dst_set(data.set).dst_binding(1).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&infos[1..]),
+    ];
+    // SAFETY: the set is not in use (the slot's fence signalled); valid handles.
+    unsafe { d.fns.update_descriptor_sets(&writes, &[]) };
+    Ok(())
+}
+
+/// Records into `cb` (begun, the slot's) the reconstruction of `eyes` of the swapchain image
+/// `image` (in COLOR_ATTACHMENT_OPTIMAL, as the app released it; left so): copy the eyes' rects
+/// into the pixel buffer, one dispatch per eye over its periphery tiles, copy the tiles' rows
+/// back. Returns the tiles dispatched.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn record(
+    d: &DeviceState,
+    data: &mut SlotData,
+    descriptor_pool: vk::DescriptorPool,
+    cb: vk::CommandBuffer,
+    image: vk::Image,
+    storage: ComputeStorage,
+    (width, height): (u32, u32),
+    eyes: &[Pending],
+) -> Result<u64, Failure> {
+    let (layout, set_layout, pipeline) = objects(d).map_err(|e| (NotApplied::LayerError, e))?;
+    let whole = PixelRect { x: 0, y: 0, width, height };
+    let me = &d.features.rdm.reconstruct.compute;
+    let lists: Vec<Arc<Vec<u32>>> = eyes.iter().map(|p| me.tiles_of(&p.params, whole)).collect();
+    let clips: Vec<PixelRect> = eyes.iter().map(|p| p.params.rect.intersect(&whole)).collect();
+    // Each eye's pixels from word `bases[i]`, rows of its clip's width.
+    let mut bases = Vec::with_capacity(eyes.len());
+    let mut words = 0u64;
+    for c in &clips {
+        bases.push(words);
+        words += c.area();
+    }
+    let total: usize = lists.iter().map(|l| l.len()).sum();
+    prepare(d, data, descriptor_pool, set_layout, words.max(1) * 4, (total.max(1) * 4) as u64)?;
+    let tiles_buf = data.tiles.as_ref().expect("prepared");
+    let mut firsts = Vec::with_capacity(lists.len());
+    let mut offset = 0u64;
+    for l in &lists {
+        firsts.push((offset / 4) as i32);
+        tiles_buf.write(offset, l);
+        offset += 4 * l.len() as u64;
+    }
+    let pixels = data.pixels.expect("prepared").0;
+    let mut layers: Vec<u32> = eyes.iter().map(|p| p.layer).collect();
+    layers.sort_unstable();
+    layers.dedup();
+    let range = |layer: u32| vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: 1 };
+    let swapchain_layers = |(from, src): (vk::ImageLayout, vk::AccessFlags), (to, dst): (vk::ImageLayout, vk::AccessFlags)| -> Vec<vk::ImageMemoryBarrier> {
+        layers
+            .iter()
+            .map(|&l| {
+                vk::ImageMemoryBarrier::default()
+                    .src_access_mask(src)
+                    .dst_access_mask(dst)
+                    .old_layout(from)
+                    .new_layout(to)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .image(image)
+                    .subresource_range(range(l))
+            })
+            .collect()
+    };
+    // A rect `r` of eye `i` (inside its clip) ↔ its words in the pixel buffer.
+    let region = |i: usize, r: PixelRect| {
+        let c = clips[i];
+        vk::BufferImageCopy {
+            buffer_offset: 4 * (bases[i] + (r.y - c.y) as u64 * c.width as u64 + (r.x - c.x) as u64),
+            buffer_row_length: c.width,
+            buffer_image_height: 0,
+            image_subresource: vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: eyes[i].layer, layer_count: 1 },
+            image_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+            image_extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
+        }
+    };
+    let copy_in: Vec<vk::BufferImageCopy> = clips.iter().enumerate().filter(|(_, c)| c.area() > 0).map(|(i, c)| region(i, *c)).collect();
+    // Back: only the tiles' pixels can have changed; a run of neighbouring tiles in a row is one
+    // region (regions never overlap: tiles of one eye are disjoint, eyes' rects too).
+    let copy_back: Vec<vk::BufferImageCopy> = eyes.iter().zip(&lists).enumerate().flat_map(|(i, (p, l))| tile_spans(&p.params, l, clips[i]).into_iter().map(move |r| (i, r))).map(|(i, r)| region(i, r)).collect();
+    let buffer_barrier = |src, dst| vk::BufferMemoryBarrier::default().src_access_mask(src).dst_access_mask(dst).src_queue_family_index(vk::QUEUE_FAMILY_IGNORED).dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED).buffer(pixels).offset(0).size(vk::WHOLE_SIZE);
+    let fns = &d.fns;
+    // SAFETY: `cb` is the slot's, begun; every handle is alive (the swapchain image is acquired
+    // and not yet released; the pixel and tile buffers are the slot's, idle since its fence
+    // signalled); arrays outlive the calls; push constants match the layout's range.
+    unsafe {
+        // The app's writes (rendering, or its resolve / copy into the image) finish before the
+        // copy reads the image. The pixel buffer's earlier uses completed (the slot's fence).
+        let first = swapchain_layers(
+            (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::TRANSFER_WRITE),
+            (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::TRANSFER_READ),
+        );
+        let all_before = vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::FRAGMENT_SHADER;
+        fns.cmd_pipeline_barrier(cb, all_before, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &first);
+        fns.cmd_copy_image_to_buffer(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, pixels, &copy_in);
+        let rw = vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE;
+        fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::COMPUTE_SHADER, vk::DependencyFlags::empty(), &[], &[buffer_barrier(vk::AccessFlags::TRANSFER_WRITE, rw)], &[]);
+        fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, pipeline);
+        fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &[data.set], &[]);
+        let ComputeStorage::Rgba8 { srgb } = storage;
+        for (i, (p, l)) in eyes.iter().zip(&lists).enumerate() {
+            if l.is_empty() || clips[i].area() == 0 {
+                continue;
+            }
+            let (r, c) = (p.params.rect, clips[i]);
+            let pc = ReconParams {
+                rect: [r.x, r.y, r.width as i32, r.height as i32],
+                tan: [p.params.tan_left, p.params.tan_up, p.params.step_x, p.params.step_y],
+                fovea: [p.params.center[0], p.params.center[1], p.params.k_inner, p.params.k_middle],
+                misc: [bases[i] as i32, firsts[i], srgb as i32, 0],
+                clip: [c.x, c.y, c.width as i32, c.height as i32],
+            };
+            let bytes = std::slice::from_raw_parts(&pc as *const ReconParams as *const u8, std::mem::size_of::<ReconParams>());
+            fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, bytes);
+            fns.cmd_dispatch(cb, l.len() as u32, 1, 1);
+        }
+        // The shader's writes before the copy back; the copy-in's reads of the image before the
+        // copy back overwrites it.
+        let back = swapchain_layers((vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::TRANSFER_READ), (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE));
+        let src = vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER;
+        fns.cmd_pipeline_barrier(cb, src, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[buffer_barrier(vk::AccessFlags::SHADER_WRITE, vk::AccessFlags::TRANSFER_READ)], &back);
+        if !copy_back.is_empty() {
+            fns.cmd_copy_buffer_to_image(cb, pixels, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &copy_back);
+        }
+        // As OpenXR requires at release: COLOR_ATTACHMENT_OPTIMAL; whatever reads the image next
+        // (the runtime's compositor or capture) sees the reconstructed pixels.
+        let last = swapchain_layers(
+            (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE),
+            (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE),
+        );
+        fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &last);
+    }
+    Ok(total as u64)
+}
+
+/// The pixel rects the tiles of one eye cover within `clip`, a run of neighbouring tiles of a
+/// row merged into one (the list is in row order).
+fn tile_spans(p: &RdmParams, tiles: &[u32], clip: PixelRect) -> Vec<PixelRect> {
+    let tile_px = 2 * super::rules::TILE_QUADS as i32;
+    let mut out = Vec::new();
+    let mut run: Option<(u32, u32, u32)> = None;
+    let mut flush = |(x0, x1, y): (u32, u32, u32)| {
+        let r = PixelRect { x: p.rect.x + x0 as i32 * tile_px, y: p.rect.y + y as i32 * tile_px, width: (x1 - x0 + 1) * tile_px as u32, height: tile_px as u32 };
+        let r = r.intersect(&p.rect).intersect(&clip);
+        if r.area() > 0 {
+            out.push(r);
+        }
+    };
+    for &t in tiles {
+        let (x, y) = (t & 0xffff, t >> 16);
+        run = match run {
+            Some((x0, x1, ry)) if ry == y && x1 + 1 == x => Some((x0, x, y)),
+            Some(r) => {
+                flush(r);
+                Some((x, x, y))
+            }
+            None => Some((x, x, y)),
+        };
+    }
+    if let Some(r) = run {
+        flush(r);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shaders_are_spirv_and_spans_merge_rows() {
+        assert_eq!(&RECON[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
+        assert_eq!(std::mem::size_of::<ReconParams>(), 80);
+        let fov = crate::shared::ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
+        let fovea = crate::shared::FoveaView { view: 0, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 };
+        // Tiles of 32 px: row 0 tiles 0, 1, 2 → one span, clipped to the rect's 80 px; row 1
+        // (8 px left of the rect): tiles 0 and 2, apart.
+        assert_eq!(super::super::rules::TILE_QUADS, 16);
+        let p = RdmParams::new(&fov, &fovea, PixelRect { x: 100, y: 0, width: 80, height: 40 }).unwrap();
+        let spans = tile_spans(&p, &[0, 1, 2, 1 << 16, 2 | 1 << 16], PixelRect { x: 0, y: 0, width: 1000, height: 1000 });
+        assert_eq!(
+            spans,
+            vec![
+                PixelRect { x: 100, y: 0, width: 80, height: 32 },
+                PixelRect { x: 100, y: 32, width: 32, height: 8 },
+                PixelRect { x: 164, y: 32, width: 16, height: 8 },
+            ]
+        );
+    }
+}
