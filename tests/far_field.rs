@@ -132,7 +132,7 @@ fn judge(case: &Case, out: &Outcome, min_psnr: f64) {
 
 #[test]
 fn per_eye_infinity_matches_the_reference() {
-    for (rendering, depth) in [("render-pass", "standard"), ("dynamic", "reverse"), ("render-pass2", "reverse"), ("dynamic", "standard")] {
+    for (rendering, depth) in ["render-pass", "render-pass2", "dynamic"].into_iter().flat_map(|r| ["standard", "reverse"].map(|d| (r, d))) {
         check(Case::new(&format!("ff-per-eye-{rendering}-{depth}"), &["--layout", "per-eye", "--rendering", rendering, "--depth", depth]), 35.0);
     }
 }
@@ -158,7 +158,9 @@ fn debug_tint_marks_the_expected_pixels() {
 /// rotation between the frames (the mock turns the head at a fixed rate).
 #[test]
 fn multiview_and_side_by_side_use_the_previous_frame() {
-    for (layout, rendering, depth) in [("multiview", "render-pass", "standard"), ("multiview", "dynamic", "reverse"), ("side-by-side", "render-pass2", "standard"), ("side-by-side", "dynamic", "reverse")] {
+    let renderings = ["render-pass", "render-pass2", "dynamic"];
+    let cases = ["multiview", "side-by-side"].into_iter().flat_map(|l| renderings.into_iter().flat_map(move |r| ["standard", "reverse"].map(|d| (l, r, d))));
+    for (layout, rendering, depth) in cases {
         let mut case = Case::new(&format!("ff-{layout}-{rendering}-{depth}"), &["--layout", layout, "--rendering", rendering, "--depth", depth]).env("MOCK_XR_HEAD_YAW_DEG_PER_S", "20").frame(2);
         case.previous_frame = true;
         check(case, 35.0);
