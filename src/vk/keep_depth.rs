@@ -13,12 +13,17 @@ pub(crate) fn wanted(d: &super::DeviceState) -> bool {
     d.features.all().iter().any(|f| f.keeps_depth(&s))
 }
 
-fn keep(op: vk::AttachmentStoreOp) -> vk::AttachmentStoreOp {
-    if op == vk::AttachmentStoreOp::STORE {
-        op
-    } else {
-        vk::AttachmentStoreOp::STORE
+/// Makes the attachments the subpasses use as depth (`depth_refs`) store; `store_op` picks an
+/// attachment description's store op. Whether anything changed.
+fn store_depth<A>(attachments: &mut [A], depth_refs: impl IntoIterator<Item = u32>, store_op: impl Fn(&mut A) -> &mut vk::AttachmentStoreOp) -> bool {
+    let mut changed = false;
+    for r in depth_refs {
+        if let Some(op) = attachments.get_mut(r as usize).map(&store_op) {
+            changed |= *op != vk::AttachmentStoreOp::STORE;
+            *op = vk::AttachmentStoreOp::STORE;
+        }
     }
+    changed
 }
 
 /// A `VkRenderPassCreateInfo` whose depth attachments store; `info` points into `_attachments`.
@@ -38,16 +43,8 @@ pub(crate) unsafe fn render_pass(ci: *const vk::RenderPassCreateInfo<'_>) -> Opt
         let ci = &*ci;
         let subpasses = super::convert::slice(ci.p_subpasses, ci.subpass_count);
         let mut attachments = super::convert::slice(ci.p_attachments, ci.attachment_count).to_vec();
-        let mut changed = false;
-        for s in subpasses {
-            if let Some(r) = s.p_depth_stencil_attachment.as_ref() {
-                if let Some(a) = attachments.get_mut(r.attachment as usize) {
-                    changed |= a.store_op != vk::AttachmentStoreOp::STORE;
-                    a.store_op = keep(a.store_op);
-                }
-            }
-        }
-        if !changed {
+        let depth_refs = subpasses.iter().filter_map(|s| s.p_depth_stencil_attachment.as_ref().map(|r| r.attachment));
+        if !store_depth(&mut attachments, depth_refs, |a| &mut a.store_op) {
             return None;
         }
         let mut out = Box::new(RenderPassV1 { _attachments: attachments, info: std::mem::transmute::<vk::RenderPassCreateInfo<'_>, vk::RenderPassCreateInfo<'static>>(*ci) });
@@ -72,16 +69,8 @@ pub(crate) unsafe fn render_pass2(ci: *const vk::RenderPassCreateInfo2<'_>) -> O
         let subpasses = super::convert::slice(ci.p_subpasses, ci.subpass_count);
         let mut attachments: Vec<vk::AttachmentDescription2<'static>> =
             super::convert::slice(ci.p_attachments, ci.attachment_count).iter().map(|a| std::mem::transmute::<vk::AttachmentDescription2<'_>, vk::AttachmentDescription2<'static>>(*a)).collect();
-        let mut changed = false;
-        for s in subpasses {
-            if let Some(r) = s.p_depth_stencil_attachment.as_ref() {
-                if let Some(a) = attachments.get_mut(r.attachment as usize) {
-                    changed |= a.store_op != vk::AttachmentStoreOp::STORE;
-                    a.store_op = keep(a.store_op);
-                }
-            }
-        }
-        if !changed {
+        let depth_refs = subpasses.iter().filter_map(|s| s.p_depth_stencil_attachment.as_ref().map(|r| r.attachment));
+        if !store_depth(&mut attachments, depth_refs, |a| &mut a.store_op) {
             return None;
         }
         let mut out = Box::new(RenderPassV2 { _attachments: attachments, info: std::mem::transmute::<vk::RenderPassCreateInfo2<'_>, vk::RenderPassCreateInfo2<'static>>(*ci) });
@@ -111,5 +100,23 @@ pub(crate) unsafe fn rendering(info: *const vk::RenderingInfo<'_>) -> Option<Box
         let mut out = Box::new(Rendering { info: std::mem::transmute::<vk::RenderingInfo<'_>, vk::RenderingInfo<'static>>(*info), _depth: kept });
         out.info.p_depth_attachment = &*out._depth;
         Some(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_depth_attachments_that_discard_change() {
+        let att = |op| vk::AttachmentDescription { store_op: op, ..Default::default() };
+        let mut a = vec![att(vk::AttachmentStoreOp::DONT_CARE), att(vk::AttachmentStoreOp::DONT_CARE), att(vk::AttachmentStoreOp::STORE)];
+        // Attachment 1 is the depth of a subpass; 2 already stores; 7 is out of range (ignored).
+        assert!(store_depth(&mut a, [1, 2, 7], |a| &mut a.store_op));
+        assert_eq!(a.iter().map(|a| a.store_op).collect::<Vec<_>>(), [vk::AttachmentStoreOp::DONT_CARE, vk::AttachmentStoreOp::STORE, vk::AttachmentStoreOp::STORE]);
+        assert!(!store_depth(&mut a, [1, 2], |a| &mut a.store_op), "nothing left to change");
+        let mut none = vec![att(vk::AttachmentStoreOp::NONE)];
+        assert!(store_depth(&mut none, [0], |a| &mut a.store_op));
+        assert_eq!(none[0].store_op, vk::AttachmentStoreOp::STORE);
     }
 }
