@@ -268,20 +268,13 @@ impl MaskDevice {
         let recorded: Vec<EyeDraw> = if multiview { draws.iter().take(1).copied().collect() } else { draws.clone() };
         let data = self.data(d, &g, Target::Eyes { draws, multiview })?;
         data.refresh(self, &g, None);
-        let vk_buffer = data.buffer.buffer;
-        let fns = d.fns.fp_v1_0();
+        let draws: Vec<inject::IndirectDraw> =
+            recorded.iter().enumerate().map(|(i, dr)| inject::IndirectDraw { slot: i as u64, viewport: inject::fail_viewport(dr.viewport, plan.fail_depth), scissor: dr.scissor }).collect();
         // SAFETY: `at.cb` is recording inside the pass the plan was made for (the chassis just
         // recorded its begin / clear); the pipeline is compatible with it; the buffer is held by
-        // the app's command buffer until its recording is closed and its submissions completed.
-        unsafe {
-            (fns.cmd_bind_pipeline)(at.cb, vk::PipelineBindPoint::GRAPHICS, p);
-            (fns.cmd_bind_vertex_buffers)(at.cb, 0, 1, &vk_buffer, &data.vertex_offset());
-            for (i, dr) in recorded.iter().enumerate() {
-                (fns.cmd_set_viewport)(at.cb, 0, 1, &inject::fail_viewport(dr.viewport, plan.fail_depth));
-                (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(dr.scissor));
-                (fns.cmd_draw_indirect)(at.cb, vk_buffer, inject::DRAW_ARGS * i as u64, 1, inject::DRAW_ARGS as u32);
-            }
-        }
+        // the app's command buffer (below) until its recording is closed and its submissions
+        // completed.
+        unsafe { inject::record_indirect(d, at.cb, p, data.buffer.buffer, data.vertex_offset(), &draws) };
         let pixels = plan.draws.iter().map(|dr| (dr.view, self.coverage(&g, dr.view, dr.viewport, dr.scissor))).collect();
         lifetime::hold(d, at.owner, data);
         Ok(pixels)
@@ -354,18 +347,11 @@ impl VkFeature for MaskDevice {
         let Ok(p) = self.pipeline(d, at.pass, &plan, at.settings.mask.debug) else { return };
         let Ok(data) = self.data(d, &g, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area }) else { return };
         data.refresh(self, &g, None);
-        let vk_buffer = data.buffer.buffer;
-        let fns = d.fns.fp_v1_0();
+        let draw = inject::IndirectDraw { slot: 0, viewport: inject::fail_viewport(area, at.fail_depth), scissor: area };
         // SAFETY: `at.cb` is recording inside the pass (the chassis just recorded its begin /
         // clear); the pipeline is compatible with it; the buffer (empty draw arguments until
-        // filled) is held by the app's command buffer.
-        unsafe {
-            (fns.cmd_bind_pipeline)(at.cb, vk::PipelineBindPoint::GRAPHICS, p);
-            (fns.cmd_bind_vertex_buffers)(at.cb, 0, 1, &vk_buffer, &data.vertex_offset());
-            (fns.cmd_set_viewport)(at.cb, 0, 1, &inject::fail_viewport(area, at.fail_depth));
-            (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(area));
-            (fns.cmd_draw_indirect)(at.cb, vk_buffer, 0, 1, inject::DRAW_ARGS as u32);
-        }
+        // filled) is held by the app's command buffer (below).
+        unsafe { inject::record_indirect(d, at.cb, p, data.buffer.buffer, data.vertex_offset(), &[draw]) };
         lifetime::hold(d, at.owner, data);
     }
     /// Refreshes idle recordings for the live mask and settings, then counts what each submitted

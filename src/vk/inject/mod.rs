@@ -503,6 +503,33 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
     }
 }
 
+/// One indirect draw of a feature's: its arguments' slot in the recording's buffer, and where.
+pub(crate) struct IndirectDraw {
+    pub slot: u64,
+    pub viewport: vk::Viewport,
+    pub scissor: PixelRect,
+}
+
+/// Records a feature's indirect draws from its recording's buffer (arguments at the start, one
+/// `DRAW_ARGS` per slot; vertices from `vertex_offset`), each with its viewport and scissor.
+///
+/// # Safety
+/// `cb` is recording inside a pass `pipeline` is compatible with, and `buffer` is held by the
+/// recording that owns `cb` (`lifetime::hold`) until its submissions complete.
+pub(crate) unsafe fn record_indirect(d: &DeviceState, cb: vk::CommandBuffer, pipeline: vk::Pipeline, buffer: vk::Buffer, vertex_offset: u64, draws: &[IndirectDraw]) {
+    let fns = d.fns.fp_v1_0();
+    // SAFETY: per the contract; every pointer is to a local that outlives its call.
+    unsafe {
+        (fns.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+        (fns.cmd_bind_vertex_buffers)(cb, 0, 1, &buffer, &vertex_offset);
+        for dr in draws {
+            (fns.cmd_set_viewport)(cb, 0, 1, &dr.viewport);
+            (fns.cmd_set_scissor)(cb, 0, 1, &rect2d(dr.scissor));
+            (fns.cmd_draw_indirect)(cb, buffer, DRAW_ARGS * dr.slot, 1, DRAW_ARGS as u32);
+        }
+    }
+}
+
 /// The viewport of an injected depth draw: the eye's rect, with the depth range pinned to the fail
 /// depth so one pipeline serves both depth conventions.
 pub(crate) fn fail_viewport(r: PixelRect, fail_depth: f32) -> vk::Viewport {

@@ -391,27 +391,17 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     data.refresh(me, None);
     let cb = at.cb;
     let vk_buffer = data.buffer.buffer;
-    let fns = d.fns.fp_v1_0();
     let viewport = |r: PixelRect| inject::fail_viewport(r, plan.fail_depth);
+    let draws: Vec<inject::IndirectDraw> = if multiview {
+        let dr = plan.draws[0];
+        vec![inject::IndirectDraw { slot: 0, viewport: viewport(dr.viewport), scissor: dr.scissor }]
+    } else {
+        plan.draws.iter().enumerate().filter(|(_, dr)| dr.scissor.area() > 0).map(|(i, dr)| inject::IndirectDraw { slot: i as u64, viewport: viewport(dr.viewport), scissor: dr.scissor }).collect()
+    };
     // SAFETY: `cb` is recording inside the pass the plan was made for; the pipeline is compatible
     // with it; the buffer is held by the app's command buffer (below) until its recording closes
     // and its submissions complete.
-    unsafe {
-        (fns.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::GRAPHICS, p);
-        (fns.cmd_bind_vertex_buffers)(cb, 0, 1, &vk_buffer, &data.vertex_offset());
-        if multiview {
-            let dr = plan.draws[0];
-            (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
-            (fns.cmd_set_scissor)(cb, 0, 1, &inject::rect2d(dr.scissor));
-            (fns.cmd_draw_indirect)(cb, vk_buffer, 0, 1, inject::DRAW_ARGS as u32);
-        } else {
-            for (i, dr) in plan.draws.iter().enumerate().filter(|(_, dr)| dr.scissor.area() > 0) {
-                (fns.cmd_set_viewport)(cb, 0, 1, &viewport(dr.viewport));
-                (fns.cmd_set_scissor)(cb, 0, 1, &inject::rect2d(dr.scissor));
-                (fns.cmd_draw_indirect)(cb, vk_buffer, inject::DRAW_ARGS * i as u64, 1, inject::DRAW_ARGS as u32);
-            }
-        }
-    }
+    unsafe { inject::record_indirect(d, cb, p, vk_buffer, data.vertex_offset(), &draws) };
     lifetime::hold(d, at.owner, data);
     let counts: Vec<(u32, SkipCount)> = eyes.iter().map(|(dr, p)| (dr.view, count(me, fovea_generation, views_generation, dr, p))).collect();
     log_once(me, format!("draw {:?} {}", plan.layout, plan.intermediate), || {
@@ -437,17 +427,10 @@ fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result
     let p = pipeline(me, d, at.pass, &plan)?;
     let data = drawn(me, d, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area })?;
     data.refresh(me, None);
-    let vk_buffer = data.buffer.buffer;
-    let fns = d.fns.fp_v1_0();
+    let draw = inject::IndirectDraw { slot: 0, viewport: inject::fail_viewport(area, at.fail_depth), scissor: area };
     // SAFETY: `at.cb` is recording inside the pass; the pipeline is compatible with it; the
-    // buffer (empty draw arguments until filled) is held by the app's command buffer.
-    unsafe {
-        (fns.cmd_bind_pipeline)(at.cb, vk::PipelineBindPoint::GRAPHICS, p);
-        (fns.cmd_bind_vertex_buffers)(at.cb, 0, 1, &vk_buffer, &data.vertex_offset());
-        (fns.cmd_set_viewport)(at.cb, 0, 1, &inject::fail_viewport(area, at.fail_depth));
-        (fns.cmd_set_scissor)(at.cb, 0, 1, &inject::rect2d(area));
-        (fns.cmd_draw_indirect)(at.cb, vk_buffer, 0, 1, inject::DRAW_ARGS as u32);
-    }
+    // buffer (empty draw arguments until filled) is held by the app's command buffer (below).
+    unsafe { inject::record_indirect(d, at.cb, p, data.buffer.buffer, data.vertex_offset(), &[draw]) };
     lifetime::hold(d, at.owner, data);
     Ok(())
 }
