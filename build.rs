@@ -20,6 +20,7 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("far_field.vert", "far_field_mv.vert.spv", &["-DMULTIVIEW"]),
     ("far_field.frag", "far_field.frag.spv", &[]),
     ("far_field.frag", "far_field_msaa.frag.spv", &["-DMSAA"]),
+    ("far_field_copy.comp", "far_field_copy.comp.spv", &[]),
 ];
 
 fn main() {

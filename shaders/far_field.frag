@@ -4,6 +4,9 @@
 // and write the source's colour only where every source sample of the footprint lies beyond the
 // split distance. Anywhere else nothing is written: the app renders the pixel itself.
 //
+// The vertex shader classed the fragment's tile (`cls`): in a FULL tile every source texel any of
+// its fragments may read is far, so the tests below are known to pass and are skipped.
+//
 // MSAA (multisampled eye passes): the copies are multisampled too; a source texel is far only if
 // every sample is, and its colour is the mean of its samples (what a resolve gives), filtered
 // bilinearly by hand.
@@ -28,6 +31,8 @@ layout(location = 4) flat in vec4 depth;
 // The copy's extent (pixels); z: samples per pixel.
 layout(location = 5) flat in vec4 size;
 layout(location = 6) flat in uvec4 flags;
+// The tile's class (far_field.vert): 1 = FULL, 2 = MIXED (culled tiles have no fragments).
+layout(location = 7) flat in uint cls;
 
 layout(location = 0) out vec4 out_color;
 
@@ -70,20 +75,21 @@ bool far_at(ivec2 t) {
 }
 
 void main() {
+    bool full = cls == 1u;
     mat3 m = mat3(m0.xyz, m1.xyz, m2.xyz);
     vec3 h = m * vec3(gl_FragCoord.xy, 1.0);
-    if (h.z <= 0.0) {
+    if (!full && h.z <= 0.0) {
         discard;
     }
     vec2 uv = h.xy / h.z;
     if (k.w > 0.5) {
         ivec2 t = ivec2(floor(uv));
-        if (!far_at(t)) {
+        if (!full && !far_at(t)) {
             discard;
         }
         float inv_z = max(depth.x + depth.y * stored_depth(t), 0.0);
         vec3 shifted = h + k.xyz * inv_z;
-        if (shifted.z <= 0.0) {
+        if (!full && shifted.z <= 0.0) {
             discard;
         }
         uv = shifted.xy / shifted.z;
@@ -91,19 +97,21 @@ void main() {
     // The bilinear footprint: all four samples must be far.
     ivec2 t0 = ivec2(floor(uv - 0.5));
 #ifdef MSAA
-    if (!far_at(t0) || !far_at(t0 + ivec2(1, 0)) || !far_at(t0 + ivec2(0, 1)) || !far_at(t0 + ivec2(1, 1))) {
+    if (!full && (!far_at(t0) || !far_at(t0 + ivec2(1, 0)) || !far_at(t0 + ivec2(0, 1)) || !far_at(t0 + ivec2(1, 1)))) {
         discard;
     }
 #else
-    // One gather fetches the four depths (fragment shading is the scarce resource on some GPUs:
-    // one fetch instead of four).
-    if (!inside(t0) || !inside(t0 + ivec2(1, 1))) {
-        discard;
-    }
-    vec2 centre = (vec2(t0) + 1.0) * vec2(m0.w, m1.w);
-    vec4 d4 = flags.x == 0u ? textureGather(depth0, centre, 0) : textureGather(depth1, centre, 0);
-    if (any(greaterThanEqual(depth.x + depth.y * d4, vec4(depth.z)))) {
-        discard;
+    if (!full) {
+        // One gather fetches the four depths (fragment shading is the scarce resource on some
+        // GPUs: one fetch instead of four).
+        if (!inside(t0) || !inside(t0 + ivec2(1, 1))) {
+            discard;
+        }
+        vec2 centre = (vec2(t0) + 1.0) * vec2(m0.w, m1.w);
+        vec4 d4 = flags.x == 0u ? textureGather(depth0, centre, 0) : textureGather(depth1, centre, 0);
+        if (any(greaterThanEqual(depth.x + depth.y * d4, vec4(depth.z)))) {
+            discard;
+        }
     }
 #endif
 #ifdef MSAA

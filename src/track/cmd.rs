@@ -291,6 +291,38 @@ pub struct CmdState {
     /// Descriptor set bindings still in effect, oldest first (a bind fully covered by a later
     /// one of the same sets is dropped).
     descriptor_sets: Vec<StateCmd>,
+    /// The compute bind point's state, which a dispatch of the layer's outside passes replaces.
+    pub compute: ComputeState,
+}
+
+/// What the app bound at `VK_PIPELINE_BIND_POINT_COMPUTE` (restored after the layer's own
+/// dispatches in its command buffer, `vk::inject::restore::RestoreCompute`).
+#[derive(Clone, Debug, Default)]
+pub struct ComputeState {
+    pub pipeline: Option<u64>,
+    /// `StateCmd::BindDescriptorSets` at the compute bind point still in effect, oldest first.
+    pub sets: Vec<StateCmd>,
+}
+
+impl ComputeState {
+    pub fn bind_sets(&mut self, cmd: StateCmd) {
+        keep_binding(&mut self.sets, cmd);
+    }
+}
+
+/// Adds a descriptor set binding to `list`, dropping earlier ones it fully covers.
+fn keep_binding(list: &mut Vec<StateCmd>, cmd: StateCmd) {
+    if let StateCmd::BindDescriptorSets { first, ref sets, .. } = cmd {
+        let end = first + sets.len() as u32;
+        list.retain(|b| match b {
+            StateCmd::BindDescriptorSets { first: f, sets: s, .. } => !(*f >= first && *f + s.len() as u32 <= end),
+            _ => true,
+        });
+    }
+    if list.len() >= MAX_PUSHES {
+        list.remove(0);
+    }
+    list.push(cmd);
 }
 
 const MAX_PUSHES: usize = 64;
@@ -345,17 +377,7 @@ impl CmdState {
                 put(&mut self.scissors, 0, &s);
                 self.scissor_count = Some(s.len() as u32);
             }
-            StateCmd::BindDescriptorSets { first, ref sets, .. } => {
-                let end = first + sets.len() as u32;
-                self.descriptor_sets.retain(|b| match b {
-                    StateCmd::BindDescriptorSets { first: f, sets: s, .. } => !(*f >= first && *f + s.len() as u32 <= end),
-                    _ => true,
-                });
-                if self.descriptor_sets.len() >= MAX_PUSHES {
-                    self.descriptor_sets.remove(0);
-                }
-                self.descriptor_sets.push(cmd);
-            }
+            StateCmd::BindDescriptorSets { .. } => keep_binding(&mut self.descriptor_sets, cmd),
             StateCmd::PushConstants { layout, stages, offset, ref data } => {
                 let end = offset + data.len() as u32;
                 self.push_constants.retain(|p| match p {

@@ -1,7 +1,9 @@
 //! The far field's source side: the slots (one colour + one depth image per view, read by the
 //! reuse draws through one descriptor set) and the copies of a source eye's attachments into them
 //! when its pass ends — the app's images go to TRANSFER_SRC for the copy and back to the layout
-//! the pass left them in; the slots stay GENERAL for their whole life.
+//! the pass left them in; the slots stay GENERAL for their whole life. Single-sampled slots are
+//! filled by a compute pass (`super::compute`), which also reduces the depth to a range per tile
+//! for the reuse draw's culling; multisampled ones by image copies (their tiles stay unknown).
 
 use crate::core::rect::PixelRect;
 use crate::settings::Settings;
@@ -33,14 +35,34 @@ pub(super) struct Slots {
     pub(super) pool: vk::DescriptorPool,
     pub(super) set: vk::DescriptorSet,
     pub(super) extent: vk::Extent2D,
+    /// The app's formats the slots were made for.
     pub(super) color_format: vk::Format,
     pub(super) depth_format: vk::Format,
     pub(super) samples: vk::SampleCountFlags,
+    /// Filled by the compute copy (single-sampled: RGBA16F colour, R32F depth, STORAGE usage);
+    /// else by image copies in the app's formats.
+    pub(super) compute: bool,
     pub(super) initialized: AtomicBool,
     /// What each slot holds, as of the submissions seen so far: the copy's stamp and its extent.
     pub(super) copied: Mutex<[Option<(Stamp, PixelRect)>; 2]>,
+    /// Both slots' per-tile depth ranges (`rules::tile_grid` of `extent`, slot 0's rows first),
+    /// NaN where not reduced.
+    pub(super) tiles: vk::Buffer,
+    tiles_memory: vk::DeviceMemory,
+    pub(super) grid: (u32, u32),
     pub(super) trash: Arc<Mutex<Vec<Garbage>>>,
 }
+
+/// The tile entries' fill where a slot was not reduced: NaN, which the reuse draw reads as unknown.
+pub(super) const NOT_REDUCED: u32 = 0x7fc0_0000;
+
+impl Slots {
+    /// The bytes of one slot's tile ranges.
+    pub(super) fn tile_bytes(&self) -> u64 {
+        self.grid.0 as u64 * self.grid.1 as u64 * 8
+    }
+}
+
 
 impl Drop for Slots {
     fn drop(&mut self) {
@@ -51,6 +73,7 @@ impl Drop for Slots {
             }
         }
         t.push(Garbage::DescriptorPool(std::mem::take(&mut self.pool)));
+        t.push(Garbage::Buffer(std::mem::take(&mut self.tiles), std::mem::take(&mut self.tiles_memory)));
     }
 }
 
@@ -83,6 +106,7 @@ pub(super) struct CopyOp {
 #[derive(Clone, Copy)]
 pub(super) struct Source {
     pub(super) image: vk::Image,
+    pub(super) format: vk::Format,
     pub(super) layout: vk::ImageLayout,
     pub(super) aspect: vk::ImageAspectFlags,
     pub(super) base_layer: u32,
@@ -99,13 +123,34 @@ pub(super) struct PendingCopy {
 }
 
 /// Records the copies of the source views of the pass that just ended in `cb`.
-pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: PendingCopy, s: &Settings) {
+///
+/// Returns why it could not, if so (then the slots keep what they had: no copy is noted).
+pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: PendingCopy, s: &Settings, copier: Option<&super::compute::Copier>) -> Result<(), &'static str> {
     let sources: Vec<EyeDraw> = p.draws.iter().filter(|dr| s.far_field.alternate || dr.view == s.far_field.source_view).copied().collect();
     if sources.is_empty() {
-        return;
+        return Ok(());
     }
-    let color_layer = |dr: &EyeDraw| dr.layer;
-    let depth_layer = |dr: &EyeDraw| p.depth.base_layer + if p.multiview { dr.view } else { 0 };
+    if p.slots.compute {
+        let copier = copier.ok_or("layer_error")?;
+        super::compute::record(d, cb, &p, &sources, copier)?;
+    } else {
+        record_transfer(d, cb, &p, &sources);
+    }
+    for dr in sources {
+        lifetime::hold(d, cb.as_raw(), Arc::new(CopyOp { view: dr.view, rect: dr.viewport, layer: dr.layer, slots: p.slots.clone(), awaiting: p.awaiting.clone() }));
+    }
+    Ok(())
+}
+
+/// The layers of the pass's colour and depth images that hold view `dr`.
+pub(super) fn source_layers(p: &PendingCopy, dr: &EyeDraw) -> (u32, u32) {
+    (dr.layer, p.depth.base_layer + if p.multiview { dr.view } else { 0 })
+}
+
+/// Image copies into multisampled slots (their tiles are marked unknown).
+fn record_transfer(d: &DeviceState, cb: vk::CommandBuffer, p: &PendingCopy, sources: &[EyeDraw]) {
+    let color_layer = |dr: &EyeDraw| source_layers(p, dr).0;
+    let depth_layer = |dr: &EyeDraw| source_layers(p, dr).1;
     let range = |src: &Source, layers: (u32, u32)| vk::ImageSubresourceRange { aspect_mask: src.aspect, base_mip_level: 0, level_count: 1, base_array_layer: layers.0, layer_count: layers.1 - layers.0 + 1 };
     let span = |f: &dyn Fn(&EyeDraw) -> u32| sources.iter().fold((u32::MAX, 0), |(lo, hi), dr| (lo.min(f(dr)), hi.max(f(dr))));
     let (cl, dl) = (span(&color_layer), span(&depth_layer));
@@ -158,7 +203,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: PendingCopy, s: 
     // back) and the layer's slots, which stay GENERAL; the slots are held by the recording.
     unsafe {
         (fns.cmd_pipeline_barrier)(cb, attachment_stages | vk::PipelineStageFlags::FRAGMENT_SHADER, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), before.len() as u32, before.as_ptr());
-        for dr in &sources {
+        for dr in sources {
             let r = dr.viewport;
             let slot = &p.slots.images[dr.view as usize];
             let region = |aspect, layer| vk::ImageCopy {
@@ -173,8 +218,24 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: PendingCopy, s: 
         }
         (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), after.len() as u32, after.as_ptr());
     }
-    for dr in sources {
-        lifetime::hold(d, cb.as_raw(), Arc::new(CopyOp { view: dr.view, rect: dr.viewport, layer: dr.layer, slots: p.slots.clone(), awaiting: p.awaiting.clone() }));
+    let views: Vec<u32> = sources.iter().map(|dr| dr.view).collect();
+    mark_unknown(d, cb, &p.slots, &views);
+}
+
+/// Marks `views`' tiles unknown (NaN): the reuse draw then tests every pixel.
+fn mark_unknown(d: &DeviceState, cb: vk::CommandBuffer, slots: &Slots, views: &[u32]) {
+    let fns = d.fns.fp_v1_0();
+    // A global barrier: the draws read the whole tile buffer through their descriptor.
+    let written = vk::MemoryBarrier::default().src_access_mask(vk::AccessFlags::TRANSFER_WRITE).dst_access_mask(vk::AccessFlags::SHADER_READ);
+    // SAFETY: `cb` is the app's command buffer, recording outside any pass; the buffer is the
+    // layer's, held by the recording with the slots.
+    unsafe {
+        // The reuse draws of earlier frames read these tiles in their vertex shaders (WAR).
+        (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::VERTEX_SHADER, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), 0, std::ptr::null());
+        for &v in views {
+            (fns.cmd_fill_buffer)(cb, slots.tiles, v as u64 * slots.tile_bytes(), slots.tile_bytes(), NOT_REDUCED);
+        }
+        (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::VERTEX_SHADER, vk::DependencyFlags::empty(), 1, &written, 0, std::ptr::null(), 0, std::ptr::null());
     }
 }
 
@@ -215,14 +276,16 @@ pub(super) fn attachments(d: &DeviceState, pass: &PassInstance) -> Result<(Sourc
         // Mixed-sample passes (VK_AMD_mixed_attachment_samples and the like).
         return Err("unsupported");
     }
-    if !cu.contains(vk::ImageUsageFlags::TRANSFER_SRC) || !du.contains(vk::ImageUsageFlags::TRANSFER_SRC) {
-        return Err("no_transfer_src");
+    // Single-sampled sources are read by the compute copy, multisampled ones copied.
+    let needed = if cs == vk::SampleCountFlags::TYPE_1 { vk::ImageUsageFlags::SAMPLED } else { vk::ImageUsageFlags::TRANSFER_SRC };
+    if !cu.contains(needed) || !du.contains(needed) {
+        return Err(if needed == vk::ImageUsageFlags::SAMPLED { "no_sampled_usage" } else { "no_transfer_src" });
     }
     let stencil = matches!(df, vk::Format::D16_UNORM_S8_UINT | vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT);
     let depth_aspect = if stencil { vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL } else { vk::ImageAspectFlags::DEPTH };
     Ok((
-        Source { image: vk::Image::from_raw(ci), layout: color_layout, aspect: vk::ImageAspectFlags::COLOR, base_layer: cl },
-        Source { image: vk::Image::from_raw(di), layout: depth_layout, aspect: depth_aspect, base_layer: dl },
+        Source { image: vk::Image::from_raw(ci), format: cf, layout: color_layout, aspect: vk::ImageAspectFlags::COLOR, base_layer: cl },
+        Source { image: vk::Image::from_raw(di), format: df, layout: depth_layout, aspect: depth_aspect, base_layer: dl },
         (cf, cs),
         (df, ds),
     ))
@@ -240,6 +303,8 @@ pub(super) fn make_slots(
     nearest: vk::Sampler,
 ) -> Result<Slots, String> {
     let trash = d.lifetime.trash.clone();
+    let compute = samples == vk::SampleCountFlags::TYPE_1;
+    let usage = if compute { vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::STORAGE } else { vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST };
     let image = |format: vk::Format, aspect: vk::ImageAspectFlags| -> Result<Owned, String> {
         let info = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
@@ -249,7 +314,7 @@ pub(super) fn make_slots(
             .array_layers(1)
             .samples(samples)
             .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST)
+            .usage(usage)
             .initial_layout(vk::ImageLayout::UNDEFINED);
         // SAFETY: valid create infos; every object made here is destroyed on failure or handed to
         // `Slots`, whose drop puts it in the device's trash.
@@ -283,10 +348,15 @@ pub(super) fn make_slots(
     let mut made: Vec<Owned> = Vec::new();
     let result = (|| {
         for _ in 0..2 {
-            made.push(image(color_format, vk::ImageAspectFlags::COLOR)?);
-            made.push(image(depth_format, vk::ImageAspectFlags::DEPTH)?);
+            if compute {
+                made.push(image(super::compute::SLOT_COLOR, vk::ImageAspectFlags::COLOR)?);
+                made.push(image(super::compute::SLOT_DEPTH, vk::ImageAspectFlags::COLOR)?);
+            } else {
+                made.push(image(color_format, vk::ImageAspectFlags::COLOR)?);
+                made.push(image(depth_format, vk::ImageAspectFlags::DEPTH)?);
+            }
         }
-        let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 4 }];
+        let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 4 }, vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 1 }];
         // SAFETY: valid create / allocate infos on our own objects.
         let pool = unsafe { d.fns.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None) }.map_err(|e| e.to_string())?;
         let layouts = [set_layout];
@@ -301,7 +371,15 @@ pub(super) fn make_slots(
         };
         Ok((pool, set))
     })();
-    let (pool, set) = match result {
+    let grid = super::rules::tile_grid(extent.width, extent.height);
+    let tiles = result.and_then(|(pool, set)| match tile_buffer(d, memory, 2 * grid.0 as u64 * grid.1 as u64 * 8) {
+        Ok(b) => Ok((pool, set, b)),
+        Err(e) => {
+            lock(&trash).push(Garbage::DescriptorPool(pool));
+            Err(e)
+        }
+    });
+    let (pool, set, (tiles, tiles_memory)) = match tiles {
         Ok(x) => x,
         Err(e) => {
             let mut t = lock(&trash);
@@ -314,12 +392,43 @@ pub(super) fn make_slots(
         .enumerate()
         .map(|(i, o)| [vk::DescriptorImageInfo { sampler: if i % 2 == 0 { linear } else { nearest }, image_view: o.view, image_layout: vk::ImageLayout::GENERAL }])
         .collect();
-    let writes: Vec<vk::WriteDescriptorSet> =
+    let mut writes: Vec<vk::WriteDescriptorSet> =
         infos.iter().enumerate().map(|(i, info)| vk::WriteDescriptorSet::default().dst_set(set).dst_binding(i as u32).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(info)).collect();
+    let tile_info = [vk::DescriptorBufferInfo { buffer: tiles, offset: 0, range: vk::WHOLE_SIZE }];
+    writes.push(vk::WriteDescriptorSet::default().dst_set(set).dst_binding(4).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&tile_info));
     // SAFETY: our set, not in use by any command buffer yet.
     unsafe { d.fns.update_descriptor_sets(&writes, &[]) };
     let mut it = made.into_iter();
     let mut next = || it.next().expect("four images");
     let images = [[next(), next()], [next(), next()]];
-    Ok(Slots { images, pool, set, extent, color_format, depth_format, samples, initialized: AtomicBool::new(false), copied: Mutex::new([None, None]), trash })
+    Ok(Slots { images, pool, set, extent, color_format, depth_format, samples, compute, initialized: AtomicBool::new(false), copied: Mutex::new([None, None]), tiles, tiles_memory, grid, trash })
+}
+
+/// The tiles' storage buffer (device-local; filled by the layer's commands only).
+fn tile_buffer(d: &DeviceState, memory: &vk::PhysicalDeviceMemoryProperties, size: u64) -> Result<(vk::Buffer, vk::DeviceMemory), String> {
+    let info = vk::BufferCreateInfo::default().size(size.max(8)).usage(vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST);
+    // SAFETY: valid create infos; on failure everything made here is destroyed, on success the
+    // caller hands both to `Slots`, whose drop puts them in the device's trash.
+    unsafe {
+        let buffer = d.fns.create_buffer(&info, None).map_err(|e| e.to_string())?;
+        let req = d.fns.get_buffer_memory_requirements(buffer);
+        let t = lifetime::memory_type(memory, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL).or_else(|| lifetime::memory_type(memory, req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
+        let Some(t) = t else {
+            d.fns.destroy_buffer(buffer, None);
+            return Err("no memory type for the far field's tiles".into());
+        };
+        let mem = match d.fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(t), None) {
+            Ok(m) => m,
+            Err(e) => {
+                d.fns.destroy_buffer(buffer, None);
+                return Err(e.to_string());
+            }
+        };
+        if let Err(e) = d.fns.bind_buffer_memory(buffer, mem, 0) {
+            d.fns.destroy_buffer(buffer, None);
+            d.fns.free_memory(mem, None);
+            return Err(e.to_string());
+        }
+        Ok((buffer, mem))
+    }
 }

@@ -6,6 +6,7 @@
 //! copies and the reuse draw; `xr` gathers the view poses and the app's depth range.
 
 pub mod rules;
+mod compute;
 mod copy;
 mod count;
 pub mod stats;

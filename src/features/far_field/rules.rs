@@ -211,8 +211,34 @@ pub fn slot_to_read(dst: u32, other_copied_before: bool, timing: super::SourceTi
     }
 }
 
+/// Tiles are `TILE`×`TILE` pixels: the source's depth is reduced per tile
+/// (`shaders/far_field_tiles.comp`), the reuse draw is a grid of destination tiles
+/// (`shaders/far_field.vert`). Both shaders hard-code the same size.
+pub const TILE: u32 = 16;
+
+/// Tiles per row and rows of tiles covering `width`×`height` pixels (partial tiles at the edges).
+pub fn tile_grid(width: u32, height: u32) -> (u32, u32) {
+    (width.div_ceil(TILE), height.div_ceil(TILE))
+}
+
+/// Vertices of the reuse draw over a `width`×`height` destination view: two triangles per tile.
+pub fn reuse_vertices(width: u32, height: u32) -> u32 {
+    let (x, y) = tile_grid(width, height);
+    6 * x * y
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn tiles_cover_the_view_with_partial_edges() {
+        assert_eq!(super::tile_grid(16, 16), (1, 1));
+        assert_eq!(super::tile_grid(17, 33), (2, 3));
+        assert_eq!(super::tile_grid(2016, 2240), (126, 140));
+        assert_eq!(super::tile_grid(0, 5), (0, 1));
+        assert_eq!(super::reuse_vertices(2016, 2240), 6 * 126 * 140);
+        assert_eq!(super::reuse_vertices(0, 100), 0);
+    }
+
     use super::*;
     use proptest::prelude::*;
 

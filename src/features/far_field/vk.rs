@@ -1,8 +1,9 @@
 //! The far field on the Vulkan side. At the end of an eye pass whose view may be a source, the
 //! layer copies the view's colour and depth into a *slot* of its own (one per view). In a
 //! destination view's pass, in front of its first depth-tested draw (`injects_before_depth_test`),
-//! it draws one full-screen triangle per view that writes the slot's far pixels at the split
-//! plane's depth (`shaders/far_field.*`). Which slot, frame and pose each draw uses is decided at
+//! it draws one grid of 16×16-pixel tiles per view that writes the slot's far pixels at the split
+//! plane's depth (`shaders/far_field.*`); tiles whose source holds nothing far are culled in the
+//! vertex shader, from the depth ranges reduced with the copy (`super::compute`). Which slot, frame and pose each draw uses is decided at
 //! every submission (`before_submit`, `rules::check_source`) and written into the recording's own
 //! buffer, so command buffers recorded once follow the head and the alternation.
 //!
@@ -12,7 +13,8 @@
 //! layout the pass left them in.
 
 use super::count::Counter;
-use super::copy::{attachments, make_slots, AwaitPass, CopyOp, PendingCopy, Slots};
+use super::compute::Copier;
+use super::copy::{attachments, make_slots, AwaitPass, CopyOp, PendingCopy, Slots, NOT_REDUCED};
 use super::rules::{self, InverseDepth, NoSource, PixelMap, Stamp, ViewGeometry};
 use super::stats::FarFieldStats;
 use crate::core::rect::PixelRect;
@@ -49,6 +51,10 @@ struct Instance {
     size: [f32; 4],
     /// (slot read, active, debug tint, view)
     flags: [u32; 4],
+    /// The destination view's rect in the framebuffer (x, y, width, height).
+    dst: [f32; 4],
+    /// The slots' tile grid (tiles per row, rows, 0, 0).
+    grid: [u32; 4],
 }
 
 const INSTANCE: u64 = std::mem::size_of::<Instance>() as u64;
@@ -97,6 +103,9 @@ struct Objects {
     layout: vk::PipelineLayout,
     linear: vk::Sampler,
     nearest: vk::Sampler,
+    /// The compute copy (None where it could not be made: single-sampled passes are then not
+    /// applied, `layer_error`).
+    copier: Option<Copier>,
     slots: Option<Arc<Slots>>,
 }
 
@@ -171,9 +180,22 @@ impl FarFieldDevice {
         if o.layout != vk::PipelineLayout::null() {
             return Ok((o.set_layout, o.layout, o.linear, o.nearest));
         }
-        let bindings: Vec<_> = (0..4)
-            .map(|b| vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::FRAGMENT))
+        let mut bindings: Vec<_> = (0..4)
+            .map(|b| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(b)
+                    .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::FRAGMENT)
+            })
             .collect();
+        bindings.push(
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(4)
+                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::VERTEX),
+        );
         let sampler = |filter: vk::Filter| {
             vk::SamplerCreateInfo::default()
                 .mag_filter(filter)
@@ -192,7 +214,14 @@ impl FarFieldDevice {
             let layout = d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts), None).map_err(|e| e.to_string())?;
             let linear = d.fns.create_sampler(&sampler(vk::Filter::LINEAR), None).map_err(|e| e.to_string())?;
             let nearest = d.fns.create_sampler(&sampler(vk::Filter::NEAREST), None).map_err(|e| e.to_string())?;
-            *o = Objects { set_layout, layout, linear, nearest, slots: o.slots.take() };
+            let copier = match Copier::new(d, nearest, self.memory) {
+                Ok(c) => Some(c),
+                Err(e) => {
+                    tracing::warn!("far field: no compute copy ({e}): single-sampled passes are not applied");
+                    None
+                }
+            };
+            *o = Objects { set_layout, layout, linear, nearest, copier, slots: o.slots.take() };
         }
         Ok((o.set_layout, o.layout, o.linear, o.nearest))
     }
@@ -233,6 +262,8 @@ impl FarFieldDevice {
                 attr(4, f4, 64),
                 attr(5, f4, 80),
                 attr(6, vk::Format::R32G32B32A32_UINT, 96),
+                attr(7, f4, 112),
+                attr(8, vk::Format::R32G32B32A32_UINT, 128),
             ],
             write_first_color: true,
             per_instance: true,
@@ -400,15 +431,17 @@ impl FarFieldDevice {
                 size: [src_rect.width as f32, src_rect.height as f32, op.slots.samples.as_raw() as f32, 0.0],
                 // The shader's view is the multiview index, the same as the guess there.
                 flags: [v.slot, 1, f.debug as u32, guessed.view],
+                dst: [v.rect.x as f32, v.rect.y as f32, v.rect.width as f32, v.rect.height as f32],
+                grid: [op.slots.grid.0, op.slots.grid.1, 0, 0],
             };
-            args[i] = vk::DrawIndirectCommand { vertex_count: 3, instance_count: 1, first_vertex: 0, first_instance: i as u32 };
+            args[i] = vk::DrawIndirectCommand { vertex_count: rules::reuse_vertices(v.rect.width, v.rect.height), instance_count: 1, first_vertex: 0, first_instance: i as u32 };
             self.mark_reused(frame, v.view);
             self.count(|st| *st.views_reused.entry(v.view).or_insert(0) += 1);
         }
         if op.multiview {
             // One draw: every active view's instance (inactive ones cull themselves).
-            let active = args.iter().any(|a| a.vertex_count > 0);
-            args = vec![vk::DrawIndirectCommand { vertex_count: if active { 3 } else { 0 }, instance_count: instances.len() as u32, first_vertex: 0, first_instance: 0 }];
+            let vertex_count = args.iter().map(|a| a.vertex_count).max().unwrap_or(0);
+            args = vec![vk::DrawIndirectCommand { vertex_count, instance_count: instances.len() as u32, first_vertex: 0, first_instance: 0 }];
             args.resize(op.views.len(), vk::DrawIndirectCommand::default());
         }
         op.buffer.write(0, &args);
@@ -520,14 +553,18 @@ impl VkFeature for FarFieldDevice {
         }
         let Some(p) = pending else { return };
         let s = d.settings();
-        super::copy::record(d, cb, p, &s);
+        let copier = lock(&self.objects).copier;
+        if let Err(why) = super::copy::record(d, cb, p, &s, copier.as_ref()) {
+            self.not_applied(why);
+        }
     }
-    /// Attachments can be copied: TRANSFER_SRC whenever the layer is on (the far field can be
-    /// switched on live). Transient attachments never hold anything to copy.
+    /// Attachments can be read: SAMPLED (the compute copy) and TRANSFER_SRC (multisampled copies)
+    /// whenever the layer is on (the far field can be switched on live). Transient attachments
+    /// never hold anything to copy.
     fn image_usage(&self, _s: &Settings, usage: vk::ImageUsageFlags) -> vk::ImageUsageFlags {
         let attachment = usage.intersects(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT);
         if self.layer_enabled && attachment && !usage.contains(vk::ImageUsageFlags::TRANSIENT_ATTACHMENT) {
-            vk::ImageUsageFlags::TRANSFER_SRC
+            vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::SAMPLED
         } else {
             vk::ImageUsageFlags::empty()
         }
@@ -554,7 +591,7 @@ impl VkFeature for FarFieldDevice {
         let barriers: Vec<vk::ImageMemoryBarrier> = slots
             .images
             .iter()
-            .flat_map(|s| [(&s[0], vk::ImageAspectFlags::COLOR), (&s[1], vk::ImageAspectFlags::DEPTH)])
+            .flat_map(|s| [(&s[0], vk::ImageAspectFlags::COLOR), (&s[1], if slots.compute { vk::ImageAspectFlags::COLOR } else { vk::ImageAspectFlags::DEPTH })])
             .map(|(o, aspect)| {
                 vk::ImageMemoryBarrier::default()
                     .image(o.image)
@@ -566,10 +603,22 @@ impl VkFeature for FarFieldDevice {
                     .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 })
             })
             .collect();
+        let tiles = [vk::BufferMemoryBarrier::default()
+            .buffer(slots.tiles)
+            .offset(0)
+            .size(vk::WHOLE_SIZE)
+            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+            .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
+            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)];
         let done = crate::vk::secondary::submit_once(d, queue, family, |cb| {
-            // SAFETY: our one-time command buffer, recording; the slots are ours and unused so far.
+            let fns = d.fns.fp_v1_0();
+            // SAFETY: our one-time command buffer, recording; the slots and their tile buffer are
+            // ours and unused so far (no tile is known until a reduction fills it).
             unsafe {
-                (d.fns.fp_v1_0().cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), barriers.len() as u32, barriers.as_ptr())
+                (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), barriers.len() as u32, barriers.as_ptr());
+                (fns.cmd_fill_buffer)(cb, slots.tiles, 0, vk::WHOLE_SIZE, NOT_REDUCED);
+                (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), tiles.len() as u32, tiles.as_ptr(), 0, std::ptr::null())
             };
         });
         match done {
@@ -620,6 +669,9 @@ impl VkFeature for FarFieldDevice {
         drop(o.slots);
         // SAFETY: our objects; the device is idle.
         unsafe {
+            if let Some(c) = &o.copier {
+                c.destroy(d);
+            }
             if o.layout != vk::PipelineLayout::null() {
                 d.fns.destroy_pipeline_layout(o.layout, None);
                 d.fns.destroy_descriptor_set_layout(o.set_layout, None);

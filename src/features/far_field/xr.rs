@@ -1,6 +1,6 @@
 //! The far field on the OpenXR side: the views the app located, numbered by frame (a new
 //! predicted display time is a new frame, whichever call the app makes first), so the Vulkan side
-//! can map between the eyes of one frame and between frames; and TRANSFER_SRC on eye swapchains,
+//! can map between the eyes of one frame and between frames; and SAMPLED + TRANSFER_SRC on eye swapchains,
 //! so the source eye can be copied.
 
 use crate::settings::Settings;
@@ -22,12 +22,13 @@ impl XrFeature for FarFieldXr {
     fn id(&self) -> &'static str {
         "far_field"
     }
-    /// Colour and depth swapchains get TRANSFER_SRC whenever the layer is on (the far field can
-    /// be switched on while the app runs; an extra usage bit changes nothing the app sees).
+    /// Colour and depth swapchains get SAMPLED and TRANSFER_SRC whenever the layer is on (the far
+    /// field can be switched on while the app runs; an extra usage bit changes nothing the app
+    /// sees).
     fn swapchain_usage(&self, s: &Settings, usage: xr::SwapchainUsageFlags) -> xr::SwapchainUsageFlags {
         let attachment = usage.intersects(xr::SwapchainUsageFlags::COLOR_ATTACHMENT | xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT);
         if s.enabled && attachment {
-            xr::SwapchainUsageFlags::TRANSFER_SRC
+            xr::SwapchainUsageFlags::TRANSFER_SRC | xr::SwapchainUsageFlags::SAMPLED
         } else {
             xr::SwapchainUsageFlags::EMPTY
         }

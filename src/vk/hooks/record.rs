@@ -82,6 +82,8 @@ pub(in crate::vk) unsafe extern "system" fn cmd_bind_pipeline(cb: vk::CommandBuf
     cmd("vkCmdBindPipeline", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_bind_pipeline)(cb, bind_point, pipeline) }, |d, cb| {
         if bind_point == vk::PipelineBindPoint::GRAPHICS {
             d.track.bind_graphics_pipeline(cb, pipeline.as_raw());
+        } else if bind_point == vk::PipelineBindPoint::COMPUTE {
+            d.track.with_cb(cb, |s| s.compute.pipeline = Some(pipeline.as_raw()));
         }
     })
 }
@@ -119,11 +121,16 @@ pub(in crate::vk) unsafe extern "system" fn cmd_bind_descriptor_sets(
         // SAFETY: forwarding the app's arguments unchanged.
         |d| unsafe { (d.fns.fp_v1_0().cmd_bind_descriptor_sets)(cb, bind_point, layout, first, n, sets, n_dynamic, dynamic_offsets) },
         |d, cb| {
-            if bind_point == vk::PipelineBindPoint::GRAPHICS {
+            if bind_point == vk::PipelineBindPoint::GRAPHICS || bind_point == vk::PipelineBindPoint::COMPUTE {
                 // SAFETY: arrays valid with their counts during the app's call.
                 let (sets, dynamic_offsets) = unsafe { (convert::slice(sets, n), convert::slice(dynamic_offsets, n_dynamic)) };
                 let sets = sets.iter().map(|s| s.as_raw()).collect();
-                state(d, cb, StateCmd::BindDescriptorSets { layout: layout.as_raw(), first, sets, dynamic_offsets: dynamic_offsets.to_vec() })
+                let bind = StateCmd::BindDescriptorSets { layout: layout.as_raw(), first, sets, dynamic_offsets: dynamic_offsets.to_vec() };
+                if bind_point == vk::PipelineBindPoint::GRAPHICS {
+                    state(d, cb, bind)
+                } else {
+                    d.track.with_cb(cb, |s| s.compute.bind_sets(bind));
+                }
             }
         },
     )

@@ -4,6 +4,7 @@
 //! replayed when the `Restore` guard drops, so every path out of an injection — success, a
 //! feature's failure, an early return — gives the app back the state it set. State the layer
 //! cannot restore vetoes the injection before anything is recorded (`CmdState::veto`).
+//! `RestoreCompute` does the same for the compute bind point around the layer's dispatches.
 
 use crate::track::cmd::StateCmd;
 use crate::vk::DeviceState;
@@ -34,6 +35,51 @@ impl Drop for Restore<'_> {
             // SAFETY: `cb` is recording inside the app's pass (`new`'s contract); the commands
             // replay the app's own state, whose handles are alive while it records.
             unsafe { replay(self.d, self.cb, c) };
+        }
+    }
+}
+
+/// Rebinds the app's compute pipeline and descriptor sets when dropped: a dispatch of the layer's
+/// in the app's command buffer (outside any pass) replaces both. Push constants are left alone
+/// (the layer's compute pipelines have none, and binding a pipeline does not disturb them).
+pub(crate) struct RestoreCompute<'a> {
+    d: &'a DeviceState,
+    cb: vk::CommandBuffer,
+    state: crate::track::cmd::ComputeState,
+}
+
+impl<'a> RestoreCompute<'a> {
+    /// `cb` must be recording outside any pass; `state` is its tracked compute state taken before
+    /// the layer binds anything there.
+    pub(crate) fn new(d: &'a DeviceState, cb: vk::CommandBuffer, state: crate::track::cmd::ComputeState) -> RestoreCompute<'a> {
+        RestoreCompute { d, cb, state }
+    }
+}
+
+impl Drop for RestoreCompute<'_> {
+    fn drop(&mut self) {
+        let v0 = self.d.fns.fp_v1_0();
+        // SAFETY: `cb` is recording (`new`'s contract); the handles are the app's own bindings,
+        // alive while it records.
+        unsafe {
+            if let Some(p) = self.state.pipeline {
+                (v0.cmd_bind_pipeline)(self.cb, vk::PipelineBindPoint::COMPUTE, vk::Pipeline::from_raw(p));
+            }
+            for c in &self.state.sets {
+                if let StateCmd::BindDescriptorSets { layout, first, sets, dynamic_offsets } = c {
+                    let sets: Vec<vk::DescriptorSet> = sets.iter().map(|s| vk::DescriptorSet::from_raw(*s)).collect();
+                    (v0.cmd_bind_descriptor_sets)(
+                        self.cb,
+                        vk::PipelineBindPoint::COMPUTE,
+                        vk::PipelineLayout::from_raw(*layout),
+                        *first,
+                        sets.len() as u32,
+                        sets.as_ptr(),
+                        dynamic_offsets.len() as u32,
+                        dynamic_offsets.as_ptr(),
+                    );
+                }
+            }
         }
     }
 }
