@@ -10,6 +10,7 @@ pub mod guard;
 pub mod log;
 pub mod manifest;
 pub mod notices;
+pub mod private_fs;
 pub mod registry;
 pub mod settings;
 pub mod shared;

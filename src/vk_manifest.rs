@@ -4,6 +4,7 @@
 //! `VK_ADD_LAYER_PATH`. The manifest text comes from `manifest`, like every other manifest.
 
 use crate::manifest::{self, Kind};
+use crate::private_fs;
 use std::path::{Path, PathBuf};
 
 pub use crate::manifest::VK_LAYER_NAME;
@@ -45,19 +46,17 @@ pub fn add_instance_layer(current: Option<&str>) -> Option<String> {
     }
 }
 
-/// Writes the manifest for `library` into a per-user folder and returns that folder. Written to a
-/// temporary name and renamed, so a concurrent process never reads half a file.
+/// Writes the manifest for `library` into a folder of the user's own (`private_fs`: under
+/// `$XDG_RUNTIME_DIR`, else `$XDG_STATE_HOME`; 0700 folders, a 0600 file written atomically) and
+/// returns that folder. A folder on the way that another user owns or can write to is refused:
+/// the loader would load whatever library a manifest there names.
 pub fn write_manifest(library: &Path) -> std::io::Result<PathBuf> {
-    let base = std::env::var_os("XDG_RUNTIME_DIR").map(PathBuf::from).unwrap_or_else(std::env::temp_dir);
-    let user = std::env::var("USER").unwrap_or_else(|_| "user".into());
+    let env = |k: &str| std::env::var(k).ok();
+    let base = private_fs::private_base(&env).ok_or_else(|| std::io::Error::other("none of XDG_RUNTIME_DIR, XDG_STATE_HOME, HOME is set"))?;
     // One folder per library file, so two builds of stereoshim never point at each other.
     let tag = library.to_string_lossy().bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
-    let dir = base.join(format!("stereoshim-{user}")).join(format!("vulkan-{tag:016x}"));
-    std::fs::create_dir_all(&dir)?;
-    let path = dir.join(manifest::MANIFEST_FILE);
-    let tmp = dir.join(format!(".stereoshim.json.{}", std::process::id()));
-    std::fs::write(&tmp, manifest_json(library))?;
-    std::fs::rename(&tmp, &path)?;
+    let dir = private_fs::private_dir(&base, Path::new(&format!("stereoshim/vulkan-{tag:016x}")))?;
+    private_fs::write_private(&dir.join(manifest::MANIFEST_FILE), manifest_json(library).as_bytes())?;
     Ok(dir)
 }
 

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use stereoshim::install::{self, Scope};
 use stereoshim::manifest::{self, Kind};
+use stereoshim::private_fs;
 
 const USAGE: &str = "usage:
   stereoshim install [--user|--system] [--library PATH]   register the implicit OpenXR layer
@@ -70,13 +71,12 @@ fn find_library(args: &[String]) -> Result<PathBuf, String> {
 }
 
 /// Writes through a temporary name and renames, so an app starting meanwhile never loads half a
-/// file (and a running app keeps the old library it mapped).
+/// file (and a running app keeps the old library it mapped); user-only permissions
+/// (`private_fs::write_private`), since a loader maps whatever these files name.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
     let dir = path.parent().ok_or("no parent folder")?;
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let tmp = dir.join(format!(".{}.tmp{}", path.file_name().unwrap_or_default().to_string_lossy(), std::process::id()));
-    std::fs::write(&tmp, bytes).map_err(|e| format!("{}: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+    private_fs::write_private(path, bytes).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 fn install_cmd(args: &[String]) -> Result<(), String> {
@@ -168,9 +168,11 @@ fn run_cmd(args: &[String]) -> Result<(), String> {
     let program = app.first().ok_or("run needs an app after `--`")?;
     let library = std::fs::canonicalize(find_library(ours)?).map_err(|e| e.to_string())?;
     // An explicit manifest of our own, so `run` needs no installation and always uses this library.
-    let base = std::env::var_os("XDG_RUNTIME_DIR").map(PathBuf::from).unwrap_or_else(std::env::temp_dir);
-    let dir = base.join(format!("stereoshim-{}", env("USER").unwrap_or_else(|| "user".into()))).join(format!("openxr-{}", std::process::id()));
-    write_atomic(&dir.join(install::MANIFEST_FILE), manifest::json(Kind::OpenXr, &library).as_bytes())?;
+    // In a folder of the user's own (`private_fs`), never a shared temporary one: the OpenXR
+    // loader loads whatever library a manifest there names.
+    let base = private_fs::private_base(&env).ok_or("none of XDG_RUNTIME_DIR, XDG_STATE_HOME, HOME is set")?;
+    let dir = private_fs::private_dir(&base, Path::new(&format!("stereoshim/openxr-{}", std::process::id()))).map_err(|e| e.to_string())?;
+    private_fs::write_private(&dir.join(install::MANIFEST_FILE), manifest::json(Kind::OpenXr, &library).as_bytes()).map_err(|e| format!("{}: {e}", dir.display()))?;
     let mut cmd = std::process::Command::new(program);
     cmd.args(&app[1..]);
     for (k, v) in install::run_environment(&env, &dir) {
