@@ -30,27 +30,36 @@ pub fn triangles_to_ndc(triangles: &[[f32; 2]], fov: &ViewFov) -> Vec<[f32; 2]> 
     if !(fov.tan_right > fov.tan_left && fov.tan_up > fov.tan_down) {
         return Vec::new();
     }
-    let whole = triangles.len() / 3 * 3;
-    triangles[..whole]
-        .iter()
-        .map(|&p| tangent_to_ndc(p, fov))
-        .filter(|p| p[0].is_finite() && p[1].is_finite())
-        .collect::<Vec<_>>()
+    // A triangle with a point that maps nowhere (NaN, infinite) is dropped whole: dropping single
+    // points would splice the next triangles' points together (a malformed runtime mesh must not
+    // turn into triangles over the visible image). Dropping hides less, never more.
+    triangles
         .chunks_exact(3)
+        .map(|t| [tangent_to_ndc(t[0], fov), tangent_to_ndc(t[1], fov), tangent_to_ndc(t[2], fov)])
+        .filter(|t| t.iter().all(|p| p[0].is_finite() && p[1].is_finite()))
         .flatten()
-        .copied()
         .collect()
 }
+
+/// The largest clip area `coverage_bitmap` counts (8192 × 8192): beyond any real eye image, and a
+/// bound on what a malformed rect can make the layer allocate.
+pub const MAX_COUNTED_PIXELS: u64 = 1 << 26;
+
+/// Vertex positions are clamped to ±2^22 pixels before fixed-point edge math, so the products of
+/// two coordinate differences stay within i64 (2^(22+8+1) squared < 2^63) whatever a mesh holds.
+const MAX_COORD_PX: f64 = (1u64 << 22) as f64;
 
 /// Which pixels of `clip` (viewport ∩ scissor, framebuffer pixels) NDC triangles cover: a
 /// row-major bitmap of `clip`, a pixel set when its centre is inside a triangle by the top-left
 /// rule. Overlapping triangles count a pixel once.
 pub fn coverage_bitmap(ndc: &[[f32; 2]], viewport: ViewportRect, scissor: PixelRect) -> (PixelRect, Vec<bool>) {
     // Pixels whose centres lie inside the viewport (primitives are clipped to it).
-    let vx0 = (viewport.x - 0.5).ceil() as i64;
-    let vy0 = (viewport.y - 0.5).ceil() as i64;
-    let vx1 = (viewport.x + viewport.width - 0.5).ceil() as i64;
-    let vy1 = (viewport.y + viewport.height - 0.5).ceil() as i64;
+    // Within i32 (what a rect holds), whatever the floats: no overflow below.
+    let px = |f: f32| (f.ceil() as f64).clamp(i32::MIN as f64, i32::MAX as f64) as i64;
+    let vx0 = px(viewport.x - 0.5);
+    let vy0 = px(viewport.y - 0.5);
+    let vx1 = px(viewport.x + viewport.width - 0.5);
+    let vy1 = px(viewport.y + viewport.height - 0.5);
     let vp = PixelRect {
         x: vx0 as i32,
         y: vy0 as i32,
@@ -58,11 +67,17 @@ pub fn coverage_bitmap(ndc: &[[f32; 2]], viewport: ViewportRect, scissor: PixelR
         height: (vy1 - vy0).max(0) as u32,
     };
     let clip = vp.intersect(&scissor);
+    if clip.area() > MAX_COUNTED_PIXELS {
+        return (PixelRect { width: 0, height: 0, ..clip }, Vec::new());
+    }
     let mut bits = vec![false; clip.area() as usize];
     let to_fixed = |p: [f32; 2]| -> (i64, i64) {
-        let fx = viewport.x + (p[0] + 1.0) * 0.5 * viewport.width;
-        let fy = viewport.y + (p[1] + 1.0) * 0.5 * viewport.height;
-        ((fx as f64 * ONE as f64).round() as i64, (fy as f64 * ONE as f64).round() as i64)
+        // f32, as the GPU's viewport transform computes it (the counts must match it exactly).
+        let fx = (viewport.x + (p[0] + 1.0) * 0.5 * viewport.width) as f64;
+        let fy = (viewport.y + (p[1] + 1.0) * 0.5 * viewport.height) as f64;
+        // NaN clamps to NaN and casts to 0; the triangle is then degenerate or harmless.
+        let fixed = |f: f64| (f.clamp(-MAX_COORD_PX, MAX_COORD_PX) * ONE as f64).round() as i64;
+        (fixed(fx), fixed(fy))
     };
     for tri in ndc.chunks_exact(3) {
         let mut v = [to_fixed(tri[0]), to_fixed(tri[1]), to_fixed(tri[2])];
@@ -196,6 +211,76 @@ impl FeatureStats for MaskFrameStats {
         record.insert("pixels_masked".into(), json_counts(self.pixels_masked.iter().map(|(k, v)| (*k, *v))));
     }
     crate::feature_stats_any!();
+}
+
+#[cfg(test)]
+mod hostile {
+    //! Malformed runtime meshes, FOVs and rects (issue 11): the geometry never panics, never
+    //! allocates beyond `MAX_COUNTED_PIXELS`, and never makes a triangle out of points of
+    //! different input triangles.
+    use super::*;
+    use proptest::prelude::*;
+
+    fn any_f32() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            4 => -4.0f32..4.0,
+            1 => Just(f32::NAN),
+            1 => Just(f32::INFINITY),
+            1 => Just(f32::NEG_INFINITY),
+            1 => Just(0.0f32),
+            1 => any::<f32>(),
+        ]
+    }
+
+    fn fov() -> impl Strategy<Value = ViewFov> {
+        (any_f32(), any_f32(), any_f32(), any_f32()).prop_map(|(l, r, u, d)| ViewFov { tan_left: l, tan_right: r, tan_up: u, tan_down: d })
+    }
+
+    fn rect() -> impl Strategy<Value = PixelRect> {
+        (prop_oneof![-100i32..100, any::<i32>()], prop_oneof![-100i32..100, any::<i32>()], 0u32..200, 0u32..200)
+            .prop_map(|(x, y, width, height)| PixelRect { x, y, width, height })
+    }
+
+    proptest! {
+        #[test]
+        fn malformed_meshes_fovs_and_rects_are_harmless(points in prop::collection::vec((any_f32(), any_f32()), 0..40), fov in fov(), rect in rect()) {
+            let tris: Vec<[f32; 2]> = points.iter().map(|&(x, y)| [x, y]).collect();
+            let ndc = triangles_to_ndc(&tris, &fov);
+            prop_assert_eq!(ndc.len() % 3, 0);
+            prop_assert!(ndc.iter().all(|p| p[0].is_finite() && p[1].is_finite()));
+            // Every output triangle is the image of one input triangle, in order.
+            let mapped: Vec<[[f32; 2]; 3]> = tris.chunks_exact(3).map(|t| [tangent_to_ndc(t[0], &fov), tangent_to_ndc(t[1], &fov), tangent_to_ndc(t[2], &fov)]).collect();
+            let mut next = mapped.iter();
+            for t in ndc.chunks_exact(3) {
+                prop_assert!(next.any(|m| m[..] == *t), "triangle {:?} is no input triangle's image", t);
+            }
+            let masked = masked_pixels(&tris, &fov, rect);
+            prop_assert!(masked <= rect.area());
+        }
+
+        #[test]
+        fn huge_and_non_finite_viewports_are_bounded(x in any_f32(), y in any_f32(), w in any_f32(), h in any_f32(), scissor in rect()) {
+            let ndc = [[-1.0, -1.0], [3.0, -1.0], [-1.0, 3.0], [f32::MAX, 0.0], [0.0, -f32::MAX], [1.0e30, 1.0e30]];
+            let (clip, bits) = coverage_bitmap(&ndc, ViewportRect { x: x * 1.0e6, y: y * 1.0e6, width: w * 1.0e6, height: h * 1.0e6 }, scissor);
+            prop_assert_eq!(bits.len() as u64, clip.area());
+            prop_assert!(clip.area() <= MAX_COUNTED_PIXELS);
+        }
+    }
+
+    #[test]
+    fn a_rect_beyond_any_eye_is_not_counted() {
+        let huge = PixelRect { x: 0, y: 0, width: u32::MAX, height: u32::MAX };
+        let tris = [[-10.0, -10.0], [10.0, -10.0], [-10.0, 10.0]];
+        let fov = ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
+        assert_eq!(masked_pixels(&tris, &fov, huge), 0);
+    }
+
+    #[test]
+    fn a_bad_point_drops_its_own_triangle_only() {
+        let fov = ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
+        let tris = [[0.0, 0.0], [f32::NAN, 0.0], [0.0, 1.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        assert_eq!(triangles_to_ndc(&tris, &fov), vec![[0.0, 0.0], [1.0, 0.0], [0.0, -1.0]]);
+    }
 }
 
 #[cfg(test)]
