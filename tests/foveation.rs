@@ -94,6 +94,11 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
         assert!(compute == reconstructed && compute > 0, "{name}: not every reconstruction was the compute pass: {stats1}");
     }
     rdm::check_results(name, preset_name == "balanced", with_mask, &out).unwrap_or_else(|e| panic!("{e}"));
+    // No app call waited on the GPU: every release found a free reconstruction slot
+    // (`rules::slot_choice`; issue 11, "no blocking in the app's calls").
+    let summaries = rdm.log_lines("release_waits=");
+    assert!(!summaries.is_empty(), "{name}: no RDM summary in the device stats line:\n{}", rdm.log);
+    assert!(summaries.iter().all(|l| l.contains("release_waits=0")), "{name}: a release waited for the GPU: {summaries:?}");
     out
 }
 

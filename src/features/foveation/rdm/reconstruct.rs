@@ -19,8 +19,11 @@ use std::sync::Mutex;
 static FILL_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill.vert.spv"));
 static FILL_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill.frag.spv"));
 
-/// Command buffers (with their temp image) in flight at most; a release finding all busy waits.
-const MAX_SLOTS: usize = 3;
+/// Command buffers (with their temp image) in flight before a release waits
+/// (`rules::slot_choice`). A per-eye app releases two images a frame and runtimes let it run up
+/// to about three frames ahead, so 8 covers every conforming frame loop without a wait inside the
+/// app's `xrReleaseSwapchainImage` (it was 3: per-eye apps waited for the GPU every frame).
+const MAX_SLOTS: usize = 8;
 /// How long a release waits for an old reconstruction to finish before giving up on this one.
 const SLOT_WAIT_NS: u64 = 2_000_000_000;
 
@@ -31,12 +34,14 @@ pub(crate) struct Reconstruct {
     fill: Mutex<Option<FillObjects>>,
     slots: Mutex<VecDeque<Slot>>,
     slot_count: std::sync::atomic::AtomicUsize,
+    /// Releases that had to wait for an earlier reconstruction (`rules::SlotChoice::WaitOldest`).
+    pub(crate) release_waits: std::sync::atomic::AtomicU64,
     pub(super) compute: compute::Compute,
 }
 
 impl Reconstruct {
     pub(crate) fn new(memory: vk::PhysicalDeviceMemoryProperties, set_loader_data: Option<crate::vk::PfnSetDeviceLoaderData>) -> Reconstruct {
-        Reconstruct { set_loader_data, memory, fill: Mutex::default(), slots: Mutex::default(), slot_count: Default::default(), compute: Default::default() }
+        Reconstruct { set_loader_data, memory, fill: Mutex::default(), slots: Mutex::default(), slot_count: Default::default(), release_waits: Default::default(), compute: Default::default() }
     }
     /// At vkDestroyDevice (the device is idle).
     pub(crate) fn destroy(&self, d: &DeviceState) {
@@ -232,18 +237,26 @@ fn submit(d: &DeviceState, slot: &Slot, family: u32, queue_index: u32) -> Result
 /// A free slot (waiting for the oldest if all are in flight), reset for recording.
 fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
     let front = lock(&d.features.rdm.reconstruct.slots).pop_front();
-    let slot = match front {
-        Some(s) => {
-            // SAFETY: our fence.
-            let ready = unsafe { d.fns.get_fence_status(s.fence) }.unwrap_or(false);
-            if !ready && d.features.rdm.reconstruct.slot_count.load(Ordering::Relaxed) < MAX_SLOTS {
+    // SAFETY: our fence.
+    let done = front.as_ref().map(|s| unsafe { d.fns.get_fence_status(s.fence) }.unwrap_or(false));
+    let count = d.features.rdm.reconstruct.slot_count.load(Ordering::Relaxed);
+    let slot = match (super::rules::slot_choice(done, count, MAX_SLOTS), front) {
+        (super::rules::SlotChoice::New, front) => {
+            if let Some(s) = front {
                 lock(&d.features.rdm.reconstruct.slots).push_back(s);
-                new_slot(d, family)?
-            } else {
-                s
             }
+            new_slot(d, family)?
         }
-        None => new_slot(d, family)?,
+        (choice, Some(s)) => {
+            if choice == super::rules::SlotChoice::WaitOldest {
+                d.features.rdm.reconstruct.release_waits.fetch_add(1, Ordering::Relaxed);
+                log_once(&d.features.rdm, "release wait".into(), || {
+                    tracing::warn!("radial density masking: xrReleaseSwapchainImage waits for an earlier reconstruction ({MAX_SLOTS} in flight: the GPU is that many behind)")
+                });
+            }
+            s
+        }
+        (_, None) => new_slot(d, family)?,
     };
     // SAFETY: our fence, pool and transient objects; once the fence signalled the GPU is done
     // with everything the slot's last submission used.

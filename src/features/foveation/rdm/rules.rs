@@ -457,8 +457,46 @@ pub fn hand_off(pending: Vec<Pending>, regions: &[TransferRegion]) -> HandOff {
     out
 }
 
+/// Where a reconstruction's command buffer comes from, at `xrReleaseSwapchainImage`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SlotChoice {
+    /// The oldest slot's submission completed: reuse it.
+    ReuseOldest,
+    /// All are in flight and the cap allows another: make one (no wait).
+    New,
+    /// All `max` are in flight: wait for the oldest. The GPU is then `max` reconstructions
+    /// behind, more than a runtime's `xrWaitFrame` lets an app run ahead, so the app's own next
+    /// frame would wait at least as long.
+    WaitOldest,
+}
+
+/// Picks the slot for a reconstruction: `oldest_done` is whether the oldest slot's fence
+/// signalled (None: no slot yet), `count` the slots made so far.
+pub fn slot_choice(oldest_done: Option<bool>, count: usize, max: usize) -> SlotChoice {
+    match oldest_done {
+        Some(true) => SlotChoice::ReuseOldest,
+        _ if count < max => SlotChoice::New,
+        Some(false) => SlotChoice::WaitOldest,
+        // No slot in the queue although `count` reached the cap: every slot is being recorded on
+        // another thread right now; one more keeps this release from waiting on them.
+        None => SlotChoice::New,
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_release_waits_only_when_every_slot_is_in_flight() {
+        use super::{slot_choice, SlotChoice::*};
+        assert_eq!(slot_choice(None, 0, 8), New);
+        assert_eq!(slot_choice(Some(true), 3, 8), ReuseOldest);
+        assert_eq!(slot_choice(Some(true), 8, 8), ReuseOldest);
+        assert_eq!(slot_choice(Some(false), 3, 8), New);
+        assert_eq!(slot_choice(Some(false), 7, 8), New);
+        assert_eq!(slot_choice(Some(false), 8, 8), WaitOldest);
+        assert_eq!(slot_choice(None, 8, 8), New);
+    }
+
     use super::*;
     use std::collections::HashSet;
 

@@ -251,7 +251,10 @@ impl VkFeature for RdmDevice {
         Box::new(std::mem::take(&mut lock(&self.books).frame))
     }
     fn summary(&self) -> Option<String> {
-        self.used.load(Ordering::Relaxed).then(|| lock(&self.books).total.summary())
+        self.used.load(Ordering::Relaxed).then(|| {
+            let waits = self.reconstruct.release_waits.load(Ordering::Relaxed);
+            format!("{} release_waits={waits}", lock(&self.books).total.summary())
+        })
     }
     fn injects(&self, s: &Settings) -> bool {
         let method = s.foveation.method.resolve(self.fsr_attachment, self.software);
