@@ -91,6 +91,8 @@ pub struct Options {
     /// `--secondary`: every eye pass's contents are recorded into a secondary command buffer.
     pub secondary: bool,
     pub frames: Option<u64>,
+    /// `--sessions N`: end and create the session (swapchains, renderer) N times in one process.
+    pub sessions: u64,
     pub scale: f32,
     pub color_format: ColorFamily,
     pub shading_cost: u32,
@@ -144,6 +146,7 @@ impl Default for Options {
             vulkan_api: VulkanApi::V1_3,
             secondary: false,
             frames: None,
+            sessions: 1,
             scale: 1.0,
             color_format: ColorFamily::Srgb,
             shading_cost: 0,
@@ -182,7 +185,10 @@ usage: xr-scene [options]
                                             through VK_KHR_dynamic_rendering
   --secondary                               record each eye pass's contents into a secondary command
                                             buffer run by vkCmdExecuteCommands
-  --frames N                                request exit after N frames
+  --frames N                                request exit after N frames (of each session)
+  --sessions N                              end and recreate the session (swapchains, renderer)
+                                            N times; prints each session's frames and the
+                                            process's resident memory to stderr
   --scale F                                 render at F x the recommended size (default 1)
   --color-format srgb|unorm                 swapchain colour format family (default srgb)
   --shading-cost K                          K-iteration per-pixel busy loop (default 0)
@@ -306,6 +312,10 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                         .filter(|n| *n > 0)
                         .ok_or_else(|| format!("--frames must be a positive integer, got {v:?}"))?,
                 );
+            }
+            "--sessions" => {
+                let v = value("--sessions")?;
+                o.sessions = v.parse::<u64>().ok().filter(|n| *n > 0).ok_or_else(|| format!("--sessions must be a positive integer, got {v:?}"))?;
             }
             "--scale" => {
                 let v = value("--scale")?;
@@ -524,6 +534,8 @@ mod tests {
         assert!(p(&["--bogus"]).is_err());
         assert!(p(&["--scale", "-1"]).is_err());
         assert!(p(&["--frames", "0"]).is_err());
+        assert!(p(&["--sessions", "0"]).is_err());
+        assert_eq!(p(&["--sessions", "3"]).unwrap().map(|o| o.sessions), Some(3));
         assert!(p(&["--samples", "3", "--intermediate"]).is_err());
         assert!(p(&["--samples", "4"]).is_err());
         assert!(p(&["--submit-depth", "--intermediate"]).is_err());

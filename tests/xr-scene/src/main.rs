@@ -49,11 +49,43 @@ fn main() -> ExitCode {
     }
 }
 
-/// Runs the session until the runtime ends it; returns the number of frames submitted.
-/// Locals drop in reverse order: GPU objects, swapchains, session, Vulkan device/instance, XR instance.
+/// Runs `--sessions` sessions, each until the runtime ends it; returns the number of frames
+/// submitted. Locals drop in reverse order: the Vulkan device/instance, then the XR instance.
 fn run(opts: &cli::Options) -> Result<u64> {
     let xri = xr::XrInstance::new(opts)?;
     let gpu = gpu::Gpu::new(opts, &xri.instance, xri.system)?;
+    let mut stats = opts.stats.clone().map(stats::StatsLog::new);
+    if let Some(dir) = &opts.pixel_stats {
+        std::fs::create_dir_all(dir).map_err(|e| error::Error(format!("creating {}: {e}", dir.display())))?;
+    }
+    if let Some(s) = &stats {
+        s.write()?;
+    }
+    let mut frame: u64 = 0;
+    for session in 0..opts.sessions {
+        let first = frame;
+        frame = run_session(opts, &xri, &gpu, &mut stats, frame)?;
+        if opts.sessions > 1 {
+            // What a leak across sessions would show: the process's resident memory after each
+            // session's objects are gone (tests/lifecycle.rs).
+            eprintln!("xr-scene: session {session} ended after {} frames, rss {} kB", frame - first, rss_kb().unwrap_or(0));
+        }
+    }
+    drop(gpu);
+    drop(xri);
+    Ok(frame)
+}
+
+/// The process's resident set size (`VmRSS` of /proc/self/status), in kB.
+fn rss_kb() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    status.lines().find_map(|l| l.strip_prefix("VmRSS:")).and_then(|v| v.split_whitespace().next()).and_then(|v| v.parse().ok())
+}
+
+/// One session until the runtime ends it, its frames numbered from `frame`; returns the next
+/// frame number. Locals drop in reverse order: GPU objects, swapchains, session.
+fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats: &mut Option<stats::StatsLog>, mut frame: u64) -> Result<u64> {
+    let first_frame = frame;
     let binding = oxr::vulkan::SessionCreateInfo {
         instance: gpu.instance.handle().as_raw() as _,
         physical_device: gpu.physical.as_raw() as _,
@@ -62,18 +94,10 @@ fn run(opts: &cli::Options) -> Result<u64> {
         queue_index: 0,
     };
     // SAFETY: the handles come from the runtime's system and outlive the session (dropped later).
-    let mut xs = unsafe { xr::XrSession::new(&xri, binding) }?;
-    let mut targets = targets::Targets::new(opts, &gpu, &xri, &xs)?;
-    let mut renderer = renderer::Renderer::new(opts, &gpu, &targets)?;
-    let mut stats = opts.stats.clone().map(stats::StatsLog::new);
-    if let Some(dir) = &opts.pixel_stats {
-        std::fs::create_dir_all(dir).map_err(|e| error::Error(format!("creating {}: {e}", dir.display())))?;
-    }
-    if let Some(s) = &stats {
-        s.write()?;
-    }
+    let mut xs = unsafe { xr::XrSession::new(xri, binding) }?;
+    let mut targets = targets::Targets::new(opts, gpu, xri, &xs)?;
+    let mut renderer = renderer::Renderer::new(opts, gpu, &targets)?;
     let reversed = opts.depth == cli::DepthMode::Reverse;
-    let mut frame: u64 = 0;
     // CPU time in OpenXR calls per frame, kept until the frame's GPU work is measured (with
     // `--record-once` that is when its frame set is needed again, or at the end).
     let mut xr_us: std::collections::HashMap<u64, f64> = std::collections::HashMap::new();
@@ -96,7 +120,7 @@ fn run(opts: &cli::Options) -> Result<u64> {
         xr_time += t.elapsed();
 
         if !state.should_render {
-            end_frame(&xri, &xs, state.predicted_display_time, None)?;
+            end_frame(xri, &xs, state.predicted_display_time, None)?;
         } else {
             let t = std::time::Instant::now();
             let (_, views) = xs
@@ -122,7 +146,7 @@ fn run(opts: &cli::Options) -> Result<u64> {
             }
             xr_time += t.elapsed();
             let uniforms = frame_uniforms(&views, reversed, opts.animate, opts.far_movers, frame);
-            let finished = renderer.render(&gpu, &targets, &acquired, &uniforms, frame)?;
+            let finished = renderer.render(gpu, &targets, &acquired, &uniforms, frame)?;
             let t = std::time::Instant::now();
             for slot in &mut targets.slots {
                 slot.color.swapchain.release_image().ctx("xrReleaseSwapchainImage")?;
@@ -130,24 +154,22 @@ fn run(opts: &cli::Options) -> Result<u64> {
                     d.swapchain.release_image().ctx("xrReleaseSwapchainImage(depth)")?;
                 }
             }
-            end_frame(&xri, &xs, state.predicted_display_time, Some((&targets, &views, reversed)))?;
+            end_frame(xri, &xs, state.predicted_display_time, Some((&targets, &views, reversed)))?;
             xr_time += t.elapsed();
             xr_us.insert(frame, xr_time.as_secs_f64() * 1e6);
-            push_stats(&mut stats, &mut xr_us, finished)?;
+            push_stats(stats, &mut xr_us, finished)?;
         }
         frame += 1;
-        if opts.frames.is_some_and(|n| frame >= n) {
+        if opts.frames.is_some_and(|n| frame - first_frame >= n) {
             xs.request_exit()?;
         }
     }
     // Frames still in flight (`--record-once`) are measured before anything is torn down.
     let finished = renderer.finish()?;
-    push_stats(&mut stats, &mut xr_us, finished)?;
+    push_stats(stats, &mut xr_us, finished)?;
     drop(renderer);
     drop(targets);
     drop(xs);
-    drop(gpu);
-    drop(xri);
     Ok(frame)
 }
 
