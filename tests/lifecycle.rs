@@ -65,3 +65,38 @@ fn sessions_recreated_with_every_feature_on_keep_memory_flat() {
     // the last 66 sessions would be a leak of ~15 kB per session in the layer.
     assert!(gb - ga.max(0) <= 1024, "the layer's memory grows with sessions: {gb} kB vs {ga} kB without it\n{b:?}");
 }
+
+/// New swapchains of other sizes every 3 frames within a session (as an app changing its render
+/// scale): under validation nothing the layer sized for the old swapchains is used with the new
+/// ones, and every feature applies again once the new swapchains' eyes are known.
+#[test]
+fn swapchains_recreated_with_other_sizes_keep_every_feature_working() {
+    let stats = common::target_dir().join("test-output").join("lifecycle-swapchains.layer-stats.jsonl");
+    let _ = std::fs::remove_file(&stats);
+    let out = Run::new("lifecycle-swapchains")
+        .args(["--recreate-swapchains", "3", "--frames", "12", "--submit-depth"])
+        .env("MOCK_XR_EXIT_AFTER", "1000")
+        .env("MOCK_XR_CAPTURE_FRAMES", "0")
+        .with_layer()
+        .env("STEREOSHIM_MASK_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
+        .env("STEREOSHIM_FAR_FIELD_ENABLED", "1")
+        .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap())
+        .run();
+    out.assert_ok().assert_layer_loaded(Half::Both).assert_log_lacks(Half::Both, "internal failure");
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&stats).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 12, "one stats line per frame");
+    // The last frame of each swapchain set (frames 2, 5, 8, 11): its eyes are known since the
+    // set's first frame, so mask, RDM and far field all applied.
+    // The sizes did change (x1, x0.8, x1.2, x1): the masked pixel counts follow them.
+    let masked = |f: usize| lines[f]["pixels_masked"]["0"].as_u64().unwrap_or(0);
+    assert!(masked(5) < masked(2) && masked(8) > masked(2) && masked(11) == masked(2), "{} {} {} {}", masked(2), masked(5), masked(8), masked(11));
+    for f in [2usize, 5, 8, 11] {
+        let l = &lines[f];
+        let sum = |v: &serde_json::Value| v.as_object().map_or(0, |m| m.values().filter_map(|x| x.as_u64()).sum::<u64>());
+        assert!(l["passes_masked"].as_u64().unwrap_or(0) >= 2, "frame {f}: mask not applied: {l}");
+        assert!(sum(&l["rdm"]["reconstructed"]) >= 2, "frame {f}: RDM not applied: {l}");
+        assert!(sum(&l["far_field"]["views_reused"]) >= 1, "frame {f}: far field not applied: {l}");
+    }
+}

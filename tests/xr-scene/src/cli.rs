@@ -93,6 +93,9 @@ pub struct Options {
     pub frames: Option<u64>,
     /// `--sessions N`: end and create the session (swapchains, renderer) N times in one process.
     pub sessions: u64,
+    /// `--recreate-swapchains K`: every K frames, new swapchains of another size (and a new
+    /// renderer for them) within the session.
+    pub recreate_swapchains: Option<u64>,
     pub scale: f32,
     pub color_format: ColorFamily,
     pub shading_cost: u32,
@@ -147,6 +150,7 @@ impl Default for Options {
             secondary: false,
             frames: None,
             sessions: 1,
+            recreate_swapchains: None,
             scale: 1.0,
             color_format: ColorFamily::Srgb,
             shading_cost: 0,
@@ -189,6 +193,9 @@ usage: xr-scene [options]
   --sessions N                              end and recreate the session (swapchains, renderer)
                                             N times; prints each session's frames and the
                                             process's resident memory to stderr
+  --recreate-swapchains K                   every K frames destroy the swapchains and make new
+                                            ones of another size (x1, x0.8, x1.2 of --scale in
+                                            turn)
   --scale F                                 render at F x the recommended size (default 1)
   --color-format srgb|unorm                 swapchain colour format family (default srgb)
   --shading-cost K                          K-iteration per-pixel busy loop (default 0)
@@ -316,6 +323,10 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--sessions" => {
                 let v = value("--sessions")?;
                 o.sessions = v.parse::<u64>().ok().filter(|n| *n > 0).ok_or_else(|| format!("--sessions must be a positive integer, got {v:?}"))?;
+            }
+            "--recreate-swapchains" => {
+                let v = value("--recreate-swapchains")?;
+                o.recreate_swapchains = Some(v.parse::<u64>().ok().filter(|n| *n > 0).ok_or_else(|| format!("--recreate-swapchains must be a positive integer, got {v:?}"))?);
             }
             "--scale" => {
                 let v = value("--scale")?;

@@ -162,6 +162,16 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
         frame += 1;
         if opts.frames.is_some_and(|n| frame - first_frame >= n) {
             xs.request_exit()?;
+        } else if let Some(k) = opts.recreate_swapchains.filter(|k| (frame - first_frame).is_multiple_of(*k)) {
+            // New swapchains of another size, as an app does when the user changes its render
+            // scale: the old frames finish, everything sized by the swapchains is made again.
+            let finished = renderer.finish()?;
+            push_stats(stats, &mut xr_us, finished)?;
+            drop(renderer);
+            drop(targets);
+            let sized = cli::Options { scale: opts.scale * [1.0, 0.8, 1.2][((frame - first_frame) / k % 3) as usize], ..opts.clone() };
+            targets = targets::Targets::new(&sized, gpu, xri, &xs)?;
+            renderer = renderer::Renderer::new(&sized, gpu, &targets)?;
         }
     }
     // Frames still in flight (`--record-once`) are measured before anything is torn down.
