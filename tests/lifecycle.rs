@@ -100,3 +100,44 @@ fn swapchains_recreated_with_other_sizes_keep_every_feature_working() {
         assert!(sum(&l["far_field"]["views_reused"]) >= 1, "frame {f}: far field not applied: {l}");
     }
 }
+
+/// The whole app several times in one process: XR instance, Vulkan instance and device, and two
+/// sessions each, with every feature on. Each instance gets the layer's Vulkan half again (its
+/// device state made and destroyed with the device), validation finds nothing alive at each
+/// device's destruction, and memory stays flat as without the layer.
+#[test]
+fn instances_recreated_with_every_feature_on() {
+    const INSTANCES: usize = 12;
+    let base = Run::new("lifecycle-instances")
+        .args(["--instances", &INSTANCES.to_string(), "--sessions", "2", "--frames", &FRAMES.to_string(), "--submit-depth"])
+        .env("MOCK_XR_EXIT_AFTER", "1000")
+        .env("MOCK_XR_CAPTURE_FRAMES", "0");
+    let plain = base.clone().run();
+    plain.assert_ok();
+    let mut layered = base
+        .with_layer()
+        .env("STEREOSHIM_MASK_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
+        .env("STEREOSHIM_FAR_FIELD_ENABLED", "1");
+    layered.name = "lifecycle-instances-layer".into();
+    let with = layered.run();
+    with.assert_ok().assert_log_lacks(Half::Both, "internal failure");
+    let rss = |out: &RunOutput| -> Vec<(u64, u64)> {
+        out.stderr
+            .lines()
+            .filter_map(|l| l.strip_prefix("xr-scene: instance "))
+            .map(|l| (0, l.split_whitespace().nth(3).and_then(|v| v.parse().ok()).unwrap()))
+            .collect()
+    };
+    let (a, b) = (rss(&plain), rss(&with));
+    assert_eq!((a.len(), b.len()), (INSTANCES, INSTANCES), "{}", with.stderr);
+    // One device stats line per device: the Vulkan half was in every instance's device, and each
+    // applied RDM.
+    let lines = with.log_lines("vulkan device stats");
+    assert_eq!(lines.len(), INSTANCES, "{}", with.log);
+    assert!(lines.iter().all(|l| l.split_whitespace().any(|w| w.strip_prefix("rdm_passes=").and_then(|v| v.parse::<u64>().ok()).is_some_and(|n| n > 0))), "{lines:?}");
+    let (ga, gb) = (growth(&a), growth(&b));
+    eprintln!("rss growth over the last two thirds: {ga} kB without the layer, {gb} kB with; with: {b:?}");
+    assert!(gb - ga.max(0) <= 1024, "the layer's memory grows with instances: {gb} kB vs {ga} kB without it\n{b:?}");
+}

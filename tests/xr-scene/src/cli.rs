@@ -93,6 +93,9 @@ pub struct Options {
     pub frames: Option<u64>,
     /// `--sessions N`: end and create the session (swapchains, renderer) N times in one process.
     pub sessions: u64,
+    /// `--instances N`: the whole app (XR instance, Vulkan instance and device, sessions) N times
+    /// in one process.
+    pub instances: u64,
     /// `--recreate-swapchains K`: every K frames, new swapchains of another size (and a new
     /// renderer for them) within the session.
     pub recreate_swapchains: Option<u64>,
@@ -150,6 +153,7 @@ impl Default for Options {
             secondary: false,
             frames: None,
             sessions: 1,
+            instances: 1,
             recreate_swapchains: None,
             scale: 1.0,
             color_format: ColorFamily::Srgb,
@@ -193,6 +197,8 @@ usage: xr-scene [options]
   --sessions N                              end and recreate the session (swapchains, renderer)
                                             N times; prints each session's frames and the
                                             process's resident memory to stderr
+  --instances N                             create and destroy the XR instance, Vulkan instance and
+                                            device (and their sessions) N times
   --recreate-swapchains K                   every K frames destroy the swapchains and make new
                                             ones of another size (x1, x0.8, x1.2 of --scale in
                                             turn)
@@ -323,6 +329,10 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--sessions" => {
                 let v = value("--sessions")?;
                 o.sessions = v.parse::<u64>().ok().filter(|n| *n > 0).ok_or_else(|| format!("--sessions must be a positive integer, got {v:?}"))?;
+            }
+            "--instances" => {
+                let v = value("--instances")?;
+                o.instances = v.parse::<u64>().ok().filter(|n| *n > 0).ok_or_else(|| format!("--instances must be a positive integer, got {v:?}"))?;
             }
             "--recreate-swapchains" => {
                 let v = value("--recreate-swapchains")?;

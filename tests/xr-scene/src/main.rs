@@ -49,9 +49,22 @@ fn main() -> ExitCode {
     }
 }
 
-/// Runs `--sessions` sessions, each until the runtime ends it; returns the number of frames
-/// submitted. Locals drop in reverse order: the Vulkan device/instance, then the XR instance.
+/// Runs `--instances` times an XR instance with its Vulkan device and `--sessions` sessions;
+/// returns the number of frames submitted.
 fn run(opts: &cli::Options) -> Result<u64> {
+    let mut frames = 0;
+    for instance in 0..opts.instances {
+        frames += run_instance(opts)?;
+        if opts.instances > 1 {
+            eprintln!("xr-scene: instance {instance} ended, rss {} kB", rss_kb().unwrap_or(0));
+        }
+    }
+    Ok(frames)
+}
+
+/// One XR instance, its Vulkan instance and device, and `--sessions` sessions, each until the
+/// runtime ends it. Locals drop in reverse order: the Vulkan device/instance, then the XR instance.
+fn run_instance(opts: &cli::Options) -> Result<u64> {
     let xri = xr::XrInstance::new(opts)?;
     let gpu = gpu::Gpu::new(opts, &xri.instance, xri.system)?;
     let mut stats = opts.stats.clone().map(stats::StatsLog::new);
