@@ -144,10 +144,21 @@ fn run(opts: &cli::Options) -> Result<u64> {
     let finished = renderer.finish()?;
     push_stats(&mut stats, &mut xr_us, finished)?;
     drop(renderer);
-    drop(targets);
-    drop(xs);
-    drop(gpu);
-    drop(xri);
+    // Torn down explicitly, in the order the locals would drop, so that a failing destroy call
+    // reaches the error path like every other call; a failure does not stop the rest.
+    let mut errors: Vec<String> = [targets.destroy(), xs.destroy()].into_iter().filter_map(|r| r.err().map(|e| e.0)).collect();
+    if errors.is_empty() {
+        drop(gpu);
+        errors.extend(xri.destroy().err().map(|e| e.0));
+    } else {
+        // The runtime may still hold objects on the Vulkan device (a session it failed to
+        // destroy): destroying the instance, which takes its children with it, comes first.
+        errors.extend(xri.destroy().err().map(|e| e.0));
+        drop(gpu);
+    }
+    if !errors.is_empty() {
+        return error::fail(errors.join("; "));
+    }
     Ok(frame)
 }
 

@@ -65,6 +65,18 @@ impl XrInstance {
         };
         Ok(XrInstance { instance, system, view_config, blend_mode, _entry: entry })
     }
+
+    /// `xrDestroyInstance` through the raw entry point, so its failure is reported (the openxr
+    /// crate's `Drop` ignores the result).
+    pub fn destroy(self) -> Result<()> {
+        let XrInstance { instance, _entry: entry, .. } = self;
+        // SAFETY: every child object was destroyed before; the wrapper is forgotten so its `Drop`
+        // does not destroy the handle again; the loader stays mapped until `entry` drops below.
+        let r = unsafe { (instance.fp().destroy_instance)(instance.as_raw()) };
+        std::mem::forget(instance);
+        drop(entry);
+        crate::error::check(r, "xrDestroyInstance")
+    }
 }
 
 /// What the event loop tells the frame loop.
@@ -184,6 +196,18 @@ impl XrSession {
             self.request_exit()?;
         }
         Ok(())
+    }
+
+    /// Destroys the spaces and actions (their `Drop`), then the session through the raw entry
+    /// point, so a failing `xrDestroySession` is reported (the openxr crate's `Drop` ignores it).
+    pub fn destroy(self) -> Result<()> {
+        let XrSession { grip_space, stage, quit, _pose, action_set, waiter, stream, session, .. } = self;
+        drop((grip_space, stage, quit, _pose, action_set, waiter, stream));
+        // SAFETY: the session's swapchains and spaces are gone; the wrapper is forgotten so its
+        // `Drop` does not destroy the handle again.
+        let r = unsafe { (session.instance().fp().destroy_session)(session.as_raw()) };
+        std::mem::forget(session);
+        crate::error::check(r, "xrDestroySession")
     }
 
     pub fn request_exit(&mut self) -> Result<()> {
