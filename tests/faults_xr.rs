@@ -24,6 +24,10 @@ struct Case {
     /// Frames the app ends before the fault hits (those are compared with a run without fault).
     frames_before: u64,
     seen: Seen,
+    /// More `MOCK_XR_FAIL` items of the same run ("": none).
+    also: &'static str,
+    /// A line the layer must log in this case ("": none).
+    layer_logs: &'static str,
 }
 
 /// Who meets the fault.
@@ -55,7 +59,7 @@ const IMAGES_PER_FRAME: u64 = 4;
 /// the swapchains' calls also fail with the two losses a runtime reports.
 fn cases() -> Vec<Case> {
     use Seen::*;
-    let case = |call, at, error, vulkan, frames_before, seen| Case { call, at, error, vulkan, config: ALL_FEATURES, frames_before, seen };
+    let case = |call, at, error, vulkan, frames_before, seen| Case { call, at, error, vulkan, config: ALL_FEATURES, frames_before, seen, also: "", layer_logs: "" };
     let mut v = vec![
         case("xrCreateInstance", 0, RUNTIME_FAILURE, "enable2", 0, ByApp),
         case("xrEnumerateViewConfigurationViews", 0, RUNTIME_FAILURE, "enable2", 0, ByApp),
@@ -75,6 +79,13 @@ fn cases() -> Vec<Case> {
         case("xrSyncActions", 2, RUNTIME_FAILURE, "enable2", 2, ByApp),
         case("xrDestroySession", 0, RUNTIME_FAILURE, "enable2", FRAMES, ByApp),
         case("xrDestroyInstance", 0, RUNTIME_FAILURE, "enable2", FRAMES, LoaderHides),
+        // A swapchain and its session the runtime would not destroy go with the instance: the
+        // layer must drop what it knew of them (their images) there too.
+        Case {
+            also: "xrDestroySession@0",
+            layer_logs: "1 swapchain(s) not destroyed by the app go with the instance",
+            ..case("xrDestroySwapchain", 0, RUNTIME_FAILURE, "enable2", FRAMES, ByApp)
+        },
         // Calls the layer makes for its own gaze action, after the app's own calls of the same
         // function (xr-scene makes 4 paths, 1 action set, 2 actions, 1 suggestion).
         case("xrStringToPath", 4, RUNTIME_FAILURE, "enable2", 0, LayerOnly),
@@ -115,7 +126,11 @@ fn base(name: &str, vulkan: &str, layer: Option<&str>) -> Run {
 
 /// A run with the fault, and the runtime's log on stderr: it says where the fault was injected.
 fn faulty(case: &Case, name: &str, layer: Option<&str>) -> Run {
-    base(name, case.vulkan, layer).env("MOCK_XR_FAIL", &format!("{}@{}={}", case.call, case.at, case.error)).env("MOCK_XR_LOG", "1")
+    let mut spec = format!("{}@{}={}", case.call, case.at, case.error);
+    if !case.also.is_empty() {
+        spec = format!("{spec},{}", case.also);
+    }
+    base(name, case.vulkan, layer).env("MOCK_XR_FAIL", &spec).env("MOCK_XR_LOG", "1")
 }
 
 /// Runs with a time limit: a run that does not end is a failure (a hang), not a stuck test.
@@ -171,6 +186,9 @@ fn check(case: &Case, without: &RunOutput, with: &RunOutput, ref_without: &RunOu
         let found: Vec<&str> = with.log.lines().filter(|l| l.contains(needle)).collect();
         expect(found.is_empty(), format!("the layer logged {needle:?}: {found:?}"));
     }
+    if !case.layer_logs.is_empty() {
+        expect(with.log.contains(case.layer_logs), format!("the layer did not log {:?}:\n{}", case.layer_logs, with.log));
+    }
     // The layer's instance exists unless creating it was the fault.
     if case.call != "xrCreateInstance" {
         expect(common::layer_loaded(&with.log, Half::OpenXr).is_ok(), format!("the layer did not load:\n{}", with.log));
@@ -222,7 +240,8 @@ fn every_intercepted_call_fails_below_the_layer_as_without_it() {
     let mut problems = Vec::new();
     for case in cases() {
         let fsr = if case.config == FSR_FEATURES { "-fsr" } else { "" };
-        let name = format!("faults-xr-{}-{}-{}{fsr}", case.call, case.at, case.error.trim_start_matches("XR_ERROR_").to_lowercase());
+        let also = if case.also.is_empty() { "" } else { "-and-more" };
+        let name = format!("faults-xr-{}-{}-{}{fsr}{also}", case.call, case.at, case.error.trim_start_matches("XR_ERROR_").to_lowercase());
         // Without and with the layer side by side: the machine has two cores.
         let (without, with) = std::thread::scope(|s| {
             let a = s.spawn(|| run(&faulty(&case, &name, None)));
@@ -239,6 +258,9 @@ fn every_intercepted_call_fails_below_the_layer_as_without_it() {
         }
         if case.config == FSR_FEATURES {
             fault.push_str(", foveation method auto");
+        }
+        if !case.also.is_empty() {
+            fault.push_str(&format!(", and {}", case.also));
         }
         rows.push((case.call.to_string(), fault, outcome(&without), outcome(&with)));
     }
