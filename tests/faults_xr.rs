@@ -28,6 +28,8 @@ struct Case {
     also: &'static str,
     /// A line the layer must log in this case ("": none).
     layer_logs: &'static str,
+    /// More xr-scene flags.
+    app_args: &'static [&'static str],
 }
 
 /// Who meets the fault.
@@ -59,7 +61,7 @@ const IMAGES_PER_FRAME: u64 = 4;
 /// the swapchains' calls also fail with the two losses a runtime reports.
 fn cases() -> Vec<Case> {
     use Seen::*;
-    let case = |call, at, error, vulkan, frames_before, seen| Case { call, at, error, vulkan, config: ALL_FEATURES, frames_before, seen, also: "", layer_logs: "" };
+    let case = |call, at, error, vulkan, frames_before, seen| Case { call, at, error, vulkan, config: ALL_FEATURES, frames_before, seen, also: "", layer_logs: "", app_args: &[] };
     let mut v = vec![
         case("xrCreateInstance", 0, RUNTIME_FAILURE, "enable2", 0, ByApp),
         case("xrEnumerateViewConfigurationViews", 0, RUNTIME_FAILURE, "enable2", 0, ByApp),
@@ -74,7 +76,9 @@ fn cases() -> Vec<Case> {
         case("xrCreateSession", 0, RUNTIME_FAILURE, "enable2", 0, ByApp),
         case("xrAttachSessionActionSets", 0, RUNTIME_FAILURE, "enable2", 0, ByApp),
         case("xrPollEvent", 0, RUNTIME_FAILURE, "enable2", 0, ByApp),
-        // Only the layer calls it (the mask's runtime mesh).
+        // The app's own call (`--visibility-mask`: the layer fetches its masks later, at the
+        // first frame), and the layer's alone (the mask's runtime mesh).
+        Case { app_args: &["--visibility-mask"], ..case("xrGetVisibilityMaskKHR", 0, RUNTIME_FAILURE, "enable2", 0, ByApp) },
         case("xrGetVisibilityMaskKHR", 0, RUNTIME_FAILURE, "enable2", 0, LayerOnly),
         case("xrSyncActions", 2, RUNTIME_FAILURE, "enable2", 2, ByApp),
         case("xrDestroySession", 0, RUNTIME_FAILURE, "enable2", FRAMES, ByApp),
@@ -130,7 +134,7 @@ fn faulty(case: &Case, name: &str, layer: Option<&str>) -> Run {
     if !case.also.is_empty() {
         spec = format!("{spec},{}", case.also);
     }
-    base(name, case.vulkan, layer).env("MOCK_XR_FAIL", &spec).env("MOCK_XR_LOG", "1")
+    base(name, case.vulkan, layer).args(case.app_args.iter().copied()).env("MOCK_XR_FAIL", &spec).env("MOCK_XR_LOG", "1")
 }
 
 /// Runs with a time limit: a run that does not end is a failure (a hang), not a stuck test.
@@ -240,7 +244,7 @@ fn every_intercepted_call_fails_below_the_layer_as_without_it() {
     let mut problems = Vec::new();
     for case in cases() {
         let fsr = if case.config == FSR_FEATURES { "-fsr" } else { "" };
-        let also = if case.also.is_empty() { "" } else { "-and-more" };
+        let also = if case.also.is_empty() && case.app_args.is_empty() { "" } else { "-and-more" };
         let name = format!("faults-xr-{}-{}-{}{fsr}{also}", case.call, case.at, case.error.trim_start_matches("XR_ERROR_").to_lowercase());
         // Without and with the layer side by side: the machine has two cores.
         let (without, with) = std::thread::scope(|s| {
@@ -252,6 +256,9 @@ fn every_intercepted_call_fails_below_the_layer_as_without_it() {
         let mut fault = format!("{}, call {}", case.error, case.at);
         if case.seen == Seen::LayerOnly {
             fault.push_str(" (the layer's own)");
+        }
+        for arg in case.app_args {
+            fault.push_str(&format!(", xr-scene `{arg}`"));
         }
         if case.vulkan == "enable" {
             fault.push_str(", XR_KHR_vulkan_enable");

@@ -63,6 +63,9 @@ fn run(opts: &cli::Options) -> Result<u64> {
     };
     // SAFETY: the handles come from the runtime's system and outlive the session (dropped later).
     let mut xs = unsafe { xr::XrSession::new(&xri, binding) }?;
+    if opts.visibility_mask {
+        xs.fetch_visibility_masks()?;
+    }
     let mut targets = targets::Targets::new(opts, &gpu, &xri, &xs)?;
     let mut renderer = renderer::Renderer::new(opts, &gpu, &targets)?;
     let mut stats = opts.stats.clone().map(stats::StatsLog::new);

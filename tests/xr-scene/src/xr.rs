@@ -28,6 +28,12 @@ impl XrInstance {
             VulkanPath::Enable2 => return fail("the runtime does not offer XR_KHR_vulkan_enable2"),
             VulkanPath::Enable => return fail("the runtime does not offer XR_KHR_vulkan_enable"),
         }
+        if opts.visibility_mask {
+            if !available.khr_visibility_mask {
+                return fail("--visibility-mask: the runtime does not offer XR_KHR_visibility_mask");
+            }
+            exts.khr_visibility_mask = true;
+        }
         if opts.submit_depth {
             if !available.khr_composition_layer_depth {
                 return fail("--submit-depth: the runtime does not offer XR_KHR_composition_layer_depth");
@@ -151,6 +157,21 @@ impl XrSession {
             running: false,
             exit_requested: false,
         })
+    }
+
+    /// `--visibility-mask`: each view's hidden-area mesh, fetched once, as an app that draws its
+    /// own mask would (xr-scene only checks that the call succeeds and returns triangles).
+    pub fn fetch_visibility_masks(&self) -> Result<()> {
+        for view in 0..2 {
+            let mask = self
+                .session
+                .get_visibility_mask_khr(xr::ViewConfigurationType::PRIMARY_STEREO, view, xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH)
+                .ctx("xrGetVisibilityMaskKHR")?;
+            if mask.indices.len() % 3 != 0 {
+                return fail(format!("xrGetVisibilityMaskKHR: view {view}: {} indices, not whole triangles", mask.indices.len()));
+            }
+        }
+        Ok(())
     }
 
     /// Drains the event queue, following the session lifecycle.
