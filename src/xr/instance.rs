@@ -243,6 +243,17 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: xr::Instance) ->
         if r == xr::Result::SUCCESS {
             // Children die with their instance (spec): drop their state too.
             let st = state();
+            // Swapchains still alive here (the app destroyed the instance directly, or its
+            // xrDestroySwapchain / xrDestroySession failed) must leave the Vulkan half's image
+            // table as well: the driver may hand their VkImage handles out again, and a new image
+            // must not be taken for a swapchain image of a dead instance (issue 11).
+            let orphans: Vec<u64> = st.swapchains.values().into_iter().filter(|(_, s)| s.session.instance.handle == instance).map(|(h, _)| h).collect();
+            if !orphans.is_empty() {
+                tracing::info!("{} swapchain(s) not destroyed by the app go with the instance", orphans.len());
+            }
+            for handle in orphans {
+                crate::shared::shared().remove_swapchain(handle);
+            }
             st.swapchains.retain(|_, s| s.session.instance.handle != instance);
             st.sessions.retain(|_, s| s.instance.handle != instance);
             st.instances.remove(instance.into_raw());

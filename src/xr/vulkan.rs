@@ -240,7 +240,10 @@ pub(super) unsafe extern "system" fn get_vulkan_instance_extensions(
         // SAFETY: a size query with a valid output pointer.
         let r = unsafe { next(instance, system_id, 0, &mut needed, std::ptr::null_mut()) };
         if r != xr::Result::SUCCESS {
-            return Ok(down.call(plain));
+            // This query is the runtime's answer to the app's call (the layer only asks first):
+            // the app gets its error, as it would without the layer. Calling down again instead
+            // would hide a runtime failure behind a second try that may succeed (issue 11).
+            return Ok(r);
         }
         let mut runtime = vec![0u8; needed as usize];
         let mut written = 0u32;

@@ -1,9 +1,9 @@
 //! The runtime's configuration comes only from `MOCK_XR_*` environment variables (docs/testing.md);
 //! they are read once per `xrCreateInstance` so a test can change them between instances.
 
-use std::collections::{HashMap, HashSet};
-use std::sync::Mutex;
+use std::collections::HashSet;
 
+use crate::fault::FailSpec;
 use crate::hmd::{HmdProfile, HMD_NAMES};
 
 /// Which frames are captured: `0,3,10-12`; `None` in [`Config`] means all.
@@ -30,37 +30,6 @@ impl FrameList {
 
     pub fn contains(&self, frame: u64) -> bool {
         self.0.iter().any(|&(a, b)| (a..=b).contains(&frame))
-    }
-}
-
-/// `MOCK_XR_FAIL=xrFunc[@K],…`: which call of which function fails.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct FailSpec(pub HashMap<String, Vec<Option<u64>>>);
-
-impl FailSpec {
-    pub fn parse(s: &str) -> Result<Self, String> {
-        let mut map: HashMap<String, Vec<Option<u64>>> = HashMap::new();
-        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-            let (name, k) = match part.split_once('@') {
-                Some((n, k)) => (
-                    n.trim(),
-                    Some(k.trim().parse::<u64>().map_err(|_| format!("bad call index in {part:?}"))?),
-                ),
-                None => (part, None),
-            };
-            if !name.starts_with("xr") || !name.chars().all(|c| c.is_ascii_alphanumeric()) {
-                return Err(format!("bad function name in {part:?}"));
-            }
-            map.entry(name.to_string()).or_default().push(k);
-        }
-        Ok(FailSpec(map))
-    }
-
-    /// Whether the `call`-th (0-based) call of `func` must fail.
-    pub fn should_fail(&self, func: &str, call: u64) -> bool {
-        self.0
-            .get(func)
-            .is_some_and(|v| v.iter().any(|k| k.is_none_or(|k| k == call)))
     }
 }
 
@@ -189,7 +158,7 @@ impl Config {
                 .unwrap_or_default(),
             mask_change_at: parse_u64("MOCK_XR_VISIBILITY_MASK_CHANGE_AT")?,
             menu_click_at: parse_u64("MOCK_XR_MENU_CLICK_AT")?,
-            fail: var("MOCK_XR_FAIL").map(|s| FailSpec::parse(&s)).transpose()?.unwrap_or_default(),
+            fail: FailSpec::from_env()?,
             log: log_enabled(),
             pace: parse_u64("MOCK_XR_PACE_HZ")?
                 .filter(|&hz| hz > 0)
@@ -217,24 +186,6 @@ macro_rules! log {
     };
 }
 
-/// Per-function call counters for `MOCK_XR_FAIL=xrFunc@K`.
-#[derive(Debug, Default)]
-pub struct FailCounters(Mutex<HashMap<&'static str, u64>>);
-
-impl FailCounters {
-    /// Counts this call of `func` and says whether it must fail.
-    pub fn hit(&self, spec: &FailSpec, func: &'static str) -> bool {
-        if spec.0.is_empty() {
-            return false;
-        }
-        let mut m = self.0.lock().unwrap();
-        let n = m.entry(func).or_insert(0);
-        let call = *n;
-        *n += 1;
-        spec.should_fail(func, call)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -257,26 +208,6 @@ mod tests {
         assert!(FrameList::parse("3-1").is_err());
         assert!(FrameList::parse("a").is_err());
         assert_eq!(FrameList::parse("").unwrap().0, vec![]);
-    }
-
-    #[test]
-    fn fail_spec() {
-        let f = FailSpec::parse("xrEndFrame@2,xrWaitFrame, xrEndFrame@4").unwrap();
-        assert!(!f.should_fail("xrEndFrame", 0));
-        assert!(f.should_fail("xrEndFrame", 2) && f.should_fail("xrEndFrame", 4));
-        assert!(f.should_fail("xrWaitFrame", 0) && f.should_fail("xrWaitFrame", 7));
-        assert!(!f.should_fail("xrBeginFrame", 0));
-        assert!(FailSpec::parse("xrEndFrame@x").is_err());
-        assert!(FailSpec::parse("endframe").is_err());
-    }
-
-    #[test]
-    fn counters() {
-        let spec = FailSpec::parse("xrBeginFrame@1").unwrap();
-        let c = FailCounters::default();
-        assert!(!c.hit(&spec, "xrBeginFrame"));
-        assert!(c.hit(&spec, "xrBeginFrame"));
-        assert!(!c.hit(&spec, "xrBeginFrame"));
     }
 
     #[test]

@@ -8,7 +8,8 @@ use std::sync::{Arc, Mutex};
 use openxr_sys as xr;
 use xr::Handle as _;
 
-use crate::config::{Config, FailCounters};
+use crate::config::Config;
+use crate::fault::{self, result_name, FailCounters};
 use crate::handles::Registry;
 use crate::util::{self, guard, input, out_ptr, output, two_call, write_fixed, XrResult};
 use crate::{EXTENSIONS, RUNTIME_API_VERSION};
@@ -96,13 +97,15 @@ impl Instance {
         self.extensions.contains(ext)
     }
 
-    /// `MOCK_XR_FAIL`: called by each entry point after its handles were validated.
+    /// `MOCK_XR_FAIL`: called by each entry point after its handles were validated and before it
+    /// changes anything; returns the error the spec selects for this call.
     pub fn fail_point(&self, func: &'static str) -> XrResult<()> {
-        if self.fail.hit(&self.cfg.fail, func) {
-            crate::log!("{func}: injected XR_ERROR_RUNTIME_FAILURE");
-            Err(xr::Result::ERROR_RUNTIME_FAILURE)
-        } else {
-            Ok(())
+        match self.fail.hit(&self.cfg.fail, func) {
+            Some(e) => {
+                crate::log!("{func}: injected {}", result_name(e));
+                Err(e)
+            }
+            None => Ok(()),
         }
     }
 
@@ -144,6 +147,7 @@ pub unsafe extern "system" fn xr_enumerate_instance_extension_properties(
         if !layer_name.is_null() {
             return Err(xr::Result::ERROR_API_LAYER_NOT_PRESENT);
         }
+        fault::global_fail_point("xrEnumerateInstanceExtensionProperties")?;
         let exts = offered_extensions();
         if capacity > 0 && props.is_null() {
             return Err(xr::Result::ERROR_VALIDATION_FAILURE);
@@ -172,9 +176,8 @@ pub unsafe extern "system" fn xr_create_instance(
             eprintln!("[mock-runtime] configuration error: {e}");
             xr::Result::ERROR_INITIALIZATION_FAILED
         })?;
-        if cfg.fail.should_fail("xrCreateInstance", 0) {
-            return Err(xr::Result::ERROR_RUNTIME_FAILURE);
-        }
+        // Counted per process: `xrCreateInstance@1` fails the second instance.
+        fault::global_fail_point("xrCreateInstance")?;
         if info.create_flags != xr::InstanceCreateFlags::EMPTY {
             return Err(xr::Result::ERROR_VALIDATION_FAILURE);
         }
@@ -296,18 +299,6 @@ pub unsafe extern "system" fn xr_poll_event(instance: xr::Instance, event: *mut 
     })
 }
 
-/// "XR_" + the enum's name, or the spec's fallback for unknown values.
-pub fn result_name(r: xr::Result) -> String {
-    let dbg = format!("{r:?}");
-    if dbg.chars().all(|c| c.is_ascii_uppercase() || c == '_' || c.is_ascii_digit()) && !dbg.starts_with(|c: char| c.is_ascii_digit()) {
-        format!("XR_{dbg}")
-    } else if r.into_raw() < 0 {
-        format!("XR_UNKNOWN_FAILURE_{}", r.into_raw())
-    } else {
-        format!("XR_UNKNOWN_SUCCESS_{}", r.into_raw())
-    }
-}
-
 pub fn structure_type_name(t: xr::StructureType) -> String {
     let dbg = format!("{t:?}");
     if dbg.chars().all(|c| c.is_ascii_uppercase() || c == '_' || c.is_ascii_digit()) && !dbg.starts_with(|c: char| c.is_ascii_digit()) {
@@ -401,8 +392,6 @@ mod tests {
 
     #[test]
     fn names() {
-        assert_eq!(result_name(xr::Result::ERROR_VALIDATION_FAILURE), "XR_ERROR_VALIDATION_FAILURE");
-        assert_eq!(result_name(xr::Result::from_raw(-999_999)), "XR_UNKNOWN_FAILURE_-999999");
         assert_eq!(structure_type_name(xr::StructureType::SESSION_CREATE_INFO), "XR_TYPE_SESSION_CREATE_INFO");
     }
 }

@@ -16,6 +16,7 @@ use xr::Handle as _;
 pub mod actions;
 pub mod capture;
 pub mod config;
+pub mod fault;
 pub mod frame;
 pub mod handles;
 pub mod hmd;
@@ -159,12 +160,14 @@ const PRE_INSTANCE: &[&str] = &["xrEnumerateInstanceExtensionProperties", "xrCre
 fn lookup(instance: xr::Instance, name: &str) -> XrResult<pfn::VoidFunction> {
     let func = FUNCTIONS.iter().find(|f| f.name == name);
     if instance == xr::Instance::NULL {
+        fault::global_fail_point("xrGetInstanceProcAddr")?;
         return match func {
             Some(f) if PRE_INSTANCE.contains(&f.name) => Ok(f.ptr),
             _ => Err(xr::Result::ERROR_HANDLE_INVALID),
         };
     }
     let inst = instance::get(instance)?;
+    inst.fail_point("xrGetInstanceProcAddr")?;
     let f = func.ok_or(xr::Result::ERROR_FUNCTION_UNSUPPORTED)?;
     match f.extension {
         Some(ext) if !inst.extension_enabled(ext) => Err(xr::Result::ERROR_FUNCTION_UNSUPPORTED),
@@ -220,6 +223,7 @@ pub unsafe extern "system" fn xrNegotiateLoaderRuntimeInterface(
         if li.min_api_version.major() > 1 || li.max_api_version.major() < 1 {
             return Err(xr::Result::ERROR_INITIALIZATION_FAILED);
         }
+        fault::global_fail_point("xrNegotiateLoaderRuntimeInterface")?;
         rq.runtime_interface_version = 1;
         // An older loader (1.0.x) must not be told about a newer API than it knows.
         rq.runtime_api_version = RUNTIME_API_VERSION.min(li.max_api_version);

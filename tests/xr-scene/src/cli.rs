@@ -136,6 +136,9 @@ pub struct Options {
     pub far_movers: bool,
     /// `--submit2`: frames go down with vkQueueSubmit2 (Vulkan 1.3, synchronization2).
     pub submit2: bool,
+    /// `--visibility-mask`: enable XR_KHR_visibility_mask and fetch each view's hidden-area mesh
+    /// once after creating the session, as apps that draw their own mask do.
+    pub visibility_mask: bool,
 }
 
 impl Default for Options {
@@ -172,6 +175,7 @@ impl Default for Options {
             translucent: false,
             far_movers: false,
             submit2: false,
+            visibility_mask: false,
         }
     }
 }
@@ -227,6 +231,7 @@ usage: xr-scene [options]
                                             after the opaque geometry, depth write off
   --far-movers                              a far object (~250 m) that orbits the stage by frame number
   --submit2                                 submit frames with vkQueueSubmit2 (needs --vulkan-api 1.3)
+  --visibility-mask                         fetch each view's hidden-area mesh (XR_KHR_visibility_mask)
   --help                                    show this text";
 
 /// Parses the arguments after the program name. `Err` carries the message for a usage error;
@@ -365,6 +370,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
             "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary"
             | "--record-once" | "--sync-hazard" | "--sky-first" | "--translucent" | "--far-movers" | "--submit2"
+            | "--visibility-mask"
                 if inline.is_some() =>
             {
                 return Err(format!("{flag} takes no value"))
@@ -382,6 +388,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--translucent" => o.translucent = true,
             "--far-movers" => o.far_movers = true,
             "--submit2" => o.submit2 = true,
+            "--visibility-mask" => o.visibility_mask = true,
             _ => return Err(format!("unknown argument {arg:?}")),
         }
     }
@@ -513,6 +520,13 @@ mod tests {
         assert!(p(&["--translucent=1"]).is_err());
         assert!(p(&["--far-movers=yes"]).is_err());
         assert!(p(&["--sky-first=1"]).is_err());
+    }
+
+    #[test]
+    fn visibility_mask_flag() {
+        assert!(!p(&[]).unwrap().unwrap().visibility_mask);
+        assert!(p(&["--visibility-mask"]).unwrap().unwrap().visibility_mask);
+        assert!(p(&["--visibility-mask=1"]).is_err());
     }
 
     #[test]

@@ -30,3 +30,12 @@ impl<T, E: fmt::Debug> Ctx<T> for std::result::Result<T, E> {
 pub fn fail<T>(msg: impl Into<String>) -> Result<T> {
     Err(Error(msg.into()))
 }
+
+/// A raw OpenXR call's result as this module's error (the text `Ctx` gives the openxr crate's
+/// calls), for calls made through the raw entry points.
+pub fn check(r: openxr::sys::Result, what: &str) -> Result<()> {
+    if r.into_raw() < 0 {
+        return fail(format!("{what} failed: {r:?}"));
+    }
+    Ok(())
+}

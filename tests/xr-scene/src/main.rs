@@ -77,7 +77,15 @@ fn run_instance(opts: &cli::Options) -> Result<u64> {
     let mut frame: u64 = 0;
     for session in 0..opts.sessions {
         let first = frame;
-        frame = run_session(opts, &xri, &gpu, &mut stats, frame)?;
+        let (next, mut errors) = run_session(opts, &xri, &gpu, &mut stats, frame)?;
+        frame = next;
+        if !errors.is_empty() {
+            // The runtime may still hold objects on the Vulkan device (a session it failed to
+            // destroy): destroying the instance, which takes its children with it, comes first.
+            errors.extend(xri.destroy().err().map(|e| e.0));
+            drop(gpu);
+            return error::fail(errors.join("; "));
+        }
         if opts.sessions > 1 {
             // What a leak across sessions would show: the process's resident memory after each
             // session's objects are gone (tests/lifecycle.rs).
@@ -85,7 +93,7 @@ fn run_instance(opts: &cli::Options) -> Result<u64> {
         }
     }
     drop(gpu);
-    drop(xri);
+    xri.destroy()?;
     Ok(frame)
 }
 
@@ -97,7 +105,8 @@ fn rss_kb() -> Option<u64> {
 
 /// One session until the runtime ends it, its frames numbered from `frame`; returns the next
 /// frame number. Locals drop in reverse order: GPU objects, swapchains, session.
-fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats: &mut Option<stats::StatsLog>, mut frame: u64) -> Result<u64> {
+/// Also returns the session's teardown errors (failed `xrDestroySwapchain` / `xrDestroySession`).
+fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats: &mut Option<stats::StatsLog>, mut frame: u64) -> Result<(u64, Vec<String>)> {
     let first_frame = frame;
     let binding = oxr::vulkan::SessionCreateInfo {
         instance: gpu.instance.handle().as_raw() as _,
@@ -108,6 +117,9 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
     };
     // SAFETY: the handles come from the runtime's system and outlive the session (dropped later).
     let mut xs = unsafe { xr::XrSession::new(xri, binding) }?;
+    if opts.visibility_mask {
+        xs.fetch_visibility_masks()?;
+    }
     let mut targets = targets::Targets::new(opts, gpu, xri, &xs)?;
     let mut renderer = renderer::Renderer::new(opts, gpu, &targets)?;
     let reversed = opts.depth == cli::DepthMode::Reverse;
@@ -181,7 +193,7 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
             let finished = renderer.finish()?;
             push_stats(stats, &mut xr_us, finished)?;
             drop(renderer);
-            drop(targets);
+            targets.destroy()?;
             let sized = cli::Options { scale: opts.scale * [1.0, 0.8, 1.2][((frame - first_frame) / k % 3) as usize], ..opts.clone() };
             targets = targets::Targets::new(&sized, gpu, xri, &xs)?;
             renderer = renderer::Renderer::new(&sized, gpu, &targets)?;
@@ -191,9 +203,11 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
     let finished = renderer.finish()?;
     push_stats(stats, &mut xr_us, finished)?;
     drop(renderer);
-    drop(targets);
-    drop(xs);
-    Ok(frame)
+    // Torn down explicitly, in the order the locals would drop, so that a failing destroy call
+    // reaches the error path like every other call; a failure does not stop the rest. The caller
+    // decides what goes next (`run_instance`).
+    let errors: Vec<String> = [targets.destroy(), xs.destroy()].into_iter().filter_map(|r| r.err().map(|e| e.0)).collect();
+    Ok((frame, errors))
 }
 
 /// Adds the measurements of frames whose GPU work finished to `--stats`.

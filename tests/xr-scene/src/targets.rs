@@ -368,8 +368,34 @@ fn destroy_views(d: &ash::Device, views: &[vk::ImageView]) {
     }
 }
 
-impl Drop for Targets {
-    fn drop(&mut self) {
+impl Targets {
+    /// Destroys the Vulkan objects, then each XR swapchain through the raw entry point, so that a
+    /// failing `xrDestroySwapchain` is reported like any other failing call (the openxr crate's
+    /// `Drop` ignores its result). Every swapchain is destroyed even after a failure; the error
+    /// names every failed call.
+    pub fn destroy(mut self) -> Result<()> {
+        self.destroy_vulkan_objects();
+        let mut errors = Vec::new();
+        for slot in std::mem::take(&mut self.slots) {
+            for chain in std::iter::once(slot.color).chain(slot.depth) {
+                let sc = chain.swapchain;
+                // SAFETY: the app's own swapchain, no longer used by any GPU work (the device is
+                // idle); the wrapper is forgotten so its `Drop` does not destroy it again.
+                let r = unsafe { (sc.instance().fp().destroy_swapchain)(sc.as_raw()) };
+                std::mem::forget(sc);
+                if let Err(e) = crate::error::check(r, "xrDestroySwapchain") {
+                    errors.push(e.0);
+                }
+            }
+        }
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            crate::error::fail(errors.join("; "))
+        }
+    }
+
+    fn destroy_vulkan_objects(&mut self) {
         // SAFETY: wait for all GPU work before destroying what it may use.
         unsafe {
             let _ = self.device.device_wait_idle();
@@ -386,6 +412,13 @@ impl Drop for Targets {
                 i.destroy(&self.device);
             }
         }
-        // The XR swapchains are destroyed when `slots` drops, after their views.
+    }
+}
+
+impl Drop for Targets {
+    /// The error path (`destroy` leaves no slot behind): the XR swapchains are destroyed when
+    /// `slots` drops, after their views.
+    fn drop(&mut self) {
+        self.destroy_vulkan_objects();
     }
 }

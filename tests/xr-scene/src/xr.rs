@@ -28,6 +28,12 @@ impl XrInstance {
             VulkanPath::Enable2 => return fail("the runtime does not offer XR_KHR_vulkan_enable2"),
             VulkanPath::Enable => return fail("the runtime does not offer XR_KHR_vulkan_enable"),
         }
+        if opts.visibility_mask {
+            if !available.khr_visibility_mask {
+                return fail("--visibility-mask: the runtime does not offer XR_KHR_visibility_mask");
+            }
+            exts.khr_visibility_mask = true;
+        }
         if opts.submit_depth {
             if !available.khr_composition_layer_depth {
                 return fail("--submit-depth: the runtime does not offer XR_KHR_composition_layer_depth");
@@ -64,6 +70,18 @@ impl XrInstance {
             *blends.first().ok_or_else(|| crate::error::Error("no environment blend modes".into()))?
         };
         Ok(XrInstance { instance, system, view_config, blend_mode, _entry: entry })
+    }
+
+    /// `xrDestroyInstance` through the raw entry point, so its failure is reported (the openxr
+    /// crate's `Drop` ignores the result).
+    pub fn destroy(self) -> Result<()> {
+        let XrInstance { instance, _entry: entry, .. } = self;
+        // SAFETY: every child object was destroyed before; the wrapper is forgotten so its `Drop`
+        // does not destroy the handle again; the loader stays mapped until `entry` drops below.
+        let r = unsafe { (instance.fp().destroy_instance)(instance.as_raw()) };
+        std::mem::forget(instance);
+        drop(entry);
+        crate::error::check(r, "xrDestroyInstance")
     }
 }
 
@@ -141,6 +159,21 @@ impl XrSession {
         })
     }
 
+    /// `--visibility-mask`: each view's hidden-area mesh, fetched once, as an app that draws its
+    /// own mask would (xr-scene only checks that the call succeeds and returns triangles).
+    pub fn fetch_visibility_masks(&self) -> Result<()> {
+        for view in 0..2 {
+            let mask = self
+                .session
+                .get_visibility_mask_khr(xr::ViewConfigurationType::PRIMARY_STEREO, view, xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH)
+                .ctx("xrGetVisibilityMaskKHR")?;
+            if mask.indices.len() % 3 != 0 {
+                return fail(format!("xrGetVisibilityMaskKHR: view {view}: {} indices, not whole triangles", mask.indices.len()));
+            }
+        }
+        Ok(())
+    }
+
     /// Drains the event queue, following the session lifecycle.
     pub fn poll_events(&mut self, inst: &xr::Instance) -> Result<Flow> {
         let mut buf = xr::EventDataBuffer::new();
@@ -184,6 +217,18 @@ impl XrSession {
             self.request_exit()?;
         }
         Ok(())
+    }
+
+    /// Destroys the spaces and actions (their `Drop`), then the session through the raw entry
+    /// point, so a failing `xrDestroySession` is reported (the openxr crate's `Drop` ignores it).
+    pub fn destroy(self) -> Result<()> {
+        let XrSession { grip_space, stage, quit, _pose, action_set, waiter, stream, session, .. } = self;
+        drop((grip_space, stage, quit, _pose, action_set, waiter, stream));
+        // SAFETY: the session's swapchains and spaces are gone; the wrapper is forgotten so its
+        // `Drop` does not destroy the handle again.
+        let r = unsafe { (session.instance().fp().destroy_session)(session.as_raw()) };
+        std::mem::forget(session);
+        crate::error::check(r, "xrDestroySession")
     }
 
     pub fn request_exit(&mut self) -> Result<()> {
