@@ -24,6 +24,18 @@ fn sessions(out: &RunOutput) -> Vec<(u64, u64)> {
         .collect()
 }
 
+/// Every device stats line says the layer tracks nothing of the app's objects any more (the app
+/// destroyed them all before its device): no state kept across sessions, swapchains or instances.
+fn assert_nothing_tracked(out: &RunOutput) {
+    let lines = out.log_lines("vulkan device stats");
+    assert!(!lines.is_empty(), "no device stats line:\n{}", out.log);
+    for l in lines {
+        let live: Vec<&str> = l.split_whitespace().filter(|w| w.starts_with("live.")).collect();
+        assert_eq!(live.len(), 7, "{l}");
+        assert!(live.iter().all(|w| w.ends_with("=0")), "the layer still tracks destroyed objects: {live:?}");
+    }
+}
+
 /// RSS growth (kB) from the end of the first third of the sessions to the end of the last: the
 /// first sessions warm caches (shader compilers, allocator pools) in any app.
 fn growth(s: &[(u64, u64)]) -> i64 {
@@ -48,6 +60,7 @@ fn sessions_recreated_with_every_feature_on_keep_memory_flat() {
     layered.name = "lifecycle-sessions-layer".into();
     let with = layered.run();
     with.assert_ok().assert_layer_loaded(Half::Both).assert_log_lacks(Half::Both, "internal failure");
+    assert_nothing_tracked(&with);
     let (a, b) = (sessions(&plain), sessions(&with));
     assert_eq!(a.len(), SESSIONS, "{}", plain.stderr);
     assert_eq!(b.len(), SESSIONS, "{}", with.stderr);
@@ -85,6 +98,7 @@ fn swapchains_recreated_with_other_sizes_keep_every_feature_working() {
         .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap())
         .run();
     out.assert_ok().assert_layer_loaded(Half::Both).assert_log_lacks(Half::Both, "internal failure");
+    assert_nothing_tracked(&out);
     let lines: Vec<serde_json::Value> = std::fs::read_to_string(&stats).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(lines.len(), 12, "one stats line per frame");
     // The last frame of each swapchain set (frames 2, 5, 8, 11): its eyes are known since the
@@ -123,6 +137,7 @@ fn instances_recreated_with_every_feature_on() {
     layered.name = "lifecycle-instances-layer".into();
     let with = layered.run();
     with.assert_ok().assert_log_lacks(Half::Both, "internal failure");
+    assert_nothing_tracked(&with);
     let rss = |out: &RunOutput| -> Vec<(u64, u64)> {
         out.stderr
             .lines()

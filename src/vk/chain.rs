@@ -525,6 +525,20 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
         for (reason, n) in dev.inject.vetoed() {
             line.push_str(&format!(" vetoed.{reason}={n}"));
         }
+        // What the layer still tracks of the app's objects when the device goes: an app that
+        // destroyed everything leaves 0 of each; anything else is state the layer failed to
+        // forget (tests/lifecycle.rs checks it across sessions and instances).
+        let t = &dev.track;
+        line.push_str(&format!(
+            " live.images={} live.views={} live.render_passes={} live.framebuffers={} live.pipelines={} live.command_pools={} live.command_buffers={}",
+            t.images.len(),
+            t.views.len(),
+            t.render_passes.len(),
+            t.framebuffers.len(),
+            t.pipelines.len(),
+            t.pools.len(),
+            t.command_buffers.len()
+        ));
         tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {line}");
         // The app waited for the device to go idle before destroying it.
         for f in dev.features.all() {
