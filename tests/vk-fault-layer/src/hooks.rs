@@ -9,20 +9,38 @@ use std::cell::RefCell;
 thread_local! {
     /// The app's intercepted calls in progress on this thread, as the marker saw them:
     /// (`spec::FUNCS` index, signature).
-    static APP_CALLS: RefCell<Vec<(usize, u64)>> = const { RefCell::new(Vec::new()) };
+    static APP_CALLS: RefCell<Vec<(usize, Vec<u64>)>> = const { RefCell::new(Vec::new()) };
 }
 
 /// What identifies the app's own call of a command among the calls the layer in between makes
 /// inside it. Only `vkQueueSubmit` needs one: stereoshim submits its own work (set-up work before,
-/// a completion fence after) from inside the app's `vkQueueSubmit`, with a batch count and fence
-/// of its own, while it passes the app's count and fence down unchanged. It creates none of its
-/// own objects of a kind inside the app's creation of that kind, so 0 (any) does for the rest.
-fn submit_signature(count: u32, fence: vk::Fence) -> u64 {
-    ((count as u64) << 48) ^ fence.as_raw()
+/// a completion fence after) from inside the app's `vkQueueSubmit`, while it passes the app's
+/// command buffers down. Those are dispatchable handles, which no layer wraps (validation wraps
+/// the fence, so the fence cannot tell the calls apart). An empty signature matches any call: the
+/// layer creates none of its own objects of a kind inside the app's creation of that kind.
+///
+/// # Safety
+/// `submits` must point to `count` valid submit infos.
+unsafe fn submit_signature(count: u32, submits: *const vk::SubmitInfo<'_>) -> Vec<u64> {
+    let mut cbs = Vec::new();
+    for i in 0..count as usize {
+        // SAFETY: within the caller's `count` valid submit infos.
+        let s = unsafe { &*submits.add(i) };
+        for j in 0..s.command_buffer_count as usize {
+            // SAFETY: each submit info's command buffer array has its count of handles.
+            cbs.push(unsafe { *s.p_command_buffers.add(j) }.as_raw());
+        }
+    }
+    if cbs.is_empty() {
+        // A submission of no command buffer (a fence or semaphores only) is told apart by this
+        // marker alone.
+        cbs.push(u64::MAX);
+    }
+    cbs
 }
 
 /// Runs `down` (the call to the next layer) for the marker (`U`) or the lower instance.
-fn intercept<const U: bool>(func: usize, signature: u64, down: impl FnOnce() -> vk::Result, clear: impl FnOnce()) -> vk::Result {
+fn intercept<const U: bool>(func: usize, signature: Vec<u64>, down: impl FnOnce() -> vk::Result, clear: impl FnOnce()) -> vk::Result {
     let name = spec::FUNCS[func][0];
     if U {
         APP_CALLS.with(|c| c.borrow_mut().push((func, signature)));
@@ -36,7 +54,7 @@ fn intercept<const U: bool>(func: usize, signature: u64, down: impl FnOnce() -> 
         let _pop = Pop;
         return down();
     }
-    let app = APP_CALLS.with(|c| c.borrow().iter().any(|&(f, s)| f == func && (s == signature || s == 0)));
+    let app = APP_CALLS.with(|c| c.borrow().iter().any(|(f, s)| *f == func && (s.is_empty() || s.iter().any(|x| signature.contains(x)))));
     let origin = if app { Origin::App } else { Origin::Layer };
     let rules = match crate::rules() {
         Ok(r) => r.as_slice(),
@@ -122,45 +140,48 @@ macro_rules! hooks {
 type Alloc<'a> = *const vk::AllocationCallbacks<'a>;
 
 hooks! {
-    create_image "vkCreateImage" vk::PFN_vkCreateImage = (device: vk::Device, ci: *const vk::ImageCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Image) sig 0;
+    create_image "vkCreateImage" vk::PFN_vkCreateImage = (device: vk::Device, ci: *const vk::ImageCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Image) sig Vec::new();
         clear { null_out(out, 1) }
-    allocate_memory "vkAllocateMemory" vk::PFN_vkAllocateMemory = (device: vk::Device, info: *const vk::MemoryAllocateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::DeviceMemory) sig 0;
+    allocate_memory "vkAllocateMemory" vk::PFN_vkAllocateMemory = (device: vk::Device, info: *const vk::MemoryAllocateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::DeviceMemory) sig Vec::new();
         clear { null_out(out, 1) }
-    create_graphics_pipelines "vkCreateGraphicsPipelines" vk::PFN_vkCreateGraphicsPipelines = (device: vk::Device, cache: vk::PipelineCache, count: u32, infos: *const vk::GraphicsPipelineCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Pipeline) sig 0;
+    create_graphics_pipelines "vkCreateGraphicsPipelines" vk::PFN_vkCreateGraphicsPipelines = (device: vk::Device, cache: vk::PipelineCache, count: u32, infos: *const vk::GraphicsPipelineCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Pipeline) sig Vec::new();
         clear { null_out(out, count) }
-    create_compute_pipelines "vkCreateComputePipelines" vk::PFN_vkCreateComputePipelines = (device: vk::Device, cache: vk::PipelineCache, count: u32, infos: *const vk::ComputePipelineCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Pipeline) sig 0;
+    create_compute_pipelines "vkCreateComputePipelines" vk::PFN_vkCreateComputePipelines = (device: vk::Device, cache: vk::PipelineCache, count: u32, infos: *const vk::ComputePipelineCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Pipeline) sig Vec::new();
         clear { null_out(out, count) }
-    create_shader_module "vkCreateShaderModule" vk::PFN_vkCreateShaderModule = (device: vk::Device, ci: *const vk::ShaderModuleCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::ShaderModule) sig 0;
+    create_shader_module "vkCreateShaderModule" vk::PFN_vkCreateShaderModule = (device: vk::Device, ci: *const vk::ShaderModuleCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::ShaderModule) sig Vec::new();
         clear { null_out(out, 1) }
-    queue_submit "vkQueueSubmit" vk::PFN_vkQueueSubmit = (queue: vk::Queue, count: u32, submits: *const vk::SubmitInfo<'_>, fence: vk::Fence) sig submit_signature(count, fence);
+    queue_submit "vkQueueSubmit" vk::PFN_vkQueueSubmit = (queue: vk::Queue, count: u32, submits: *const vk::SubmitInfo<'_>, fence: vk::Fence) sig {
+            // SAFETY: the caller passes `count` valid submit infos.
+            unsafe { submit_signature(count, submits) }
+        };
         clear { no_outputs() }
-    create_render_pass "vkCreateRenderPass" vk::PFN_vkCreateRenderPass = (device: vk::Device, ci: *const vk::RenderPassCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::RenderPass) sig 0;
+    create_render_pass "vkCreateRenderPass" vk::PFN_vkCreateRenderPass = (device: vk::Device, ci: *const vk::RenderPassCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::RenderPass) sig Vec::new();
         clear { null_out(out, 1) }
-    create_render_pass2 "vkCreateRenderPass2" vk::PFN_vkCreateRenderPass2 = (device: vk::Device, ci: *const vk::RenderPassCreateInfo2<'_>, alloc: Alloc<'_>, out: *mut vk::RenderPass) sig 0;
+    create_render_pass2 "vkCreateRenderPass2" vk::PFN_vkCreateRenderPass2 = (device: vk::Device, ci: *const vk::RenderPassCreateInfo2<'_>, alloc: Alloc<'_>, out: *mut vk::RenderPass) sig Vec::new();
         clear { null_out(out, 1) }
-    create_image_view "vkCreateImageView" vk::PFN_vkCreateImageView = (device: vk::Device, ci: *const vk::ImageViewCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::ImageView) sig 0;
+    create_image_view "vkCreateImageView" vk::PFN_vkCreateImageView = (device: vk::Device, ci: *const vk::ImageViewCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::ImageView) sig Vec::new();
         clear { null_out(out, 1) }
-    create_buffer "vkCreateBuffer" vk::PFN_vkCreateBuffer = (device: vk::Device, ci: *const vk::BufferCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Buffer) sig 0;
+    create_buffer "vkCreateBuffer" vk::PFN_vkCreateBuffer = (device: vk::Device, ci: *const vk::BufferCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Buffer) sig Vec::new();
         clear { null_out(out, 1) }
-    create_descriptor_pool "vkCreateDescriptorPool" vk::PFN_vkCreateDescriptorPool = (device: vk::Device, ci: *const vk::DescriptorPoolCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::DescriptorPool) sig 0;
+    create_descriptor_pool "vkCreateDescriptorPool" vk::PFN_vkCreateDescriptorPool = (device: vk::Device, ci: *const vk::DescriptorPoolCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::DescriptorPool) sig Vec::new();
         clear { null_out(out, 1) }
-    allocate_descriptor_sets "vkAllocateDescriptorSets" vk::PFN_vkAllocateDescriptorSets = (device: vk::Device, info: *const vk::DescriptorSetAllocateInfo<'_>, out: *mut vk::DescriptorSet) sig 0;
+    allocate_descriptor_sets "vkAllocateDescriptorSets" vk::PFN_vkAllocateDescriptorSets = (device: vk::Device, info: *const vk::DescriptorSetAllocateInfo<'_>, out: *mut vk::DescriptorSet) sig Vec::new();
         clear { null_out(out, (*info).descriptor_set_count) }
-    create_framebuffer "vkCreateFramebuffer" vk::PFN_vkCreateFramebuffer = (device: vk::Device, ci: *const vk::FramebufferCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Framebuffer) sig 0;
+    create_framebuffer "vkCreateFramebuffer" vk::PFN_vkCreateFramebuffer = (device: vk::Device, ci: *const vk::FramebufferCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Framebuffer) sig Vec::new();
         clear { null_out(out, 1) }
-    create_query_pool "vkCreateQueryPool" vk::PFN_vkCreateQueryPool = (device: vk::Device, ci: *const vk::QueryPoolCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::QueryPool) sig 0;
+    create_query_pool "vkCreateQueryPool" vk::PFN_vkCreateQueryPool = (device: vk::Device, ci: *const vk::QueryPoolCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::QueryPool) sig Vec::new();
         clear { null_out(out, 1) }
-    allocate_command_buffers "vkAllocateCommandBuffers" vk::PFN_vkAllocateCommandBuffers = (device: vk::Device, info: *const vk::CommandBufferAllocateInfo<'_>, out: *mut vk::CommandBuffer) sig 0;
+    allocate_command_buffers "vkAllocateCommandBuffers" vk::PFN_vkAllocateCommandBuffers = (device: vk::Device, info: *const vk::CommandBufferAllocateInfo<'_>, out: *mut vk::CommandBuffer) sig Vec::new();
         clear { null_out(out, (*info).command_buffer_count) }
-    create_fence "vkCreateFence" vk::PFN_vkCreateFence = (device: vk::Device, ci: *const vk::FenceCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Fence) sig 0;
+    create_fence "vkCreateFence" vk::PFN_vkCreateFence = (device: vk::Device, ci: *const vk::FenceCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Fence) sig Vec::new();
         clear { null_out(out, 1) }
-    create_pipeline_layout "vkCreatePipelineLayout" vk::PFN_vkCreatePipelineLayout = (device: vk::Device, ci: *const vk::PipelineLayoutCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::PipelineLayout) sig 0;
+    create_pipeline_layout "vkCreatePipelineLayout" vk::PFN_vkCreatePipelineLayout = (device: vk::Device, ci: *const vk::PipelineLayoutCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::PipelineLayout) sig Vec::new();
         clear { null_out(out, 1) }
-    create_descriptor_set_layout "vkCreateDescriptorSetLayout" vk::PFN_vkCreateDescriptorSetLayout = (device: vk::Device, ci: *const vk::DescriptorSetLayoutCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::DescriptorSetLayout) sig 0;
+    create_descriptor_set_layout "vkCreateDescriptorSetLayout" vk::PFN_vkCreateDescriptorSetLayout = (device: vk::Device, ci: *const vk::DescriptorSetLayoutCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::DescriptorSetLayout) sig Vec::new();
         clear { null_out(out, 1) }
-    create_sampler "vkCreateSampler" vk::PFN_vkCreateSampler = (device: vk::Device, ci: *const vk::SamplerCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Sampler) sig 0;
+    create_sampler "vkCreateSampler" vk::PFN_vkCreateSampler = (device: vk::Device, ci: *const vk::SamplerCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Sampler) sig Vec::new();
         clear { null_out(out, 1) }
-    create_command_pool "vkCreateCommandPool" vk::PFN_vkCreateCommandPool = (device: vk::Device, ci: *const vk::CommandPoolCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::CommandPool) sig 0;
+    create_command_pool "vkCreateCommandPool" vk::PFN_vkCreateCommandPool = (device: vk::Device, ci: *const vk::CommandPoolCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::CommandPool) sig Vec::new();
         clear { null_out(out, 1) }
 }
 
