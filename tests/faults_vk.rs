@@ -51,6 +51,15 @@ const CALLS: &[(&str, &str)] = &[
     ("vkQueueSubmit", "VK_ERROR_DEVICE_LOST"),
 ];
 
+/// More calls the app makes: a later index where the first call of a command is the runtime's
+/// (its swapchain images' memory, its command pool), and a command the app makes only on
+/// another rendering path. (call, fault, app call index, extra xr-scene arguments).
+const MORE_APP_CALLS: &[(&str, &str, u32, &[&str])] = &[
+    ("vkAllocateMemory", "VK_ERROR_OUT_OF_DEVICE_MEMORY", 12, &[]),
+    ("vkCreateCommandPool", "VK_ERROR_OUT_OF_DEVICE_MEMORY", 1, &[]),
+    ("vkCreateRenderPass2", "VK_ERROR_OUT_OF_DEVICE_MEMORY", 0, &["--rendering", "render-pass2"]),
+];
+
 /// Writes the fault layer's two manifests (docs/testing.md) under a folder of the loader's
 /// `XDG_DATA_DIRS` search and returns that folder: the lower layer explicit (the app enables it
 /// last, so it sits below stereoshim, next to the driver), the marker implicit (the loader puts
@@ -88,10 +97,11 @@ fn fault_layer_data_dir() -> PathBuf {
 /// xr-scene with the fault layer (`VK_FAULT` = `fault`), three frames (frame 0's eyes are unknown
 /// to the layer until its `xrEndFrame`, so frames 1 and 2 carry the features), depth submitted
 /// (the far field's depth range), and with stereoshim and every feature when `layer`.
-fn run(name: &str, fault: &str, layer: bool) -> RunOutput {
+fn run(name: &str, fault: &str, layer: bool, args: &[&str]) -> RunOutput {
     let data = fault_layer_data_dir();
     let mut r = Run::new(name)
         .args(["--submit-depth", "--vk-layer", FAULT_LAYER])
+        .args(args.iter().copied())
         .env("MOCK_XR_EXIT_AFTER", "3")
         .env("VK_FAULT", fault)
         .env("XDG_DATA_DIRS", &format!("{}:/usr/local/share:/usr/share", data.display()));
@@ -141,14 +151,16 @@ fn layer_warnings(o: &RunOutput) -> Vec<String> {
         .lines()
         .filter(|l| l.contains(" WARN ") || l.contains(" ERROR "))
         .filter_map(|l| l.split_once(": ").map(|(_, m)| m))
-        .map(|m| m.split(|c: char| c.is_whitespace()).map(|w| if w.starts_with("0x") { "0x…" } else { w }).collect::<Vec<_>>().join(" "))
+        // Handles and URLs differ run to run or only make the table long.
+        .map(|m| m.split(" key=").next().unwrap_or(m).split(" See <").next().unwrap_or(m).trim_end_matches('.').to_string())
+        .map(|m| m.split(' ').map(|w| if w.starts_with("0x") || w.chars().filter(char::is_ascii_digit).count() >= 8 { "…" } else { w }).collect::<Vec<_>>().join(" "))
         .collect()
 }
 
 struct Row {
     call: &'static str,
     fault: &'static str,
-    who: &'static str,
+    who: String,
     without: String,
     with: String,
     equal: bool,
@@ -207,11 +219,11 @@ impl References {
     }
 }
 
-/// (a) The app's first call of `call` fails below stereoshim: the same result with and without it.
-fn app_fault(call: &'static str, fault: &'static str, errors: &mut Vec<String>) -> Row {
-    let spec = format!("{call}@app:0={fault}");
-    let without = run(&format!("vkf-{call}-app-plain"), &spec, false);
-    let with = run(&format!("vkf-{call}-app-layered"), &spec, true);
+/// (a) The app's call `index` of `call` fails below stereoshim: the same result with and without it.
+fn app_fault(call: &'static str, fault: &'static str, index: u32, args: &[&str], errors: &mut Vec<String>) -> Row {
+    let spec = format!("{call}@app:{index}={fault}");
+    let without = run(&format!("vkf-{call}-app{index}-plain"), &spec, false, args);
+    let with = run(&format!("vkf-{call}-app{index}-layered"), &spec, true, args);
     errors.extend(hard_failures(&without));
     errors.extend(hard_failures(&with));
     if let Err(e) = common::layer_loaded(&with.log, common::Half::Both) {
@@ -228,7 +240,12 @@ fn app_fault(call: &'static str, fault: &'static str, errors: &mut Vec<String>) 
         errors.push(format!("{call} (app): without stereoshim {a:?}, with it {b:?}\n--- without:\n{}\n--- with:\n{}", without.stderr, with.stderr));
     }
     let describe = |r: String, f: &[&str]| if f.is_empty() { format!("no app call; {r}") } else { r };
-    Row { call, fault, who: "app", without: describe(a, &fa), with: describe(b, &fb), equal }
+    let who = match (index, args.is_empty()) {
+        (0, true) => "app, 1st call".to_string(),
+        (i, true) => format!("app, call {}", i + 1),
+        (i, false) => format!("app, call {} with `{}`", i + 1, args.join(" ")),
+    };
+    Row { call, fault, who, without: describe(a, &fa), with: describe(b, &fb), equal }
 }
 
 /// (b) stereoshim's first own call of `call` fails. The right outcome: the feature that needed the
@@ -238,8 +255,8 @@ fn app_fault(call: &'static str, fault: &'static str, errors: &mut Vec<String>) 
 /// the app never asked for into a crash of the app.
 fn layer_fault(call: &'static str, fault: &'static str, refs: &References, errors: &mut Vec<String>) -> Row {
     let spec = format!("{call}@layer:0={fault}");
-    let without = run(&format!("vkf-{call}-layer-plain"), &spec, false);
-    let with = run(&format!("vkf-{call}-layer-layered"), &spec, true);
+    let without = run(&format!("vkf-{call}-layer-plain"), &spec, false, &[]);
+    let with = run(&format!("vkf-{call}-layer-layered"), &spec, true, &[]);
     errors.extend(hard_failures(&without));
     errors.extend(hard_failures(&with));
     // Without stereoshim nothing lies between the marker and the fault layer: no call is the
@@ -266,7 +283,7 @@ fn layer_fault(call: &'static str, fault: &'static str, refs: &References, error
         }
         format!("{b}; layer: {}", warnings.first().map(String::as_str).unwrap_or("(nothing logged)"))
     };
-    Row { call, fault, who: "layer", without: format!("no such call; {a}"), with: with_text, equal }
+    Row { call, fault, who: "layer, 1st call".into(), without: format!("no such call; {a}"), with: with_text, equal }
 }
 
 fn table(rows: &[Row]) -> String {
@@ -274,9 +291,9 @@ fn table(rows: &[Row]) -> String {
         "## Vulkan\n\n\
          Generated by `tests/faults_vk.rs` (`STEREOSHIM_UPDATE_DOCS=1 cargo test --test faults_vk` \
          rewrites this section). The fault layer of the test tree (`tests/vk-fault-layer`) sits \
-         below stereoshim and fails the first call of a command made by the app (or by the \
-         runtime on the app's device: both are above stereoshim) or by stereoshim itself for \
-         its own objects. xr-scene runs with `--submit-depth` for three frames; with stereoshim \
+         below stereoshim and fails one call of a command: made by the app (or by the runtime \
+         on the app's device: both are above stereoshim), or the first one stereoshim itself \
+         makes for its own objects. xr-scene runs with `--submit-depth` for three frames; with stereoshim \
          the mask, RDM and the far field are on. \"equal\": the app saw the same result.\n\n\
          | call | fault | made by | without stereoshim | with stereoshim | equal |\n\
          |---|---|---|---|---|---|\n",
@@ -327,7 +344,10 @@ fn faults_below_the_layer() {
     let mut errors = Vec::new();
     let mut rows = Vec::new();
     for &(call, fault) in CALLS {
-        rows.push(app_fault(call, fault, &mut errors));
+        rows.push(app_fault(call, fault, 0, &[], &mut errors));
+        for &(c, f, index, args) in MORE_APP_CALLS.iter().filter(|m| m.0 == call) {
+            rows.push(app_fault(c, f, index, args, &mut errors));
+        }
         rows.push(layer_fault(call, fault, &refs, &mut errors));
     }
     let section = table(&rows);

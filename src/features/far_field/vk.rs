@@ -109,6 +109,29 @@ struct Objects {
     slots: Option<Arc<Slots>>,
 }
 
+/// The layouts and samplers `objects` has made so far: destroyed if it returns before all are
+/// made (null handles are ignored by vkDestroy*).
+struct Made<'a> {
+    d: &'a DeviceState,
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    linear: vk::Sampler,
+    nearest: vk::Sampler,
+}
+
+impl Drop for Made<'_> {
+    fn drop(&mut self) {
+        let f = &self.d.fns;
+        // SAFETY: our objects, not yet published nor used by anything.
+        unsafe {
+            f.destroy_sampler(self.nearest, None);
+            f.destroy_sampler(self.linear, None);
+            f.destroy_pipeline_layout(self.layout, None);
+            f.destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
+}
+
 #[derive(Default)]
 struct Books {
     frame: FarFieldStats,
@@ -119,8 +142,9 @@ struct Books {
     reused: (u64, [bool; 2]),
     /// Counters whose results are copied out when their pass ends in a command buffer.
     readbacks: HashMap<u64, Vec<Arc<Counter>>>,
-    /// Query pools made since the last submission: reset once, ahead of it.
-    uninit_queries: Vec<(vk::QueryPool, u32)>,
+    /// The resets of query pools made since the last submission, recorded in command buffers
+    /// of a queue family (`count::Counter::new`): submitted ahead of the next submission there.
+    pending_resets: Vec<(u32, vk::CommandBuffer)>,
     /// The reused-pixel total at the last `take_frame`.
     pixels_taken: u64,
 }
@@ -209,11 +233,17 @@ impl FarFieldDevice {
         // SAFETY: valid create infos; the objects are ours until `destroy` (the lock serializes
         // creation; no call goes down to the app's queue or command buffers).
         unsafe {
-            let set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
-            let layouts = [set_layout];
-            let layout = d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts), None).map_err(|e| e.to_string())?;
-            let linear = d.fns.create_sampler(&sampler(vk::Filter::LINEAR), None).map_err(|e| e.to_string())?;
-            let nearest = d.fns.create_sampler(&sampler(vk::Filter::NEAREST), None).map_err(|e| e.to_string())?;
+            // What was made before a creation fails is destroyed again (issue 11: a failed sampler
+            // leaked the layouts until the device went, which validation reports there).
+            let mut made = Made { d, set_layout: vk::DescriptorSetLayout::null(), layout: vk::PipelineLayout::null(), linear: vk::Sampler::null(), nearest: vk::Sampler::null() };
+            made.set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
+            let layouts = [made.set_layout];
+            made.layout = d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts), None).map_err(|e| e.to_string())?;
+            made.linear = d.fns.create_sampler(&sampler(vk::Filter::LINEAR), None).map_err(|e| e.to_string())?;
+            made.nearest = d.fns.create_sampler(&sampler(vk::Filter::NEAREST), None).map_err(|e| e.to_string())?;
+            let (set_layout, layout, linear, nearest) = (made.set_layout, made.layout, made.linear, made.nearest);
+            // All made: the guard lets go of them.
+            std::mem::forget(made);
             let copier = match Copier::new(d, nearest, self.memory) {
                 Ok(c) => Some(c),
                 Err(e) => {
@@ -321,11 +351,10 @@ impl FarFieldDevice {
             let recorded_count = if multiview { 1 } else { dests.len() };
             // In a multiview pass one query takes as many consecutive indices as the pass has views.
             let queries = if multiview { at.pass.view_mask().count_ones().max(1) } else { recorded_count as u32 };
-            let counter = match Counter::new(d, &self.memory, queries, samples.as_raw(), self.pixels_reused.clone(), &self.query_pools) {
-                Ok((c, new)) => {
-                    if new {
-                        lock(&self.books).uninit_queries.push((c.pool, c.queries));
-                    }
+            let family = d.track.command_buffers.get(at.cb.as_raw()).and_then(|c| d.track.pools.get(c.pool)).map(|p| p.queue_family_index);
+            let counter = match Counter::new(d, &self.memory, queries, samples.as_raw(), self.pixels_reused.clone(), &self.query_pools, family) {
+                Ok((c, reset)) => {
+                    lock(&self.books).pending_resets.extend(reset);
                     Some(Arc::new(c))
                 }
                 Err(e) => {
@@ -570,17 +599,17 @@ impl VkFeature for FarFieldDevice {
         }
     }
     fn queue_submitting(&self, d: &DeviceState, queue: vk::Queue, family: Option<u32>) {
-        let pools = std::mem::take(&mut lock(&self.books).uninit_queries);
-        if let (false, Some(family)) = (pools.is_empty(), family) {
-            let done = crate::vk::secondary::submit_once(d, queue, family, |cb| {
-                for (pool, n) in &pools {
-                    // SAFETY: our one-time command buffer, recording, outside any pass; our pools,
-                    // not yet used by any submission (this one goes ahead of theirs).
-                    unsafe { (d.fns.fp_v1_0().cmd_reset_query_pool)(cb, *pool, 0, *n) };
+        if let Some(family) = family {
+            let resets: Vec<vk::CommandBuffer> = {
+                let mut b = lock(&self.books);
+                let (here, elsewhere) = std::mem::take(&mut b.pending_resets).into_iter().partition(|(f, _)| *f == family);
+                b.pending_resets = elsewhere;
+                here.into_iter().map(|(_, cb)| cb).collect()
+            };
+            if !resets.is_empty() {
+                if let Err(e) = crate::vk::secondary::submit_prepared(d, queue, &resets) {
+                    tracing::warn!("far field query reset: {e}");
                 }
-            });
-            if let Err(e) = done {
-                tracing::warn!("far field query reset: {e}");
             }
         }
         let Some(slots) = lock(&self.objects).slots.clone() else { return };
