@@ -62,9 +62,11 @@ impl Counter {
                 let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::OCCLUSION).query_count(queries);
                 // SAFETY: a valid create info; the pool is ours until the device goes (`destroy`).
                 let pool = unsafe { d.fns.create_query_pool(&info, None) }.map_err(|e| e.to_string())?;
-                // SAFETY (the closure): our one-time command buffer, recording, outside any pass;
-                // our new pool, which no submission has used yet.
-                let reset = crate::vk::secondary::prepare_once(d, family, |cb| unsafe { (d.fns.fp_v1_0().cmd_reset_query_pool)(cb, pool, 0, queries) });
+                let reset = crate::vk::secondary::prepare_once(d, family, |cb| {
+                    // SAFETY: our one-time command buffer, recording, outside any pass; our new
+                    // pool, which no submission has used yet.
+                    unsafe { (d.fns.fp_v1_0().cmd_reset_query_pool)(cb, pool, 0, queries) }
+                });
                 match reset {
                     Ok(cb) => (pool, Some((family, cb))),
                     Err(e) => {
