@@ -60,6 +60,21 @@ const MORE_APP_CALLS: &[(&str, &str, u32, &[&str])] = &[
     ("vkCreateRenderPass2", "VK_ERROR_OUT_OF_DEVICE_MEMORY", 0, &["--rendering", "render-pass2"]),
 ];
 
+/// Open defect (issue 11, not fixed yet): when every call of these fails, RDM's reconstruction
+/// cannot make its objects at `xrReleaseSwapchainImage`, after the checkerboard was already drawn
+/// into the app's pass, so the runtime gets images with RDM's skipped quads left as holes. The
+/// fix is to make the reconstruction's objects before the checkerboard is drawn, and skip RDM for
+/// the pass when that fails. The rows say so in the table; the test fails when one of them no
+/// longer shows the defect, so the list cannot outlive the fix.
+const RDM_RECONSTRUCTION_DEFECT: &[&str] = &[
+    "vkCreateDescriptorSetLayout",
+    "vkCreateDescriptorPool",
+    "vkAllocateDescriptorSets",
+    "vkCreateCommandPool",
+    "vkAllocateCommandBuffers",
+    "vkCreateFence",
+];
+
 /// Writes the fault layer's two manifests (docs/testing.md) under a folder of the loader's
 /// `XDG_DATA_DIRS` search and returns that folder: the lower layer explicit (the app enables it
 /// last, so it sits below stereoshim, next to the driver), the marker implicit (the loader puts
@@ -166,8 +181,8 @@ struct Row {
     equal: bool,
 }
 
-/// Reference captures without a fault: the plain app, and stereoshim with every feature on or
-/// with one of them off.
+/// Reference captures without a fault: the plain app, stereoshim with each subset of the
+/// features on, and with RDM's fill reconstruction.
 struct References {
     runs: Vec<RunOutput>,
 }
@@ -184,10 +199,19 @@ impl References {
         };
         let plain = base("vkf-ref-plain").run_while(Duration::from_secs(90), |_| {});
         let mut runs = vec![plain];
-        for (tag, off) in [("all", ""), ("no-mask", "mask"), ("no-rdm", "foveation"), ("no-far", "far_field")] {
-            let config = FEATURES.replace(&format!("[{off}]\nenabled = true"), &format!("[{off}]\nenabled = false"));
-            let config = if off.is_empty() { FEATURES.to_string() } else { config };
-            runs.push(base(&format!("vkf-ref-{tag}")).with_layer().config(&config).run_while(Duration::from_secs(90), |_| {}));
+        // Every subset of the features on: a fault may turn off several (a failed buffer is
+        // the mask's, and the far field's next attempt fails too when every call does).
+        for on in 0..8u32 {
+            let config = ["mask", "foveation", "far_field"]
+                .iter()
+                .enumerate()
+                .fold(FEATURES.to_string(), |c, (i, f)| if on & (1 << i) == 0 { c.replace(&format!("[{f}]\nenabled = true"), &format!("[{f}]\nenabled = false")) } else { c });
+            runs.push(base(&format!("vkf-ref-{on}")).with_layer().config(&config).run_while(Duration::from_secs(90), |_| {}));
+            // RDM's own fallback when its compute reconstruction cannot be made: the fill.
+            if on & 2 != 0 {
+                let fill = config.replace("method = \"rdm\"", "method = \"rdm\"\nrdm_reconstruction = \"fill\"");
+                runs.push(base(&format!("vkf-ref-{on}-fill")).with_layer().config(&fill).run_while(Duration::from_secs(90), |_| {}));
+            }
         }
         for r in &runs {
             r.assert_ok();
@@ -253,10 +277,13 @@ fn app_fault(call: &'static str, fault: &'static str, index: u32, args: &[&str],
 /// app never notices — its call that led to the layer's work succeeds and its frames are those of
 /// a run with that feature on or off. Failing the app's call instead would turn an optimisation
 /// the app never asked for into a crash of the app.
-fn layer_fault(call: &'static str, fault: &'static str, refs: &References, errors: &mut Vec<String>) -> Row {
-    let spec = format!("{call}@layer:0={fault}");
-    let without = run(&format!("vkf-{call}-layer-plain"), &spec, false, &[]);
-    let with = run(&format!("vkf-{call}-layer-layered"), &spec, true, &[]);
+///
+/// `every`: every call stereoshim makes of the command fails (the device stays out of memory),
+/// so each feature's later attempts fail too and the features needing it stay off.
+fn layer_fault(call: &'static str, fault: &'static str, every: bool, refs: &References, errors: &mut Vec<String>) -> Row {
+    let (spec, tag) = if every { (format!("{call}@layer={fault}"), "every") } else { (format!("{call}@layer:0={fault}"), "first") };
+    let without = run(&format!("vkf-{call}-layer-{tag}-plain"), &spec, false, &[]);
+    let with = run(&format!("vkf-{call}-layer-{tag}-layered"), &spec, true, &[]);
     errors.extend(hard_failures(&without));
     errors.extend(hard_failures(&with));
     // Without stereoshim nothing lies between the marker and the fault layer: no call is the
@@ -273,17 +300,33 @@ fn layer_fault(call: &'static str, fault: &'static str, refs: &References, error
     let with_text = if fb.is_empty() {
         format!("no layer call; {b}")
     } else {
-        if let Err(e) = refs.check(&with) {
-            errors.push(format!("{call} (layer): {e}"));
-            equal = false;
+        let known = every && RDM_RECONSTRUCTION_DEFECT.contains(&call);
+        let mut frames_note = "";
+        match (refs.check(&with), known) {
+            (Ok(()), false) => {}
+            (Err(e), false) => {
+                errors.push(format!("{call} (layer): {e}"));
+                equal = false;
+            }
+            (Err(_), true) if with.log.contains("radial density masking: no reconstruction") => {
+                frames_note = "; frames: RDM's holes left unreconstructed (open defect)";
+                equal = false;
+            }
+            (Err(e), true) => errors.push(format!("{call} (layer): {e}, but not the known RDM reconstruction defect")),
+            (Ok(()), true) => errors.push(format!("{call} (layer): the RDM reconstruction defect no longer shows: take it off RDM_RECONSTRUCTION_DEFECT")),
         }
         let warnings = layer_warnings(&with);
         if warnings.is_empty() {
             errors.push(format!("{call} (layer): the failure was not logged at WARN"));
         }
-        format!("{b}; layer: {}", warnings.first().map(String::as_str).unwrap_or("(nothing logged)"))
+        // A single failure is logged once.
+        if !every && warnings.len() != 1 {
+            errors.push(format!("{call} (layer): one failure, {} WARN/ERROR lines: {warnings:?}", warnings.len()));
+        }
+        format!("{b}; layer: {}{frames_note}", warnings.first().map(String::as_str).unwrap_or("(nothing logged)"))
     };
-    Row { call, fault, who: "layer, 1st call".into(), without: format!("no such call; {a}"), with: with_text, equal }
+    let who = if every { "layer, every call" } else { "layer, 1st call" };
+    Row { call, fault, who: who.into(), without: format!("no such call; {a}"), with: with_text, equal }
 }
 
 fn table(rows: &[Row]) -> String {
@@ -293,8 +336,9 @@ fn table(rows: &[Row]) -> String {
          rewrites this section). The fault layer of the test tree (`tests/vk-fault-layer`) sits \
          below stereoshim and fails one call of a command: made by the app (or by the runtime \
          on the app's device: both are above stereoshim), or the first one stereoshim itself \
-         makes for its own objects. xr-scene runs with `--submit-depth` for three frames; with stereoshim \
-         the mask, RDM and the far field are on. \"equal\": the app saw the same result.\n\n\
+         makes for its own objects, or every one it makes. xr-scene runs with `--submit-depth` for three frames; with stereoshim \
+         the mask, RDM and the far field are on. \"equal\": the app saw the same result, and \
+         its frames are those of a fault-free run with some of the features on.\n\n\
          | call | fault | made by | without stereoshim | with stereoshim | equal |\n\
          |---|---|---|---|---|---|\n",
     );
@@ -348,7 +392,13 @@ fn faults_below_the_layer() {
         for &(c, f, index, args) in MORE_APP_CALLS.iter().filter(|m| m.0 == call) {
             rows.push(app_fault(c, f, index, args, &mut errors));
         }
-        rows.push(layer_fault(call, fault, &refs, &mut errors));
+        rows.push(layer_fault(call, fault, false, &refs, &mut errors));
+        // Every layer submission lost while the app's succeed is no state a real device is in,
+        // and the validation layer between the two aborts on it (std::future_error) before
+        // stereoshim could show anything: left out (docs/testing.md).
+        if call != "vkQueueSubmit" {
+            rows.push(layer_fault(call, fault, true, &refs, &mut errors));
+        }
     }
     let section = table(&rows);
     std::fs::write(common::target_dir().join("test-output").join("faults-vk.md"), &section).unwrap();

@@ -145,16 +145,10 @@ pub(crate) fn record(
     Ok(cb)
 }
 
-/// Records `record` into a one-time primary of the layer's and submits it to `queue` (of
-/// `family`) ahead of the app's submission that is about to go down. For rare set-up work (image
-/// layout initialisation); the command buffer stays allocated until the device goes.
-pub(crate) fn submit_once(d: &DeviceState, queue: vk::Queue, family: u32, record: impl FnOnce(vk::CommandBuffer)) -> Result<(), String> {
-    let cb = prepare_once(d, family, record)?;
-    submit_prepared(d, queue, &[cb])
-}
-
-/// The recording half of [`submit_once`]: a one-time primary of `family` with `record` in it,
-/// for [`submit_prepared`] later. Set-up work that an app command buffer depends on is prepared
+/// Records `record` into a one-time primary of the layer's of queue `family`, for
+/// [`submit_prepared`] ahead of a later app submission there: rare set-up work (image layout
+/// initialisation, query pool resets); the command buffer stays allocated until the device goes.
+/// Set-up work that an app command buffer depends on is prepared
 /// when the layer records that dependency, so a failure to make the command buffer can still
 /// turn the feature off for that command buffer (issue 11: once the app's command buffer is
 /// recorded, a set-up submission that cannot be made would leave it reading uninitialised state).
