@@ -514,8 +514,8 @@ mod tests {
         assert_eq!(o.rendering, Rendering::Dynamic);
         assert_eq!(o.depth, DepthMode::Reverse);
         assert!(o.intermediate && o.animate && o.validation);
-        let o = p(&["--vk-layer", "A", "--vk-layer=B"]).unwrap().unwrap();
-        assert_eq!(o.vk_layers, ["A", "B"]);
+        let layers = p(&["--vk-layer", "A", "--vk-layer=B"]).unwrap().unwrap();
+        assert_eq!(layers.vk_layers, ["A", "B"]);
         assert_eq!(o.samples, 4);
         assert_eq!(o.vulkan, VulkanPath::Enable);
         assert_eq!(o.frames, Some(5));
