@@ -145,10 +145,14 @@ pub(crate) fn record(
     Ok(cb)
 }
 
-/// Records `record` into a one-time primary of the layer's and submits it to `queue` (of
-/// `family`) ahead of the app's submission that is about to go down. For rare set-up work (image
-/// layout initialisation); the command buffer stays allocated until the device goes.
-pub(crate) fn submit_once(d: &DeviceState, queue: vk::Queue, family: u32, record: impl FnOnce(vk::CommandBuffer)) -> Result<(), String> {
+/// Records `record` into a one-time primary of the layer's of queue `family`, for
+/// [`submit_prepared`] ahead of a later app submission there: rare set-up work (image layout
+/// initialisation, query pool resets); the command buffer stays allocated until the device goes.
+/// Set-up work that an app command buffer depends on is prepared
+/// when the layer records that dependency, so a failure to make the command buffer can still
+/// turn the feature off for that command buffer (issue 11: once the app's command buffer is
+/// recorded, a set-up submission that cannot be made would leave it reading uninitialised state).
+pub(crate) fn prepare_once(d: &DeviceState, family: u32, record: impl FnOnce(vk::CommandBuffer)) -> Result<vk::CommandBuffer, String> {
     let pool = {
         let pools = lock(&d.secondary.pools);
         pools.get(&family).map(|p| lock(p).pool)
@@ -195,16 +199,22 @@ pub(crate) fn submit_once(d: &DeviceState, queue: vk::Queue, family: u32, record
         unsafe { d.fns.end_command_buffer(cb) }.map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
         cb
     };
+    Ok(cb)
+}
+
+/// Submits command buffers made by [`prepare_once`] to `queue` (of their family), ahead of the
+/// app's submission that is about to go down.
+pub(crate) fn submit_prepared(d: &DeviceState, queue: vk::Queue, prepared: &[vk::CommandBuffer]) -> Result<(), String> {
     // `stats.gpu_time`: the layer's own work is timed like the app's, in the frame it is
     // submitted in.
     let bracket = super::gpu_time::start(d, queue, 1, true);
     let cbs = match &bracket {
-        Some(b) => vec![b.begin, cb, b.end],
-        None => vec![cb],
+        Some(b) => [&[b.begin][..], prepared, &[b.end]].concat(),
+        None => prepared.to_vec(),
     };
     let submit = vk::SubmitInfo::default().command_buffers(&cbs);
     // SAFETY: the app's queue, held by the app's vkQueueSubmit that called us (external
-    // synchronization); our executable command buffer, never freed before the device, and the
+    // synchronization); our executable command buffers, never freed before the device, and the
     // timer's, if any.
     let r = unsafe { (d.fns.fp_v1_0().queue_submit)(queue, 1, &submit, vk::Fence::null()) };
     if let Some(b) = bracket {

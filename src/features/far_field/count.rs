@@ -6,7 +6,7 @@
 //!
 //! Query pools are recycled: a counter whose hold went has had its queries reset by its own
 //! readback (or never used them), so the next counter takes them as they are; only new pools need
-//! the one-time reset ahead of their first submission.
+//! the one-time reset ahead of their first submission, recorded when the pool is made.
 
 use crate::vk::lifetime::PooledBuffer;
 use crate::vk::DeviceState;
@@ -31,8 +31,23 @@ pub(super) struct Counter {
 pub(super) type FreePools = Arc<Mutex<Vec<(vk::QueryPool, u32)>>>;
 
 impl Counter {
-    /// A counter of `queries` queries, and whether its pool is new (it needs the one-time reset).
-    pub(super) fn new(d: &DeviceState, memory: &vk::PhysicalDeviceMemoryProperties, queries: u32, samples: u32, total: Arc<AtomicU64>, free: &FreePools) -> Result<(Counter, bool), String> {
+    /// A counter of `queries` queries for a pass recorded in a command buffer of queue family
+    /// `family`, with, when its pool is new, the one-time reset of that pool already recorded in
+    /// a command buffer of that family, to be submitted ahead of the next submission there.
+    ///
+    /// The reset is prepared here, not at submission: once the app's command buffer has the
+    /// queries in it, a reset that cannot be made (no command pool, no command buffer) would
+    /// leave the app's submission using unreset queries (issue 11, found by tests/faults_vk.rs).
+    /// Failing now, the pool is destroyed and the pass is not counted; nothing reaches the app.
+    pub(super) fn new(
+        d: &DeviceState,
+        memory: &vk::PhysicalDeviceMemoryProperties,
+        queries: u32,
+        samples: u32,
+        total: Arc<AtomicU64>,
+        free: &FreePools,
+        family: Option<u32>,
+    ) -> Result<(Counter, Option<(u32, vk::CommandBuffer)>), String> {
         let results = PooledBuffer::take(d, 8 * queries as u64, memory)?;
         // A pooled buffer may hold an earlier user's numbers.
         results.write(0, &vec![0u64; queries as usize]);
@@ -40,15 +55,29 @@ impl Counter {
             let mut f = free.lock().unwrap_or_else(|e| e.into_inner());
             f.iter().position(|(_, n)| *n == queries).map(|i| f.swap_remove(i).0)
         };
-        let (pool, new) = match reused {
-            Some(p) => (p, false),
+        let (pool, reset) = match reused {
+            Some(p) => (p, None),
             None => {
+                let family = family.ok_or("the command buffer's queue family is unknown: its new query pool cannot be reset")?;
                 let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::OCCLUSION).query_count(queries);
                 // SAFETY: a valid create info; the pool is ours until the device goes (`destroy`).
-                (unsafe { d.fns.create_query_pool(&info, None) }.map_err(|e| e.to_string())?, true)
+                let pool = unsafe { d.fns.create_query_pool(&info, None) }.map_err(|e| e.to_string())?;
+                let reset = crate::vk::secondary::prepare_once(d, family, |cb| {
+                    // SAFETY: our one-time command buffer, recording, outside any pass; our new
+                    // pool, which no submission has used yet.
+                    unsafe { (d.fns.fp_v1_0().cmd_reset_query_pool)(cb, pool, 0, queries) }
+                });
+                match reset {
+                    Ok(cb) => (pool, Some((family, cb))),
+                    Err(e) => {
+                        // SAFETY: our pool, never recorded anywhere.
+                        unsafe { d.fns.destroy_query_pool(pool, None) };
+                        return Err(format!("query pool reset: {e}"));
+                    }
+                }
             }
         };
-        Ok((Counter { pool, queries, results, samples: samples.max(1) as u64, total, free: free.clone() }, new))
+        Ok((Counter { pool, queries, results, samples: samples.max(1) as u64, total, free: free.clone() }, reset))
     }
 
     /// Records, after the pass that used the queries: their results into the host buffer (waiting

@@ -107,6 +107,32 @@ struct Objects {
     /// applied, `layer_error`).
     copier: Option<Copier>,
     slots: Option<Arc<Slots>>,
+    /// The slots' one-time layout set-up, recorded when they were made in a command buffer of
+    /// this queue family, until a submission there takes it (`queue_submitting`).
+    slots_init: Option<(u32, vk::CommandBuffer)>,
+}
+
+/// The layouts and samplers `objects` has made so far: destroyed if it returns before all are
+/// made (null handles are ignored by vkDestroy*).
+struct Made<'a> {
+    d: &'a DeviceState,
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    linear: vk::Sampler,
+    nearest: vk::Sampler,
+}
+
+impl Drop for Made<'_> {
+    fn drop(&mut self) {
+        let f = &self.d.fns;
+        // SAFETY: our objects, not yet published nor used by anything.
+        unsafe {
+            f.destroy_sampler(self.nearest, None);
+            f.destroy_sampler(self.linear, None);
+            f.destroy_pipeline_layout(self.layout, None);
+            f.destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
 }
 
 #[derive(Default)]
@@ -119,8 +145,9 @@ struct Books {
     reused: (u64, [bool; 2]),
     /// Counters whose results are copied out when their pass ends in a command buffer.
     readbacks: HashMap<u64, Vec<Arc<Counter>>>,
-    /// Query pools made since the last submission: reset once, ahead of it.
-    uninit_queries: Vec<(vk::QueryPool, u32)>,
+    /// The resets of query pools made since the last submission, recorded in command buffers
+    /// of a queue family (`count::Counter::new`): submitted ahead of the next submission there.
+    pending_resets: Vec<(u32, vk::CommandBuffer)>,
     /// The reused-pixel total at the last `take_frame`.
     pixels_taken: u64,
 }
@@ -209,11 +236,17 @@ impl FarFieldDevice {
         // SAFETY: valid create infos; the objects are ours until `destroy` (the lock serializes
         // creation; no call goes down to the app's queue or command buffers).
         unsafe {
-            let set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
-            let layouts = [set_layout];
-            let layout = d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts), None).map_err(|e| e.to_string())?;
-            let linear = d.fns.create_sampler(&sampler(vk::Filter::LINEAR), None).map_err(|e| e.to_string())?;
-            let nearest = d.fns.create_sampler(&sampler(vk::Filter::NEAREST), None).map_err(|e| e.to_string())?;
+            // What was made before a creation fails is destroyed again (issue 11: a failed sampler
+            // leaked the layouts until the device went, which validation reports there).
+            let mut made = Made { d, set_layout: vk::DescriptorSetLayout::null(), layout: vk::PipelineLayout::null(), linear: vk::Sampler::null(), nearest: vk::Sampler::null() };
+            made.set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
+            let layouts = [made.set_layout];
+            made.layout = d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts), None).map_err(|e| e.to_string())?;
+            made.linear = d.fns.create_sampler(&sampler(vk::Filter::LINEAR), None).map_err(|e| e.to_string())?;
+            made.nearest = d.fns.create_sampler(&sampler(vk::Filter::NEAREST), None).map_err(|e| e.to_string())?;
+            let (set_layout, layout, linear, nearest) = (made.set_layout, made.layout, made.linear, made.nearest);
+            // All made: the guard lets go of them.
+            std::mem::forget(made);
             let copier = match Copier::new(d, nearest, self.memory) {
                 Ok(c) => Some(c),
                 Err(e) => {
@@ -221,22 +254,31 @@ impl FarFieldDevice {
                     None
                 }
             };
-            *o = Objects { set_layout, layout, linear, nearest, copier, slots: o.slots.take() };
+            *o = Objects { set_layout, layout, linear, nearest, copier, slots: o.slots.take(), slots_init: o.slots_init.take() };
         }
         Ok((o.set_layout, o.layout, o.linear, o.nearest))
     }
 
-    /// The slots, made (again) when they are missing, too small or of other formats.
-    fn slots(&self, d: &DeviceState, extent: vk::Extent2D, color_format: vk::Format, depth_format: vk::Format, samples: vk::SampleCountFlags) -> Result<Arc<Slots>, String> {
+    /// The slots, made (again) when they are missing, too small or of other formats, for a pass
+    /// recorded in a command buffer of queue family `family`. Their layout set-up is recorded
+    /// here too, not when it is submitted: the app's command buffer is about to copy into them,
+    /// and a set-up that could not be made at submission would leave that copy writing images in
+    /// an undefined layout (issue 11, tests/faults_vk.rs). Failing now, the pass goes without.
+    fn slots(&self, d: &DeviceState, family: Option<u32>, extent: vk::Extent2D, color_format: vk::Format, depth_format: vk::Format, samples: vk::SampleCountFlags) -> Result<Arc<Slots>, String> {
         if let Some(s) = &lock(&self.objects).slots {
             if s.color_format == color_format && s.depth_format == depth_format && s.samples == samples && s.extent.width >= extent.width && s.extent.height >= extent.height {
                 return Ok(s.clone());
             }
         }
         let (set_layout, _, linear, nearest) = self.objects(d)?;
+        let family = family.ok_or("the command buffer's queue family is unknown: the slots' layouts cannot be set up")?;
         let slots = Arc::new(make_slots(d, &self.memory, extent, (color_format, depth_format, samples), set_layout, linear, nearest)?);
+        // On failure the new slots are dropped, which hands their objects to the trash.
+        let init = crate::vk::secondary::prepare_once(d, family, |cb| record_slot_init(d, cb, &slots)).map_err(|e| format!("slot layouts: {e}"))?;
         tracing::info!(width = extent.width, height = extent.height, ?color_format, ?depth_format, samples = samples.as_raw(), "far field source slots created");
-        lock(&self.objects).slots = Some(slots.clone());
+        let mut o = lock(&self.objects);
+        o.slots = Some(slots.clone());
+        o.slots_init = Some((family, init));
         Ok(slots)
     }
 
@@ -294,7 +336,8 @@ impl FarFieldDevice {
         let draws: Vec<EyeDraw> = at.draws.iter().filter(|dr| dr.view < 2 && dr.viewport.area() > 0).copied().collect();
         let extent = draws.iter().fold(vk::Extent2D::default(), |e, dr| vk::Extent2D { width: e.width.max(dr.viewport.width), height: e.height.max(dr.viewport.height) });
         let samples = color_info.1;
-        let slots = self.slots(d, extent, color_info.0, depth_info.0, samples).map_err(|e| {
+        let family = d.track.command_buffers.get(at.cb.as_raw()).and_then(|c| d.track.pools.get(c.pool)).map(|p| p.queue_family_index);
+        let slots = self.slots(d, family, extent, color_info.0, depth_info.0, samples).map_err(|e| {
             tracing::warn!("far field slots: {e}");
             "layer_error"
         })?;
@@ -321,11 +364,10 @@ impl FarFieldDevice {
             let recorded_count = if multiview { 1 } else { dests.len() };
             // In a multiview pass one query takes as many consecutive indices as the pass has views.
             let queries = if multiview { at.pass.view_mask().count_ones().max(1) } else { recorded_count as u32 };
-            let counter = match Counter::new(d, &self.memory, queries, samples.as_raw(), self.pixels_reused.clone(), &self.query_pools) {
-                Ok((c, new)) => {
-                    if new {
-                        lock(&self.books).uninit_queries.push((c.pool, c.queries));
-                    }
+            let family = d.track.command_buffers.get(at.cb.as_raw()).and_then(|c| d.track.pools.get(c.pool)).map(|p| p.queue_family_index);
+            let counter = match Counter::new(d, &self.memory, queries, samples.as_raw(), self.pixels_reused.clone(), &self.query_pools, family) {
+                Ok((c, reset)) => {
+                    lock(&self.books).pending_resets.extend(reset);
                     Some(Arc::new(c))
                 }
                 Err(e) => {
@@ -570,60 +612,41 @@ impl VkFeature for FarFieldDevice {
         }
     }
     fn queue_submitting(&self, d: &DeviceState, queue: vk::Queue, family: Option<u32>) {
-        let pools = std::mem::take(&mut lock(&self.books).uninit_queries);
-        if let (false, Some(family)) = (pools.is_empty(), family) {
-            let done = crate::vk::secondary::submit_once(d, queue, family, |cb| {
-                for (pool, n) in &pools {
-                    // SAFETY: our one-time command buffer, recording, outside any pass; our pools,
-                    // not yet used by any submission (this one goes ahead of theirs).
-                    unsafe { (d.fns.fp_v1_0().cmd_reset_query_pool)(cb, *pool, 0, *n) };
+        if let Some(family) = family {
+            let resets: Vec<vk::CommandBuffer> = {
+                let mut b = lock(&self.books);
+                let (here, elsewhere) = std::mem::take(&mut b.pending_resets).into_iter().partition(|(f, _)| *f == family);
+                b.pending_resets = elsewhere;
+                here.into_iter().map(|(_, cb)| cb).collect()
+            };
+            if !resets.is_empty() {
+                if let Err(e) = crate::vk::secondary::submit_prepared(d, queue, &resets) {
+                    tracing::warn!("far field query reset: {e}");
                 }
-            });
-            if let Err(e) = done {
-                tracing::warn!("far field query reset: {e}");
             }
         }
-        let Some(slots) = lock(&self.objects).slots.clone() else { return };
-        if slots.initialized.load(Ordering::Acquire) {
-            return;
-        }
         let Some(family) = family else { return };
-        let barriers: Vec<vk::ImageMemoryBarrier> = slots
-            .images
-            .iter()
-            .flat_map(|s| [(&s[0], vk::ImageAspectFlags::COLOR), (&s[1], if slots.compute { vk::ImageAspectFlags::COLOR } else { vk::ImageAspectFlags::DEPTH })])
-            .map(|(o, aspect)| {
-                vk::ImageMemoryBarrier::default()
-                    .image(o.image)
-                    .old_layout(vk::ImageLayout::UNDEFINED)
-                    .new_layout(vk::ImageLayout::GENERAL)
-                    .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_READ)
-                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                    .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 })
-            })
-            .collect();
-        let tiles = [vk::BufferMemoryBarrier::default()
-            .buffer(slots.tiles)
-            .offset(0)
-            .size(vk::WHOLE_SIZE)
-            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-            .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
-            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)];
-        let done = crate::vk::secondary::submit_once(d, queue, family, |cb| {
-            let fns = d.fns.fp_v1_0();
-            // SAFETY: our one-time command buffer, recording; the slots and their tile buffer are
-            // ours and unused so far (no tile is known until a reduction fills it).
-            unsafe {
-                (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), barriers.len() as u32, barriers.as_ptr());
-                (fns.cmd_fill_buffer)(cb, slots.tiles, 0, vk::WHOLE_SIZE, NOT_REDUCED);
-                (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), tiles.len() as u32, tiles.as_ptr(), 0, std::ptr::null())
-            };
-        });
-        match done {
+        let pending = {
+            let mut o = lock(&self.objects);
+            match (o.slots.clone(), o.slots_init) {
+                (Some(slots), Some((f, cb))) if f == family && !slots.initialized.load(Ordering::Acquire) => {
+                    o.slots_init = None;
+                    Some((slots, cb))
+                }
+                _ => None,
+            }
+        };
+        let Some((slots, cb)) = pending else { return };
+        match crate::vk::secondary::submit_prepared(d, queue, &[cb]) {
             Ok(()) => slots.initialized.store(true, Ordering::Release),
-            Err(e) => tracing::warn!("far field slot layouts: {e}"),
+            Err(e) => {
+                tracing::warn!("far field slot layouts: {e}");
+                // A failed submission leaves its command buffer as it was: the next one tries again.
+                let mut o = lock(&self.objects);
+                if o.slots.as_ref().is_some_and(|s| Arc::ptr_eq(s, &slots)) {
+                    o.slots_init = Some((family, cb));
+                }
+            }
         }
     }
     fn before_submit(&self, d: &DeviceState, cbs: &[u64]) {
@@ -680,4 +703,40 @@ impl VkFeature for FarFieldDevice {
             }
         }
     }
+}
+
+/// Records the slots' one-time set-up: every slot image from UNDEFINED to GENERAL, the tile
+/// buffer marked not reduced.
+fn record_slot_init(d: &DeviceState, cb: vk::CommandBuffer, slots: &Slots) {
+    let barriers: Vec<vk::ImageMemoryBarrier> = slots
+        .images
+        .iter()
+        .flat_map(|s| [(&s[0], vk::ImageAspectFlags::COLOR), (&s[1], if slots.compute { vk::ImageAspectFlags::COLOR } else { vk::ImageAspectFlags::DEPTH })])
+        .map(|(o, aspect)| {
+            vk::ImageMemoryBarrier::default()
+                .image(o.image)
+                .old_layout(vk::ImageLayout::UNDEFINED)
+                .new_layout(vk::ImageLayout::GENERAL)
+                .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_READ)
+                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 })
+        })
+        .collect();
+    let tiles = [vk::BufferMemoryBarrier::default()
+        .buffer(slots.tiles)
+        .offset(0)
+        .size(vk::WHOLE_SIZE)
+        .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+        .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
+        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)];
+    let fns = d.fns.fp_v1_0();
+    // SAFETY: our one-time command buffer, recording; the slots and their tile buffer are
+    // ours and unused so far (no tile is known until a reduction fills it).
+    unsafe {
+        (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), barriers.len() as u32, barriers.as_ptr());
+        (fns.cmd_fill_buffer)(cb, slots.tiles, 0, vk::WHOLE_SIZE, NOT_REDUCED);
+        (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), tiles.len() as u32, tiles.as_ptr(), 0, std::ptr::null())
+    };
 }

@@ -113,6 +113,9 @@ pub struct Options {
     /// `--pixel-stats DIR`: per frame and view, shaded fragments per pixel of the view's rect.
     pub pixel_stats: Option<PathBuf>,
     pub validation: bool,
+    /// `--vk-layer NAME` (repeatable): more layers enabled in the app's `VkInstanceCreateInfo`,
+    /// after validation, in the order given (the last one nearest the driver).
+    pub vk_layers: Vec<String>,
     /// `--record-once`: each combination of acquired swapchain images gets its command buffers
     /// recorded the first time it is needed and resubmitted unchanged ever after; per-frame data
     /// reaches them only through memory they read.
@@ -167,6 +170,7 @@ impl Default for Options {
             stats: None,
             pixel_stats: None,
             validation: false,
+            vk_layers: Vec::new(),
             record_once: false,
             rerecord_every: None,
             sync_hazard: false,
@@ -217,6 +221,8 @@ usage: xr-scene [options]
                                             (DIR/frame-NNNNN-view-V.u32, raw little-endian u32)
   --validation                              enable VK_LAYER_KHRONOS_validation with synchronization
                                             validation (exit 3 on errors)
+  --vk-layer NAME                           also enable the Vulkan layer NAME in the app's instance
+                                            create info (repeatable; after validation, in order)
   --record-once                             record each combination of acquired swapchain images'
                                             command buffers once and resubmit them every frame
                                             (per-frame data in per-frame-in-flight buffers)
@@ -367,6 +373,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                 );
             }
             "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
+            "--vk-layer" => o.vk_layers.push(value("--vk-layer")?),
             "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
             "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary"
             | "--record-once" | "--sync-hazard" | "--sky-first" | "--translucent" | "--far-movers" | "--submit2"
@@ -552,6 +559,8 @@ mod tests {
         assert_eq!(o.rendering, Rendering::Dynamic);
         assert_eq!(o.depth, DepthMode::Reverse);
         assert!(o.intermediate && o.animate && o.validation);
+        let layers = p(&["--vk-layer", "A", "--vk-layer=B"]).unwrap().unwrap();
+        assert_eq!(layers.vk_layers, ["A", "B"]);
         assert_eq!(o.samples, 4);
         assert_eq!(o.vulkan, VulkanPath::Enable);
         assert_eq!(o.frames, Some(5));

@@ -133,6 +133,17 @@ impl Gpu {
             }
             push_unique(&mut instance_exts, ash::ext::validation_features::NAME);
         }
+        let extra_layers: Vec<CString> = opts.vk_layers.iter().map(|n| CString::new(n.as_str())).collect::<std::result::Result<_, _>>().ctx("--vk-layer")?;
+        if !extra_layers.is_empty() {
+            // SAFETY: plain enumeration call.
+            let available = unsafe { entry.enumerate_instance_layer_properties() }.ctx("vkEnumerateInstanceLayerProperties")?;
+            for name in &extra_layers {
+                if !available.iter().any(|l| l.layer_name_as_c_str() == Ok(name.as_c_str())) {
+                    return fail(format!("--vk-layer: {name:?} is not installed"));
+                }
+                layers.push(name.as_ptr());
+            }
+        }
         if opts.vulkan == VulkanPath::Enable {
             let list = xr
                 .vulkan_legacy_instance_extensions(system)

@@ -137,7 +137,16 @@ impl SlotData {
 /// not on a later image release in the middle of the app's frame pacing.
 pub(super) fn warm(d: &DeviceState) {
     if let Err(e) = objects(d) {
-        tracing::debug!("RDM compute pipeline not made ahead of use: {e}");
+        // A failure of the layer's own objects is never silent (issue 11: tests/faults_vk.rs
+        // found this one logged only at DEBUG): WARN once, DEBUG after; the reconstruction tries
+        // again when it needs the pipeline, and a failure there turns it off for that image
+        // (`NotApplied::LayerError`).
+        static WARNED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+        if !WARNED.swap(true, std::sync::atomic::Ordering::Relaxed) {
+            tracing::warn!("RDM compute pipeline not made ahead of use: {e}; tried again at first use");
+        } else {
+            tracing::debug!("RDM compute pipeline not made ahead of use: {e}");
+        }
     }
 }
 
