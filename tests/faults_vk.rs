@@ -60,21 +60,6 @@ const MORE_APP_CALLS: &[(&str, &str, u32, &[&str])] = &[
     ("vkCreateRenderPass2", "VK_ERROR_OUT_OF_DEVICE_MEMORY", 0, &["--rendering", "render-pass2"]),
 ];
 
-/// Open defect (issue 11, not fixed yet): when every call of these fails, RDM's reconstruction
-/// cannot make its objects at `xrReleaseSwapchainImage`, after the checkerboard was already drawn
-/// into the app's pass, so the runtime gets images with RDM's skipped quads left as holes. The
-/// fix is to make the reconstruction's objects before the checkerboard is drawn, and skip RDM for
-/// the pass when that fails. The rows say so in the table; the test fails when one of them no
-/// longer shows the defect, so the list cannot outlive the fix.
-const RDM_RECONSTRUCTION_DEFECT: &[&str] = &[
-    "vkCreateDescriptorSetLayout",
-    "vkCreateDescriptorPool",
-    "vkAllocateDescriptorSets",
-    "vkCreateCommandPool",
-    "vkAllocateCommandBuffers",
-    "vkCreateFence",
-];
-
 /// Writes the fault layer's two manifests (docs/testing.md) under a folder of the loader's
 /// `XDG_DATA_DIRS` search and returns that folder: the lower layer explicit (the app enables it
 /// last, so it sits below stereoshim, next to the driver), the marker implicit (the loader puts
@@ -300,20 +285,11 @@ fn layer_fault(call: &'static str, fault: &'static str, every: bool, refs: &Refe
     let with_text = if fb.is_empty() {
         format!("no layer call; {b}")
     } else {
-        let known = every && RDM_RECONSTRUCTION_DEFECT.contains(&call);
-        let mut frames_note = "";
-        match (refs.check(&with), known) {
-            (Ok(()), false) => {}
-            (Err(e), false) => {
-                errors.push(format!("{call} (layer): {e}"));
-                equal = false;
-            }
-            (Err(_), true) if with.log.contains("radial density masking: no reconstruction") => {
-                frames_note = "; frames: RDM's holes left unreconstructed (open defect)";
-                equal = false;
-            }
-            (Err(e), true) => errors.push(format!("{call} (layer): {e}, but not the known RDM reconstruction defect")),
-            (Ok(()), true) => errors.push(format!("{call} (layer): the RDM reconstruction defect no longer shows: take it off RDM_RECONSTRUCTION_DEFECT")),
+        // RDM's reconstruction is made ready before its checkerboard is drawn
+        // (`reconstruct::ready`): a failure there skips RDM for the pass, never leaves holes.
+        if let Err(e) = refs.check(&with) {
+            errors.push(format!("{call} (layer): {e}"));
+            equal = false;
         }
         let warnings = layer_warnings(&with);
         if warnings.is_empty() {
@@ -323,7 +299,7 @@ fn layer_fault(call: &'static str, fault: &'static str, every: bool, refs: &Refe
         if !every && warnings.len() != 1 {
             errors.push(format!("{call} (layer): one failure, {} WARN/ERROR lines: {warnings:?}", warnings.len()));
         }
-        format!("{b}; layer: {}{frames_note}", warnings.first().map(String::as_str).unwrap_or("(nothing logged)"))
+        format!("{b}; layer: {}", warnings.first().map(String::as_str).unwrap_or("(nothing logged)"))
     };
     let who = if every { "layer, every call" } else { "layer, 1st call" };
     Row { call, fault, who: who.into(), without: format!("no such call; {a}"), with: with_text, equal }

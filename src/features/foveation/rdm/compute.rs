@@ -111,7 +111,7 @@ impl Compute {
 /// What a reconstruction slot keeps for the compute pass between uses (reused after its fence).
 #[derive(Default)]
 pub(super) struct SlotData {
-    set: vk::DescriptorSet,
+    pub(super) set: vk::DescriptorSet,
     /// Device-local storage buffer of the eyes' pixels, with its size.
     pixels: Option<(vk::Buffer, vk::DeviceMemory, u64)>,
     tiles: Option<PooledBuffer>,
@@ -148,6 +148,20 @@ pub(super) fn warm(d: &DeviceState) {
             tracing::debug!("RDM compute pipeline not made ahead of use: {e}");
         }
     }
+}
+
+/// The compute pass's pipeline and set layout, and `data`'s descriptor set from `descriptor_pool`:
+/// made ahead of the checkerboard (`reconstruct::ready`), so a failure skips RDM for the pass
+/// instead of leaving its holes unreconstructed at the image's release.
+pub(super) fn ready(d: &DeviceState, data: &mut SlotData, descriptor_pool: vk::DescriptorPool) -> Result<(), Failure> {
+    let (_, set_layout, _) = objects(d).map_err(|e| (NotApplied::LayerError, format!("compute pipeline: {e}")))?;
+    if data.set == vk::DescriptorSet::null() {
+        let layouts = [set_layout];
+        // SAFETY: the slot's pool has room for this one compute set (see `new_slot`).
+        data.set = unsafe { d.fns.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(descriptor_pool).set_layouts(&layouts)) }
+            .map_err(layer_error("compute descriptor set"))?[0];
+    }
+    Ok(())
 }
 
 /// (pipeline layout, pipeline), made on first use.

@@ -71,6 +71,8 @@ struct Temp {
 
 /// A command buffer with everything one reconstruction uses, reused once its fence signalled.
 struct Slot {
+    /// The queue family its command pool records for.
+    family: u32,
     pool: vk::CommandPool,
     cb: vk::CommandBuffer,
     fence: vk::Fence,
@@ -178,6 +180,31 @@ fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[P
     r.map(|()| How::Fill(fallback))
 }
 
+/// Makes sure a reconstruction can run for a pass recorded now for `family`'s queues: the compute
+/// objects and one slot with its descriptor set exist. Called before the checkerboard is drawn;
+/// on failure the pass gets no checkerboard (and so no holes to fill at the image's release).
+/// `with_compute`: the compute pass is wanted (not `rdm_reconstruction = fill`).
+pub(super) fn ready(d: &DeviceState, family: u32, with_compute: bool) -> Result<(), Failure> {
+    let r = &d.features.rdm.reconstruct;
+    if lock(&r.slots).iter().any(|s| s.family == family && (!with_compute || s.compute.set != vk::DescriptorSet::null())) {
+        return Ok(());
+    }
+    let mut slot = new_slot(d, family)?;
+    let prepared = if with_compute { compute::ready(d, &mut slot.compute, slot.descriptor_pool) } else { Ok(()) };
+    match prepared {
+        Ok(()) => {
+            lock(&r.slots).push_back(slot);
+            Ok(())
+        }
+        Err(e) => {
+            // SAFETY: the slot was never submitted.
+            unsafe { destroy_slot(d, slot) };
+            r.slot_count.fetch_sub(1, Ordering::Relaxed);
+            Err(e)
+        }
+    }
+}
+
 /// Returns a slot for reuse after its submission; a slot whose recording failed was never
 /// submitted, so its fence (reset) would never signal: it is destroyed instead.
 fn give_back(d: &DeviceState, slot: Slot, submitted: bool) {
@@ -236,17 +263,31 @@ fn submit(d: &DeviceState, slot: &Slot, family: u32, queue_index: u32) -> Result
 
 /// A free slot (waiting for the oldest if all are in flight), reset for recording.
 fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
-    let front = lock(&d.features.rdm.reconstruct.slots).pop_front();
+    let mut front = lock(&d.features.rdm.reconstruct.slots).pop_front();
+    // A slot made for another queue family (a command buffer of another pool) cannot record for
+    // this queue: it goes back, and this release gets its own.
+    if let Some(s) = front.take_if(|s| s.family != family) {
+        lock(&d.features.rdm.reconstruct.slots).push_back(s);
+    }
     // SAFETY: our fence.
     let done = front.as_ref().map(|s| unsafe { d.fns.get_fence_status(s.fence) }.unwrap_or(false));
     let count = d.features.rdm.reconstruct.slot_count.load(Ordering::Relaxed);
     let slot = match (super::rules::slot_choice(done, count, MAX_SLOTS), front) {
-        (super::rules::SlotChoice::New, front) => {
-            if let Some(s) = front {
-                lock(&d.features.rdm.reconstruct.slots).push_back(s);
+        (super::rules::SlotChoice::New, front) => match (new_slot(d, family), front) {
+            (Ok(made), front) => {
+                if let Some(s) = front {
+                    lock(&d.features.rdm.reconstruct.slots).push_back(s);
+                }
+                made
             }
-            new_slot(d, family)?
-        }
+            // No new slot can be made: the oldest one, once its work is done, is better than
+            // leaving this image's holes (`ready` made sure one exists before the checkerboard).
+            (Err(e), Some(s)) => {
+                log_once(&d.features.rdm, "slot fallback".into(), || tracing::warn!("radial density masking: no new reconstruction slot ({}); reusing the oldest", e.1));
+                s
+            }
+            (Err(e), None) => return Err(e),
+        },
         (choice, Some(s)) => {
             if choice == super::rules::SlotChoice::WaitOldest {
                 d.features.rdm.reconstruct.release_waits.fetch_add(1, Ordering::Relaxed);
@@ -291,6 +332,7 @@ fn new_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
             .create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(family), None)
             .map_err(layer_error("command pool"))?;
         let mut slot = Slot {
+            family,
             pool,
             cb: vk::CommandBuffer::null(),
             fence: vk::Fence::null(),

@@ -385,8 +385,25 @@ fn drawn(me: &RdmDevice, d: &DeviceState, target: Target) -> Result<Arc<Drawn>, 
 
 /// Records the checkerboard depth draw into the open pass (after the mask, before the chassis
 /// restores the app's state); what it skips and leaves to reconstruct goes by submission.
+/// Before any checkerboard goes into a pass: the reconstruction that will fill its holes at the
+/// image's release must be able to run (`reconstruct::ready`). If it cannot, the pass is left
+/// whole (counted `layer_error`, logged once) rather than handed to the runtime with holes.
+fn reconstruction_ready(me: &RdmDevice, d: &DeviceState, cb: vk::CommandBuffer, s: &Settings) -> Result<(), NotApplied> {
+    use crate::features::foveation::Reconstruction;
+    if s.foveation.rdm_reconstruction == Reconstruction::Off {
+        return Ok(());
+    }
+    let family = d.track.command_buffers.get(ash::vk::Handle::as_raw(cb)).and_then(|c| d.track.pools.get(c.pool)).map(|p| p.queue_family_index);
+    let Some(family) = family else { return Ok(()) };
+    super::reconstruct::ready(d, family, s.foveation.rdm_reconstruction != Reconstruction::Fill).map_err(|(why, e)| {
+        log_once(me, format!("not ready {e}"), || tracing::warn!("radial density masking skipped for a pass: its reconstruction could not be prepared ({e})"));
+        why
+    })
+}
+
 fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<(), NotApplied> {
     let plan = at.plan;
+    reconstruction_ready(me, d, at.cb, at.settings)?;
     let ((fovea_generation, views_generation), eyes) = params_now(&plan.draws)?;
     let p = pipeline(me, d, at.pass, plan)?;
     let multiview = plan.layout == EyeLayout::Multiview;
@@ -427,6 +444,7 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
 fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result<(), NotApplied> {
     let area = inject::render_area(at.pass);
     let plan = inject::shape_only(at.pass, at.fail_depth);
+    reconstruction_ready(me, d, at.cb, at.settings)?;
     let p = pipeline(me, d, at.pass, &plan)?;
     let data = drawn(me, d, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area })?;
     data.refresh(me, None);
