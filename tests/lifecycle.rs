@@ -24,6 +24,18 @@ fn sessions(out: &RunOutput) -> Vec<(u64, u64)> {
         .collect()
 }
 
+/// `base` through the layer with the mask, RDM and the far field on, as run `name`.
+fn every_feature(base: Run, name: &str) -> Run {
+    let mut run = base
+        .with_layer()
+        .env("STEREOSHIM_MASK_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
+        .env("STEREOSHIM_FAR_FIELD_ENABLED", "1");
+    run.name = name.into();
+    run
+}
+
 /// Every device stats line says the layer tracks nothing of the app's objects any more (the app
 /// destroyed them all before its device): no state kept across sessions, swapchains or instances.
 fn assert_nothing_tracked(out: &RunOutput) {
@@ -51,13 +63,7 @@ fn sessions_recreated_with_every_feature_on_keep_memory_flat() {
         .env("MOCK_XR_CAPTURE_FRAMES", "0");
     let plain = base.clone().run();
     plain.assert_ok();
-    let mut layered = base
-        .with_layer()
-        .env("STEREOSHIM_MASK_ENABLED", "1")
-        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
-        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
-        .env("STEREOSHIM_FAR_FIELD_ENABLED", "1");
-    layered.name = "lifecycle-sessions-layer".into();
+    let layered = every_feature(base, "lifecycle-sessions-layer");
     let with = layered.run();
     with.assert_ok().assert_layer_loaded(Half::Both).assert_log_lacks(Half::Both, "internal failure");
     assert_nothing_tracked(&with);
@@ -89,17 +95,11 @@ fn sessions_recreated_with_every_feature_on_keep_memory_flat() {
 fn swapchains_recreated_with_other_sizes_keep_every_feature_working() {
     let stats = common::target_dir().join("test-output").join("lifecycle-swapchains.layer-stats.jsonl");
     let _ = std::fs::remove_file(&stats);
-    let out = Run::new("lifecycle-swapchains")
+    let base = Run::new("lifecycle-swapchains")
         .args(["--recreate-swapchains", "3", "--frames", "12", "--submit-depth"])
         .env("MOCK_XR_EXIT_AFTER", "1000")
-        .env("MOCK_XR_CAPTURE_FRAMES", "0")
-        .with_layer()
-        .env("STEREOSHIM_MASK_ENABLED", "1")
-        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
-        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
-        .env("STEREOSHIM_FAR_FIELD_ENABLED", "1")
-        .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap())
-        .run();
+        .env("MOCK_XR_CAPTURE_FRAMES", "0");
+    let out = every_feature(base, "lifecycle-swapchains").env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap()).run();
     out.assert_ok().assert_layer_loaded(Half::Both).assert_log_lacks(Half::Both, "internal failure");
     assert_nothing_tracked(&out);
     let lines: Vec<serde_json::Value> = std::fs::read_to_string(&stats).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
@@ -131,13 +131,7 @@ fn instances_recreated_with_every_feature_on() {
         .env("MOCK_XR_CAPTURE_FRAMES", "0");
     let plain = base.clone().run();
     plain.assert_ok();
-    let mut layered = base
-        .with_layer()
-        .env("STEREOSHIM_MASK_ENABLED", "1")
-        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
-        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
-        .env("STEREOSHIM_FAR_FIELD_ENABLED", "1");
-    layered.name = "lifecycle-instances-layer".into();
+    let layered = every_feature(base, "lifecycle-instances-layer");
     let with = layered.run();
     with.assert_ok().assert_log_lacks(Half::Both, "internal failure");
     assert_nothing_tracked(&with);

@@ -10,7 +10,7 @@
 //! Per recording the copy makes views of the app's images and a descriptor set; they are held by
 //! the recording (`lifetime::hold`) and destroyed after its last submission completed.
 
-use super::copy::{source_layers, PendingCopy, Slots};
+use super::copy::{copy_barriers, source_layers, PendingCopy};
 use crate::track::eye_pass::EyeDraw;
 use crate::vk::lifetime::{self, Garbage, PooledBuffer};
 use crate::vk::DeviceState;
@@ -132,52 +132,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: &PendingCopy, so
         tracing::warn!("far field copy: {e}");
         "layer_error"
     })?;
-    let slots: &Slots = &p.slots;
-    let span = |f: &dyn Fn(&EyeDraw) -> u32| sources.iter().fold((u32::MAX, 0), |(lo, hi), dr| (lo.min(f(dr)), hi.max(f(dr))));
-    let color_layers = span(&|dr| source_layers(p, dr).0);
-    let depth_layers = span(&|dr| source_layers(p, dr).1);
-    let app = |src: &super::copy::Source, layers: (u32, u32), to_read: bool| {
-        let (old, new) = if to_read { (src.layout, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL) } else { (vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, src.layout) };
-        let (src_access, dst_access) = if to_read {
-            (vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE, vk::AccessFlags::SHADER_READ)
-        } else {
-            (vk::AccessFlags::empty(), vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE)
-        };
-        vk::ImageMemoryBarrier::default()
-            .image(src.image)
-            .old_layout(old)
-            .new_layout(new)
-            .src_access_mask(src_access)
-            .dst_access_mask(dst_access)
-            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .subresource_range(vk::ImageSubresourceRange { aspect_mask: src.aspect, base_mip_level: 0, level_count: 1, base_array_layer: layers.0, layer_count: layers.1 - layers.0 + 1 })
-    };
-    let slot = |image: vk::Image, before: bool| {
-        let (src_access, dst_access) = if before { (vk::AccessFlags::SHADER_READ, vk::AccessFlags::SHADER_WRITE) } else { (vk::AccessFlags::SHADER_WRITE, vk::AccessFlags::SHADER_READ) };
-        vk::ImageMemoryBarrier::default()
-            .image(image)
-            .old_layout(vk::ImageLayout::GENERAL)
-            .new_layout(vk::ImageLayout::GENERAL)
-            .src_access_mask(src_access)
-            .dst_access_mask(dst_access)
-            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .subresource_range(vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 })
-    };
-    let slot_barriers = |before: bool| -> Vec<vk::ImageMemoryBarrier<'static>> {
-        sources
-            .iter()
-            .flat_map(|dr| {
-                let s = &slots.images[dr.view as usize & 1];
-                [slot(s[0].image, before), slot(s[1].image, before)]
-            })
-            .collect()
-    };
-    let mut before = vec![app(&p.color, color_layers, true), app(&p.depth, depth_layers, true)];
-    before.extend(slot_barriers(true));
-    let mut after = vec![app(&p.color, color_layers, false), app(&p.depth, depth_layers, false)];
-    after.extend(slot_barriers(false));
+    let (before, after) = copy_barriers(p, sources, (vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, vk::AccessFlags::SHADER_READ), vk::AccessFlags::SHADER_WRITE);
     // The tiles: a global barrier (the reuse draws read the whole buffer through their descriptor).
     let tiles = vk::MemoryBarrier::default().src_access_mask(vk::AccessFlags::SHADER_WRITE).dst_access_mask(vk::AccessFlags::SHADER_READ);
     let attachment_stages = vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;

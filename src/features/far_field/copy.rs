@@ -147,55 +147,58 @@ pub(super) fn source_layers(p: &PendingCopy, dr: &EyeDraw) -> (u32, u32) {
     (dr.layer, p.depth.base_layer + if p.multiview { dr.view } else { 0 })
 }
 
-/// Image copies into multisampled slots (their tiles are marked unknown).
-fn record_transfer(d: &DeviceState, cb: vk::CommandBuffer, p: &PendingCopy, sources: &[EyeDraw]) {
-    let color_layer = |dr: &EyeDraw| source_layers(p, dr).0;
-    let depth_layer = |dr: &EyeDraw| source_layers(p, dr).1;
-    let range = |src: &Source, layers: (u32, u32)| vk::ImageSubresourceRange { aspect_mask: src.aspect, base_mip_level: 0, level_count: 1, base_array_layer: layers.0, layer_count: layers.1 - layers.0 + 1 };
-    let span = |f: &dyn Fn(&EyeDraw) -> u32| sources.iter().fold((u32::MAX, 0), |(lo, hi), dr| (lo.min(f(dr)), hi.max(f(dr))));
-    let (cl, dl) = (span(&color_layer), span(&depth_layer));
-    let app_barrier = |src: &Source, layers, to_copy: bool| {
-        let (old, new) = if to_copy { (src.layout, vk::ImageLayout::TRANSFER_SRC_OPTIMAL) } else { (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, src.layout) };
-        let (src_access, dst_access) = if to_copy {
-            (vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE, vk::AccessFlags::TRANSFER_READ)
-        } else {
-            (vk::AccessFlags::empty(), vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE)
-        };
-        vk::ImageMemoryBarrier::default()
-            .image(src.image)
-            .old_layout(old)
-            .new_layout(new)
-            .src_access_mask(src_access)
-            .dst_access_mask(dst_access)
-            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .subresource_range(range(src, layers))
-    };
-    let slot_barrier = |image: vk::Image, aspect, before_copy: bool| {
-        let (src_access, dst_access) = if before_copy { (vk::AccessFlags::SHADER_READ, vk::AccessFlags::TRANSFER_WRITE) } else { (vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ) };
+/// The barriers around reading `sources` out of the pass that just ended, for either copy:
+/// before, the app's colour and depth go from the layouts the pass left them in to `read`
+/// (layout, access) and the sources' slots from their readers (the reuse draws) to `slot_write`;
+/// after, the app's images go back and the slots become readable again. The slots stay GENERAL.
+pub(super) fn copy_barriers(
+    p: &PendingCopy,
+    sources: &[EyeDraw],
+    read: (vk::ImageLayout, vk::AccessFlags),
+    slot_write: vk::AccessFlags,
+) -> (Vec<vk::ImageMemoryBarrier<'static>>, Vec<vk::ImageMemoryBarrier<'static>>) {
+    let span = |f: fn((u32, u32)) -> u32| sources.iter().map(|dr| f(source_layers(p, dr))).fold((u32::MAX, 0), |(lo, hi), l| (lo.min(l), hi.max(l)));
+    let layers = [(&p.color, span(|l| l.0)), (&p.depth, span(|l| l.1))];
+    let barrier = |image: vk::Image, (old, new): (vk::ImageLayout, vk::ImageLayout), (src, dst): (vk::AccessFlags, vk::AccessFlags), range: vk::ImageSubresourceRange| {
         vk::ImageMemoryBarrier::default()
             .image(image)
-            .old_layout(vk::ImageLayout::GENERAL)
-            .new_layout(vk::ImageLayout::GENERAL)
-            .src_access_mask(src_access)
-            .dst_access_mask(dst_access)
+            .old_layout(old)
+            .new_layout(new)
+            .src_access_mask(src)
+            .dst_access_mask(dst)
             .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
             .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 })
+            .subresource_range(range)
     };
-    let slot_images = |before: bool| -> Vec<vk::ImageMemoryBarrier<'static>> {
-        sources
-            .iter()
-            .flat_map(|dr| {
-                let slot = &p.slots.images[dr.view as usize];
-                [slot_barrier(slot[0].image, vk::ImageAspectFlags::COLOR, before), slot_barrier(slot[1].image, vk::ImageAspectFlags::DEPTH, before)]
+    let app = |to_read: bool| {
+        layers.map(|(src, (lo, hi))| {
+            let range = vk::ImageSubresourceRange { aspect_mask: src.aspect, base_mip_level: 0, level_count: 1, base_array_layer: lo, layer_count: hi - lo + 1 };
+            if to_read {
+                let written = vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE;
+                barrier(src.image, (src.layout, read.0), (written, read.1), range)
+            } else {
+                barrier(src.image, (read.0, src.layout), (vk::AccessFlags::empty(), vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE), range)
+            }
+        })
+    };
+    // Compute-filled slots hold depth as a colour format.
+    let depth_aspect = if p.slots.compute { vk::ImageAspectFlags::COLOR } else { vk::ImageAspectFlags::DEPTH };
+    let slots = |before: bool| {
+        let access = if before { (vk::AccessFlags::SHADER_READ, slot_write) } else { (slot_write, vk::AccessFlags::SHADER_READ) };
+        sources.iter().flat_map(move |dr| {
+            let slot = &p.slots.images[dr.view as usize & 1];
+            [(&slot[0], vk::ImageAspectFlags::COLOR), (&slot[1], depth_aspect)].map(|(o, aspect)| {
+                let range = vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
+                barrier(o.image, (vk::ImageLayout::GENERAL, vk::ImageLayout::GENERAL), access, range)
             })
-            .collect()
+        })
     };
-    let mut before = vec![app_barrier(&p.color, cl, true), app_barrier(&p.depth, dl, true)];
-    before.extend(slot_images(true));
-    let mut after = vec![app_barrier(&p.color, cl, false), app_barrier(&p.depth, dl, false)];
-    after.extend(slot_images(false));
+    (app(true).into_iter().chain(slots(true)).collect(), app(false).into_iter().chain(slots(false)).collect())
+}
+
+/// Image copies into multisampled slots (their tiles are marked unknown).
+fn record_transfer(d: &DeviceState, cb: vk::CommandBuffer, p: &PendingCopy, sources: &[EyeDraw]) {
+    let (before, after) = copy_barriers(p, sources, (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::TRANSFER_READ), vk::AccessFlags::TRANSFER_WRITE);
     let fns = d.fns.fp_v1_0();
     let attachment_stages = vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
     // SAFETY: `cb` is the app's command buffer outside any pass (the pass just ended); the
@@ -213,8 +216,9 @@ fn record_transfer(d: &DeviceState, cb: vk::CommandBuffer, p: &PendingCopy, sour
                 dst_offset: vk::Offset3D::default(),
                 extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
             };
-            (fns.cmd_copy_image)(cb, p.color.image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, slot[0].image, vk::ImageLayout::GENERAL, 1, &region(vk::ImageAspectFlags::COLOR, color_layer(dr)));
-            (fns.cmd_copy_image)(cb, p.depth.image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, slot[1].image, vk::ImageLayout::GENERAL, 1, &region(vk::ImageAspectFlags::DEPTH, depth_layer(dr)));
+            let (color_layer, depth_layer) = source_layers(p, dr);
+            (fns.cmd_copy_image)(cb, p.color.image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, slot[0].image, vk::ImageLayout::GENERAL, 1, &region(vk::ImageAspectFlags::COLOR, color_layer));
+            (fns.cmd_copy_image)(cb, p.depth.image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, slot[1].image, vk::ImageLayout::GENERAL, 1, &region(vk::ImageAspectFlags::DEPTH, depth_layer));
         }
         (fns.cmd_pipeline_barrier)(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), after.len() as u32, after.as_ptr());
     }
