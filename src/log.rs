@@ -2,6 +2,7 @@
 //! and must never write to its stdout, and the log must outlive a crash of that process, so every
 //! line goes straight to the file (no buffering).
 
+use std::collections::HashMap;
 use std::fs::{File, OpenOptions};
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, OnceLock};
@@ -55,9 +56,45 @@ fn open(path: &Path) -> Option<File> {
     OpenOptions::new().create(true).append(true).open(path).ok()
 }
 
+/// Failures that repeat: a device out of memory makes the layer's attempt for every pass fail
+/// the same way, and a WARN line per pass would flood the log (and cost the app a write per
+/// pass). The first failure of each kind is logged, the rest only counted; `summary` gives the
+/// counts for one line when the device goes.
+#[derive(Debug, Default)]
+pub(crate) struct Repeats {
+    seen: Mutex<HashMap<&'static str, u64>>,
+}
+
+impl Repeats {
+    /// Counts a failure of `kind`; true for the first one, the one to log.
+    pub(crate) fn first(&self, kind: &'static str) -> bool {
+        let mut seen = self.seen.lock().unwrap_or_else(|e| e.into_inner());
+        let n = seen.entry(kind).or_insert(0);
+        *n += 1;
+        *n == 1
+    }
+    /// The kinds that failed more than once, with their counts, sorted by kind.
+    pub(crate) fn summary(&self) -> Vec<(&'static str, u64)> {
+        let seen = self.seen.lock().unwrap_or_else(|e| e.into_inner());
+        let mut v: Vec<_> = seen.iter().filter(|(_, n)| **n > 1).map(|(k, n)| (*k, *n)).collect();
+        v.sort_unstable();
+        v
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn repeats_log_the_first_and_count_the_rest() {
+        let r = Repeats::default();
+        assert!(r.first("mask buffer"));
+        assert!(!r.first("mask buffer"));
+        assert!(!r.first("mask buffer"));
+        assert!(r.first("far field slots"), "another kind is logged on its own");
+        assert_eq!(r.summary(), vec![("mask buffer", 3)], "kinds seen once need no summary");
+    }
 
     #[test]
     fn path_from_xdg_state_home_or_home() {

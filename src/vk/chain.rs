@@ -447,6 +447,7 @@ pub(super) unsafe extern "system" fn create_device(
             lifetime: Default::default(),
             secondary: Default::default(),
             gpu_time: super::gpu_time::GpuTimeDevice::new(inst.fns.clone(), pd, queue_infos),
+            repeats: Default::default(),
         };
         layer().devices.insert(dispatch_key(device), Arc::new(state));
         r
@@ -540,6 +541,11 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
             t.command_buffers.len()
         ));
         tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {line}");
+        let repeats = dev.repeats.summary();
+        if !repeats.is_empty() {
+            let list: Vec<String> = repeats.iter().map(|(kind, n)| format!("{kind} ×{n}")).collect();
+            tracing::warn!(device = ?dev.handle, "failures of the layer's own objects, logged once each, happened: {}", list.join(", "));
+        }
         // The app waited for the device to go idle before destroying it.
         for f in dev.features.all() {
             f.destroy(&dev);

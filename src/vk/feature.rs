@@ -14,8 +14,9 @@
 //!   (before the end goes down), `pass_ended` (after it), `transfer` (copies, resolves, blits);
 //! - `injects_before_depth_test` features get `inject` at the pass's first depth-tested draw
 //!   (`vk::inject::before_draw`) instead of right after the clear;
-//! - submission: `queue_submitting` (may submit the layer's own work first), `before_submit` (refresh what a recorded command buffer reads; apply what it
-//!   recorded, in recording order);
+//! - submission: `queue_submitting` (set-up work of the layer's that goes at the head of the
+//!   app's submission) and `set_up_submitted`, `before_submit` (refresh what a recorded command
+//!   buffer reads; apply what it recorded, in recording order);
 //! - OpenXR side: `before_release` (`xrReleaseSwapchainImage`, before it goes down);
 //! - `take_frame` at every `xrEndFrame`, `destroy` at `vkDestroyDevice`.
 
@@ -157,10 +158,18 @@ pub(crate) trait VkFeature: Send + Sync {
     /// Command buffers are about to be submitted: refresh what their recordings read (only where
     /// no earlier submission of a recording may still execute) and act on what they recorded.
     fn before_submit(&self, _d: &DeviceState, _cbs: &[u64]) {}
-    /// A queue submission is about to go down on `queue` (of `family`, when known): the one
-    /// point where the layer may submit work of its own ahead of the app's (the app holds the
-    /// queue for the call).
-    fn queue_submitting(&self, _d: &DeviceState, _queue: vk::Queue, _family: Option<u32>) {}
+    /// A queue submission of command buffers of `family` is about to go down: the feature's
+    /// one-time set-up work for them (command buffers made by `vk::secondary::prepare_once`:
+    /// first image layouts, query pool resets). The chassis puts them at the head of the app's
+    /// first batch, so they run first and share the app's fate: a submission that fails runs
+    /// neither the set-up nor the app work that needs it (a separate submission of the layer's
+    /// could fail alone and leave the app's command buffers using objects never set up).
+    fn queue_submitting(&self, _d: &DeviceState, _family: u32) -> Vec<vk::CommandBuffer> {
+        Vec::new()
+    }
+    /// The submission that carried `set_up` (what `queue_submitting` returned, non-empty) went
+    /// down (`ok`) or not: set-up that did not go down is handed out again next time.
+    fn set_up_submitted(&self, _d: &DeviceState, _family: u32, _set_up: &[vk::CommandBuffer], _ok: bool) {}
     /// Whether the feature reads the depth attachment after an eye pass ends: the chassis then
     /// makes passes store their depth (`vk::keep_depth`).
     fn keeps_depth(&self, _s: &Settings) -> bool {

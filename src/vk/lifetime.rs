@@ -81,7 +81,7 @@ pub(crate) fn submitted(d: &DeviceState, queue: vk::Queue, cbs: &[u64]) {
         None => match unsafe { d.fns.create_fence(&vk::FenceCreateInfo::default(), None) } {
             Ok(f) => f,
             Err(e) => {
-                tracing::error!("lifetime fence: {e}; the layer waits for the device instead");
+                d.warn_repeated("lifetime fence", format_args!("{e}; the layer waits for the device instead"));
                 wait_idle_and_complete(d, id);
                 return;
             }
@@ -92,7 +92,7 @@ pub(crate) fn submitted(d: &DeviceState, queue: vk::Queue, cbs: &[u64]) {
     match unsafe { (d.fns.fp_v1_0().queue_submit)(queue, 0, std::ptr::null(), fence) } {
         vk::Result::SUCCESS => lock(&d.lifetime.fences).push_back((id, fence)),
         e => {
-            tracing::error!("lifetime fence submission: {e:?}; the layer waits for the device instead");
+            d.warn_repeated("lifetime fence submission", format_args!("{e:?}; the layer waits for the device instead"));
             lock(&d.lifetime.free_fences).push(fence);
             wait_idle_and_complete(d, id);
         }
@@ -116,7 +116,7 @@ pub(crate) fn poll(d: &DeviceState) {
             Ok(true) => {}
             Ok(false) => break,
             Err(e) => {
-                tracing::error!("lifetime fence status: {e}");
+                d.warn_repeated("lifetime fence status", e);
                 break;
             }
         }

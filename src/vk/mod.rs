@@ -90,6 +90,9 @@ pub(crate) struct DeviceState {
     pub secondary: secondary::SecondaryDevice,
     /// The GPU frame timer (`stats.gpu_time`).
     pub gpu_time: gpu_time::GpuTimeDevice,
+    /// Failures of the layer's own objects that repeat: logged once per kind, counted
+    /// (`DeviceState::warn_repeated`).
+    pub repeats: crate::log::Repeats,
 }
 
 /// The loader's `PFN_vkSetDeviceLoaderData`: a layer must call it on dispatchable objects it
@@ -99,6 +102,14 @@ pub(crate) type PfnSetDeviceLoaderData = unsafe extern "system" fn(vk::Device, *
 impl DeviceState {
     /// The live settings (the OpenXR half re-reads a changed config file between frames), else
     /// the device's own.
+    /// A failure of the layer's own object of `kind` (`what` says what failed): WARN the first
+    /// time on this device, then only counted (the feature tries again at its next use, which
+    /// under a persistent failure is every pass).
+    pub fn warn_repeated(&self, kind: &'static str, what: impl std::fmt::Display) {
+        if self.repeats.first(kind) {
+            tracing::warn!("{kind}: {what} (repeats are counted, not logged)");
+        }
+    }
     pub fn settings(&self) -> Arc<crate::settings::Settings> {
         crate::settings::current().unwrap_or_else(|| self.settings.clone())
     }

@@ -129,7 +129,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: &PendingCopy, so
         None => return Err("unsupported"),
     };
     let objects = make_objects(d, p, sources, c).map_err(|e| {
-        tracing::warn!("far field copy: {e}");
+        d.warn_repeated("far field copy", &e);
         "layer_error"
     })?;
     let (before, after) = copy_barriers(p, sources, (vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, vk::AccessFlags::SHADER_READ), vk::AccessFlags::SHADER_WRITE);

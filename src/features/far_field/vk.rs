@@ -150,6 +150,9 @@ struct Books {
     pending_resets: Vec<(u32, vk::CommandBuffer)>,
     /// The reused-pixel total at the last `take_frame`.
     pixels_taken: u64,
+    /// The slots' layout set-up handed to a submission (`queue_submitting`), until it is known
+    /// whether that submission went down.
+    slots_init_taken: Option<(vk::CommandBuffer, Arc<Slots>)>,
 }
 
 /// The far field's per-device state. Locks guard bookkeeping only, never a call down.
@@ -285,7 +288,7 @@ impl FarFieldDevice {
     fn pipeline(&self, d: &DeviceState, t: &Target<'_>, reversed: bool, debug: bool, msaa: bool) -> Result<vk::Pipeline, &'static str> {
         let pass = pipeline::pass_key(d, t.pass, t.plan).ok_or("unsupported")?;
         let (_, layout, _, _) = self.objects(d).map_err(|e| {
-            tracing::warn!("far field objects: {e}");
+            d.warn_repeated("far field objects", &e);
             "layer_error"
         })?;
         let key = pipeline::PipelineKey { feature: self.id(), variant: debug as u32 | (reversed as u32) << 1 | (msaa as u32) << 2, pass };
@@ -316,7 +319,7 @@ impl FarFieldDevice {
         .map_err(|e| match e {
             pipeline::PipelineError::DeviceLacks => "device_lacks",
             pipeline::PipelineError::Vulkan(e) => {
-                tracing::warn!(?key, "far field pipeline: {e}");
+                d.warn_repeated("far field pipeline", &e);
                 "layer_error"
             }
         })
@@ -338,7 +341,7 @@ impl FarFieldDevice {
         let samples = color_info.1;
         let family = d.track.command_buffers.get(at.cb.as_raw()).and_then(|c| d.track.pools.get(c.pool)).map(|p| p.queue_family_index);
         let slots = self.slots(d, family, extent, color_info.0, depth_info.0, samples).map_err(|e| {
-            tracing::warn!("far field slots: {e}");
+            d.warn_repeated("far field slots", &e);
             "layer_error"
         })?;
         let dests: Vec<EyeDraw> = draws.iter().filter(|dr| s.alternate || dr.view != s.source_view).copied().collect();
@@ -356,7 +359,7 @@ impl FarFieldDevice {
             let p = self.pipeline(d, &at, reversed, s.debug, samples != vk::SampleCountFlags::TYPE_1)?;
             let n = reuse.len() as u64;
             let buffer = PooledBuffer::take(d, inject::DRAW_ARGS * n + INSTANCE * n, &self.memory).map_err(|e| {
-                tracing::warn!("far field buffer: {e}");
+                d.warn_repeated("far field buffer", &e);
                 "layer_error"
             })?;
             // Nothing is drawn until a submission finds a fresh source.
@@ -371,7 +374,7 @@ impl FarFieldDevice {
                     Some(Arc::new(c))
                 }
                 Err(e) => {
-                    tracing::warn!("far field: reused pixels are not counted for a pass: {e}");
+                    d.warn_repeated("far field: reused pixels are not counted for a pass", &e);
                     None
                 }
             };
@@ -611,41 +614,48 @@ impl VkFeature for FarFieldDevice {
             vk::ImageUsageFlags::empty()
         }
     }
-    fn queue_submitting(&self, d: &DeviceState, queue: vk::Queue, family: Option<u32>) {
-        if let Some(family) = family {
-            let resets: Vec<vk::CommandBuffer> = {
-                let mut b = lock(&self.books);
-                let (here, elsewhere) = std::mem::take(&mut b.pending_resets).into_iter().partition(|(f, _)| *f == family);
-                b.pending_resets = elsewhere;
-                here.into_iter().map(|(_, cb)| cb).collect()
-            };
-            if !resets.is_empty() {
-                if let Err(e) = crate::vk::secondary::submit_prepared(d, queue, &resets) {
-                    tracing::warn!("far field query reset: {e}");
-                }
-            }
-        }
-        let Some(family) = family else { return };
-        let pending = {
+    fn queue_submitting(&self, _d: &DeviceState, family: u32) -> Vec<vk::CommandBuffer> {
+        let mut set_up: Vec<vk::CommandBuffer> = {
+            let mut b = lock(&self.books);
+            let (here, elsewhere) = std::mem::take(&mut b.pending_resets).into_iter().partition(|(f, _)| *f == family);
+            b.pending_resets = elsewhere;
+            here.into_iter().map(|(_, cb)| cb).collect()
+        };
+        let init = {
             let mut o = lock(&self.objects);
-            match (o.slots.clone(), o.slots_init) {
+            match (&o.slots, o.slots_init) {
                 (Some(slots), Some((f, cb))) if f == family && !slots.initialized.load(Ordering::Acquire) => {
+                    let slots = slots.clone();
                     o.slots_init = None;
-                    Some((slots, cb))
+                    Some((cb, slots))
                 }
                 _ => None,
             }
         };
-        let Some((slots, cb)) = pending else { return };
-        match crate::vk::secondary::submit_prepared(d, queue, &[cb]) {
-            Ok(()) => slots.initialized.store(true, Ordering::Release),
-            Err(e) => {
-                tracing::warn!("far field slot layouts: {e}");
-                // A failed submission leaves its command buffer as it was: the next one tries again.
-                let mut o = lock(&self.objects);
-                if o.slots.as_ref().is_some_and(|s| Arc::ptr_eq(s, &slots)) {
-                    o.slots_init = Some((family, cb));
-                }
+        if let Some((cb, slots)) = init {
+            lock(&self.books).slots_init_taken = Some((cb, slots));
+            set_up.push(cb);
+        }
+        set_up
+    }
+    fn set_up_submitted(&self, _d: &DeviceState, family: u32, set_up: &[vk::CommandBuffer], ok: bool) {
+        let mut b = lock(&self.books);
+        let init = b.slots_init_taken.take_if(|(cb, _)| set_up.contains(cb));
+        if ok {
+            if let Some((_, slots)) = init {
+                slots.initialized.store(true, Ordering::Release);
+            }
+            return;
+        }
+        // The submission failed as a whole: neither the set-up nor the app's command buffers
+        // that need it ran. The set-up goes with the next submission there.
+        b.pending_resets.extend(set_up.iter().filter(|cb| !matches!(&init, Some((i, _)) if i == *cb)).map(|&cb| (family, cb)));
+        drop(b);
+        if let Some((cb, slots)) = init {
+            let mut o = lock(&self.objects);
+            // Slots replaced meanwhile have their own set-up.
+            if o.slots.as_ref().is_some_and(|s| Arc::ptr_eq(s, &slots)) {
+                o.slots_init = Some((family, cb));
             }
         }
     }

@@ -237,7 +237,7 @@ impl MaskDevice {
         .map_err(|e| match e {
             pipeline::PipelineError::DeviceLacks => NotMasked::DeviceLacks,
             pipeline::PipelineError::Vulkan(e) => {
-                tracing::warn!(?key, "mask pipeline: {e}");
+                d.warn_repeated("mask pipeline", &e);
                 NotMasked::LayerError
             }
         })
@@ -249,7 +249,7 @@ impl MaskDevice {
         let vertices: usize = g.ndc.values().map(Vec::len).sum();
         let size = inject::DRAW_ARGS * 4 + 2 * (vertices * std::mem::size_of::<Vertex>()) as u64;
         let buffer = PooledBuffer::take(d, size, &self.memory).map_err(|e| {
-            tracing::warn!("mask buffer: {e}");
+            d.warn_repeated("mask buffer", &e);
             NotMasked::LayerError
         })?;
         Ok(Arc::new(MaskData { buffer, target, filled: Mutex::default() }))

@@ -279,7 +279,7 @@ pub(crate) fn on_execute_commands(d: &DeviceState, cb: vk::CommandBuffer) -> Opt
     match recorded {
         Ok(ours) => Some(ours),
         Err(e) => {
-            tracing::warn!("layer secondary command buffer: {e}");
+            d.warn_repeated("layer secondary command buffer", &e);
             count_not_injected(d, &settings, counts, NotMasked::LayerError, &snap.pass);
             None
         }

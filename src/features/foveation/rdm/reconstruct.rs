@@ -36,12 +36,16 @@ pub(crate) struct Reconstruct {
     slot_count: std::sync::atomic::AtomicUsize,
     /// Releases that had to wait for an earlier reconstruction (`rules::SlotChoice::WaitOldest`).
     pub(crate) release_waits: std::sync::atomic::AtomicU64,
+    /// A reconstruction failed after its checkerboard was drawn (its submission was refused: the
+    /// image went to the runtime with holes): no pass gets a checkerboard on this device any more
+    /// (`ready`), since the next reconstruction could fail too.
+    failed: std::sync::atomic::AtomicBool,
     pub(super) compute: compute::Compute,
 }
 
 impl Reconstruct {
     pub(crate) fn new(memory: vk::PhysicalDeviceMemoryProperties, set_loader_data: Option<crate::vk::PfnSetDeviceLoaderData>) -> Reconstruct {
-        Reconstruct { set_loader_data, memory, fill: Mutex::default(), slots: Mutex::default(), slot_count: Default::default(), release_waits: Default::default(), compute: Default::default() }
+        Reconstruct { set_loader_data, memory, fill: Mutex::default(), slots: Mutex::default(), slot_count: Default::default(), release_waits: Default::default(), failed: Default::default(), compute: Default::default() }
     }
     /// At vkDestroyDevice (the device is idle).
     pub(crate) fn destroy(&self, d: &DeviceState) {
@@ -117,6 +121,9 @@ pub(super) fn before_release(me: &RdmDevice, d: &DeviceState, queue_family: u32,
             }
         }),
         Err((why, msg)) => {
+            if why == NotApplied::LayerError {
+                me.reconstruct.failed.store(true, Ordering::Relaxed);
+            }
             me.count(|s| s.count_not_applied(why));
             log_once(me, format!("reconstruct {}", why.name()), || tracing::warn!("radial density masking: no reconstruction of swapchain {swapchain:#x}: {msg}"));
         }
@@ -186,6 +193,9 @@ fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[P
 /// `with_compute`: the compute pass is wanted (not `rdm_reconstruction = fill`).
 pub(super) fn ready(d: &DeviceState, family: u32, with_compute: bool) -> Result<(), Failure> {
     let r = &d.features.rdm.reconstruct;
+    if r.failed.load(Ordering::Relaxed) {
+        return Err((NotApplied::LayerError, "an earlier reconstruction failed".into()));
+    }
     if lock(&r.slots).iter().any(|s| s.family == family && (!with_compute || s.compute.set != vk::DescriptorSet::null())) {
         return Ok(());
     }

@@ -367,7 +367,7 @@ fn pipeline(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInsta
     .map_err(|e| match e {
         pipeline::PipelineError::DeviceLacks => NotApplied::DeviceLacks,
         pipeline::PipelineError::Vulkan(e) => {
-            tracing::warn!(?key, "rdm pipeline: {e}");
+            d.warn_repeated("rdm pipeline", &e);
             NotApplied::LayerError
         }
     })
@@ -377,7 +377,7 @@ fn pipeline(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInsta
 fn drawn(me: &RdmDevice, d: &DeviceState, target: Target) -> Result<Arc<Drawn>, NotApplied> {
     let size = inject::DRAW_ARGS * 2 + 12 * std::mem::size_of::<Vertex>() as u64;
     let buffer = PooledBuffer::take(d, size, &me.memory).map_err(|e| {
-        tracing::warn!("rdm vertex buffer: {e}");
+        d.warn_repeated("rdm vertex buffer", &e);
         NotApplied::LayerError
     })?;
     Ok(Arc::new(Drawn { buffer, target, filled: Mutex::default() }))

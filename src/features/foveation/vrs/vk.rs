@@ -237,7 +237,7 @@ unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info: *const vk:
     let view = match image_for(d, cb, &key, &eyes, rates) {
         Ok(v) => v,
         Err(e) => {
-            tracing::warn!("vrs rate image: {e}");
+            d.warn_repeated("vrs rate image", &e);
             if !resuming {
                 not_applied(d, NotApplied::LayerError, PassKind::Dynamic);
             }
@@ -500,7 +500,7 @@ unsafe fn for_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, kind: Pa
         Some((key, eyes)) => match cached_map(d, &key, &eyes, rates, false) {
             Ok(m) => Some(m),
             Err(e) => {
-                tracing::warn!("vrs rate map for a render pass: {e}");
+                d.warn_repeated("vrs rate map for a render pass", &e);
                 None
             }
         },
@@ -614,7 +614,7 @@ impl VkFeature for VrsDevice {
             }
             Ok(None) => None,
             Err(e) => {
-                tracing::warn!("vrs rate image for a framebuffer: {e}");
+                d.warn_repeated("vrs rate image for a framebuffer", &e);
                 None
             }
         }
