@@ -561,6 +561,10 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
 }
 
 #[cfg(test)]
+#[path = "chain_props.rs"]
+mod props;
+
+#[cfg(test)]
 mod tests {
     use super::*;
 

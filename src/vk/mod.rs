@@ -16,6 +16,8 @@ mod keep_depth;
 pub(crate) mod lifetime;
 pub mod loader;
 pub(crate) mod secondary;
+#[cfg(test)]
+pub(crate) mod test_chain;
 
 use crate::config::Config;
 use crate::guard::{self, PassThrough};

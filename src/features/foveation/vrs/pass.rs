@@ -83,7 +83,15 @@ pub(super) unsafe fn pipeline_infos(d: &DeviceState, infos: *const vk::GraphicsP
         return None;
     }
     // SAFETY: the caller's contract.
-    let app = unsafe { crate::vk::convert::slice(infos, count) };
+    Some(unsafe { with_rate_state(crate::vk::convert::slice(infos, count)) })
+}
+
+/// Copies of `app` with the shading-rate state at the head of each chain (and the rendering flag
+/// for dynamic-rendering pipelines) where `leave_alone` does not hold.
+///
+/// # Safety
+/// `app` must be valid create infos, alive while the result is used.
+unsafe fn with_rate_state(app: &[vk::GraphicsPipelineCreateInfo<'_>]) -> PipelineInfos {
     let mut out = PipelineInfos { infos: Vec::with_capacity(app.len()), _states: Vec::new(), changed: 0 };
     for ci in app {
         // SAFETY: lifetimes erased: the copies live only during the app's call.
@@ -105,7 +113,7 @@ pub(super) unsafe fn pipeline_infos(d: &DeviceState, infos: *const vk::GraphicsP
         }
         out.infos.push(copy);
     }
-    Some(out)
+    out
 }
 
 /// The parts of a `VkRenderPassCreateInfo2`, owned (the arrays the pointers lead to live here).
@@ -490,6 +498,9 @@ pub(super) fn forget_framebuffer(d: &DeviceState, fb: u64) {
     }
 }
 
+#[cfg(test)]
+#[path = "pass_props.rs"]
+mod props;
 
 #[cfg(test)]
 mod tests {
