@@ -90,6 +90,9 @@ pub struct Options {
     pub vulkan_api: VulkanApi,
     /// `--secondary`: every eye pass's contents are recorded into a secondary command buffer.
     pub secondary: bool,
+    /// `--threads`: xrWaitFrame on a frame-pacing thread, each pass's secondary recorded on a
+    /// worker thread, submission on a submit thread (implies `secondary`; `crate::threads`).
+    pub threads: bool,
     pub frames: Option<u64>,
     /// `--sessions N`: end and create the session (swapchains, renderer) N times in one process.
     pub sessions: u64,
@@ -157,6 +160,7 @@ impl Default for Options {
             vulkan: VulkanPath::Enable2,
             vulkan_api: VulkanApi::V1_3,
             secondary: false,
+            threads: false,
             frames: None,
             sessions: 1,
             instances: 1,
@@ -201,6 +205,10 @@ usage: xr-scene [options]
                                             through VK_KHR_dynamic_rendering
   --secondary                               record each eye pass's contents into a secondary command
                                             buffer run by vkCmdExecuteCommands
+  --threads                                 xrWaitFrame on a frame-pacing thread (the next frame's
+                                            wait overlapping this frame), each pass's secondary
+                                            recorded on a worker thread with its own command pool,
+                                            vkQueueSubmit on a submit thread; implies --secondary
   --frames N                                request exit after N frames (of each session)
   --sessions N                              end and recreate the session (swapchains, renderer)
                                             N times; prints each session's frames and the
@@ -376,7 +384,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--vk-layer" => o.vk_layers.push(value("--vk-layer")?),
             "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
             "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary"
-            | "--record-once" | "--sync-hazard" | "--sky-first" | "--translucent" | "--far-movers" | "--submit2"
+            | "--threads" | "--record-once" | "--sync-hazard" | "--sky-first" | "--translucent" | "--far-movers" | "--submit2"
             | "--visibility-mask"
                 if inline.is_some() =>
             {
@@ -389,6 +397,10 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--empty" => o.empty = true,
             "--validation" => o.validation = true,
             "--secondary" => o.secondary = true,
+            "--threads" => {
+                o.threads = true;
+                o.secondary = true;
+            }
             "--record-once" => o.record_once = true,
             "--sync-hazard" => o.sync_hazard = true,
             "--sky-first" => o.sky_first = true,
@@ -422,6 +434,9 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
         return Err("--submit2 needs Vulkan 1.3 (vkQueueSubmit2, synchronization2)".into());
     }
     // State bound in a primary command buffer is not inherited by secondaries.
+    if o.threads && o.bind_before_pass {
+        return Err("--bind-before-pass cannot be combined with --threads: --threads records each pass into a secondary command buffer (on a worker thread), which inherits no state bound in the primary".into());
+    }
     if o.secondary && o.bind_before_pass {
         return Err("--bind-before-pass and --secondary exclude each other: a secondary command buffer inherits no bound state".into());
     }
@@ -475,6 +490,22 @@ mod tests {
         assert!(p(&["--submit2", "--vulkan-api", "1.1"]).is_err());
         assert!(p(&["--secondary=1"]).is_err());
         assert!(p(&["--secondary", "--bind-before-pass"]).is_err());
+    }
+
+    /// `--threads` implies `--secondary` and combines with what matters for threading, but not
+    /// with state bound before the pass (secondaries inherit none).
+    #[test]
+    fn threads_imply_secondary() {
+        let o = p(&["--threads"]).unwrap().unwrap();
+        assert!(o.threads && o.secondary);
+        assert!(!p(&[]).unwrap().unwrap().threads);
+        assert!(p(&["--threads=1"]).is_err());
+        let e = p(&["--threads", "--bind-before-pass"]).unwrap_err();
+        assert!(e.contains("--threads"), "{e}");
+        for layout in ["per-eye", "multiview", "side-by-side"] {
+            let o = p(&["--threads", "--layout", layout, "--record-once", "--sessions", "2", "--frames", "5"]).unwrap().unwrap();
+            assert!(o.threads && o.record_once && o.secondary);
+        }
     }
 
     /// `--record-once` works with every layout, way of starting a pass, secondary contents,
