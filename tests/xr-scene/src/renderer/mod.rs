@@ -97,6 +97,8 @@ pub struct Renderer {
     parts: crate::scene::Parts,
     /// `--sync-hazard`: leave out the counters' fill → fragment shader barrier.
     sync_hazard: bool,
+    /// `--thread-hazard`: the workers' secondaries come from one pool.
+    thread_hazard: bool,
     /// `--record-once`: one frame set per combination of acquired images, never re-recorded...
     record_once: bool,
     /// ... except every N-th frame's (`--rerecord-every N`).
@@ -182,6 +184,7 @@ impl Renderer {
                 far_mover: opts.far_movers,
             },
             sync_hazard: opts.sync_hazard,
+            thread_hazard: opts.thread_hazard,
             record_once: opts.record_once,
             rerecord_every: opts.rerecord_every,
             pixel_stats: opts.pixel_stats.clone(),
@@ -328,11 +331,12 @@ impl Renderer {
                 .ctx("vkAllocateCommandBuffers")?[0];
             match (&self.workers, self.secondary) {
                 // `--threads`: pass i's secondary from worker i's pool, which only worker i
-                // records into (allocated here while no worker runs).
+                // records into (allocated here while no worker runs). `--thread-hazard`: all of
+                // them from the render thread's pool, which the workers then use at once.
                 (Some(workers), _) => {
                     for i in 0..self.pass_count as usize {
                         let info = vk::CommandBufferAllocateInfo::default()
-                            .command_pool(workers.pool(i))
+                            .command_pool(if self.thread_hazard { self.command_pool } else { workers.pool(i) })
                             .level(vk::CommandBufferLevel::SECONDARY)
                             .command_buffer_count(1);
                         set.secondaries.push(d.allocate_command_buffers(&info).ctx("vkAllocateCommandBuffers(secondary)")?[0]);
