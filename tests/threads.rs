@@ -19,7 +19,7 @@ const FRAMES: u64 = 1000;
 /// Frames captured and compared: the first ones (frame 0's passes are recorded before the layer
 /// knows the eyes; from frame 2 on every feature applies), some in the middle, the last.
 const CAPTURED: &str = "0-3,500,998,999";
-/// A run takes about 10 s here (measured: docs/testing.md); longer means a deadlock, or something
+/// A 1000-frame run takes 5–10 s here (measured: docs/testing.md); longer means a deadlock, or something
 /// close enough to one.
 const LIMIT: Duration = Duration::from_secs(150);
 
@@ -59,7 +59,11 @@ fn threaded_matches_single_threaded(name: &str, args: &[&str], passes: u64, sess
             .args(if sessions > 1 { vec!["--sessions".to_string(), sessions.to_string(), "--frames".to_string(), frames.to_string()] } else { vec![] })
             .env("MOCK_XR_EXIT_AFTER", &FRAMES.to_string())
             .env("MOCK_XR_CAPTURE_FRAMES", CAPTURED);
-        let out = every_feature(base, &label).env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap()).run_while(LIMIT, |_| {});
+        // The layer's GPU frame timer too: it brackets every submission, on the submit thread.
+        let out = every_feature(base, &label)
+            .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap())
+            .env("STEREOSHIM_STATS_GPU_TIME", "1")
+            .run_while(LIMIT, |_| {});
         // Exit 0 under --validation: no validation error (xr-scene exits 3 on any).
         out.assert_ok().assert_layer_loaded(Half::Both).assert_log_lacks(Half::Both, "internal failure");
         assert!(!out.stderr.contains("Validation Error"), "{label}: {}", out.stderr);
@@ -71,6 +75,8 @@ fn threaded_matches_single_threaded(name: &str, args: &[&str], passes: u64, sess
         for (f, l) in lines.iter().enumerate().filter(|(f, _)| *f as u64 % frames >= 2) {
             assert_eq!(l["passes_masked"].as_u64(), Some(passes), "{label}: frame {f}: mask not applied to every eye pass: {l}");
             assert_eq!(sum(&l["rdm"]["reconstructed"]), 2, "{label}: frame {f}: RDM not applied to both views: {l}");
+            assert!(l["gpu_ms"]["busy"].as_f64().is_some_and(|ms| ms > 0.0), "{label}: frame {f}: no GPU time: {l}");
+            assert_eq!(l["gpu_ms"]["untimed"].as_u64(), Some(0), "{label}: frame {f}: a submission went untimed: {l}");
             // The far field leaves passes whose contents are secondaries alone (docs/far-field.md:
             // its reuse draw must come after the pass's first depth-tested draw, inside the app's
             // secondary), and --threads implies them: it must say so for every pass it sees
