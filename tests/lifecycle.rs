@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{Half, Run, RunOutput};
+use common::{assert_nothing_tracked, every_feature, Half, Run, RunOutput};
 
 const SESSIONS: usize = 100;
 const FRAMES: u64 = 3;
@@ -22,30 +22,6 @@ fn sessions(out: &RunOutput) -> Vec<(u64, u64)> {
             (words[3].parse().unwrap(), words[6].parse().unwrap())
         })
         .collect()
-}
-
-/// `base` through the layer with the mask, RDM and the far field on, as run `name`.
-fn every_feature(base: Run, name: &str) -> Run {
-    let mut run = base
-        .with_layer()
-        .env("STEREOSHIM_MASK_ENABLED", "1")
-        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
-        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
-        .env("STEREOSHIM_FAR_FIELD_ENABLED", "1");
-    run.name = name.into();
-    run
-}
-
-/// Every device stats line says the layer tracks nothing of the app's objects any more (the app
-/// destroyed them all before its device): no state kept across sessions, swapchains or instances.
-fn assert_nothing_tracked(out: &RunOutput) {
-    let lines = out.log_lines("vulkan device stats");
-    assert!(!lines.is_empty(), "no device stats line:\n{}", out.log);
-    for l in lines {
-        let live: Vec<&str> = l.split_whitespace().filter(|w| w.starts_with("live.")).collect();
-        assert_eq!(live.len(), 7, "{l}");
-        assert!(live.iter().all(|w| w.ends_with("=0")), "the layer still tracks destroyed objects: {live:?}");
-    }
 }
 
 /// RSS growth (kB) from the end of the first third of the sessions to the end of the last: the

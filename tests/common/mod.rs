@@ -198,6 +198,31 @@ impl Run {
     }
 }
 
+/// `base` through the layer with the mask, RDM and the far field on, as run `name` (every
+/// feature there is: tests/lifecycle.rs, tests/threads.rs).
+pub fn every_feature(base: Run, name: &str) -> Run {
+    let mut run = base
+        .with_layer()
+        .env("STEREOSHIM_MASK_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
+        .env("STEREOSHIM_FAR_FIELD_ENABLED", "1");
+    run.name = name.into();
+    run
+}
+
+/// Every device stats line says the layer tracks nothing of the app's objects any more (the app
+/// destroyed them all before its device): no state kept across sessions, swapchains or instances.
+pub fn assert_nothing_tracked(out: &RunOutput) {
+    let lines = out.log_lines("vulkan device stats");
+    assert!(!lines.is_empty(), "no device stats line:\n{}", out.log);
+    for l in lines {
+        let live: Vec<&str> = l.split_whitespace().filter(|w| w.starts_with("live.")).collect();
+        assert_eq!(live.len(), 7, "{l}");
+        assert!(live.iter().all(|w| w.ends_with("=0")), "the layer still tracks destroyed objects: {live:?}");
+    }
+}
+
 /// Prepares an app's command for one run in `dir`: the mock runtime capturing into `capture`,
 /// nothing from the developer's own setup (layers, layer paths, config) leaking in, per-run XDG
 /// folders (the generated Vulkan manifest goes to `$XDG_RUNTIME_DIR`, the layer's log to

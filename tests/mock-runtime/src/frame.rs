@@ -24,6 +24,25 @@ pub unsafe extern "system" fn xr_wait_frame(
         s.fail_point("xrWaitFrame")?;
         // SAFETY: app pointers (the wait info may be NULL).
         let (_, out) = unsafe { (input_opt(info)?, output(state)?) };
+        // The spec: "A subsequent xrWaitFrame call must block until the previous frame has been
+        // begun with xrBeginFrame and must unblock independently of the corresponding call to
+        // xrEndFrame". So an app may wait for frame N+1 on its pacing thread as soon as frame N is
+        // begun (while N is still recorded and ended, tests/threads.rs), but a wait before that
+        // blocks. A real runtime would block for ever; here a wait blocked for 10 s fails with
+        // XR_ERROR_CALL_ORDER_INVALID (and says why), so an app waiting twice on one thread is a
+        // test failure rather than a hung test.
+        {
+            let mut core = s.core.lock().unwrap();
+            let limit = std::time::Instant::now() + std::time::Duration::from_secs(10);
+            while core.running && core.waited.is_some() {
+                let left = limit.saturating_duration_since(std::time::Instant::now());
+                if left.is_zero() {
+                    eprintln!("[mock-runtime] xrWaitFrame: blocked 10 s on the previous frame's xrBeginFrame (waited twice without beginning?)");
+                    return Err(xr::Result::ERROR_CALL_ORDER_INVALID);
+                }
+                core = s.frame_begun.wait_timeout(core, left).unwrap().0;
+            }
+        }
         if let Some(period) = s.instance.cfg.pace {
             // Paced like a compositor: return at the next vsync; an app that falls behind gets
             // the next one after now (a missed frame), never a burst to catch up.
@@ -62,6 +81,8 @@ pub unsafe extern "system" fn xr_begin_frame(session: xr::Session, info: *const 
             return Err(xr::Result::ERROR_SESSION_NOT_RUNNING);
         }
         let t = core.waited.take().ok_or(xr::Result::ERROR_CALL_ORDER_INVALID)?;
+        // An xrWaitFrame of the next frame may be blocked on this one being begun.
+        s.frame_begun.notify_all();
         // A frame begun and never ended is discarded by the next begin.
         let discarded = core.begun.replace(t).is_some();
         Ok(if discarded { xr::Result::FRAME_DISCARDED } else { xr::Result::SUCCESS })

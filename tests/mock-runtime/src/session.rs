@@ -1,7 +1,7 @@
 //! The XrSession and its lifecycle state machine (IDLE → READY → SYNCHRONIZED → VISIBLE →
 //! FOCUSED → … → STOPPING → IDLE → EXITING), driven by the app's calls and `MOCK_XR_EXIT_AFTER`.
 
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
 
 use openxr_sys as xr;
 use xr::Handle as _;
@@ -42,6 +42,9 @@ pub struct Session {
     pub instance: Arc<Instance>,
     pub vk: Arc<VkContext>,
     pub core: Mutex<Core>,
+    /// Signalled when a waited frame is begun or the session starts or stops running: what an
+    /// xrWaitFrame blocked on the previous frame's xrBeginFrame waits for.
+    pub frame_begun: Condvar,
     pub capture: Mutex<CaptureState>,
     pub actions: Mutex<crate::actions::SessionActions>,
 }
@@ -156,6 +159,7 @@ pub unsafe extern "system" fn xr_create_session(
                 mask_changed: false,
                 next_wake: None,
             }),
+            frame_begun: Condvar::new(),
             capture: Mutex::new(CaptureState::default()),
             actions: Mutex::default(),
         });
@@ -196,6 +200,7 @@ pub unsafe extern "system" fn xr_begin_session(session: xr::Session, info: *cons
         core.running = true;
         core.waited = None;
         core.begun = None;
+        s.frame_begun.notify_all();
         s.set_state(&mut core, xr::SessionState::SYNCHRONIZED);
         s.set_state(&mut core, xr::SessionState::VISIBLE);
         s.set_state(&mut core, xr::SessionState::FOCUSED);
@@ -218,6 +223,7 @@ pub unsafe extern "system" fn xr_end_session(session: xr::Session) -> xr::Result
         core.running = false;
         core.waited = None;
         core.begun = None;
+        s.frame_begun.notify_all();
         s.set_state(&mut core, xr::SessionState::IDLE);
         // The mock never comes back to READY: the "user" has left; the app should exit.
         s.set_state(&mut core, xr::SessionState::EXITING);

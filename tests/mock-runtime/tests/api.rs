@@ -172,6 +172,8 @@ fn fault_injection() {
     }
     assert_eq!(begin_session(x, s), xr::Result::SUCCESS);
     assert_eq!(wait_frame(x, s).0, xr::Result::SUCCESS);
+    // Begun, so the next wait does not block on it (tests/frame_loop.rs).
+    assert_eq!(begin_frame(x, s), xr::Result::SUCCESS);
     assert_eq!(wait_frame(x, s).0, xr::Result::ERROR_RUNTIME_FAILURE);
     assert_eq!(wait_frame(x, s).0, xr::Result::SUCCESS);
 }

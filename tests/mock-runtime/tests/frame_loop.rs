@@ -130,6 +130,46 @@ fn frame_ordering_errors() {
     assert_eq!(end_frame(x, s, st2.predicted_display_time, &[]), xr::Result::ERROR_CALL_ORDER_INVALID);
 }
 
+/// The spec's xrWaitFrame: "A subsequent xrWaitFrame call must block until the previous frame
+/// has been begun with xrBeginFrame and must unblock independently of the corresponding call to
+/// xrEndFrame". An engine's frame-pacing thread waits for frame N+1 while frame N is rendered
+/// (xr-scene `--threads`): that wait returns at once when N is begun, before N is ended, and one
+/// made before N is begun returns only once it is.
+#[test]
+fn wait_frame_blocks_until_the_previous_frame_is_begun() {
+    let _g = serial();
+    let fx = fixture(&["XR_KHR_vulkan_enable2"]);
+    let (x, s) = (fx.xr(), fx.session);
+    let (stage, sc) = running(&fx);
+    let views = [projection_view(sc, 0, 32, 32, 0), projection_view(sc, 32, 32, 32, 1)];
+    let layer = projection_layer(stage, &views);
+    // Pipelined: frame 1's wait after frame 0's begin, before its end.
+    let (r, st0) = wait_frame(x, s);
+    assert_eq!(r, xr::Result::SUCCESS);
+    assert_eq!(begin_frame(x, s), xr::Result::SUCCESS);
+    let (r, st1) = wait_frame(x, s);
+    assert_eq!(r, xr::Result::SUCCESS);
+    assert_eq!(end_frame(x, s, st0.predicted_display_time, &[&layer as *const _ as *const _]), xr::Result::SUCCESS);
+    // Frame 2's wait on another thread before frame 1 is begun: it blocks until the begin.
+    let begun = std::sync::atomic::AtomicBool::new(false);
+    std::thread::scope(|scope| {
+        let waiter = scope.spawn(|| {
+            let (r, st) = wait_frame(x, s);
+            // FrameState holds a pointer (its `next`): only the values leave the thread.
+            ((r, st.predicted_display_time.as_nanos()), begun.load(std::sync::atomic::Ordering::SeqCst))
+        });
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        assert!(!waiter.is_finished(), "xrWaitFrame returned before the previous frame was begun");
+        begun.store(true, std::sync::atomic::Ordering::SeqCst);
+        assert_eq!(begin_frame(x, s), xr::Result::SUCCESS);
+        let ((r, t2), after_begin) = waiter.join().unwrap();
+        assert_eq!(r, xr::Result::SUCCESS);
+        assert!(after_begin);
+        assert!(t2 > st1.predicted_display_time.as_nanos());
+        assert_eq!(end_frame(x, s, st1.predicted_display_time, &[&layer as *const _ as *const _]), xr::Result::SUCCESS);
+    });
+}
+
 #[test]
 fn end_frame_layer_validation() {
     let _g = serial();

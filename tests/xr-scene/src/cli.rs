@@ -90,6 +90,9 @@ pub struct Options {
     pub vulkan_api: VulkanApi,
     /// `--secondary`: every eye pass's contents are recorded into a secondary command buffer.
     pub secondary: bool,
+    /// `--threads`: xrWaitFrame on a frame-pacing thread, each pass's secondary recorded on a
+    /// worker thread, submission on a submit thread (implies `secondary`; `crate::threads`).
+    pub threads: bool,
     pub frames: Option<u64>,
     /// `--sessions N`: end and create the session (swapchains, renderer) N times in one process.
     pub sessions: u64,
@@ -127,6 +130,11 @@ pub struct Options {
     /// `--sync-hazard`: leave out the barrier between the counters' fill and the fragment shader's
     /// atomics, a hazard only synchronization validation reports (proves that it is on).
     pub sync_hazard: bool,
+    /// `--thread-hazard`: with `--threads`, the workers' secondaries all come from one command
+    /// pool, which two threads then use at once: a violation of the pool's external
+    /// synchronization that only the validation layer's thread-safety checks report (proves that
+    /// they are on).
+    pub thread_hazard: bool,
     /// `--sky`: the sky dome of far geometry (default) or just the clear colour.
     pub sky: Sky,
     /// `--sky-first`: the sky dome gets its own draw, first in each eye pass, with depth test and
@@ -157,6 +165,7 @@ impl Default for Options {
             vulkan: VulkanPath::Enable2,
             vulkan_api: VulkanApi::V1_3,
             secondary: false,
+            threads: false,
             frames: None,
             sessions: 1,
             instances: 1,
@@ -174,6 +183,7 @@ impl Default for Options {
             record_once: false,
             rerecord_every: None,
             sync_hazard: false,
+            thread_hazard: false,
             sky: Sky::Geometry,
             sky_first: false,
             translucent: false,
@@ -201,6 +211,10 @@ usage: xr-scene [options]
                                             through VK_KHR_dynamic_rendering
   --secondary                               record each eye pass's contents into a secondary command
                                             buffer run by vkCmdExecuteCommands
+  --threads                                 xrWaitFrame on a frame-pacing thread (the next frame's
+                                            wait overlapping this frame), each pass's secondary
+                                            recorded on a worker thread with its own command pool,
+                                            vkQueueSubmit on a submit thread; implies --secondary
   --frames N                                request exit after N frames (of each session)
   --sessions N                              end and recreate the session (swapchains, renderer)
                                             N times; prints each session's frames and the
@@ -230,6 +244,9 @@ usage: xr-scene [options]
                                             command buffers it submits (the others stay as recorded)
   --sync-hazard                             leave out one barrier (counters' fill -> fragment shader):
                                             a hazard only synchronization validation reports
+  --thread-hazard                           with --threads: the workers share one command pool, used
+                                            by two threads at once (only validation's thread-safety
+                                            checks report it)
   --sky geometry|clear                      a sky dome of far geometry (default) or the clear colour
   --sky-first                               draw the sky first in each eye pass, depth test and depth
                                             write off (default: last in the scene's draw, depth-tested)
@@ -376,7 +393,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--vk-layer" => o.vk_layers.push(value("--vk-layer")?),
             "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
             "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary"
-            | "--record-once" | "--sync-hazard" | "--sky-first" | "--translucent" | "--far-movers" | "--submit2"
+            | "--threads" | "--record-once" | "--sync-hazard" | "--thread-hazard" | "--sky-first" | "--translucent" | "--far-movers" | "--submit2"
             | "--visibility-mask"
                 if inline.is_some() =>
             {
@@ -389,8 +406,13 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
             "--empty" => o.empty = true,
             "--validation" => o.validation = true,
             "--secondary" => o.secondary = true,
+            "--threads" => {
+                o.threads = true;
+                o.secondary = true;
+            }
             "--record-once" => o.record_once = true,
             "--sync-hazard" => o.sync_hazard = true,
+            "--thread-hazard" => o.thread_hazard = true,
             "--sky-first" => o.sky_first = true,
             "--translucent" => o.translucent = true,
             "--far-movers" => o.far_movers = true,
@@ -422,6 +444,12 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
         return Err("--submit2 needs Vulkan 1.3 (vkQueueSubmit2, synchronization2)".into());
     }
     // State bound in a primary command buffer is not inherited by secondaries.
+    if o.thread_hazard && !o.threads {
+        return Err("--thread-hazard shares one command pool between the recording workers: it needs --threads".into());
+    }
+    if o.threads && o.bind_before_pass {
+        return Err("--bind-before-pass cannot be combined with --threads: --threads records each pass into a secondary command buffer (on a worker thread), which inherits no state bound in the primary".into());
+    }
     if o.secondary && o.bind_before_pass {
         return Err("--bind-before-pass and --secondary exclude each other: a secondary command buffer inherits no bound state".into());
     }
@@ -475,6 +503,24 @@ mod tests {
         assert!(p(&["--submit2", "--vulkan-api", "1.1"]).is_err());
         assert!(p(&["--secondary=1"]).is_err());
         assert!(p(&["--secondary", "--bind-before-pass"]).is_err());
+    }
+
+    /// `--threads` implies `--secondary` and combines with what matters for threading, but not
+    /// with state bound before the pass (secondaries inherit none).
+    #[test]
+    fn threads_imply_secondary() {
+        let o = p(&["--threads"]).unwrap().unwrap();
+        assert!(o.threads && o.secondary);
+        assert!(!p(&[]).unwrap().unwrap().threads);
+        assert!(p(&["--threads=1"]).is_err());
+        assert!(p(&["--threads", "--thread-hazard"]).unwrap().unwrap().thread_hazard);
+        assert!(p(&["--thread-hazard"]).is_err());
+        let e = p(&["--threads", "--bind-before-pass"]).unwrap_err();
+        assert!(e.contains("--threads"), "{e}");
+        for layout in ["per-eye", "multiview", "side-by-side"] {
+            let o = p(&["--threads", "--layout", layout, "--record-once", "--sessions", "2", "--frames", "5"]).unwrap().unwrap();
+            assert!(o.threads && o.record_once && o.secondary);
+        }
     }
 
     /// `--record-once` works with every layout, way of starting a pass, secondary contents,

@@ -10,6 +10,7 @@ mod renderer;
 mod scene;
 mod stats;
 mod targets;
+mod threads;
 mod xr;
 
 use ash::vk::Handle;
@@ -122,13 +123,16 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
     }
     let mut targets = targets::Targets::new(opts, gpu, xri, &xs)?;
     let mut renderer = renderer::Renderer::new(opts, gpu, &targets)?;
+    // `--threads`: xrWaitFrame on the frame-pacing thread (dropped, and so joined, before the
+    // session on every path; joined explicitly below).
+    let mut pacer = threads::Pacer::new(&mut xs, opts.threads)?;
     let reversed = opts.depth == cli::DepthMode::Reverse;
     // CPU time in OpenXR calls per frame, kept until the frame's GPU work is measured (with
     // `--record-once` that is when its frame set is needed again, or at the end).
     let mut xr_us: std::collections::HashMap<u64, f64> = std::collections::HashMap::new();
 
     loop {
-        if xs.poll_events(&xri.instance)? == xr::Flow::Exit {
+        if xs.poll_events(&xri.instance, &mut || pacer.stop())? == xr::Flow::Exit {
             break;
         }
         if !xs.running {
@@ -139,8 +143,10 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
         // CPU time inside OpenXR calls: what an API layer's overhead adds to.
         let mut xr_time = std::time::Duration::ZERO;
         let t = std::time::Instant::now();
-        let state = xs.waiter.wait().ctx("xrWaitFrame")?;
+        let state = pacer.wait(&mut xs)?;
         xs.stream.begin().ctx("xrBeginFrame")?;
+        // `--threads`: the next frame's xrWaitFrame may start now (this frame is begun).
+        pacer.begun()?;
         xs.sync_input(state.predicted_display_time)?;
         xr_time += t.elapsed();
 
@@ -202,7 +208,12 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
     // Frames still in flight (`--record-once`) are measured before anything is torn down.
     let finished = renderer.finish()?;
     push_stats(stats, &mut xr_us, finished)?;
+    if let Some((recorded, overlapped)) = renderer.worker_frames() {
+        // What tests/threads.rs reads: the passes really were recorded on workers at once.
+        eprintln!("xr-scene: threads: {recorded} frames recorded on workers, {overlapped} with passes recorded concurrently");
+    }
     drop(renderer);
+    pacer.join(&mut xs)?;
     // Torn down explicitly, in the order the locals would drop, so that a failing destroy call
     // reaches the error path like every other call; a failure does not stop the rest. The caller
     // decides what goes next (`run_instance`).

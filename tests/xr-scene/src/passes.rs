@@ -141,7 +141,12 @@ impl Passes {
         Ok(p)
     }
 
-    fn framebuffer(&mut self, color: vk::ImageView, depth: vk::ImageView, extent: vk::Extent2D) -> Result<vk::Framebuffer> {
+    /// The framebuffer of a pass on `color`/`depth` (made the first time; render pass objects), or
+    /// null (dynamic rendering, which has none).
+    pub fn framebuffer(&mut self, color: vk::ImageView, depth: vk::ImageView, extent: vk::Extent2D) -> Result<vk::Framebuffer> {
+        if self.mode == Rendering::Dynamic {
+            return Ok(vk::Framebuffer::null());
+        }
         if let Some(fb) = self.framebuffers.get(&(color, depth)) {
             return Ok(*fb);
         }
@@ -159,19 +164,13 @@ impl Passes {
     }
 
     /// `--secondary`: begins `secondary` (a secondary command buffer) for the contents of the pass
-    /// that `begin` will open on `color`/`depth`: it continues that render pass instance, inheriting
-    /// render pass, subpass 0 and framebuffer (render pass objects) or the attachment formats,
-    /// view mask and sample count (dynamic rendering). `usage`: the primary's usage flags
-    /// (ONE_TIME_SUBMIT or not), to which RENDER_PASS_CONTINUE is added.
-    pub fn begin_secondary(
-        &mut self,
-        gpu: &Gpu,
-        secondary: vk::CommandBuffer,
-        color: vk::ImageView,
-        depth: vk::ImageView,
-        extent: vk::Extent2D,
-        usage: vk::CommandBufferUsageFlags,
-    ) -> Result<()> {
+    /// that `begin` will open on `framebuffer`'s attachments ([`Passes::framebuffer`]; null with
+    /// dynamic rendering): it continues that render pass instance, inheriting render pass,
+    /// subpass 0 and framebuffer (render pass objects) or the attachment formats, view mask and
+    /// sample count (dynamic rendering). `usage`: the primary's usage flags (ONE_TIME_SUBMIT or
+    /// not), to which RENDER_PASS_CONTINUE is added. Takes `&self` so that worker threads can
+    /// begin secondaries at once (`--threads`).
+    pub fn begin_secondary(&self, gpu: &Gpu, secondary: vk::CommandBuffer, framebuffer: vk::Framebuffer, usage: vk::CommandBufferUsageFlags) -> Result<()> {
         let color_formats = [self.format.color];
         let mut rendering = vk::CommandBufferInheritanceRenderingInfo::default()
             .view_mask(self.format.view_mask.unwrap_or(0))
@@ -182,8 +181,7 @@ impl Passes {
         let mut inheritance = vk::CommandBufferInheritanceInfo::default();
         match self.mode {
             Rendering::RenderPass | Rendering::RenderPass2 => {
-                let fb = self.framebuffer(color, depth, extent)?;
-                inheritance = inheritance.render_pass(self.render_pass).subpass(0).framebuffer(fb);
+                inheritance = inheritance.render_pass(self.render_pass).subpass(0).framebuffer(framebuffer);
             }
             Rendering::Dynamic => inheritance = inheritance.push_next(&mut rendering),
         }

@@ -100,7 +100,8 @@ pub struct XrSession {
     quit: xr::Action<bool>,
     _pose: xr::Action<xr::Posef>,
     action_set: xr::ActionSet,
-    pub waiter: xr::FrameWaiter,
+    /// None while `--threads`' frame-pacing thread has it ([`crate::threads::Pacer`]).
+    pub waiter: Option<xr::FrameWaiter>,
     pub stream: xr::FrameStream<xr::Vulkan>,
     pub session: xr::Session<xr::Vulkan>,
     left_hand: xr::Path,
@@ -150,7 +151,7 @@ impl XrSession {
             quit,
             _pose: pose,
             action_set,
-            waiter,
+            waiter: Some(waiter),
             stream,
             session,
             left_hand,
@@ -174,8 +175,9 @@ impl XrSession {
         Ok(())
     }
 
-    /// Drains the event queue, following the session lifecycle.
-    pub fn poll_events(&mut self, inst: &xr::Instance) -> Result<Flow> {
+    /// Drains the event queue, following the session lifecycle. `before_end` runs before
+    /// `xrEndSession` (`--threads`: the frame-pacing thread's wait in flight is collected first).
+    pub fn poll_events(&mut self, inst: &xr::Instance, before_end: &mut dyn FnMut() -> Result<()>) -> Result<Flow> {
         let mut buf = xr::EventDataBuffer::new();
         while let Some(event) = inst.poll_event(&mut buf).ctx("xrPollEvent")? {
             match event {
@@ -187,6 +189,7 @@ impl XrSession {
                         self.running = true;
                     }
                     xr::SessionState::STOPPING => {
+                        before_end()?;
                         self.session.end().ctx("xrEndSession")?;
                         self.running = false;
                     }

@@ -1,0 +1,270 @@
+//! What is drawn inside an eye pass: the scene's pipelines, buffers and push constants, and the
+//! recording of one pass's contents (its `--depth-clear attachments` clear, binds and draws) into a
+//! command buffer. Everything here is read-only while frames are recorded and holds no per-frame
+//! state, so `--threads` can record two passes' contents on two threads at once
+//! ([`crate::threads::Workers`]).
+
+use crate::cli::{DepthClear, Layout};
+use crate::error::{Ctx, Error, Result};
+use crate::gpu::Gpu;
+use crate::passes::Passes;
+use crate::targets::ViewRect;
+use ash::vk;
+
+/// Per draw and constant for the whole run (eye index, options, pixel-stats geometry).
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub(super) struct PushConstants {
+    pub eye: u32,
+    pub shading_cost: u32,
+    pub flags: u32,
+    /// `--pixel-stats`: the eye rect's origin x in the framebuffer, its size, and the element
+    /// distance between the views' regions in the bound range (multiview only).
+    pub pix_origin_x: i32,
+    pub pix_width: u32,
+    pub pix_height: u32,
+    pub pix_view_stride: u32,
+}
+
+pub(super) const PC_MANUAL_SRGB: u32 = 1;
+pub(super) const PC_PIXEL_STATS: u32 = 2;
+
+pub(super) struct Buffer {
+    pub buffer: vk::Buffer,
+    pub memory: vk::DeviceMemory,
+}
+
+impl Buffer {
+    pub fn null() -> Buffer {
+        Buffer { buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null() }
+    }
+
+    pub fn new(gpu: &Gpu, size: u64, usage: vk::BufferUsageFlags, props: vk::MemoryPropertyFlags) -> Result<Buffer> {
+        let d = &gpu.device;
+        // SAFETY: valid create infos; on failure the partial object is destroyed.
+        unsafe {
+            let buffer = d
+                .create_buffer(&vk::BufferCreateInfo::default().size(size).usage(usage), None)
+                .ctx("vkCreateBuffer")?;
+            let mut b = Buffer { buffer, memory: vk::DeviceMemory::null() };
+            let req = d.get_buffer_memory_requirements(buffer);
+            let r = gpu.memory_type(req.memory_type_bits, props).and_then(|ty| {
+                d.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None)
+                    .ctx("vkAllocateMemory")
+            });
+            match r {
+                Ok(m) => b.memory = m,
+                Err(e) => {
+                    b.destroy(d);
+                    return Err(e);
+                }
+            }
+            if let Err(e) = d.bind_buffer_memory(buffer, b.memory, 0) {
+                b.destroy(d);
+                return Err(e).ctx("vkBindBufferMemory");
+            }
+            Ok(b)
+        }
+    }
+
+    pub fn destroy(&mut self, d: &ash::Device) {
+        // SAFETY: no pending GPU work uses it (callers wait); our handles (null is ignored).
+        unsafe {
+            d.destroy_buffer(self.buffer, None);
+            if self.memory != vk::DeviceMemory::null() {
+                d.free_memory(self.memory, None);
+            }
+        }
+        self.buffer = vk::Buffer::null();
+        self.memory = vk::DeviceMemory::null();
+    }
+}
+
+/// One pass of a frame as its contents are recorded: the slot it renders, its attachments'
+/// views, its size and (render pass objects) its framebuffer.
+#[derive(Debug, Clone, Copy)]
+pub struct PassTarget {
+    pub slot: usize,
+    pub color_view: vk::ImageView,
+    pub depth_view: vk::ImageView,
+    pub extent: vk::Extent2D,
+    /// Null for dynamic rendering.
+    pub framebuffer: vk::Framebuffer,
+}
+
+/// What a pass's draws bind of their frame set: plain values, so that a worker thread needs
+/// nothing of the set itself (its mapped memory stays with the render thread).
+#[derive(Debug, Clone, Copy)]
+pub struct SetBinding {
+    pub descriptor_set: vk::DescriptorSet,
+    /// Per eye: the dynamic offsets of binding 1 (the per-view counters) and binding 2 (the
+    /// per-pixel counters, or the per-view counters again without `--pixel-stats`).
+    pub offsets: [[u32; 2]; 2],
+    /// Each view's image rect.
+    pub views: [ViewRect; 2],
+}
+
+/// The scene's draw state: created by [`super::Renderer`] (which destroys it), read by every
+/// recording.
+pub(super) struct SceneDraw {
+    pub device: ash::Device,
+    pub layout: Layout,
+    pub multiview: bool,
+    pub bind_before_pass: bool,
+    pub clear_depth: f32,
+    pub depth_clear: DepthClear,
+    pub push: PushConstants,
+    pub set_layout: vk::DescriptorSetLayout,
+    pub pipeline_layout: vk::PipelineLayout,
+    pub pipeline: vk::Pipeline,
+    /// `--sky-first`: the sky's own pipeline (depth test and write off); null without it.
+    pub sky_pipeline: vk::Pipeline,
+    /// `--translucent`: the pane's pipeline (blended, depth write off); null without it.
+    pub translucent_pipeline: vk::Pipeline,
+    pub vertices: Buffer,
+    pub indices: Buffer,
+    /// The scene's index ranges ([`crate::scene::Scene`]): opaque, sky, translucent counts.
+    pub opaque_count: u32,
+    pub sky_count: u32,
+    pub translucent_count: u32,
+    /// `--sky-first`: the sky is drawn first in each pass, by its own draw.
+    pub sky_first: bool,
+    /// `--empty`: record the passes without their draws.
+    pub empty: bool,
+}
+
+impl SceneDraw {
+    /// Which views a pass of `slot` draws, one draw each (multiview: one draw for both).
+    pub fn draws(&self, slot: usize) -> Vec<u32> {
+        match self.layout {
+            Layout::PerEye => vec![slot as u32],
+            Layout::SideBySide => vec![0, 1],
+            Layout::Multiview => vec![0],
+        }
+    }
+
+    /// Viewport and scissor (with `viewport`), descriptor set and push constants of view `eye`.
+    fn bind(&self, rec: vk::CommandBuffer, pass: &PassTarget, set: &SetBinding, eye: u32, viewport: bool) {
+        let d = &self.device;
+        let rect = set.views[eye as usize];
+        let (x, w) = if self.multiview { (0, pass.extent.width) } else { (rect.offset_x, rect.extent.width) };
+        let h = rect.extent.height;
+        let pc = PushConstants { eye, pix_origin_x: x, pix_width: rect.extent.width, pix_height: h, ..self.push };
+        // SAFETY: `rec` is recording (inside the pass, or before it with `--bind-before-pass`);
+        // every handle is alive. PushConstants is repr(C) plain data, viewed as its bytes.
+        unsafe {
+            if viewport {
+                d.cmd_set_viewport(rec, 0, &[vk::Viewport { x: x as f32, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
+                d.cmd_set_scissor(rec, 0, &[vk::Rect2D { offset: vk::Offset2D { x, y: 0 }, extent: vk::Extent2D { width: w, height: h } }]);
+            }
+            d.cmd_bind_descriptor_sets(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline_layout, 0, &[set.descriptor_set], &set.offsets[eye as usize]);
+            let bytes = std::slice::from_raw_parts(&pc as *const PushConstants as *const u8, std::mem::size_of::<PushConstants>());
+            d.cmd_push_constants(rec, self.pipeline_layout, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT, 0, bytes);
+        }
+    }
+
+    fn bind_buffers(&self, rec: vk::CommandBuffer) {
+        let d = &self.device;
+        // SAFETY: `rec` is recording; the pipeline and buffers are alive.
+        unsafe {
+            d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+            d.cmd_bind_vertex_buffers(rec, 0, &[self.vertices.buffer], &[0]);
+            d.cmd_bind_index_buffer(rec, self.indices.buffer, 0, vk::IndexType::UINT32);
+        }
+    }
+
+    /// `--bind-before-pass`: all draw state of a one-draw pass (pipeline and buffers of any pass)
+    /// is set on the primary before the pass begins — legal, and what a layer that injects draws
+    /// into the pass must preserve.
+    pub fn bind_before_pass(&self, cmd: vk::CommandBuffer, pass: &PassTarget, set: &SetBinding) {
+        self.bind_buffers(cmd);
+        if let [eye] = self.draws(pass.slot)[..] {
+            self.bind(cmd, pass, set, eye, true);
+        }
+    }
+
+    /// Records the contents of `pass` into `rec` (the primary inside the open pass, or the pass's
+    /// secondary): the depth clear of `--depth-clear attachments`, binds, and the draws.
+    pub fn record_contents(&self, gpu: &Gpu, passes: &Passes, rec: vk::CommandBuffer, pass: &PassTarget, set: &SetBinding) {
+        let d = &self.device;
+        let draws = self.draws(pass.slot);
+        let early = self.bind_before_pass;
+        let one_draw = draws.len() == 1;
+        // `--depth-clear attachments`: the pass loaded depth; clearing it is its first command.
+        if self.depth_clear == DepthClear::Attachments {
+            passes.clear_depth_attachment(gpu, rec, pass.extent, self.clear_depth);
+        }
+        if !early {
+            self.bind_buffers(rec);
+        }
+        for eye in draws.iter().copied() {
+            if !(early && one_draw) {
+                self.bind(rec, pass, set, eye, true);
+            }
+            if self.empty {
+                continue;
+            }
+            // SAFETY: `rec` is recording inside the pass with pipeline, buffers and set bound.
+            unsafe {
+                // Pipelines share one layout, so switching keeps the bound set and push
+                // constants. Default scene: one draw, the sky last in it.
+                if self.sky_first {
+                    d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.sky_pipeline);
+                    d.cmd_draw_indexed(rec, self.sky_count, 1, self.opaque_count, 0, 0);
+                    d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+                    d.cmd_draw_indexed(rec, self.opaque_count, 1, 0, 0, 0);
+                } else {
+                    d.cmd_draw_indexed(rec, self.opaque_count + self.sky_count, 1, 0, 0, 0);
+                }
+                if self.translucent_count > 0 {
+                    // After everything opaque, as translucent geometry must be.
+                    d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.translucent_pipeline);
+                    d.cmd_draw_indexed(rec, self.translucent_count, 1, self.opaque_count + self.sky_count, 0, 0);
+                    d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+                }
+            }
+        }
+    }
+
+    /// `--secondary`: begins `secondary` continuing `pass`, records the pass's contents into it,
+    /// calls `before_end` and ends it. Touches no state but `secondary` (and its pool), so passes
+    /// may be recorded on different threads when their secondaries come from different pools.
+    #[allow(clippy::too_many_arguments)]
+    pub fn record_secondary(
+        &self,
+        gpu: &Gpu,
+        passes: &Passes,
+        secondary: vk::CommandBuffer,
+        pass: &PassTarget,
+        set: &SetBinding,
+        usage: vk::CommandBufferUsageFlags,
+        before_end: &dyn Fn(),
+    ) -> Result<()> {
+        passes.begin_secondary(gpu, secondary, pass.framebuffer, usage)?;
+        self.record_contents(gpu, passes, secondary, pass, set);
+        before_end();
+        // SAFETY: begun above, no pass of its own open (it continues the primary's).
+        unsafe { self.device.end_command_buffer(secondary) }.ctx("vkEndCommandBuffer(secondary)")
+    }
+}
+
+/// The newest SPIR-V a device of this API version accepts (Vulkan 1.0: 1.0, 1.1: 1.3, 1.3: 1.6),
+/// as the header's version word.
+pub(super) fn max_spirv(api: crate::cli::VulkanApi) -> u32 {
+    match api {
+        crate::cli::VulkanApi::V1_0 => 0x0001_0000,
+        crate::cli::VulkanApi::V1_1 => 0x0001_0300,
+        crate::cli::VulkanApi::V1_3 => 0x0001_0600,
+    }
+}
+pub(super) fn shader_module(d: &ash::Device, bytes: &[u8], api: crate::cli::VulkanApi) -> Result<vk::ShaderModule> {
+    let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes)).ctx("reading SPIR-V")?;
+    // Checked here too, so that a run without `--validation` fails as well (the validation layer
+    // reports it as UNASSIGNED-CoreValidation-Shader-InconsistentSpirv).
+    let version = words.get(1).copied().unwrap_or(u32::MAX);
+    if version > max_spirv(api) {
+        return Err(Error(format!("internal: a shader's SPIR-V version {version:#x} is too new for Vulkan 1.{}", api.minor())));
+    }
+    // SAFETY: valid SPIR-V produced by glslangValidator at build time.
+    unsafe { d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }.ctx("vkCreateShaderModule")
+}
