@@ -129,7 +129,7 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
     let reversed = opts.depth == cli::DepthMode::Reverse;
     // CPU time in OpenXR calls per frame, kept until the frame's GPU work is measured (with
     // `--record-once` that is when its frame set is needed again, or at the end).
-    let mut xr_us: std::collections::HashMap<u64, f64> = std::collections::HashMap::new();
+    let mut xr_us: std::collections::HashMap<u64, stats::CallTimes> = std::collections::HashMap::new();
 
     loop {
         if xs.poll_events(&xri.instance, &mut || pacer.stop())? == xr::Flow::Exit {
@@ -140,54 +140,47 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
             std::thread::sleep(std::time::Duration::from_millis(5));
             continue;
         }
-        // CPU time inside OpenXR calls: what an API layer's overhead adds to.
-        let mut xr_time = std::time::Duration::ZERO;
-        let t = std::time::Instant::now();
-        let state = pacer.wait(&mut xs)?;
-        xs.stream.begin().ctx("xrBeginFrame")?;
+        // CPU time inside OpenXR calls, per call: what an API layer's overhead adds to.
+        let mut calls = stats::CallTimes::default();
+        let state = calls.time("xrWaitFrame", || pacer.wait(&mut xs))?;
+        calls.time("xrBeginFrame", || xs.stream.begin()).ctx("xrBeginFrame")?;
         // `--threads`: the next frame's xrWaitFrame may start now (this frame is begun).
         pacer.begun()?;
-        xs.sync_input(state.predicted_display_time)?;
-        xr_time += t.elapsed();
+        calls.time("xrSyncActions", || xs.sync_input(state.predicted_display_time))?;
 
         if !state.should_render {
             end_frame(xri, &xs, state.predicted_display_time, None)?;
         } else {
-            let t = std::time::Instant::now();
-            let (_, views) = xs
-                .session
-                .locate_views(oxr::ViewConfigurationType::PRIMARY_STEREO, state.predicted_display_time, &xs.stage)
+            let (_, views) = calls
+                .time("xrLocateViews", || xs.session.locate_views(oxr::ViewConfigurationType::PRIMARY_STEREO, state.predicted_display_time, &xs.stage))
                 .ctx("xrLocateViews")?;
             if views.len() != 2 {
                 return error::fail(format!("xrLocateViews returned {} views", views.len()));
             }
             let mut acquired = Vec::new();
             for slot in &mut targets.slots {
-                let color = slot.color.swapchain.acquire_image().ctx("xrAcquireSwapchainImage")?;
-                slot.color.swapchain.wait_image(oxr::Duration::INFINITE).ctx("xrWaitSwapchainImage")?;
+                let color = calls.time("xrAcquireSwapchainImage", || slot.color.swapchain.acquire_image()).ctx("xrAcquireSwapchainImage")?;
+                calls.time("xrWaitSwapchainImage", || slot.color.swapchain.wait_image(oxr::Duration::INFINITE)).ctx("xrWaitSwapchainImage")?;
                 let depth = match &mut slot.depth {
                     Some(d) => {
-                        let i = d.swapchain.acquire_image().ctx("xrAcquireSwapchainImage(depth)")?;
-                        d.swapchain.wait_image(oxr::Duration::INFINITE).ctx("xrWaitSwapchainImage(depth)")?;
+                        let i = calls.time("xrAcquireSwapchainImage", || d.swapchain.acquire_image()).ctx("xrAcquireSwapchainImage(depth)")?;
+                        calls.time("xrWaitSwapchainImage", || d.swapchain.wait_image(oxr::Duration::INFINITE)).ctx("xrWaitSwapchainImage(depth)")?;
                         Some(i)
                     }
                     None => None,
                 };
                 acquired.push(renderer::Acquired { color, depth });
             }
-            xr_time += t.elapsed();
             let uniforms = frame_uniforms(&views, reversed, opts.animate, opts.far_movers, frame);
             let finished = renderer.render(gpu, &targets, &acquired, &uniforms, frame)?;
-            let t = std::time::Instant::now();
             for slot in &mut targets.slots {
-                slot.color.swapchain.release_image().ctx("xrReleaseSwapchainImage")?;
+                calls.time("xrReleaseSwapchainImage", || slot.color.swapchain.release_image()).ctx("xrReleaseSwapchainImage")?;
                 if let Some(d) = &mut slot.depth {
-                    d.swapchain.release_image().ctx("xrReleaseSwapchainImage(depth)")?;
+                    calls.time("xrReleaseSwapchainImage", || d.swapchain.release_image()).ctx("xrReleaseSwapchainImage(depth)")?;
                 }
             }
-            end_frame(xri, &xs, state.predicted_display_time, Some((&targets, &views, reversed)))?;
-            xr_time += t.elapsed();
-            xr_us.insert(frame, xr_time.as_secs_f64() * 1e6);
+            calls.time("xrEndFrame", || end_frame(xri, &xs, state.predicted_display_time, Some((&targets, &views, reversed))))?;
+            xr_us.insert(frame, calls);
             push_stats(stats, &mut xr_us, finished)?;
         }
         frame += 1;
@@ -222,15 +215,18 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
 }
 
 /// Adds the measurements of frames whose GPU work finished to `--stats`.
-fn push_stats(stats: &mut Option<stats::StatsLog>, xr_us: &mut std::collections::HashMap<u64, f64>, finished: Vec<renderer::FrameResult>) -> Result<()> {
+fn push_stats(stats: &mut Option<stats::StatsLog>, xr_us: &mut std::collections::HashMap<u64, stats::CallTimes>, finished: Vec<renderer::FrameResult>) -> Result<()> {
     for r in finished {
-        let cpu_xr_us = xr_us.remove(&r.frame).unwrap_or(0.0);
+        let mut cpu_calls = xr_us.remove(&r.frame).unwrap_or_default();
+        let cpu_xr_us = cpu_calls.total_us();
+        cpu_calls.add("vkQueueSubmit", r.submit_us);
         if let Some(s) = stats {
             s.push(stats::FrameStats {
                 frame: r.frame,
                 gpu_time_ms: r.gpu_time_ms,
                 cpu_xr_us,
                 cpu_record_us: r.record_us,
+                cpu_calls,
                 views: (0..2).map(|v| stats::ViewStats { view: v, shaded_fragments: r.counts[v as usize] }).collect(),
             })?;
         }

@@ -361,7 +361,42 @@ pub struct FrameStats {
     pub cpu_xr_us: f64,
     /// CPU time recording the frame's command buffer, in µs.
     pub cpu_record_us: f64,
+    /// CPU time per kind of call the layer intercepts (the OpenXR calls above one by one, and
+    /// `vkQueueSubmit`): what the layer's overhead per call is measured on (examples/overhead.rs).
+    pub cpu_calls: CallTimes,
     pub views: Vec<ViewStats>,
+}
+
+/// CPU time of one kind of call in one frame.
+#[derive(Debug, Default, Clone, Copy, Serialize)]
+pub struct CallTime {
+    /// Summed over the frame's calls, µs.
+    pub us: f64,
+    pub calls: u32,
+}
+
+/// CPU time per kind of call in one frame, by the call's name.
+#[derive(Debug, Default, Clone, Serialize)]
+#[serde(transparent)]
+pub struct CallTimes(std::collections::BTreeMap<&'static str, CallTime>);
+
+impl CallTimes {
+    /// Runs `f` (one call of `name`) and adds its time.
+    pub fn time<T>(&mut self, name: &'static str, f: impl FnOnce() -> T) -> T {
+        let start = std::time::Instant::now();
+        let r = f();
+        self.add(name, start.elapsed().as_secs_f64() * 1e6);
+        r
+    }
+    pub fn add(&mut self, name: &'static str, us: f64) {
+        let t = self.0.entry(name).or_default();
+        t.us += us;
+        t.calls += 1;
+    }
+    /// The sum over every call, µs.
+    pub fn total_us(&self) -> f64 {
+        self.0.values().map(|t| t.us).sum()
+    }
 }
 
 #[derive(Debug, Serialize)]
@@ -458,6 +493,7 @@ mod tests {
             gpu_time_ms: 1.5,
             cpu_xr_us: 10.0,
             cpu_record_us: 20.0,
+            cpu_calls: CallTimes::default(),
             views: vec![ViewStats { view: 0, shaded_fragments: 12345 }, ViewStats { view: 1, shaded_fragments: 12001 }],
         }];
         let v: serde_json::Value = serde_json::from_str(&to_json(&frames)).unwrap();

@@ -152,7 +152,7 @@ pub struct Submitter {
 
 struct SubmitThread {
     request: Option<mpsc::Sender<Submission>>,
-    result: mpsc::Receiver<Result<()>>,
+    result: mpsc::Receiver<Result<f64>>,
     handle: Option<JoinHandle<()>>,
 }
 
@@ -179,8 +179,9 @@ impl Submitter {
         Ok(Submitter { device: gpu.device.clone(), queue: gpu.queue, thread })
     }
 
-    /// Submits `s` and returns once `vkQueueSubmit(2)` returned.
-    pub fn submit(&self, s: Submission) -> Result<()> {
+    /// Submits `s` and returns once `vkQueueSubmit(2)` returned, with the CPU time of the call
+    /// itself in µs (measured on the thread that made it).
+    pub fn submit(&self, s: Submission) -> Result<f64> {
         match &self.thread {
             None => queue_submit(&self.device, self.queue, s),
             Some(t) => {
@@ -203,8 +204,15 @@ impl Drop for Submitter {
     }
 }
 
-/// One `vkQueueSubmit` (or `vkQueueSubmit2`) of one command buffer signalling `fence`.
-fn queue_submit(d: &ash::Device, queue: vk::Queue, s: Submission) -> Result<()> {
+/// One `vkQueueSubmit` (or `vkQueueSubmit2`) of one command buffer signalling `fence`; returns
+/// the call's CPU time in µs.
+fn queue_submit(d: &ash::Device, queue: vk::Queue, s: Submission) -> Result<f64> {
+    let start = std::time::Instant::now();
+    submit_one(d, queue, s)?;
+    Ok(start.elapsed().as_secs_f64() * 1e6)
+}
+
+fn submit_one(d: &ash::Device, queue: vk::Queue, s: Submission) -> Result<()> {
     let cmds = [s.cmd];
     if s.submit2 {
         let infos = [vk::CommandBufferSubmitInfo::default().command_buffer(s.cmd)];

@@ -61,6 +61,8 @@ pub struct FrameResult {
     /// CPU time spent recording the frame's command buffers, µs (0 when `--record-once`
     /// resubmitted buffers recorded for an earlier frame).
     pub record_us: f64,
+    /// CPU time of the frame's `vkQueueSubmit(2)` call, µs.
+    pub submit_us: f64,
 }
 
 /// Everything one submission reads or writes that the host also touches: its command buffers, the
@@ -83,7 +85,7 @@ struct FrameSet {
     /// `--record-once`: the command buffers hold this set's frame (they are never re-recorded).
     recorded: bool,
     /// Submitted and not yet waited for: (frame number, recording time in µs).
-    pending: Option<(u64, f64)>,
+    pending: Option<(u64, f64, f64)>,
 }
 
 pub struct Renderer {
@@ -520,8 +522,8 @@ impl Renderer {
         let set = &mut self.sets[index];
         // The command buffer is fully recorded and not pending (its fence was waited for); the
         // fence is unsignalled (reset after every wait).
-        self.submitter.submit(Submission { cmd: set.cmd, fence: set.fence, submit2: gpu.submit2 })?;
-        set.pending = Some((frame, record_us));
+        let submit_us = self.submitter.submit(Submission { cmd: set.cmd, fence: set.fence, submit2: gpu.submit2 })?;
+        set.pending = Some((frame, record_us, submit_us));
         if !self.record_once {
             // One frame at a time: measured before the next one is recorded.
             done.extend(self.complete(index)?);
@@ -531,7 +533,7 @@ impl Renderer {
 
     /// Waits for every frame still in flight and returns their measurements, in frame order.
     pub fn finish(&mut self) -> Result<Vec<FrameResult>> {
-        let mut order: Vec<(u64, usize)> = self.sets.iter().enumerate().filter_map(|(i, s)| s.pending.map(|(f, _)| (f, i))).collect();
+        let mut order: Vec<(u64, usize)> = self.sets.iter().enumerate().filter_map(|(i, s)| s.pending.map(|(f, ..)| (f, i))).collect();
         order.sort_unstable();
         let mut done = Vec::new();
         for (_, i) in order {
@@ -544,7 +546,7 @@ impl Renderer {
     /// its per-pixel counts) and makes the set reusable.
     fn complete(&mut self, index: usize) -> Result<Option<FrameResult>> {
         let set = &mut self.sets[index];
-        let Some((frame, record_us)) = set.pending.take() else { return Ok(None) };
+        let Some((frame, record_us, submit_us)) = set.pending.take() else { return Ok(None) };
         let d = &self.device;
         // SAFETY: the fence was submitted with the set's command buffer.
         unsafe {
@@ -555,7 +557,7 @@ impl Renderer {
         if let (Some(p), Some(dir)) = (&set.pixels, &self.pixel_stats) {
             p.write(dir, frame)?;
         }
-        Ok(Some(FrameResult { frame, gpu_time_ms, counts, record_us }))
+        Ok(Some(FrameResult { frame, gpu_time_ms, counts, record_us, submit_us }))
     }
 
     /// Records frame set `index`'s command buffers for the images in `acquired`. `--threads`: the
