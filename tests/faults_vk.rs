@@ -13,12 +13,9 @@
 
 mod common;
 
-use common::{Run, RunOutput};
+use common::{fault_layer_data_dir, Run, RunOutput, FAULT_LAYER};
 use std::path::PathBuf;
 use std::time::Duration;
-
-const FAULT_LAYER: &str = "VK_LAYER_STEREOSHIM_TEST_fault";
-const MARKER_LAYER: &str = "VK_LAYER_STEREOSHIM_TEST_fault_marker";
 
 /// Every feature on, with the objects each creates: the mask (pipeline), RDM (checkerboard
 /// pipeline; reconstruction's compute pipeline, buffers, images, descriptor pools and sets,
@@ -60,40 +57,6 @@ const MORE_APP_CALLS: &[(&str, &str, u32, &[&str])] = &[
     ("vkCreateCommandPool", "VK_ERROR_OUT_OF_DEVICE_MEMORY", 1, &[]),
     ("vkCreateRenderPass2", "VK_ERROR_OUT_OF_DEVICE_MEMORY", 0, &["--rendering", "render-pass2"]),
 ];
-
-/// Writes the fault layer's two manifests (docs/testing.md) under a folder of the loader's
-/// `XDG_DATA_DIRS` search and returns that folder: the lower layer explicit (the app enables it
-/// last, so it sits below stereoshim, next to the driver), the marker implicit (the loader puts
-/// implicit layers nearest the app, above stereoshim).
-fn fault_layer_data_dir() -> PathBuf {
-    let lib = common::target_dir().join("libvk_fault_layer.so");
-    assert!(lib.exists(), "{} missing: run `cargo build --workspace` first", lib.display());
-    let dir = common::target_dir().join("test-output").join("vk-fault-layer");
-    let manifest = |name: &str, negotiate: &str, implicit: bool| {
-        let mut layer = serde_json::json!({
-            "name": name,
-            "type": "GLOBAL",
-            "library_path": lib,
-            "api_version": "1.3.239",
-            "implementation_version": "1",
-            "description": "stereoshim tests: fault injection below the layer",
-            "functions": { "vkNegotiateLoaderLayerInterfaceVersion": negotiate },
-        });
-        if implicit {
-            layer["disable_environment"] = serde_json::json!({ "VK_FAULT_MARKER_DISABLE": "1" });
-        }
-        let sub = if implicit { "implicit_layer.d" } else { "explicit_layer.d" };
-        let folder = dir.join("vulkan").join(sub);
-        std::fs::create_dir_all(&folder).unwrap();
-        let json = serde_json::json!({ "file_format_version": "1.2.0", "layer": layer });
-        let tmp = folder.join(format!(".{name}.{}", std::process::id()));
-        std::fs::write(&tmp, serde_json::to_vec_pretty(&json).unwrap()).unwrap();
-        std::fs::rename(&tmp, folder.join(format!("{name}.json"))).unwrap();
-    };
-    manifest(FAULT_LAYER, "vkfault_negotiate_lower", false);
-    manifest(MARKER_LAYER, "vkfault_negotiate_upper", true);
-    dir
-}
 
 /// xr-scene with the fault layer (`VK_FAULT` = `fault`), three frames (frame 0's eyes are unknown
 /// to the layer until its `xrEndFrame`, so frames 1 and 2 carry the features), depth submitted

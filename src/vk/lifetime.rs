@@ -75,7 +75,10 @@ pub(crate) fn close(d: &DeviceState, cbs: &[u64]) {
 /// carried held recordings.
 pub(crate) fn submitted(d: &DeviceState, queue: vk::Queue, cbs: &[u64]) {
     let Some(id) = lock(&d.lifetime.lifetimes).submitted(cbs) else { return };
-    let fence = match lock(&d.lifetime.free_fences).pop() {
+    // Popped in a statement of its own: a guard in the `match` scrutinee would live through the
+    // arms, which call down (vkCreateFence, vkDeviceWaitIdle).
+    let free = lock(&d.lifetime.free_fences).pop();
+    let fence = match free {
         Some(f) => f,
         // SAFETY: a valid, default create info.
         None => match unsafe { d.fns.create_fence(&vk::FenceCreateInfo::default(), None) } {

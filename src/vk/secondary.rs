@@ -9,31 +9,89 @@
 //! destroys its pool). The spec requires the primary not to be pending then, so neither is ours: a
 //! primary recorded once and resubmitted every frame keeps its secondary for as long as it lives.
 //!
-//! One command pool per queue family (command buffers must come from a pool of the family of the
-//! primary they are executed in). Pools are externally synchronized, so each has a mutex, held while
-//! one secondary is allocated, begun, recorded and ended: only the layer's own objects are touched
-//! under it, and nothing recorded into them calls back into the layer.
+//! Command pools per queue family (command buffers must come from a pool of the family of the
+//! primary they are executed in). Pools are externally synchronized, so a thread *takes* one out
+//! of the family's idle list while it allocates, begins, records and ends command buffers of it,
+//! and puts it back after; a thread that finds none idle makes another. No lock is held across
+//! those calls down: what is below the layer may call back into it (tests/reentry.rs).
 
 use super::DeviceState;
 use ash::vk::{self, Handle};
 use std::collections::HashMap;
-use std::sync::{Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard};
 
 #[derive(Default)]
 pub(crate) struct SecondaryDevice {
-    /// Queue family → its pool and the secondaries free for reuse.
-    pools: Mutex<HashMap<u32, Mutex<Pool>>>,
-    /// App primary → the layer's secondaries executed in it (family, handle).
-    owned: Mutex<HashMap<u64, Vec<(u32, vk::CommandBuffer)>>>,
+    /// Queue family → its pools that no thread is using now.
+    idle: Mutex<HashMap<u32, Vec<Arc<Pool>>>>,
+    /// Every pool of the layer's, destroyed with the device.
+    all: Mutex<Vec<Arc<Pool>>>,
+    /// App primary → the layer's secondaries executed in it.
+    owned: Mutex<HashMap<u64, Vec<Owned>>>,
 }
+
+/// One of the layer's secondaries and the pool it came from.
+type Owned = (Arc<Pool>, vk::CommandBuffer);
 
 struct Pool {
     pool: vk::CommandPool,
-    free: Vec<vk::CommandBuffer>,
+    /// Secondaries free for reuse. Bookkeeping only (no call down under it): `release` returns
+    /// command buffers here whichever thread has the pool taken.
+    free: Mutex<Vec<vk::CommandBuffer>>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A pool taken out of its family's idle list: this thread alone uses it (external
+/// synchronization) until it goes back, when this is dropped.
+struct Taken<'a> {
+    secondary: &'a SecondaryDevice,
+    family: u32,
+    pool: Arc<Pool>,
+}
+
+impl Drop for Taken<'_> {
+    fn drop(&mut self) {
+        lock(&self.secondary.idle).entry(self.family).or_default().push(self.pool.clone());
+    }
+}
+
+/// Takes an idle pool of `family`, or makes one (with no lock held while it is made).
+fn take(d: &DeviceState, family: u32) -> Result<Taken<'_>, String> {
+    let idle = lock(&d.secondary.idle).get_mut(&family).and_then(Vec::pop);
+    let pool = match idle {
+        Some(p) => p,
+        None => {
+            let info = vk::CommandPoolCreateInfo::default().flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER).queue_family_index(family);
+            // SAFETY: a valid create info for a queue family the app's own pool uses or the app
+            // submits to.
+            let pool = unsafe { d.fns.create_command_pool(&info, None) }.map_err(|e| format!("vkCreateCommandPool: {e}"))?;
+            let pool = Arc::new(Pool { pool, free: Mutex::default() });
+            lock(&d.secondary.all).push(pool.clone());
+            pool
+        }
+    };
+    Ok(Taken { secondary: &d.secondary, family, pool })
+}
+
+/// Allocates one command buffer of `level` from a taken pool and hands it to the loader.
+fn allocate(d: &DeviceState, pool: &Taken<'_>, level: vk::CommandBufferLevel) -> Result<vk::CommandBuffer, String> {
+    let info = vk::CommandBufferAllocateInfo::default().command_pool(pool.pool.pool).level(level).command_buffer_count(1);
+    // SAFETY: our pool, taken by this thread.
+    let cb = unsafe { d.fns.allocate_command_buffers(&info) }.map_err(|e| format!("vkAllocateCommandBuffers: {e}"))?[0];
+    // Dispatchable: the loader sets the dispatch word only on objects handed out through it, so a
+    // layer must set it on its own before using them.
+    let set = d.set_loader_data.ok_or("the loader gave no vkSetDeviceLoaderData")?;
+    // SAFETY: the loader's callback for this device and a command buffer allocated on it.
+    let r = unsafe { set(d.handle, cb.as_raw() as usize as *mut std::ffi::c_void) };
+    if r != vk::Result::SUCCESS {
+        // SAFETY: ours, never used; its pool is taken by this thread.
+        unsafe { d.fns.free_command_buffers(pool.pool.pool, &[cb]) };
+        return Err(format!("vkSetDeviceLoaderData: {r:?}"));
+    }
+    Ok(cb)
 }
 
 /// The pass a secondary must inherit.
@@ -57,50 +115,11 @@ pub(crate) fn record(
         .and_then(|c| d.track.pools.get(c.pool))
         .map(|p| p.queue_family_index)
         .ok_or("the primary's command pool is unknown")?;
-    let pools = lock(&d.secondary.pools);
-    if !pools.contains_key(&family) {
-        drop(pools);
-        let info = vk::CommandPoolCreateInfo::default()
-            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER)
-            .queue_family_index(family);
-        // SAFETY: a valid create info for a queue family the app's own pool uses.
-        let pool = unsafe { d.fns.create_command_pool(&info, None) }.map_err(|e| format!("vkCreateCommandPool: {e}"))?;
-        let mut pools = lock(&d.secondary.pools);
-        match pools.entry(family) {
-            // Another thread made one meanwhile.
-            // SAFETY: ours, never used.
-            std::collections::hash_map::Entry::Occupied(_) => unsafe { d.fns.destroy_command_pool(pool, None) },
-            std::collections::hash_map::Entry::Vacant(v) => {
-                v.insert(Mutex::new(Pool { pool, free: Vec::new() }));
-            }
-        }
-        drop(pools);
-        return self::record(d, primary, inherit, record);
-    }
-    let pool = &pools[&family];
-    let mut p = lock(pool);
-    let cb = match p.free.pop() {
+    let pool = take(d, family)?;
+    let reused = lock(&pool.pool.free).pop();
+    let cb = match reused {
         Some(cb) => cb,
-        None => {
-            let info = vk::CommandBufferAllocateInfo::default()
-                .command_pool(p.pool)
-                .level(vk::CommandBufferLevel::SECONDARY)
-                .command_buffer_count(1);
-            // SAFETY: our pool, synchronized by its mutex.
-            let cbs = unsafe { d.fns.allocate_command_buffers(&info) }.map_err(|e| format!("vkAllocateCommandBuffers: {e}"))?;
-            let cb = cbs[0];
-            // Dispatchable: the loader sets the dispatch word only on objects handed out through
-            // it, so a layer must set it on its own before using them.
-            let set = d.set_loader_data.ok_or("the loader gave no vkSetDeviceLoaderData")?;
-            // SAFETY: the loader's callback for this device and a command buffer allocated on it.
-            let r = unsafe { set(d.handle, cb.as_raw() as usize as *mut std::ffi::c_void) };
-            if r != vk::Result::SUCCESS {
-                // SAFETY: ours, never used; its pool is locked.
-                unsafe { d.fns.free_command_buffers(p.pool, &[cb]) };
-                return Err(format!("vkSetDeviceLoaderData: {r:?}"));
-            }
-            cb
-        }
+        None => allocate(d, &pool, vk::CommandBufferLevel::SECONDARY)?,
     };
     let mut rendering_info;
     let mut inheritance = vk::CommandBufferInheritanceInfo::default();
@@ -127,21 +146,22 @@ pub(crate) fn record(
     let begin = vk::CommandBufferBeginInfo::default()
         .flags(vk::CommandBufferUsageFlags::RENDER_PASS_CONTINUE)
         .inheritance_info(&inheritance);
-    // SAFETY: our secondary, not pending (free or new), its pool locked; valid begin info.
+    // SAFETY: our secondary, not pending (free or new), its pool taken by this thread; valid
+    // begin info.
     let begun = unsafe { d.fns.begin_command_buffer(cb, &begin) };
     if let Err(e) = begun {
-        p.free.push(cb);
+        lock(&pool.pool.free).push(cb);
         return Err(format!("vkBeginCommandBuffer: {e}"));
     }
     record(cb);
     // SAFETY: as above, recording.
     if let Err(e) = unsafe { d.fns.end_command_buffer(cb) } {
-        p.free.push(cb);
+        lock(&pool.pool.free).push(cb);
         return Err(format!("vkEndCommandBuffer: {e}"));
     }
-    drop(p);
-    drop(pools);
-    lock(&d.secondary.owned).entry(primary).or_default().push((family, cb));
+    let owner = pool.pool.clone();
+    drop(pool);
+    lock(&d.secondary.owned).entry(primary).or_default().push((owner, cb));
     Ok(cb)
 }
 
@@ -153,52 +173,16 @@ pub(crate) fn record(
 /// turn the feature off for that command buffer (issue 11: once the app's command buffer is
 /// recorded, a set-up submission that cannot be made would leave it reading uninitialised state).
 pub(crate) fn prepare_once(d: &DeviceState, family: u32, record: impl FnOnce(vk::CommandBuffer)) -> Result<vk::CommandBuffer, String> {
-    let pool = {
-        let pools = lock(&d.secondary.pools);
-        pools.get(&family).map(|p| lock(p).pool)
-    };
-    let pool = match pool {
-        Some(p) => p,
-        None => {
-            let info = vk::CommandPoolCreateInfo::default().flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER).queue_family_index(family);
-            // SAFETY: a valid create info for a queue family the app submits to.
-            let pool = unsafe { d.fns.create_command_pool(&info, None) }.map_err(|e| format!("vkCreateCommandPool: {e}"))?;
-            let mut pools = lock(&d.secondary.pools);
-            match pools.entry(family) {
-                std::collections::hash_map::Entry::Occupied(o) => {
-                    // SAFETY: ours, never used (another thread made one meanwhile).
-                    unsafe { d.fns.destroy_command_pool(pool, None) };
-                    lock(o.get()).pool
-                }
-                std::collections::hash_map::Entry::Vacant(v) => {
-                    v.insert(Mutex::new(Pool { pool, free: Vec::new() }));
-                    pool
-                }
-            }
-        }
-    };
-    let cb = {
-        // The pool is externally synchronized: held while allocating and recording, released
-        // before the submission goes down.
-        let pools = lock(&d.secondary.pools);
-        let _pool_guard = pools.get(&family).map(lock);
-        let info = vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1);
-        // SAFETY: our pool, synchronized by its mutex (held).
-        let cb = unsafe { d.fns.allocate_command_buffers(&info) }.map_err(|e| format!("vkAllocateCommandBuffers: {e}"))?[0];
-        let set = d.set_loader_data.ok_or("the loader gave no vkSetDeviceLoaderData")?;
-        // SAFETY: the loader's callback for this device and a command buffer allocated on it.
-        let r = unsafe { set(d.handle, cb.as_raw() as usize as *mut std::ffi::c_void) };
-        if r != vk::Result::SUCCESS {
-            return Err(format!("vkSetDeviceLoaderData: {r:?}"));
-        }
-        let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-        // SAFETY: our new command buffer, its pool locked.
-        unsafe { d.fns.begin_command_buffer(cb, &begin) }.map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
-        record(cb);
-        // SAFETY: as above, recording.
-        unsafe { d.fns.end_command_buffer(cb) }.map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
-        cb
-    };
+    // The pool is externally synchronized: taken while allocating and recording, back before
+    // the submission goes down.
+    let pool = take(d, family)?;
+    let cb = allocate(d, &pool, vk::CommandBufferLevel::PRIMARY)?;
+    let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+    // SAFETY: our new command buffer, its pool taken by this thread.
+    unsafe { d.fns.begin_command_buffer(cb, &begin) }.map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
+    record(cb);
+    // SAFETY: as above, recording.
+    unsafe { d.fns.end_command_buffer(cb) }.map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
     Ok(cb)
 }
 
@@ -226,31 +210,26 @@ pub(crate) fn submit_prepared(d: &DeviceState, queue: vk::Queue, prepared: &[vk:
 /// The app begins, resets or frees `primaries` (or their pool): they are not pending, so the
 /// layer's secondaries executed in them can be reused.
 pub(crate) fn release(d: &DeviceState, primaries: &[u64]) {
-    let released: Vec<(u32, vk::CommandBuffer)> = {
+    let released: Vec<Owned> = {
         let mut owned = lock(&d.secondary.owned);
         if owned.is_empty() {
             return;
         }
         primaries.iter().filter_map(|p| owned.remove(p)).flatten().collect()
     };
-    if released.is_empty() {
-        return;
-    }
-    let pools = lock(&d.secondary.pools);
-    for (family, cb) in released {
-        if let Some(pool) = pools.get(&family) {
-            lock(pool).free.push(cb);
-        }
+    for (pool, cb) in released {
+        lock(&pool.free).push(cb);
     }
 }
 
 /// `vkDestroyDevice`: the device is idle (the app's obligation), so every pool can go.
 pub(crate) fn destroy(d: &DeviceState) {
-    let pools = std::mem::take(&mut *lock(&d.secondary.pools));
+    let pools = std::mem::take(&mut *lock(&d.secondary.all));
+    lock(&d.secondary.idle).clear();
     lock(&d.secondary.owned).clear();
-    for (_, pool) in pools {
-        let pool = pool.into_inner().unwrap_or_else(|e| e.into_inner());
-        // SAFETY: our pool; the device is idle; destroying it frees its command buffers.
+    for pool in pools {
+        // SAFETY: our pool; the device is idle (no layer call is using it); destroying it frees
+        // its command buffers.
         unsafe { d.fns.destroy_command_pool(pool.pool, None) };
     }
 }

@@ -283,25 +283,23 @@ pub(super) unsafe extern "system" fn get_vulkan_instance_extensions(
 /// loader is loaded, or found already loaded, for that).
 fn loader_offers(extension: &str) -> bool {
     static EXTENSIONS: OnceLock<Vec<String>> = OnceLock::new();
-    EXTENSIONS
-        .get_or_init(|| {
-            // SAFETY: loads libvulkan.so.1 (the same image when the app links it); its global
-            // command is called as the spec allows, outside any loader call.
-            let listed = unsafe { ash::Entry::load() }
-                .map_err(|e| e.to_string())
-                // SAFETY: a global command of the loader just loaded.
-                .and_then(|e| unsafe { e.enumerate_instance_extension_properties(None) }.map_err(|e| e.to_string()));
-            if let Err(e) = &listed {
-                tracing::warn!("cannot ask the Vulkan loader for its instance extensions ({e}): nothing added for XR_KHR_vulkan_enable apps");
-            }
-            listed
-                .unwrap_or_default()
-                .iter()
-                .filter_map(|p| p.extension_name_as_c_str().ok().map(|n| n.to_string_lossy().into_owned()))
-                .collect()
-        })
-        .iter()
-        .any(|e| e == extension)
+    if EXTENSIONS.get().is_none() {
+        // Asked outside `get_or_init`: the loader calls into the layers it loads (implicit ones
+        // included), and a call back into this function from there would wait on its own
+        // initialisation. Two threads asking at once both ask; the first answer is kept.
+        // SAFETY: loads libvulkan.so.1 (the same image when the app links it); its global
+        // command is called as the spec allows, outside any loader call.
+        let listed = unsafe { ash::Entry::load() }
+            .map_err(|e| e.to_string())
+            // SAFETY: a global command of the loader just loaded.
+            .and_then(|e| unsafe { e.enumerate_instance_extension_properties(None) }.map_err(|e| e.to_string()));
+        if let Err(e) = &listed {
+            tracing::warn!("cannot ask the Vulkan loader for its instance extensions ({e}): nothing added for XR_KHR_vulkan_enable apps");
+        }
+        let names = listed.unwrap_or_default().iter().filter_map(|p| p.extension_name_as_c_str().ok().map(|n| n.to_string_lossy().into_owned())).collect();
+        let _ = EXTENSIONS.set(names);
+    }
+    EXTENSIONS.get().is_some_and(|all| all.iter().any(|e| e == extension))
 }
 
 pub(super) unsafe extern "system" fn get_vulkan_device_extensions(

@@ -831,3 +831,45 @@ pub fn vulkan_layer_dir(layer_name: &str) -> PathBuf {
     std::fs::rename(&tmp, dir.join("stereoshim.json")).unwrap();
     dir
 }
+
+/// The fault-injecting layer of the test tree (tests/vk-fault-layer), below stereoshim: the app
+/// enables it with xr-scene `--vk-layer`.
+pub const FAULT_LAYER: &str = "VK_LAYER_STEREOSHIM_TEST_fault";
+/// Its marker instance, an implicit layer above stereoshim.
+pub const FAULT_MARKER_LAYER: &str = "VK_LAYER_STEREOSHIM_TEST_fault_marker";
+
+/// Writes the fault layer's two manifests (docs/testing.md) under a folder of the loader's
+/// `XDG_DATA_DIRS` search and returns that folder: the lower layer explicit (the app enables it
+/// last, so it sits below stereoshim, next to the driver), the marker implicit (the loader puts
+/// implicit layers nearest the app, above stereoshim).
+pub fn fault_layer_data_dir() -> PathBuf {
+    let lib = target_dir().join("libvk_fault_layer.so");
+    assert!(lib.exists(), "{} missing: run `cargo build --workspace` first", lib.display());
+    let dir = target_dir().join("test-output").join("vk-fault-layer");
+    let manifest = |name: &str, negotiate: &str, implicit: bool| {
+        let mut layer = serde_json::json!({
+            "name": name,
+            "type": "GLOBAL",
+            "library_path": lib,
+            "api_version": "1.3.239",
+            "implementation_version": "1",
+            "description": "stereoshim tests: fault injection below the layer",
+            "functions": { "vkNegotiateLoaderLayerInterfaceVersion": negotiate },
+        });
+        if implicit {
+            layer["disable_environment"] = serde_json::json!({ "VK_FAULT_MARKER_DISABLE": "1" });
+        }
+        let sub = if implicit { "implicit_layer.d" } else { "explicit_layer.d" };
+        let folder = dir.join("vulkan").join(sub);
+        std::fs::create_dir_all(&folder).unwrap();
+        let json = serde_json::json!({ "file_format_version": "1.2.0", "layer": layer });
+        // A name of its own per write: the tests of one binary run in parallel threads.
+        static N: AtomicUsize = AtomicUsize::new(0);
+        let tmp = folder.join(format!(".{name}.{}.{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
+        std::fs::write(&tmp, serde_json::to_vec_pretty(&json).unwrap()).unwrap();
+        std::fs::rename(&tmp, folder.join(format!("{name}.json"))).unwrap();
+    };
+    manifest(FAULT_LAYER, "vkfault_negotiate_lower", false);
+    manifest(FAULT_MARKER_LAYER, "vkfault_negotiate_upper", true);
+    dir
+}

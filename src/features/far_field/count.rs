@@ -119,7 +119,10 @@ impl Drop for Counter {
 
 /// Destroys the pools ready for reuse (at `vkDestroyDevice`, after every hold went).
 pub(super) fn destroy(d: &DeviceState, free: &FreePools) {
-    for (pool, _) in std::mem::take(&mut *free.lock().unwrap_or_else(|e| e.into_inner())) {
+    // Taken in a statement of its own: a guard in the `for` expression lives through the loop,
+    // whose body calls down.
+    let pools = std::mem::take(&mut *free.lock().unwrap_or_else(|e| e.into_inner()));
+    for (pool, _) in pools {
         // SAFETY: our pool; the device is idle and no recording holds it any more.
         unsafe { d.fns.destroy_query_pool(pool, None) };
     }

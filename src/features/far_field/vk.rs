@@ -206,9 +206,12 @@ impl FarFieldDevice {
 
     /// The descriptor set layout, pipeline layout and samplers (made once per device).
     fn objects(&self, d: &DeviceState) -> Result<(vk::DescriptorSetLayout, vk::PipelineLayout, vk::Sampler, vk::Sampler), String> {
-        let mut o = lock(&self.objects);
-        if o.layout != vk::PipelineLayout::null() {
-            return Ok((o.set_layout, o.layout, o.linear, o.nearest));
+        let made = {
+            let o = lock(&self.objects);
+            (o.layout != vk::PipelineLayout::null()).then_some((o.set_layout, o.layout, o.linear, o.nearest))
+        };
+        if let Some(made) = made {
+            return Ok(made);
         }
         let mut bindings: Vec<_> = (0..4)
             .map(|b| {
@@ -236,9 +239,10 @@ impl FarFieldDevice {
                 .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE)
                 .max_lod(0.0)
         };
-        // SAFETY: valid create infos; the objects are ours until `destroy` (the lock serializes
-        // creation; no call goes down to the app's queue or command buffers).
-        unsafe {
+        // Made with no lock held: the calls go down the chain, and what is below may call back into
+        // the layer. A thread that loses the race to another destroys its own below.
+        // SAFETY: valid create infos; the objects are ours until `destroy`.
+        let (set_layout, layout, linear, nearest, copier) = unsafe {
             // What was made before a creation fails is destroyed again (issue 11: a failed sampler
             // leaked the layouts until the device went, which validation reports there).
             let mut made = Made { d, set_layout: vk::DescriptorSetLayout::null(), layout: vk::PipelineLayout::null(), linear: vk::Sampler::null(), nearest: vk::Sampler::null() };
@@ -257,9 +261,23 @@ impl FarFieldDevice {
                     None
                 }
             };
-            *o = Objects { set_layout, layout, linear, nearest, copier, slots: o.slots.take(), slots_init: o.slots_init.take() };
+            (set_layout, layout, linear, nearest, copier)
+        };
+        let mut o = lock(&self.objects);
+        if o.layout != vk::PipelineLayout::null() {
+            let existing = (o.set_layout, o.layout, o.linear, o.nearest);
+            drop(o);
+            // SAFETY: ours, never used.
+            unsafe {
+                if let Some(c) = &copier {
+                    c.destroy(d);
+                }
+                drop(Made { d, set_layout, layout, linear, nearest });
+            }
+            return Ok(existing);
         }
-        Ok((o.set_layout, o.layout, o.linear, o.nearest))
+        *o = Objects { set_layout, layout, linear, nearest, copier, slots: o.slots.take(), slots_init: o.slots_init.take() };
+        Ok((set_layout, layout, linear, nearest))
     }
 
     /// The slots, made (again) when they are missing, too small or of other formats, for a pass

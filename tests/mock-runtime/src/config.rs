@@ -53,6 +53,9 @@ pub struct Config {
     /// `MOCK_XR_HEAD_YAW_DEG_PER_S`: the head turns about +y at this rate (degrees per second of
     /// display time), so located views change deterministically from frame to frame; None: still.
     pub head_yaw_deg_per_s: Option<f64>,
+    /// `MOCK_XR_REENTER=1`: the runtime calls Vulkan on the app's device from inside its frame
+    /// and swapchain calls (`VkContext::reenter`).
+    pub reenter: bool,
 }
 
 fn var(name: &str) -> Option<String> {
@@ -164,6 +167,11 @@ impl Config {
                 .filter(|&hz| hz > 0)
                 .map(|hz| std::time::Duration::from_nanos(1_000_000_000 / hz)),
             head_yaw_deg_per_s: parse_yaw_rate(var("MOCK_XR_HEAD_YAW_DEG_PER_S").as_deref())?,
+            reenter: match var("MOCK_XR_REENTER").as_deref().map(str::trim) {
+                None | Some("0") => false,
+                Some("1") => true,
+                Some(v) => return Err(format!("MOCK_XR_REENTER={v:?}: want 0 or 1")),
+            },
         })
     }
 

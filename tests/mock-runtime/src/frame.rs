@@ -76,6 +76,9 @@ pub unsafe extern "system" fn xr_begin_frame(session: xr::Session, info: *const 
         s.fail_point("xrBeginFrame")?;
         // SAFETY: app input struct (may be NULL).
         unsafe { input_opt(info) }?;
+        if s.instance.cfg.reenter {
+            s.vk.reenter("xrBeginFrame", true)?;
+        }
         let mut core = s.core.lock().unwrap();
         if !core.running {
             return Err(xr::Result::ERROR_SESSION_NOT_RUNNING);
@@ -221,6 +224,9 @@ pub unsafe extern "system" fn xr_end_frame(session: xr::Session, info: *const xr
         s.fail_point("xrEndFrame")?;
         // SAFETY: app input struct.
         let info = unsafe { input(info) }?;
+        if s.instance.cfg.reenter {
+            s.vk.reenter("xrEndFrame", true)?;
+        }
         let frame = {
             let core = s.core.lock().unwrap();
             if !core.running {
@@ -288,6 +294,9 @@ pub unsafe extern "system" fn xr_locate_views(
         let base = space::get_in(&s, info.space)?;
         s.fail_point("xrLocateViews")?;
         check_view_config(info.view_configuration_type)?;
+        if s.instance.cfg.reenter {
+            s.vk.reenter("xrLocateViews", false)?;
+        }
         if info.display_time.as_nanos() <= 0 {
             return Err(xr::Result::ERROR_TIME_INVALID);
         }

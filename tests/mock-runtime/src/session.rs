@@ -179,6 +179,9 @@ pub unsafe extern "system" fn xr_destroy_session(session: xr::Session) -> xr::Re
         let s = get(session)?;
         s.fail_point("xrDestroySession")?;
         destroy(&s);
+        if s.instance.cfg.reenter {
+            crate::vulkan::report_reentries();
+        }
         Ok(xr::Result::SUCCESS)
     })
 }

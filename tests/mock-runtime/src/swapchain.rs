@@ -364,7 +364,11 @@ pub unsafe extern "system" fn xr_acquire_swapchain_image(
 ) -> xr::Result {
     guard("xrAcquireSwapchainImage", || {
         let sc = get(swapchain)?;
-        session::get(xr::Session::from_raw(sc.session))?.fail_point("xrAcquireSwapchainImage")?;
+        let s = session::get(xr::Session::from_raw(sc.session))?;
+        s.fail_point("xrAcquireSwapchainImage")?;
+        if s.instance.cfg.reenter {
+            sc.vk.reenter("xrAcquireSwapchainImage", true)?;
+        }
         // SAFETY: app pointers.
         let (_, out) = unsafe { (input_opt(info)?, out_ptr(index)?) };
         let needs_init = {
@@ -394,7 +398,11 @@ pub unsafe extern "system" fn xr_acquire_swapchain_image(
 pub unsafe extern "system" fn xr_wait_swapchain_image(swapchain: xr::Swapchain, info: *const xr::SwapchainImageWaitInfo) -> xr::Result {
     guard("xrWaitSwapchainImage", || {
         let sc = get(swapchain)?;
-        session::get(xr::Session::from_raw(sc.session))?.fail_point("xrWaitSwapchainImage")?;
+        let s = session::get(xr::Session::from_raw(sc.session))?;
+        s.fail_point("xrWaitSwapchainImage")?;
+        if s.instance.cfg.reenter {
+            sc.vk.reenter("xrWaitSwapchainImage", false)?;
+        }
         // SAFETY: app input struct.
         unsafe { input(info) }?;
         let mut st = sc.state.lock().unwrap();
@@ -413,7 +421,11 @@ pub unsafe extern "system" fn xr_release_swapchain_image(
 ) -> xr::Result {
     guard("xrReleaseSwapchainImage", || {
         let sc = get(swapchain)?;
-        session::get(xr::Session::from_raw(sc.session))?.fail_point("xrReleaseSwapchainImage")?;
+        let s = session::get(xr::Session::from_raw(sc.session))?;
+        s.fail_point("xrReleaseSwapchainImage")?;
+        if s.instance.cfg.reenter {
+            sc.vk.reenter("xrReleaseSwapchainImage", true)?;
+        }
         // SAFETY: app input struct (optional per the spec).
         unsafe { input_opt(info) }?;
         let mut st = sc.state.lock().unwrap();

@@ -201,6 +201,48 @@ impl VkContext {
         }
     }
 
+    /// `MOCK_XR_REENTER=1`: from inside `call`, the runtime calls Vulkan on the app's device
+    /// (through the top of the app's Vulkan chain, as all its calls do), as real runtimes do. Where
+    /// the Vulkan binding lets it use the app's queue (`queue`: xrBeginFrame, xrEndFrame,
+    /// xrAcquireSwapchainImage, xrReleaseSwapchainImage) it submits an empty command buffer and
+    /// waits for its fence; elsewhere (xrWaitSwapchainImage, xrLocateViews) it makes and destroys
+    /// an image and a command buffer, which need no queue. A layer above the runtime whose
+    /// OpenXR half held a lock across its call down that its Vulkan half also takes would
+    /// deadlock here (tests/reentry.rs). Counted per call; `report_reentries` prints the counts.
+    pub fn reenter(&self, call: &'static str, queue: bool) -> XrResult<()> {
+        if queue {
+            self.submit_and_wait(|_, _| {})?;
+        } else {
+            let info = vk::ImageCreateInfo::default()
+                .image_type(vk::ImageType::TYPE_2D)
+                .format(vk::Format::R8G8B8A8_UNORM)
+                .extent(vk::Extent3D { width: 4, height: 4, depth: 1 })
+                .mip_levels(1)
+                .array_layers(1)
+                .samples(vk::SampleCountFlags::TYPE_1)
+                .tiling(vk::ImageTiling::OPTIMAL)
+                .usage(vk::ImageUsageFlags::COLOR_ATTACHMENT)
+                .initial_layout(vk::ImageLayout::UNDEFINED);
+            // SAFETY: a valid create info on the app's live device; the image is never used and
+            // destroyed at once.
+            unsafe {
+                let image = self.device.create_image(&info, None).map_err(vk_err("vkCreateImage"))?;
+                self.device.destroy_image(image, None);
+            }
+            let pool = self.pool.lock().unwrap();
+            let pool = pool.ok_or(xr::Result::ERROR_SESSION_LOST)?;
+            let alloc = vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1);
+            // SAFETY: the runtime's pool, synchronised by its lock (held); the buffer is never
+            // recorded and freed at once.
+            unsafe {
+                let cbs = self.device.allocate_command_buffers(&alloc).map_err(vk_err("vkAllocateCommandBuffers"))?;
+                self.device.free_command_buffers(pool, &cbs);
+            }
+        }
+        *reentries().lock().unwrap().entry(call).or_insert(0) += 1;
+        Ok(())
+    }
+
     pub fn destroy_own_objects(&self) {
         let mut pool = self.pool.lock().unwrap();
         if let Some(p) = pool.take() {
@@ -208,6 +250,19 @@ impl VkContext {
             // (the app must destroy the session before its device).
             unsafe { self.device.destroy_command_pool(p, None) };
         }
+    }
+}
+
+fn reentries() -> &'static Mutex<std::collections::BTreeMap<&'static str, u64>> {
+    static COUNTS: OnceLock<Mutex<std::collections::BTreeMap<&'static str, u64>>> = OnceLock::new();
+    COUNTS.get_or_init(Default::default)
+}
+
+/// Prints the re-entries made so far in this process (`MOCK_XR_REENTER`), one stderr line per
+/// call, at each xrDestroySession.
+pub fn report_reentries() {
+    for (call, n) in reentries().lock().unwrap().iter() {
+        eprintln!("[mock-runtime] re-entered Vulkan from {call}: {n} times");
     }
 }
 

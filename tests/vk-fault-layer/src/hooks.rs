@@ -39,8 +39,9 @@ unsafe fn submit_signature(count: u32, submits: *const vk::SubmitInfo<'_>) -> Ve
     cbs
 }
 
-/// Runs `down` (the call to the next layer) for the marker (`U`) or the lower instance.
-fn intercept<const U: bool>(func: usize, signature: Vec<u64>, down: impl FnOnce() -> vk::Result, clear: impl FnOnce()) -> vk::Result {
+/// Runs `down` (the call to the next layer) for the marker (`U`) or the lower instance; the
+/// lower one first re-enters the chain when `VK_FAULT_REENTER` names the command (`reenter`).
+fn intercept<const U: bool>(func: usize, signature: Vec<u64>, down: impl FnOnce() -> vk::Result, clear: impl FnOnce(), reenter: impl FnOnce()) -> vk::Result {
     let name = spec::FUNCS[func][0];
     if U {
         APP_CALLS.with(|c| c.borrow_mut().push((func, signature)));
@@ -73,7 +74,10 @@ fn intercept<const U: bool>(func: usize, signature: Vec<u64>, down: impl FnOnce(
             clear();
             vk::Result::from_raw(code)
         }
-        None => down(),
+        None => {
+            reenter();
+            down()
+        }
     }
 }
 
@@ -117,7 +121,7 @@ macro_rules! hooks {
                     // usage requires (counts read from the caller's valid infos); on failure the
                     // spec leaves them undefined, and null handles are what a careful driver writes.
                     let clear = || unsafe { $clear };
-                    intercept::<U>(func, $sig, down, clear)
+                    intercept::<U>(func, $sig, down, clear, || crate::reenter::from($name, $first))
                 })
             }
         )*

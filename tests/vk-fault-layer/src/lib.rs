@@ -13,10 +13,15 @@
 //! whether a call it sees was made by the app — the marker is inside the same call on the same
 //! thread — or by the layer in between for its own objects (`spec::Origin`).
 //!
+//! With `VK_FAULT_REENTER` the lower instance also calls back up to the top of the chain from
+//! inside chosen calls (`reenter`), proving that the layers above hold no lock across their calls
+//! down.
+//!
 //! Written from the loader's documented layer interface (LoaderLayerInterface.md, `vk_layer.h`).
 
 pub mod spec;
 mod hooks;
+mod reenter;
 
 use ash::vk;
 use std::collections::HashMap;
@@ -79,11 +84,18 @@ struct Instance {
     destroy: vk::PFN_vkDestroyInstance,
 }
 
-/// The next layer's entry points for one device: `fns[i]` is command `spec::FUNCS[i]`.
+/// The next layer's entry points for one device: `fns[i]` is command `spec::FUNCS[i]`,
+/// `reenter_fns[i]` command `spec::REENTER_ONLY[i]`.
 struct Device {
+    handle: vk::Device,
     next_gdpa: vk::PFN_vkGetDeviceProcAddr,
     destroy: vk::PFN_vkDestroyDevice,
     fns: Vec<vk::PFN_vkVoidFunction>,
+    reenter_fns: Vec<vk::PFN_vkVoidFunction>,
+    /// Re-entry (`VK_FAULT_REENTER`, lower instance only): the device's queues (handle → family),
+    /// the family of its first queue create info, the top of the chain's functions and the
+    /// re-entries made so far.
+    reenter: reenter::DeviceReentry,
 }
 
 #[derive(Default)]
@@ -232,7 +244,7 @@ unsafe extern "system" fn get_instance_proc_addr<const U: bool>(instance: vk::In
             b"vkDestroyInstance" => void(destroy_instance::<U> as vk::PFN_vkDestroyInstance)?,
             b"vkCreateDevice" => void(create_device::<U> as vk::PFN_vkCreateDevice)?,
             b"vkDestroyDevice" => void(destroy_device::<U> as vk::PFN_vkDestroyDevice)?,
-            _ => hooks::lookup::<U>(n).unwrap_or(next),
+            _ => hooks::lookup::<U>(n).or_else(|| reenter::lookup::<U>(n)).unwrap_or(next),
         })
     })
 }
@@ -252,7 +264,7 @@ unsafe extern "system" fn get_device_proc_addr<const U: bool>(device: vk::Device
         let next = unsafe { (dev.next_gdpa)(device, name) }?;
         Some(match n {
             b"vkDestroyDevice" => void(destroy_device::<U> as vk::PFN_vkDestroyDevice)?,
-            _ => hooks::lookup::<U>(n).unwrap_or(next),
+            _ => hooks::lookup::<U>(n).or_else(|| reenter::lookup::<U>(n)).unwrap_or(next),
         })
     })
 }
@@ -269,6 +281,10 @@ unsafe extern "system" fn create_instance<const U: bool>(
         if !U {
             if let Err(e) = rules() {
                 eprintln!("vk-fault-layer: VK_FAULT: {e}");
+                return vk::Result::ERROR_INITIALIZATION_FAILED;
+            }
+            if let Err(e) = reenter::names() {
+                eprintln!("vk-fault-layer: VK_FAULT_REENTER: {e}");
                 return vk::Result::ERROR_INITIALIZATION_FAILED;
             }
         }
@@ -356,16 +372,24 @@ unsafe extern "system" fn create_device<const U: bool>(
         };
         // SAFETY: the pointer returned for "vkDestroyDevice" has that command's type.
         let destroy: vk::PFN_vkDestroyDevice = unsafe { std::mem::transmute(destroy) };
-        let fns = spec::FUNCS
-            .iter()
-            .map(|names| {
-                names.iter().find_map(|n| {
-                    let c = std::ffi::CString::new(*n).ok()?;
-                    get(&c)
+        let resolve = |list: &[&[&str]]| -> Vec<vk::PFN_vkVoidFunction> {
+            list.iter()
+                .map(|names| {
+                    names.iter().find_map(|n| {
+                        let c = std::ffi::CString::new(*n).ok()?;
+                        get(&c)
+                    })
                 })
-            })
-            .collect();
-        lock(&role(U).devices).insert(dispatch_key(handle), Arc::new(Device { next_gdpa, destroy, fns }));
+                .collect()
+        };
+        let (fns, reenter_fns) = (resolve(spec::FUNCS), resolve(spec::REENTER_ONLY));
+        // Only the lower instance re-enters, and only when asked to: the marker's next layer is
+        // stereoshim, which must not see calls of the marker's own.
+        let get_queue = if !U && reenter::names().as_ref().is_ok_and(|n| !n.is_empty()) { get(c"vkGetDeviceQueue") } else { None };
+        // SAFETY: the app's valid create info, read during its call; the queue getter the next
+        // layer returned for this device.
+        let reenter = unsafe { reenter::DeviceReentry::new(&*ci, get_queue, handle) };
+        lock(&role(U).devices).insert(dispatch_key(handle), Arc::new(Device { handle, next_gdpa, destroy, fns, reenter_fns, reenter }));
         r
     })
 }
@@ -374,6 +398,9 @@ unsafe extern "system" fn destroy_device<const U: bool>(device: vk::Device, allo
     entry("vkDestroyDevice", (), || {
         let key = dispatch_key(device);
         let Some(dev) = device_state::<U>(key) else { return };
+        if !U {
+            dev.reenter.report();
+        }
         // SAFETY: the app's arguments, to the next layer.
         unsafe { (dev.destroy)(device, allocator) };
         lock(&role(U).devices).remove(&key);

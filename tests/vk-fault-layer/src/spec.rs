@@ -29,6 +29,48 @@ pub const FUNCS: &[&[&str]] = &[
     &["vkCreateCommandPool"],
 ];
 
+/// Commands the lower instance hooks only to re-enter the chain from them (`VK_FAULT_REENTER`;
+/// they cannot be failed): recording, submission 2 and destruction calls, where a layer above is
+/// as likely to hold state across its call down as in the creation calls of [`FUNCS`].
+pub const REENTER_ONLY: &[&[&str]] = &[
+    &["vkQueueSubmit2", "vkQueueSubmit2KHR"],
+    &["vkBeginCommandBuffer"],
+    &["vkEndCommandBuffer"],
+    &["vkCmdBeginRenderPass"],
+    &["vkCmdBeginRenderPass2", "vkCmdBeginRenderPass2KHR"],
+    &["vkCmdBeginRendering", "vkCmdBeginRenderingKHR"],
+    &["vkCmdExecuteCommands"],
+    &["vkCmdDraw"],
+    &["vkCmdDrawIndexed"],
+    &["vkDestroyImage"],
+];
+
+/// Index into [`REENTER_ONLY`] of a command name (core or alias).
+pub fn reenter_only_index(name: &str) -> Option<usize> {
+    REENTER_ONLY.iter().position(|names| names.contains(&name))
+}
+
+/// The core name of a command the layer can re-enter from (one of [`FUNCS`] or
+/// [`REENTER_ONLY`], core or alias).
+pub fn reentry_name(name: &str) -> Option<&'static str> {
+    FUNCS.iter().chain(REENTER_ONLY).find(|names| names.contains(&name)).map(|names| names[0])
+}
+
+/// Parses `VK_FAULT_REENTER`: a comma-separated list of command names (aliases allowed) from
+/// whose calls the lower instance calls back up to the top of the chain; returns their core
+/// names. A name the layer does not hook is an error (a typo must never pass as "re-entered
+/// nowhere").
+pub fn parse_reenter(text: &str) -> Result<Vec<&'static str>, String> {
+    let mut names = Vec::new();
+    for item in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let name = reentry_name(item).ok_or_else(|| format!("{item:?} is not a command this layer can re-enter from"))?;
+        if !names.contains(&name) {
+            names.push(name);
+        }
+    }
+    Ok(names)
+}
+
 /// Index into [`FUNCS`] of a command name (core or alias).
 pub fn func_index(name: &str) -> Option<usize> {
     FUNCS.iter().position(|names| names.contains(&name))
@@ -167,6 +209,17 @@ mod tests {
         assert_eq!(r[3].func, func_index("vkCreateRenderPass2").unwrap(), "an alias shares its command's counter");
         assert_eq!(r[3].counted, Counted::Only(Origin::App));
         assert!(parse("").unwrap().is_empty());
+    }
+
+    #[test]
+    fn reenter_names() {
+        assert_eq!(parse_reenter("vkQueueSubmit, vkQueueSubmit2KHR,vkCmdBeginRenderPass2KHR,vkCreateImage,vkQueueSubmit").unwrap(), ["vkQueueSubmit", "vkQueueSubmit2", "vkCmdBeginRenderPass2", "vkCreateImage"]);
+        assert!(parse_reenter("").unwrap().is_empty());
+        assert!(parse_reenter("vkCreateImage,vkCreateDevice").is_err(), "no device to re-enter on yet");
+        assert!(parse_reenter("vkCmdBeginRenderpass").is_err());
+        for names in FUNCS {
+            assert!(reenter_only_index(names[0]).is_none(), "{} is in both lists", names[0]);
+        }
     }
 
     #[test]

@@ -96,15 +96,25 @@ impl Compute {
 
     /// At vkDestroyDevice (the device is idle).
     pub(super) fn destroy(&self, d: &DeviceState) {
-        if let Some(o) = lock(&self.objects).take() {
+        // Taken in a statement of its own: a guard in the `if let` scrutinee lives through the
+        // block, which calls down.
+        let objects = lock(&self.objects).take();
+        if let Some(o) = objects {
             // SAFETY: our objects; the device is idle, nothing uses them.
-            unsafe {
-                d.fns.destroy_pipeline(o.pipeline, None);
-                d.fns.destroy_shader_module(o.module, None);
-                d.fns.destroy_pipeline_layout(o.layout, None);
-                d.fns.destroy_descriptor_set_layout(o.set_layout, None);
-            }
+            unsafe { destroy_objects(d, o) };
         }
+    }
+}
+
+/// # Safety
+/// No submission using `o` may be pending.
+unsafe fn destroy_objects(d: &DeviceState, o: ComputeObjects) {
+    // SAFETY: per the contract.
+    unsafe {
+        d.fns.destroy_pipeline(o.pipeline, None);
+        d.fns.destroy_shader_module(o.module, None);
+        d.fns.destroy_pipeline_layout(o.layout, None);
+        d.fns.destroy_descriptor_set_layout(o.set_layout, None);
     }
 }
 
@@ -166,11 +176,28 @@ pub(super) fn ready(d: &DeviceState, data: &mut SlotData, descriptor_pool: vk::D
 
 /// (pipeline layout, pipeline), made on first use.
 fn objects(d: &DeviceState) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::Pipeline), String> {
-    let mut guard = lock(&d.features.rdm.reconstruct.compute.objects);
-    if let Some(o) = guard.as_ref() {
-        return Ok((o.layout, o.set_layout, o.pipeline));
+    let objects = &d.features.rdm.reconstruct.compute.objects;
+    let made = lock(objects).as_ref().map(|o| (o.layout, o.set_layout, o.pipeline));
+    if let Some(made) = made {
+        return Ok(made);
     }
-    // Creating a few objects under this lock is fine: these calls never re-enter the layer.
+    // Made with no lock held: the calls go down the chain, and what is below may call back into
+    // the layer. A thread that loses the race to another destroys its own.
+    let new = create_objects(d)?;
+    let mut guard = lock(objects);
+    if let Some(o) = guard.as_ref() {
+        let existing = (o.layout, o.set_layout, o.pipeline);
+        drop(guard);
+        // SAFETY: ours, never used.
+        unsafe { destroy_objects(d, new) };
+        return Ok(existing);
+    }
+    let made = (new.layout, new.set_layout, new.pipeline);
+    *guard = Some(new);
+    Ok(made)
+}
+
+fn create_objects(d: &DeviceState) -> Result<ComputeObjects, String> {
     let binding = |b: u32| vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE);
     let bindings = [binding(0), binding(1)];
     let words = ash::util::read_spv(&mut std::io::Cursor::new(RECON)).map_err(|e| e.to_string())?;
@@ -199,10 +226,7 @@ fn objects(d: &DeviceState) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayo
             }
         });
         match made {
-            Ok((module, pipeline)) => {
-                *guard = Some(ComputeObjects { set_layout, layout, module, pipeline });
-                Ok((layout, set_layout, pipeline))
-            }
+            Ok((module, pipeline)) => Ok(ComputeObjects { set_layout, layout, module, pipeline }),
             Err(e) => {
                 d.fns.destroy_pipeline_layout(layout, None);
                 d.fns.destroy_descriptor_set_layout(set_layout, None);

@@ -64,6 +64,14 @@ struct FillObjects {
     passes: HashMap<vk::Format, (vk::RenderPass, vk::Pipeline)>,
 }
 
+impl FillObjects {
+    /// The shared objects without the per-format ones: copied out of the lock to make a
+    /// format's pipeline with no lock held.
+    fn shared(&self) -> FillObjects {
+        FillObjects { passes: HashMap::new(), ..*self }
+    }
+}
+
 /// A layer image of a swapchain image's shape (the fill's copy target, then sampled).
 struct Temp {
     image: vk::Image,
@@ -670,18 +678,60 @@ fn record_and_submit(
 
 /// The fill pipeline's shared objects and the render pass + pipeline for `format`, made once.
 fn fill_objects(d: &DeviceState, format: vk::Format) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::RenderPass, vk::Pipeline, vk::Sampler), String> {
-    let mut guard = lock(&d.features.rdm.reconstruct.fill);
-    // Creating a few objects under this lock is fine: these calls never re-enter the layer.
-    if guard.is_none() {
-        *guard = Some(create_fill_common(d)?);
+    // Objects are made with no lock held: the calls go down the chain, and what is below may
+    // call back into the layer. A thread that loses a race to another destroys its own.
+    let fill = &d.features.rdm.reconstruct.fill;
+    let have = lock(fill).as_ref().map(|f| (f.shared(), f.passes.get(&format).copied()));
+    let common = match have {
+        Some((f, Some((rp, p)))) => return Ok((f.layout, f.set_layout, rp, p, f.sampler)),
+        Some((f, None)) => f,
+        None => {
+            let new = create_fill_common(d)?;
+            let mut guard = lock(fill);
+            match guard.as_ref() {
+                Some(f) => {
+                    let existing = f.shared();
+                    drop(guard);
+                    // SAFETY: ours, never used.
+                    unsafe { destroy_fill(d, new) };
+                    existing
+                }
+                None => {
+                    let made = new.shared();
+                    *guard = Some(new);
+                    made
+                }
+            }
+        }
+    };
+    let (rp, p) = create_fill_pipeline(d, &common, format)?;
+    let mut guard = lock(fill);
+    let existing = match guard.as_mut() {
+        Some(f) => match f.passes.get(&format) {
+            Some(&existing) => Some(existing),
+            None => {
+                f.passes.insert(format, (rp, p));
+                None
+            }
+        },
+        // Gone meanwhile (the device is being destroyed): ours goes too.
+        None => Some((vk::RenderPass::null(), vk::Pipeline::null())),
+    };
+    drop(guard);
+    match existing {
+        None => Ok((common.layout, common.set_layout, rp, p, common.sampler)),
+        Some((erp, ep)) => {
+            // SAFETY: ours, never used.
+            unsafe {
+                d.fns.destroy_pipeline(p, None);
+                d.fns.destroy_render_pass(rp, None);
+            }
+            if ep == vk::Pipeline::null() {
+                return Err("the device's RDM objects are being destroyed".into());
+            }
+            Ok((common.layout, common.set_layout, erp, ep, common.sampler))
+        }
     }
-    let f = guard.as_mut().expect("just set");
-    if let Some(&(rp, p)) = f.passes.get(&format) {
-        return Ok((f.layout, f.set_layout, rp, p, f.sampler));
-    }
-    let (rp, p) = create_fill_pipeline(d, f, format)?;
-    f.passes.insert(format, (rp, p));
-    Ok((f.layout, f.set_layout, rp, p, f.sampler))
 }
 
 fn create_fill_common(d: &DeviceState) -> Result<FillObjects, String> {
@@ -811,16 +861,25 @@ fn destroy_all(r: &Reconstruct, d: &DeviceState) {
             destroy_slot(d, s);
         }
         if let Some(f) = fill {
-            for (rp, p) in f.passes.values() {
-                d.fns.destroy_pipeline(*p, None);
-                d.fns.destroy_render_pass(*rp, None);
-            }
-            d.fns.destroy_pipeline_layout(f.layout, None);
-            d.fns.destroy_descriptor_set_layout(f.set_layout, None);
-            d.fns.destroy_sampler(f.sampler, None);
-            d.fns.destroy_shader_module(f.vert, None);
-            d.fns.destroy_shader_module(f.frag, None);
+            destroy_fill(d, f);
         }
+    }
+}
+
+/// # Safety
+/// No submission using `f`'s objects may be pending.
+unsafe fn destroy_fill(d: &DeviceState, f: FillObjects) {
+    // SAFETY: per the contract.
+    unsafe {
+        for (rp, p) in f.passes.values() {
+            d.fns.destroy_pipeline(*p, None);
+            d.fns.destroy_render_pass(*rp, None);
+        }
+        d.fns.destroy_pipeline_layout(f.layout, None);
+        d.fns.destroy_descriptor_set_layout(f.set_layout, None);
+        d.fns.destroy_sampler(f.sampler, None);
+        d.fns.destroy_shader_module(f.vert, None);
+        d.fns.destroy_shader_module(f.frag, None);
     }
 }
 
