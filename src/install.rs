@@ -98,9 +98,74 @@ pub fn run_environment(env: Env<'_>, manifest_dir: &Path) -> Vec<(String, String
     ]
 }
 
+/// The `library_path` of a manifest file's text when it is an OpenXR API-layer manifest naming
+/// stereoshim (`stereoshim status`); None for anything else. Manifest folders are shared with
+/// every other layer and may hold anything (other layers' files, editor leftovers, truncated or
+/// hostile JSON): no input makes this fail in any other way (tests: property over random bytes
+/// and random JSON). A manifest naming stereoshim without a string `library_path` gives `"?"`.
+pub fn our_manifest_library(text: &str) -> Option<String> {
+    let json: serde_json::Value = serde_json::from_str(text).ok()?;
+    let layer = json.get("api_layer")?;
+    if layer.get("name")?.as_str()? != XR_LAYER_NAME {
+        return None;
+    }
+    Some(layer.get("library_path").and_then(|l| l.as_str()).unwrap_or("?").to_string())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    mod hostile_manifests {
+        use super::*;
+        use proptest::prelude::*;
+
+        /// Random JSON values, nested a few levels.
+        fn json() -> impl Strategy<Value = serde_json::Value> {
+            let leaf = prop_oneof![
+                Just(serde_json::Value::Null),
+                any::<bool>().prop_map(serde_json::Value::from),
+                any::<f64>().prop_map(serde_json::Value::from),
+                any::<i64>().prop_map(serde_json::Value::from),
+                ".{0,12}".prop_map(serde_json::Value::from),
+                Just(serde_json::Value::from(XR_LAYER_NAME)),
+            ];
+            leaf.prop_recursive(4, 32, 6, |inner| {
+                prop_oneof![
+                    prop::collection::vec(inner.clone(), 0..6).prop_map(serde_json::Value::from),
+                    prop::collection::btree_map(prop_oneof![Just("api_layer".to_string()), Just("name".to_string()), Just("library_path".to_string()), ".{0,8}"], inner, 0..6)
+                        .prop_map(|m| serde_json::Value::Object(m.into_iter().collect())),
+                ]
+            })
+        }
+
+        proptest! {
+            #[test]
+            fn random_bytes_are_not_ours(bytes in prop::collection::vec(any::<u8>(), 0..512)) {
+                prop_assert_eq!(our_manifest_library(&String::from_utf8_lossy(&bytes)), None);
+            }
+
+            /// Any JSON: ours exactly when `api_layer.name` is stereoshim's name.
+            #[test]
+            fn random_json_is_ours_only_by_name(v in json()) {
+                let named = v.get("api_layer").and_then(|l| l.get("name")).and_then(|n| n.as_str()) == Some(XR_LAYER_NAME);
+                prop_assert_eq!(our_manifest_library(&v.to_string()).is_some(), named);
+            }
+        }
+
+        #[test]
+        fn deep_nesting_and_truncation_are_refused() {
+            let deep = "[".repeat(100_000);
+            assert_eq!(our_manifest_library(&deep), None, "serde_json's recursion limit, not a stack overflow");
+            let ours = format!(r#"{{"file_format_version": "1.0.0", "api_layer": {{"name": "{XR_LAYER_NAME}", "library_path": "lib.so"}}}}"#);
+            assert_eq!(our_manifest_library(&ours).as_deref(), Some("lib.so"));
+            for cut in 0..ours.len() - 1 {
+                assert_eq!(our_manifest_library(&ours[..cut]), None, "truncated at {cut}");
+            }
+            let odd = format!(r#"{{"api_layer": {{"name": "{XR_LAYER_NAME}", "library_path": 7}}}}"#);
+            assert_eq!(our_manifest_library(&odd).as_deref(), Some("?"));
+        }
+    }
 
     fn env(pairs: &'static [(&'static str, &'static str)]) -> impl Fn(&str) -> Option<String> {
         move |k| pairs.iter().find(|(key, _)| *key == k).map(|(_, v)| v.to_string())

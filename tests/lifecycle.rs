@@ -132,3 +132,33 @@ fn instances_recreated_with_every_feature_on() {
     let (ga, gb) = (growth(&a), growth(&b));
     eprintln!("rss growth over the last two thirds: {ga} kB without the layer, {gb} kB with; with: {b:?}");
 }
+
+/// Every order OpenXR allows for tearing down (xr-scene `--teardown`): children first; the
+/// session destroyed with its swapchains still alive (the runtime destroys them, and their
+/// `VkImage`s, with it); the last session and its swapchains left to `xrDestroyInstance`, and the
+/// Vulkan device destroyed after the XR instance. With every feature on, each run must end
+/// cleanly under validation (which reports any Vulkan object still alive at device destruction,
+/// the layer's and the runtime's included), with the layer tracking nothing of the app's objects
+/// afterwards, though the swapchains it followed were never destroyed by their own call.
+#[test]
+fn every_destruction_order_is_handled() {
+    for teardown in ["children", "session", "instance"] {
+        let name = format!("lifecycle-teardown-{teardown}");
+        let base = Run::new(&name)
+            .args(["--teardown", teardown, "--sessions", "2", "--frames", &FRAMES.to_string(), "--submit-depth"])
+            .env("MOCK_XR_EXIT_AFTER", "1000")
+            .env("MOCK_XR_CAPTURE_FRAMES", "0");
+        let out = every_feature(base, &name).run();
+        out.assert_ok().assert_layer_loaded(Half::Both).assert_log_lacks(Half::Both, "internal failure");
+        assert_nothing_tracked(&out);
+        // The layer saw the swapchains go with their parent, and the order asked for.
+        let with_session = out.log_lines("swapchain(s) not destroyed by the app go with the session").len();
+        let with_instance = out.log_lines("swapchain(s) not destroyed by the app go with the instance").len();
+        assert_eq!((with_session, with_instance), match teardown { "children" => (0, 0), "session" => (2, 0), _ => (0, 1) }, "{teardown}:\n{}", out.log);
+        let at = |needle: &str| out.log.find(needle).unwrap_or_else(|| panic!("{teardown}: no {needle:?}"));
+        assert_eq!(at("openxr stats") < at("vulkan device stats"), teardown == "instance", "{teardown}: the Vulkan device goes after the XR instance only with --teardown instance");
+        // The features were on in both sessions: RDM reconstructed in each.
+        let lines = out.log_lines("vulkan device stats");
+        assert!(lines.iter().all(|l| l.split_whitespace().any(|w| w.strip_prefix("rdm_passes=").and_then(|v| v.parse::<u64>().ok()).is_some_and(|n| n > 0))), "{teardown}: {lines:?}");
+    }
+}

@@ -118,13 +118,9 @@ fn status_cmd(args: &[String]) -> Result<(), String> {
         for entry in entries.flatten() {
             let path = entry.path();
             let Ok(text) = std::fs::read_to_string(&path) else { continue };
-            let Ok(json) = serde_json::from_str::<serde_json::Value>(&text) else { continue };
-            if json["api_layer"]["name"] != install::XR_LAYER_NAME {
-                continue;
-            }
+            let Some(lib) = install::our_manifest_library(&text) else { continue };
             found += 1;
-            let lib = json["api_layer"]["library_path"].as_str().unwrap_or("?");
-            let lib_path = dir.join(lib);
+            let lib_path = dir.join(&lib);
             println!(
                 "  {} ({}) -> {} {}",
                 path.display(),

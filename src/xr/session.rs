@@ -161,7 +161,11 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
                     tracing::warn!("{w}");
                 }
             }
-            for (handle, _) in st.swapchains.values().into_iter().filter(|(_, s)| s.session.handle == session) {
+            let orphans: Vec<u64> = st.swapchains.values().into_iter().filter(|(_, s)| s.session.handle == session).map(|(h, _)| h).collect();
+            if !orphans.is_empty() {
+                tracing::info!("{} swapchain(s) not destroyed by the app go with the session", orphans.len());
+            }
+            for handle in orphans {
                 crate::shared::shared().remove_swapchain(handle);
             }
             st.swapchains.retain(|_, s| s.session.handle != session);

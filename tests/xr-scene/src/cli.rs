@@ -70,6 +70,18 @@ pub enum Sky {
     Clear,
 }
 
+/// How a session and its instance are torn down (`--teardown`): every order OpenXR allows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Teardown {
+    /// Children first: swapchains, session, the Vulkan device, the XR instance.
+    Children,
+    /// `xrDestroySession` with its swapchains still alive: the runtime destroys them with it.
+    Session,
+    /// `xrDestroyInstance` with its session and swapchains alive (the last session only), and the
+    /// Vulkan device destroyed after the XR instance.
+    Instance,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ColorFamily {
     Srgb,
@@ -93,6 +105,8 @@ pub struct Options {
     /// `--threads`: xrWaitFrame on a frame-pacing thread, each pass's secondary recorded on a
     /// worker thread, submission on a submit thread (implies `secondary`; `crate::threads`).
     pub threads: bool,
+    /// `--teardown`: the order sessions and instances are destroyed in.
+    pub teardown: Teardown,
     pub frames: Option<u64>,
     /// `--sessions N`: end and create the session (swapchains, renderer) N times in one process.
     pub sessions: u64,
@@ -166,6 +180,7 @@ impl Default for Options {
             vulkan_api: VulkanApi::V1_3,
             secondary: false,
             threads: false,
+            teardown: Teardown::Children,
             frames: None,
             sessions: 1,
             instances: 1,
@@ -211,6 +226,11 @@ usage: xr-scene [options]
                                             through VK_KHR_dynamic_rendering
   --secondary                               record each eye pass's contents into a secondary command
                                             buffer run by vkCmdExecuteCommands
+  --teardown children|session|instance      destroy swapchains, then the session, the Vulkan device and
+                                            the XR instance (children); leave the swapchains to
+                                            xrDestroySession (session); or leave the last session and
+                                            its swapchains to xrDestroyInstance, destroying the Vulkan
+                                            device after it (instance)
   --threads                                 xrWaitFrame on a frame-pacing thread (the next frame's
                                             wait overlapping this frame), each pass's secondary
                                             recorded on a worker thread with its own command pool,
@@ -321,6 +341,14 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>,
                     "1.1" => VulkanApi::V1_1,
                     "1.3" => VulkanApi::V1_3,
                     v => return Err(format!("unknown --vulkan-api {v:?} (1.0, 1.1 or 1.3)")),
+                }
+            }
+            "--teardown" => {
+                o.teardown = match value("--teardown")?.as_str() {
+                    "children" => Teardown::Children,
+                    "session" => Teardown::Session,
+                    "instance" => Teardown::Instance,
+                    v => return Err(format!("unknown --teardown {v:?} (children, session or instance)")),
                 }
             }
             "--sky" => {
@@ -503,6 +531,15 @@ mod tests {
         assert!(p(&["--submit2", "--vulkan-api", "1.1"]).is_err());
         assert!(p(&["--secondary=1"]).is_err());
         assert!(p(&["--secondary", "--bind-before-pass"]).is_err());
+    }
+
+    /// `--teardown`: the three orders, nothing else.
+    #[test]
+    fn teardown_orders() {
+        assert_eq!(p(&[]).unwrap().unwrap().teardown, Teardown::Children);
+        assert_eq!(p(&["--teardown", "session"]).unwrap().unwrap().teardown, Teardown::Session);
+        assert_eq!(p(&["--teardown=instance"]).unwrap().unwrap().teardown, Teardown::Instance);
+        assert!(p(&["--teardown", "device"]).is_err());
     }
 
     /// `--threads` implies `--secondary` and combines with what matters for threading, but not

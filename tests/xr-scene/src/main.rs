@@ -78,7 +78,7 @@ fn run_instance(opts: &cli::Options) -> Result<u64> {
     let mut frame: u64 = 0;
     for session in 0..opts.sessions {
         let first = frame;
-        let (next, mut errors) = run_session(opts, &xri, &gpu, &mut stats, frame)?;
+        let (next, mut errors) = run_session(opts, &xri, &gpu, &mut stats, frame, session + 1 == opts.sessions)?;
         frame = next;
         if !errors.is_empty() {
             // The runtime may still hold objects on the Vulkan device (a session it failed to
@@ -93,8 +93,16 @@ fn run_instance(opts: &cli::Options) -> Result<u64> {
             eprintln!("xr-scene: session {session} ended after {} frames, rss {} kB", frame - first, rss_kb().unwrap_or(0));
         }
     }
-    drop(gpu);
-    xri.destroy()?;
+    if opts.teardown == cli::Teardown::Instance {
+        // The runtime's objects on the device (the last session's swapchain images) go with the
+        // XR instance; the app's Vulkan device after it.
+        let r = xri.destroy();
+        drop(gpu);
+        r?;
+    } else {
+        drop(gpu);
+        xri.destroy()?;
+    }
     Ok(frame)
 }
 
@@ -107,7 +115,8 @@ fn rss_kb() -> Option<u64> {
 /// One session until the runtime ends it, its frames numbered from `frame`; returns the next
 /// frame number. Locals drop in reverse order: GPU objects, swapchains, session.
 /// Also returns the session's teardown errors (failed `xrDestroySwapchain` / `xrDestroySession`).
-fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats: &mut Option<stats::StatsLog>, mut frame: u64) -> Result<(u64, Vec<String>)> {
+/// `last`: the instance's last session (`--teardown instance` leaves it to `xrDestroyInstance`).
+fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats: &mut Option<stats::StatsLog>, mut frame: u64, last: bool) -> Result<(u64, Vec<String>)> {
     let first_frame = frame;
     let binding = oxr::vulkan::SessionCreateInfo {
         instance: gpu.instance.handle().as_raw() as _,
@@ -210,7 +219,22 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
     // Torn down explicitly, in the order the locals would drop, so that a failing destroy call
     // reaches the error path like every other call; a failure does not stop the rest. The caller
     // decides what goes next (`run_instance`).
-    let errors: Vec<String> = [targets.destroy(), xs.destroy()].into_iter().filter_map(|r| r.err().map(|e| e.0)).collect();
+    let results = match opts.teardown {
+        cli::Teardown::Children => vec![targets.destroy(), xs.destroy()],
+        // The runtime destroys the swapchains with their session.
+        cli::Teardown::Session => {
+            targets.leave_swapchains();
+            vec![xs.destroy()]
+        }
+        // The last session goes with the instance (`run_instance`).
+        cli::Teardown::Instance if last => {
+            targets.leave_swapchains();
+            xs.leave();
+            vec![]
+        }
+        cli::Teardown::Instance => vec![targets.destroy(), xs.destroy()],
+    };
+    let errors: Vec<String> = results.into_iter().filter_map(|r| r.err().map(|e| e.0)).collect();
     Ok((frame, errors))
 }
 

@@ -373,6 +373,18 @@ impl Targets {
     /// failing `xrDestroySwapchain` is reported like any other failing call (the openxr crate's
     /// `Drop` ignores its result). Every swapchain is destroyed even after a failure; the error
     /// names every failed call.
+    /// Destroys the app's own Vulkan objects and leaves the swapchains to the runtime, for
+    /// `xrDestroySession` or `xrDestroyInstance` to destroy with their parent (`--teardown`).
+    pub fn leave_swapchains(mut self) {
+        self.destroy_vulkan_objects();
+        for slot in std::mem::take(&mut self.slots) {
+            for chain in std::iter::once(slot.color).chain(slot.depth) {
+                // Forgotten: its `Drop` would destroy it.
+                std::mem::forget(chain.swapchain);
+            }
+        }
+    }
+
     pub fn destroy(mut self) -> Result<()> {
         self.destroy_vulkan_objects();
         let mut errors = Vec::new();

@@ -234,6 +234,15 @@ impl XrSession {
         crate::error::check(r, "xrDestroySession")
     }
 
+    /// Destroys the session's spaces and actions and leaves the session itself (and its
+    /// swapchains) to `xrDestroyInstance` (`--teardown instance`).
+    pub fn leave(self) {
+        let XrSession { grip_space, stage, quit, _pose, action_set, waiter, stream, session, .. } = self;
+        drop((grip_space, stage, quit, _pose, action_set, waiter, stream));
+        // Forgotten: its `Drop` would destroy it.
+        std::mem::forget(session);
+    }
+
     pub fn request_exit(&mut self) -> Result<()> {
         if !self.exit_requested && self.running {
             self.session.request_exit().ctx("xrRequestExitSession")?;
