@@ -4,6 +4,7 @@
 //! periphery tiles only).
 
 mod compute;
+mod fill;
 pub(crate) mod reconstruct;
 pub mod rules;
 pub(crate) mod vk;

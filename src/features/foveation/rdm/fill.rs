@@ -1,0 +1,505 @@
+//! Radial density masking's reconstruction by the full-screen fragment fill
+//! (`shaders/rdm_fill.frag`): where the compute pass cannot run (`rules::compute_path`), the
+//! released swapchain image is copied into a temp image of the slot's and the fill draws the
+//! skipped quads back from it. Its objects are made once per device (per colour format for the
+//! render pass and pipeline) with no lock held.
+
+use super::reconstruct::{layer_error, submit, Failure, Slot};
+use super::rules::{NotApplied, Pending};
+use crate::core::rect::PixelRect;
+use super::vk::lock;
+use crate::vk::DeviceState;
+use ash::vk::{self, Handle};
+use std::collections::HashMap;
+
+static FILL_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill.vert.spv"));
+static FILL_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill.frag.spv"));
+
+pub(super) struct FillObjects {
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    sampler: vk::Sampler,
+    vert: vk::ShaderModule,
+    frag: vk::ShaderModule,
+    /// Per colour format: render pass (load, store, COLOR_ATTACHMENT_OPTIMAL) and pipeline.
+    passes: HashMap<vk::Format, (vk::RenderPass, vk::Pipeline)>,
+}
+
+impl FillObjects {
+    /// The shared objects without the per-format ones: copied out of the lock to make a
+    /// format's pipeline with no lock held.
+    fn shared(&self) -> FillObjects {
+        FillObjects { passes: HashMap::new(), ..*self }
+    }
+}
+
+/// A layer image of a swapchain image's shape (the fill's copy target, then sampled).
+pub(super) struct Temp {
+    image: vk::Image,
+    memory: vk::DeviceMemory,
+    view: vk::ImageView,
+    /// (format, width, height, layers).
+    key: (vk::Format, u32, u32, u32),
+}
+
+/// # Safety
+/// No pending GPU work may use it.
+pub(super) unsafe fn destroy_temp(d: &DeviceState, t: Temp) {
+    // SAFETY: per the contract.
+    unsafe {
+        d.fns.destroy_image_view(t.view, None);
+        d.fns.destroy_image(t.image, None);
+        d.fns.free_memory(t.memory, None);
+    }
+}
+
+/// The slot's temp image for the fill (a copy target of the swapchain image's shape, sampled),
+/// recreated when the shape changes; the fill's descriptor set (allocated on first use) then
+/// points at the new one.
+pub(super) fn ensure_temp(d: &DeviceState, slot: &mut Slot, format: vk::Format, shape: (u32, u32, u32), set_layout: vk::DescriptorSetLayout, sampler: vk::Sampler) -> Result<vk::Image, Failure> {
+    let key = (format, shape.0, shape.1, shape.2);
+    if let Some(t) = slot.temp.as_ref().filter(|t| t.key == key) {
+        return Ok(t.image);
+    }
+    if let Some(t) = slot.temp.take() {
+        // SAFETY: the slot's fence signalled: nothing uses it.
+        unsafe { destroy_temp(d, t) };
+    }
+    let t = make_temp(d, format, vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::SAMPLED, shape)?;
+    // SAFETY: the slot's pool has room for this one fill set (see `new_slot`); the set is not in
+    // use (the slot's fence signalled).
+    unsafe {
+        if slot.set == vk::DescriptorSet::null() {
+            let layouts = [set_layout];
+            match d.fns.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(slot.descriptor_pool).set_layouts(&layouts)) {
+                Ok(sets) => slot.set = sets[0],
+                Err(e) => {
+                    destroy_temp(d, t);
+                    return Err((NotApplied::LayerError, format!("descriptor set: {e}")));
+                }
+            }
+        }
+        let infos = [vk::DescriptorImageInfo { sampler, image_view: t.view, image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL }];
+        let write = vk::WriteDescriptorSet::default().dst_set(slot.set).dst_binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(&infos);
+        d.fns.update_descriptor_sets(&[write], &[]);
+    }
+    let image = t.image;
+    slot.temp = Some(t);
+    Ok(image)
+}
+
+/// A device-local image of `format` and `usage` with the swapchain image's shape
+/// (width, height, layers) and a 2D-array view of it.
+pub(super) fn make_temp(d: &DeviceState, format: vk::Format, usage: vk::ImageUsageFlags, (width, height, layers): (u32, u32, u32)) -> Result<Temp, Failure> {
+    let key = (format, width, height, layers);
+    let info = vk::ImageCreateInfo::default()
+        .image_type(vk::ImageType::TYPE_2D)
+        .format(format)
+        .extent(vk::Extent3D { width, height, depth: 1 })
+        .mip_levels(1)
+        .array_layers(layers)
+        .samples(vk::SampleCountFlags::TYPE_1)
+        .tiling(vk::ImageTiling::OPTIMAL)
+        .usage(usage)
+        .sharing_mode(vk::SharingMode::EXCLUSIVE)
+        .initial_layout(vk::ImageLayout::UNDEFINED);
+    // SAFETY: valid create / allocate infos on our device; failures destroy what was made.
+    unsafe {
+        let image = d.fns.create_image(&info, None).map_err(layer_error("temp image"))?;
+        let req = d.fns.get_image_memory_requirements(image);
+        let mem = &d.features.rdm.reconstruct.memory;
+        let index = crate::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
+            .or_else(|| crate::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
+        let Some(index) = index else {
+            d.fns.destroy_image(image, None);
+            return Err((NotApplied::LayerError, "no memory type for the temp image".into()));
+        };
+        let memory = match d.fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(index), None) {
+            Ok(m) => m,
+            Err(e) => {
+                d.fns.destroy_image(image, None);
+                return Err((NotApplied::LayerError, format!("temp memory: {e}")));
+            }
+        };
+        let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: layers };
+        let view = d.fns.bind_image_memory(image, memory, 0).and_then(|_| {
+            d.fns.create_image_view(&vk::ImageViewCreateInfo::default().image(image).view_type(vk::ImageViewType::TYPE_2D_ARRAY).format(format).subresource_range(range), None)
+        });
+        match view {
+            Ok(view) => Ok(Temp { image, memory, view, key }),
+            Err(e) => {
+                d.fns.destroy_image(image, None);
+                d.fns.free_memory(memory, None);
+                Err((NotApplied::LayerError, format!("temp view: {e}")))
+            }
+        }
+    }
+}
+
+/// Push constants of shaders/rdm_fill.frag.
+#[repr(C)]
+#[derive(Clone, Copy)]
+struct FillParams {
+    rect: [i32; 4],
+    tan: [f32; 4],
+    fovea: [f32; 4],
+    layer: i32,
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn record_and_submit(
+    d: &DeviceState,
+    slot: &mut Slot,
+    image: u64,
+    format: vk::Format,
+    shape: (u32, u32, u32),
+    eyes: &[Pending],
+    family: u32,
+    queue_index: u32,
+    (layout, set_layout, render_pass, pipeline, sampler): (vk::PipelineLayout, vk::DescriptorSetLayout, vk::RenderPass, vk::Pipeline, vk::Sampler),
+) -> Result<(), Failure> {
+    let temp = ensure_temp(d, slot, format, shape, set_layout, sampler)?;
+    let image = vk::Image::from_raw(image);
+    let (width, height, _) = shape;
+    let whole = PixelRect { x: 0, y: 0, width, height };
+    let mut layers: Vec<u32> = eyes.iter().map(|p| p.layer).collect();
+    layers.sort_unstable();
+    layers.dedup();
+    let range = |layer: u32, count: u32| vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: count };
+    let layer_of = |layer: u32| vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: layer, layer_count: 1 };
+    let cb = slot.cb;
+    // SAFETY: our command buffer, reset and not in use (its fence signalled); every handle is
+    // alive: the swapchain image is acquired by the app and not yet released; arrays outlive the
+    // calls. The OpenXR Vulkan binding lets a call inside xrReleaseSwapchainImage use the session's
+    // queue (the app synchronizes its queue use around these calls).
+    unsafe {
+        d.fns.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(layer_error("begin"))?;
+        // The app's writes (rendering, or resolve / copy from an intermediate) finish before the
+        // copy reads the image; the temp image's previous readers before it is overwritten.
+        let mut first: Vec<vk::ImageMemoryBarrier> = layers
+            .iter()
+            .map(|&l| {
+                vk::ImageMemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::TRANSFER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
+                    .old_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                    .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .image(image)
+                    .subresource_range(range(l, 1))
+            })
+            .collect();
+        first.push(
+            vk::ImageMemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::empty())
+                .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .old_layout(vk::ImageLayout::UNDEFINED)
+                .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
+                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .image(temp)
+                .subresource_range(range(0, shape.2)),
+        );
+        d.fns.cmd_pipeline_barrier(
+            cb,
+            vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::FRAGMENT_SHADER,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::DependencyFlags::empty(),
+            &[],
+            &[],
+            &first,
+        );
+        let regions: Vec<vk::ImageCopy> = eyes
+            .iter()
+            .map(|p| {
+                let r = p.params.rect.intersect(&whole);
+                vk::ImageCopy {
+                    src_subresource: layer_of(p.layer),
+                    src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+                    dst_subresource: layer_of(p.layer),
+                    dst_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+                    extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
+                }
+            })
+            .collect();
+        d.fns.cmd_copy_image(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, temp, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &regions);
+        let mut second: Vec<vk::ImageMemoryBarrier> = layers
+            .iter()
+            .map(|&l| {
+                vk::ImageMemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::empty())
+                    .dst_access_mask(vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE)
+                    .old_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
+                    .new_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .image(image)
+                    .subresource_range(range(l, 1))
+            })
+            .collect();
+        second.push(
+            vk::ImageMemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::SHADER_READ)
+                .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
+                .new_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
+                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                .image(temp)
+                .subresource_range(range(0, shape.2)),
+        );
+        d.fns.cmd_pipeline_barrier(
+            cb,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+            vk::DependencyFlags::empty(),
+            &[],
+            &[],
+            &second,
+        );
+        for &l in &layers {
+            let view = d
+                .fns
+                .create_image_view(&vk::ImageViewCreateInfo::default().image(image).view_type(vk::ImageViewType::TYPE_2D).format(format).subresource_range(range(l, 1)), None)
+                .map_err(layer_error("swapchain view"))?;
+            let views = [view];
+            let fb = match d.fns.create_framebuffer(
+                &vk::FramebufferCreateInfo::default().render_pass(render_pass).attachments(&views).width(width).height(height).layers(1),
+                None,
+            ) {
+                Ok(f) => f,
+                Err(e) => {
+                    d.fns.destroy_image_view(view, None);
+                    return Err((NotApplied::LayerError, format!("framebuffer: {e}")));
+                }
+            };
+            slot.transient.push((view, fb));
+            let here: Vec<&Pending> = eyes.iter().filter(|p| p.layer == l).collect();
+            let area = here.iter().map(|p| p.params.rect.intersect(&whole)).reduce(|a, b| {
+                let (x0, y0) = (a.x.min(b.x), a.y.min(b.y));
+                let x1 = (a.x + a.width as i32).max(b.x + b.width as i32);
+                let y1 = (a.y + a.height as i32).max(b.y + b.height as i32);
+                PixelRect { x: x0, y: y0, width: (x1 - x0) as u32, height: (y1 - y0) as u32 }
+            });
+            let Some(area) = area else { continue };
+            let rect2d = |r: PixelRect| vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } };
+            d.fns.cmd_begin_render_pass(
+                cb,
+                &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(fb).render_area(rect2d(area)),
+                vk::SubpassContents::INLINE,
+            );
+            d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[slot.set], &[]);
+            for p in here {
+                let r = p.params.rect;
+                let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
+                d.fns.cmd_set_viewport(cb, 0, &[vp]);
+                d.fns.cmd_set_scissor(cb, 0, &[rect2d(r.intersect(&whole))]);
+                let pc = FillParams {
+                    rect: [r.x, r.y, r.width as i32, r.height as i32],
+                    tan: [p.params.tan_left, p.params.tan_up, p.params.step_x, p.params.step_y],
+                    fovea: [p.params.center[0], p.params.center[1], p.params.k_inner, p.params.k_middle],
+                    layer: p.layer as i32,
+                };
+                let bytes = std::slice::from_raw_parts(&pc as *const FillParams as *const u8, std::mem::size_of::<FillParams>());
+                d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, bytes);
+                d.fns.cmd_draw(cb, 3, 1, 0, 0);
+            }
+            d.fns.cmd_end_render_pass(cb);
+        }
+    }
+    submit(d, slot, family, queue_index)
+}
+
+/// The fill pipeline's shared objects and the render pass + pipeline for `format`, made once.
+pub(super) fn fill_objects(d: &DeviceState, format: vk::Format) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::RenderPass, vk::Pipeline, vk::Sampler), String> {
+    // Objects are made with no lock held: the calls go down the chain, and what is below may
+    // call back into the layer. A thread that loses a race to another destroys its own.
+    let fill = &d.features.rdm.reconstruct.fill;
+    let have = lock(fill).as_ref().map(|f| (f.shared(), f.passes.get(&format).copied()));
+    let common = match have {
+        Some((f, Some((rp, p)))) => return Ok((f.layout, f.set_layout, rp, p, f.sampler)),
+        Some((f, None)) => f,
+        None => {
+            let new = create_fill_common(d)?;
+            let mut guard = lock(fill);
+            match guard.as_ref() {
+                Some(f) => {
+                    let existing = f.shared();
+                    drop(guard);
+                    // SAFETY: ours, never used.
+                    unsafe { destroy_fill(d, new) };
+                    existing
+                }
+                None => {
+                    let made = new.shared();
+                    *guard = Some(new);
+                    made
+                }
+            }
+        }
+    };
+    let (rp, p) = create_fill_pipeline(d, &common, format)?;
+    let mut guard = lock(fill);
+    let existing = match guard.as_mut() {
+        Some(f) => match f.passes.get(&format) {
+            Some(&existing) => Some(existing),
+            None => {
+                f.passes.insert(format, (rp, p));
+                None
+            }
+        },
+        // Gone meanwhile (the device is being destroyed): ours goes too.
+        None => Some((vk::RenderPass::null(), vk::Pipeline::null())),
+    };
+    drop(guard);
+    match existing {
+        None => Ok((common.layout, common.set_layout, rp, p, common.sampler)),
+        Some((erp, ep)) => {
+            // SAFETY: ours, never used.
+            unsafe {
+                d.fns.destroy_pipeline(p, None);
+                d.fns.destroy_render_pass(rp, None);
+            }
+            if ep == vk::Pipeline::null() {
+                return Err("the device's RDM objects are being destroyed".into());
+            }
+            Ok((common.layout, common.set_layout, erp, ep, common.sampler))
+        }
+    }
+}
+
+pub(super) fn create_fill_common(d: &DeviceState) -> Result<FillObjects, String> {
+    let module = |bytes: &[u8]| -> Result<vk::ShaderModule, String> {
+        let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes)).map_err(|e| e.to_string())?;
+        // SAFETY: valid SPIR-V compiled at build time.
+        unsafe { d.fns.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }.map_err(|e| e.to_string())
+    };
+    let bindings = [vk::DescriptorSetLayoutBinding::default()
+        .binding(0)
+        .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+        .descriptor_count(1)
+        .stage_flags(vk::ShaderStageFlags::FRAGMENT)];
+    // SAFETY: valid create infos on our device.
+    unsafe {
+        let set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
+        let set_layouts = [set_layout];
+        let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::FRAGMENT, offset: 0, size: std::mem::size_of::<FillParams>() as u32 }];
+        let layout = d
+            .fns
+            .create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges), None)
+            .map_err(|e| e.to_string())?;
+        let sampler = d
+            .fns
+            .create_sampler(
+                &vk::SamplerCreateInfo::default()
+                    .mag_filter(vk::Filter::NEAREST)
+                    .min_filter(vk::Filter::NEAREST)
+                    .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                    .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+                    .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE),
+                None,
+            )
+            .map_err(|e| e.to_string())?;
+        Ok(FillObjects { set_layout, layout, sampler, vert: module(FILL_VERT)?, frag: module(FILL_FRAG)?, passes: HashMap::new() })
+    }
+}
+
+pub(super) fn create_fill_pipeline(d: &DeviceState, f: &FillObjects, format: vk::Format) -> Result<(vk::RenderPass, vk::Pipeline), String> {
+    let attachments = [vk::AttachmentDescription::default()
+        .format(format)
+        .samples(vk::SampleCountFlags::TYPE_1)
+        .load_op(vk::AttachmentLoadOp::LOAD)
+        .store_op(vk::AttachmentStoreOp::STORE)
+        .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
+        .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
+        .initial_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+        .final_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)];
+    let color = [vk::AttachmentReference { attachment: 0, layout: vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL }];
+    let subpasses = [vk::SubpassDescription::default().pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS).color_attachments(&color)];
+    // In: the barriers before the pass already order it after the copy. Out: whatever reads the
+    // image next (the runtime's compositor or capture) sees the reconstructed pixels.
+    let deps = [
+        vk::SubpassDependency {
+            src_subpass: vk::SUBPASS_EXTERNAL,
+            dst_subpass: 0,
+            src_stage_mask: vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+            dst_stage_mask: vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+            src_access_mask: vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+            dst_access_mask: vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+            dependency_flags: vk::DependencyFlags::empty(),
+        },
+        vk::SubpassDependency {
+            src_subpass: 0,
+            dst_subpass: vk::SUBPASS_EXTERNAL,
+            src_stage_mask: vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+            dst_stage_mask: vk::PipelineStageFlags::ALL_COMMANDS,
+            src_access_mask: vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+            dst_access_mask: vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE,
+            dependency_flags: vk::DependencyFlags::empty(),
+        },
+    ];
+    // SAFETY: valid create infos; arrays outlive the calls.
+    unsafe {
+        let rp = d
+            .fns
+            .create_render_pass(&vk::RenderPassCreateInfo::default().attachments(&attachments).subpasses(&subpasses).dependencies(&deps), None)
+            .map_err(|e| e.to_string())?;
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(f.vert).name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(f.frag).name(c"main"),
+        ];
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(vk::CullModeFlags::NONE)
+            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .line_width(1.0);
+        let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let blend_atts = [vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA)];
+        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_atts);
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let info = vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&input_assembly)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic)
+            .layout(f.layout)
+            .render_pass(rp)
+            .subpass(0);
+        match d.fns.create_graphics_pipelines(vk::PipelineCache::null(), &[info], None) {
+            Ok(p) => Ok((rp, p[0])),
+            Err((_, e)) => {
+                d.fns.destroy_render_pass(rp, None);
+                Err(e.to_string())
+            }
+        }
+    }
+}
+
+/// # Safety
+/// No submission using `f`'s objects may be pending.
+pub(super) unsafe fn destroy_fill(d: &DeviceState, f: FillObjects) {
+    // SAFETY: per the contract.
+    unsafe {
+        for (rp, p) in f.passes.values() {
+            d.fns.destroy_pipeline(*p, None);
+            d.fns.destroy_render_pass(*rp, None);
+        }
+        d.fns.destroy_pipeline_layout(f.layout, None);
+        d.fns.destroy_descriptor_set_layout(f.set_layout, None);
+        d.fns.destroy_sampler(f.sampler, None);
+        d.fns.destroy_shader_module(f.vert, None);
+        d.fns.destroy_shader_module(f.frag, None);
+    }
+}
+
+
