@@ -1,6 +1,6 @@
 //! The intercepted commands (`spec::FUNCS`): the marker instance notes the app's call on its
 //! thread and calls down; the lower instance counts the call, by origin, and either fails it
-//! (null outputs, no call down) or calls down.
+//! (null outputs, no call down) or calls down, noting the objects created with `VK_FAULT_COUNT`.
 
 use crate::spec::{self, Origin};
 use ash::vk::{self, Handle};
@@ -40,8 +40,18 @@ unsafe fn submit_signature(count: u32, submits: *const vk::SubmitInfo<'_>) -> Ve
 }
 
 /// Runs `down` (the call to the next layer) for the marker (`U`) or the lower instance; the
-/// lower one first re-enters the chain when `VK_FAULT_REENTER` names the command (`reenter`).
-fn intercept<const U: bool>(func: usize, signature: Vec<u64>, down: impl FnOnce() -> vk::Result, clear: impl FnOnce(), reenter: impl FnOnce()) -> vk::Result {
+/// lower one first re-enters the chain when `VK_FAULT_REENTER` names the command (`reenter`),
+/// and with `VK_FAULT_COUNT` notes the handles `created` reads once the call succeeded (`device`:
+/// the dispatch key of the call's device).
+fn intercept<const U: bool>(
+    func: usize,
+    signature: Vec<u64>,
+    device: usize,
+    down: impl FnOnce() -> vk::Result,
+    clear: impl FnOnce(),
+    reenter: impl FnOnce(),
+    created: impl FnOnce() -> Vec<u64>,
+) -> vk::Result {
     let name = spec::FUNCS[func][0];
     if U {
         APP_CALLS.with(|c| c.borrow_mut().push((func, signature)));
@@ -76,7 +86,15 @@ fn intercept<const U: bool>(func: usize, signature: Vec<u64>, down: impl FnOnce(
         }
         None => {
             reenter();
-            down()
+            let r = down();
+            // Positive results (a pipeline compile required) are successes that may have
+            // created some of the outputs; `created` skips the null ones.
+            if crate::count::enabled() && r.as_raw() >= 0 {
+                if let Some(kind) = crate::count::kind_of_creation(name) {
+                    crate::count::created(device, kind, origin, created());
+                }
+            }
+            r
         }
     }
 }
@@ -97,13 +115,28 @@ unsafe fn null_out<T: Handle>(out: *mut T, n: u32) {
     }
 }
 
+/// The `n` handles at `out` (null ones included), as raw values.
+///
+/// # Safety
+/// `out` must be valid for reading `n` handles.
+unsafe fn handles<T: Handle + Copy>(out: *const T, n: u32) -> Vec<u64> {
+    // SAFETY: within the `n` handles the caller guarantees.
+    (0..n as usize).map(|i| unsafe { *out.add(i) }.as_raw()).collect()
+}
+
+/// No handles counted: a submission, or handles that go with their pool (`count`); `unsafe`
+/// only to share the hooks' one shape.
+unsafe fn no_handles() -> Vec<u64> {
+    Vec::new()
+}
+
 /// `vkQueueSubmit` writes nothing to clear; `unsafe` only to share the hooks' one shape.
 unsafe fn no_outputs() {}
 
 /// One intercepted command: its hook (generic over the role), the signature of the app's call,
-/// and how its outputs are cleared when it fails.
+/// how its outputs are cleared when it fails, and the handles it created when it succeeded.
 macro_rules! hooks {
-    ($($hook:ident $name:literal $pfn:ty = ($first:ident : $ft:ty $(, $a:ident : $t:ty)*) sig $sig:expr; clear $clear:block)*) => {
+    ($($hook:ident $name:literal $pfn:ty = ($first:ident : $ft:ty $(, $a:ident : $t:ty)*) sig $sig:expr; clear $clear:block keep $keep:block)*) => {
         $(
             unsafe extern "system" fn $hook<const U: bool>($first: $ft $(, $a: $t)*) -> vk::Result {
                 crate::entry($name, vk::Result::ERROR_UNKNOWN, || {
@@ -121,7 +154,11 @@ macro_rules! hooks {
                     // usage requires (counts read from the caller's valid infos); on failure the
                     // spec leaves them undefined, and null handles are what a careful driver writes.
                     let clear = || unsafe { $clear };
-                    intercept::<U>(func, $sig, down, clear, || crate::reenter::from($name, $first))
+                    // SAFETY: read only after the call succeeded, when the outputs hold the
+                    // created handles (counts as for `clear`).
+                    let created = || -> Vec<u64> { unsafe { $keep } };
+                    let key = crate::dispatch_key($first);
+                    intercept::<U>(func, $sig, key, down, clear, || crate::reenter::from($name, $first), created)
                 })
             }
         )*
@@ -146,47 +183,67 @@ type Alloc<'a> = *const vk::AllocationCallbacks<'a>;
 hooks! {
     create_image "vkCreateImage" vk::PFN_vkCreateImage = (device: vk::Device, ci: *const vk::ImageCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Image) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     allocate_memory "vkAllocateMemory" vk::PFN_vkAllocateMemory = (device: vk::Device, info: *const vk::MemoryAllocateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::DeviceMemory) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     create_graphics_pipelines "vkCreateGraphicsPipelines" vk::PFN_vkCreateGraphicsPipelines = (device: vk::Device, cache: vk::PipelineCache, count: u32, infos: *const vk::GraphicsPipelineCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Pipeline) sig Vec::new();
         clear { null_out(out, count) }
+        keep { handles(out, count) }
     create_compute_pipelines "vkCreateComputePipelines" vk::PFN_vkCreateComputePipelines = (device: vk::Device, cache: vk::PipelineCache, count: u32, infos: *const vk::ComputePipelineCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Pipeline) sig Vec::new();
         clear { null_out(out, count) }
+        keep { handles(out, count) }
     create_shader_module "vkCreateShaderModule" vk::PFN_vkCreateShaderModule = (device: vk::Device, ci: *const vk::ShaderModuleCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::ShaderModule) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     queue_submit "vkQueueSubmit" vk::PFN_vkQueueSubmit = (queue: vk::Queue, count: u32, submits: *const vk::SubmitInfo<'_>, fence: vk::Fence) sig {
             // SAFETY: the caller passes `count` valid submit infos.
             unsafe { submit_signature(count, submits) }
         };
         clear { no_outputs() }
+        keep { no_handles() }
     create_render_pass "vkCreateRenderPass" vk::PFN_vkCreateRenderPass = (device: vk::Device, ci: *const vk::RenderPassCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::RenderPass) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     create_render_pass2 "vkCreateRenderPass2" vk::PFN_vkCreateRenderPass2 = (device: vk::Device, ci: *const vk::RenderPassCreateInfo2<'_>, alloc: Alloc<'_>, out: *mut vk::RenderPass) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     create_image_view "vkCreateImageView" vk::PFN_vkCreateImageView = (device: vk::Device, ci: *const vk::ImageViewCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::ImageView) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     create_buffer "vkCreateBuffer" vk::PFN_vkCreateBuffer = (device: vk::Device, ci: *const vk::BufferCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Buffer) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     create_descriptor_pool "vkCreateDescriptorPool" vk::PFN_vkCreateDescriptorPool = (device: vk::Device, ci: *const vk::DescriptorPoolCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::DescriptorPool) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     allocate_descriptor_sets "vkAllocateDescriptorSets" vk::PFN_vkAllocateDescriptorSets = (device: vk::Device, info: *const vk::DescriptorSetAllocateInfo<'_>, out: *mut vk::DescriptorSet) sig Vec::new();
         clear { null_out(out, (*info).descriptor_set_count) }
+        keep { no_handles() }
     create_framebuffer "vkCreateFramebuffer" vk::PFN_vkCreateFramebuffer = (device: vk::Device, ci: *const vk::FramebufferCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Framebuffer) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     create_query_pool "vkCreateQueryPool" vk::PFN_vkCreateQueryPool = (device: vk::Device, ci: *const vk::QueryPoolCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::QueryPool) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     allocate_command_buffers "vkAllocateCommandBuffers" vk::PFN_vkAllocateCommandBuffers = (device: vk::Device, info: *const vk::CommandBufferAllocateInfo<'_>, out: *mut vk::CommandBuffer) sig Vec::new();
         clear { null_out(out, (*info).command_buffer_count) }
+        keep { no_handles() }
     create_fence "vkCreateFence" vk::PFN_vkCreateFence = (device: vk::Device, ci: *const vk::FenceCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Fence) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     create_pipeline_layout "vkCreatePipelineLayout" vk::PFN_vkCreatePipelineLayout = (device: vk::Device, ci: *const vk::PipelineLayoutCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::PipelineLayout) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     create_descriptor_set_layout "vkCreateDescriptorSetLayout" vk::PFN_vkCreateDescriptorSetLayout = (device: vk::Device, ci: *const vk::DescriptorSetLayoutCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::DescriptorSetLayout) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     create_sampler "vkCreateSampler" vk::PFN_vkCreateSampler = (device: vk::Device, ci: *const vk::SamplerCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::Sampler) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
     create_command_pool "vkCreateCommandPool" vk::PFN_vkCreateCommandPool = (device: vk::Device, ci: *const vk::CommandPoolCreateInfo<'_>, alloc: Alloc<'_>, out: *mut vk::CommandPool) sig Vec::new();
         clear { null_out(out, 1) }
+        keep { handles(out, 1) }
 }
 
 #[cfg(test)]

@@ -13,6 +13,9 @@
 //! whether a call it sees was made by the app — the marker is inside the same call on the same
 //! thread — or by the layer in between for its own objects (`spec::Origin`).
 //!
+//! With `VK_FAULT_COUNT=1` the lower instance also keeps the live handles of the objects it sees
+//! created, by origin, and prints their counts (`count`).
+//!
 //! With `VK_FAULT_REENTER` the lower instance also calls back up to the top of the chain from
 //! inside chosen calls (`reenter`), proving that the layers above hold no lock across their calls
 //! down.
@@ -20,6 +23,7 @@
 //! Written from the loader's documented layer interface (LoaderLayerInterface.md, `vk_layer.h`).
 
 pub mod spec;
+mod count;
 mod hooks;
 mod reenter;
 
@@ -85,13 +89,14 @@ struct Instance {
 }
 
 /// The next layer's entry points for one device: `fns[i]` is command `spec::FUNCS[i]`,
-/// `reenter_fns[i]` command `spec::REENTER_ONLY[i]`.
+/// `reenter_fns[i]` command `spec::REENTER_ONLY[i]`, `count_fns[i]` command `count::next_names()[i]`.
 struct Device {
     handle: vk::Device,
     next_gdpa: vk::PFN_vkGetDeviceProcAddr,
     destroy: vk::PFN_vkDestroyDevice,
     fns: Vec<vk::PFN_vkVoidFunction>,
     reenter_fns: Vec<vk::PFN_vkVoidFunction>,
+    count_fns: Vec<vk::PFN_vkVoidFunction>,
     /// Re-entry (`VK_FAULT_REENTER`, lower instance only): the device's queues (handle → family),
     /// the family of its first queue create info, the top of the chain's functions and the
     /// re-entries made so far.
@@ -244,7 +249,7 @@ unsafe extern "system" fn get_instance_proc_addr<const U: bool>(instance: vk::In
             b"vkDestroyInstance" => void(destroy_instance::<U> as vk::PFN_vkDestroyInstance)?,
             b"vkCreateDevice" => void(create_device::<U> as vk::PFN_vkCreateDevice)?,
             b"vkDestroyDevice" => void(destroy_device::<U> as vk::PFN_vkDestroyDevice)?,
-            _ => hooks::lookup::<U>(n).or_else(|| reenter::lookup::<U>(n)).unwrap_or(next),
+            _ => hooks::lookup::<U>(n).or_else(|| count::lookup::<U>(n)).or_else(|| reenter::lookup::<U>(n)).unwrap_or(next),
         })
     })
 }
@@ -264,7 +269,7 @@ unsafe extern "system" fn get_device_proc_addr<const U: bool>(device: vk::Device
         let next = unsafe { (dev.next_gdpa)(device, name) }?;
         Some(match n {
             b"vkDestroyDevice" => void(destroy_device::<U> as vk::PFN_vkDestroyDevice)?,
-            _ => hooks::lookup::<U>(n).or_else(|| reenter::lookup::<U>(n)).unwrap_or(next),
+            _ => hooks::lookup::<U>(n).or_else(|| count::lookup::<U>(n)).or_else(|| reenter::lookup::<U>(n)).unwrap_or(next),
         })
     })
 }
@@ -382,14 +387,14 @@ unsafe extern "system" fn create_device<const U: bool>(
                 })
                 .collect()
         };
-        let (fns, reenter_fns) = (resolve(spec::FUNCS), resolve(spec::REENTER_ONLY));
+        let (fns, reenter_fns, count_fns) = (resolve(spec::FUNCS), resolve(spec::REENTER_ONLY), resolve(&count::next_names()));
         // Only the lower instance re-enters, and only when asked to: the marker's next layer is
         // stereoshim, which must not see calls of the marker's own.
         let get_queue = if !U && reenter::names().as_ref().is_ok_and(|n| !n.is_empty()) { get(c"vkGetDeviceQueue") } else { None };
         // SAFETY: the app's valid create info, read during its call; the queue getter the next
         // layer returned for this device.
         let reenter = unsafe { reenter::DeviceReentry::new(&*ci, get_queue, handle) };
-        lock(&role(U).devices).insert(dispatch_key(handle), Arc::new(Device { handle, next_gdpa, destroy, fns, reenter_fns, reenter }));
+        lock(&role(U).devices).insert(dispatch_key(handle), Arc::new(Device { handle, next_gdpa, destroy, fns, reenter_fns, count_fns, reenter }));
         r
     })
 }
@@ -400,6 +405,11 @@ unsafe extern "system" fn destroy_device<const U: bool>(device: vk::Device, allo
         let Some(dev) = device_state::<U>(key) else { return };
         if !U {
             dev.reenter.report();
+            // Before calling down: the layer above destroyed its objects before its call reached
+            // this one, and nothing can be destroyed on the device after it.
+            if count::enabled() {
+                count::report(key, "vkDestroyDevice", true);
+            }
         }
         // SAFETY: the app's arguments, to the next layer.
         unsafe { (dev.destroy)(device, allocator) };

@@ -88,6 +88,11 @@ fn run_instance(opts: &cli::Options) -> Result<u64> {
             return error::fail(errors.join("; "));
         }
         if opts.sessions > 1 {
+            // Between sessions, as an app waits before it tears down or rebuilds its rendering:
+            // the fault layer's `VK_FAULT_COUNT` prints the live Vulkan objects at this call, when
+            // the session and everything made for it are gone (tests/vk_objects.rs).
+            // SAFETY: the device outlives the sessions; nothing else uses it on another thread.
+            let _ = unsafe { gpu.device.device_wait_idle() };
             // What a leak across sessions would show: the process's resident memory after each
             // session's objects are gone (tests/lifecycle.rs).
             eprintln!("xr-scene: session {session} ended after {} frames, rss {} kB", frame - first, rss_kb().unwrap_or(0));
