@@ -6,7 +6,8 @@
 //! `VK_FAULT_COUNT=1` (and no fault): it tells the layer's creations from the app's (its marker
 //! instance sits above stereoshim) and prints the live handles of each kind, by origin, at each of
 //! the app's `vkDeviceWaitIdle` calls — xr-scene makes one after each session, once the session is
-//! destroyed — and at `vkDestroyDevice`.
+//! destroyed — and at `vkDestroyDevice`. The layer's own count of them (`own.*` in its device
+//! stats line, src/vk/own.rs) must equal what the layer below saw.
 
 mod common;
 
@@ -109,6 +110,31 @@ fn sessions_recreated_with_every_feature_on_keep_the_layers_vulkan_objects_flat(
     let (layer, app) = &destroy[0];
     assert!(layer.values().all(|n| *n == 0), "the layer's objects outlive its device: {layer:?}");
     eprintln!("at vkDestroyDevice: layer {layer:?}; app {app:?}; run took {:?}", out.elapsed);
+    // The layer's own count (`own.*` in its device stats line, kept by counting trampolines in
+    // its dispatch table: src/vk/own.rs) is what the layer below saw it make: the line is written
+    // at vkDestroyDevice before the layer destroys its objects, when it holds what it held after
+    // the last session.
+    let line = out.log_lines("vulkan device stats");
+    assert_eq!(line.len(), 1, "{}", out.log);
+    let own: BTreeMap<String, u64> = line[0]
+        .split_whitespace()
+        .filter_map(|w| w.strip_prefix("own."))
+        .map(|w| {
+            let (k, v) = w.split_once('=').unwrap();
+            let k = match k {
+                "memory" => "memory",
+                "render_passes" => "render_pass",
+                k => k.strip_suffix('s').unwrap_or(k),
+            };
+            (k.to_string(), v.parse().unwrap())
+        })
+        .collect();
+    assert_eq!(own.len(), 15, "{}", line[0]);
+    let below = &after[SESSIONS - 1].0;
+    for (k, n) in &own {
+        assert_eq!(below.get(k).copied().unwrap_or(0), *n, "own.{k}: the layer counts {n}, the layer below saw {below:?}");
+    }
+    out.assert_log_lacks(Half::Vulkan, "the layer's own objects still alive");
     // Checked after the counts, so a leak fails with the counts rather than with validation's
     // objects alive at vkDestroyDevice (which it reports too).
     out.assert_ok().assert_layer_loaded(Half::Both).assert_log_lacks(Half::Both, "internal failure");

@@ -399,7 +399,9 @@ pub(super) unsafe extern "system" fn create_device(
         // SAFETY: on success the driver wrote the device.
         let device = unsafe { *p_device };
         // SAFETY: the next layer's gdpa for the device it just created.
-        let fns = unsafe { ash::Device::load_with(|n| super::device_proc(next_gdpa, device, n), device) };
+        let next = unsafe { ash::Device::load_with(|n| super::device_proc(next_gdpa, device, n), device) };
+        // SAFETY: as above.
+        let (fns, own) = unsafe { super::own::register(device, &next, next_gdpa) };
         let ext = load_ext(next_gdpa, device);
         // SAFETY: a physical device of this instance; the next layer's instance functions.
         let memory = unsafe { inst.fns.get_physical_device_memory_properties(pd) };
@@ -436,6 +438,8 @@ pub(super) unsafe extern "system" fn create_device(
             handle: device,
             next_gdpa,
             fns,
+            next,
+            own,
             ext,
             pass_through: inst.pass_through.clone(),
             track: Default::default(),
@@ -540,6 +544,8 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
             t.pools.len(),
             t.command_buffers.len()
         ));
+        // What the layer itself holds on the device before it destroys it all below.
+        line.push_str(&dev.own.summary());
         tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {line}");
         let repeats = dev.repeats.summary();
         if !repeats.is_empty() {
@@ -554,9 +560,14 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
         super::secondary::destroy(&dev);
         super::gpu_time::destroy(&dev);
         super::lifetime::destroy(&dev);
+        let alive = dev.own.alive();
+        if !alive.is_empty() {
+            tracing::warn!(device = ?dev.handle, "the layer's own objects still alive after it destroyed everything: {alive:?}");
+        }
         // SAFETY: forwarding the app's arguments.
-        unsafe { (dev.fns.fp_v1_0().destroy_device)(device, allocator) };
+        unsafe { (dev.next.fp_v1_0().destroy_device)(device, allocator) };
         layer().devices.remove(key);
+        super::own::unregister(device);
     })
 }
 

@@ -16,6 +16,7 @@ mod keep_depth;
 pub(crate) mod lifetime;
 pub mod loader;
 pub(crate) mod secondary;
+mod own;
 #[cfg(test)]
 pub(crate) mod test_chain;
 
@@ -70,9 +71,16 @@ pub(crate) struct DeviceState {
     /// What the device was created with: every layer object is checked against it.
     pub caps: crate::track::caps::DeviceCaps,
     pub next_gdpa: vk::PFN_vkGetDeviceProcAddr,
-    /// The next layer's device functions; core names fall back to their KHR/EXT aliases, so the
-    /// table works on devices that offer a command only as an extension.
+    /// The device functions for everything the layer does itself: the next layer's (core names
+    /// falling back to their KHR/EXT aliases, so the table works on devices that offer a command
+    /// only as an extension), with the creation and destruction of its own objects counted
+    /// (`own`).
     pub fns: ash::Device,
+    /// The next layer's functions as they are: where the app's own create and destroy calls go
+    /// down, uncounted.
+    pub next: ash::Device,
+    /// The layer's own live Vulkan objects, by kind (`own.*` in the device stats line).
+    pub own: Arc<own::Counted>,
     pub ext: ExtFns,
     pub pass_through: Arc<PassThrough>,
     pub track: DeviceTracker,

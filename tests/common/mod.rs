@@ -213,13 +213,18 @@ pub fn every_feature(base: Run, name: &str) -> Run {
 
 /// Every device stats line says the layer tracks nothing of the app's objects any more (the app
 /// destroyed them all before its device): no state kept across sessions, swapchains or instances.
+/// And none of the layer's own Vulkan objects outlives its teardown at `vkDestroyDevice`.
 pub fn assert_nothing_tracked(out: &RunOutput) {
+    assert!(!out.log.contains("the layer's own objects still alive"), "{}", out.log);
     let lines = out.log_lines("vulkan device stats");
     assert!(!lines.is_empty(), "no device stats line:\n{}", out.log);
     for l in lines {
         let live: Vec<&str> = l.split_whitespace().filter(|w| w.starts_with("live.")).collect();
         assert_eq!(live.len(), 7, "{l}");
         assert!(live.iter().all(|w| w.ends_with("=0")), "the layer still tracks destroyed objects: {live:?}");
+        // The layer's own Vulkan objects (`own.*`, src/vk/own.rs) are listed there too, and all
+        // destroyed right after it.
+        assert_eq!(l.split_whitespace().filter(|w| w.starts_with("own.")).count(), 15, "{l}");
     }
 }
 

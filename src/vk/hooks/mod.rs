@@ -98,7 +98,7 @@ macro_rules! create_hook {
                 device,
                 vk::Result::ERROR_INITIALIZATION_FAILED,
                 // SAFETY: forwarding the app's arguments unchanged.
-                |d| unsafe { (d.fns.$fp().$f)(device, ci, allocator, out) },
+                |d| unsafe { (d.next.$fp().$f)(device, ci, allocator, out) },
                 |d, r| {
                     if r == vk::Result::SUCCESS {
                         // SAFETY: on success the handle was written; the create info is valid
@@ -121,7 +121,7 @@ macro_rules! destroy_hook {
                 device,
                 (),
                 // SAFETY: forwarding the app's arguments unchanged.
-                |d| unsafe { (d.fns.$fp().$f)(device, handle, allocator) },
+                |d| unsafe { (d.next.$fp().$f)(device, handle, allocator) },
                 |$d, _| {
                     let $h = handle.as_raw();
                     $forget;
@@ -153,14 +153,14 @@ pub(super) unsafe extern "system" fn create_image(
             let extra = d.features.all().iter().fold(vk::ImageUsageFlags::empty(), |u, f| u | f.image_usage(&settings, (*ci).usage));
             if !extra.is_empty() && !(*ci).usage.contains(extra) {
                 let amended = vk::ImageCreateInfo { usage: (*ci).usage | extra, ..*ci };
-                let r = (d.fns.fp_v1_0().create_image)(device, &amended, allocator, out);
+                let r = (d.next.fp_v1_0().create_image)(device, &amended, allocator, out);
                 if r == vk::Result::SUCCESS {
                     added.set(extra);
                     return r;
                 }
                 tracing::debug!(?r, "vkCreateImage with the layer's added usage failed; the app's own create info is used");
             }
-            (d.fns.fp_v1_0().create_image)(device, ci, allocator, out)
+            (d.next.fp_v1_0().create_image)(device, ci, allocator, out)
         },
         |d, r| {
             if r == vk::Result::SUCCESS {
@@ -221,7 +221,7 @@ fn create_render_pass_common(
             if let Some(Some(rp)) = decided {
                 // SAFETY: the app's pass with only the feature's additions, with the app's
                 // allocator (the app destroys the pass).
-                let r = unsafe { (d.fns.fp_v1_2().create_render_pass2)(device, &rp.amended.info, allocator, out) };
+                let r = unsafe { (d.next.fp_v1_2().create_render_pass2)(device, &rp.amended.info, allocator, out) };
                 if r == vk::Result::SUCCESS {
                     appended.set(Some(rp.appended_attachment));
                     return r;
@@ -260,7 +260,7 @@ pub(super) unsafe extern "system" fn create_render_pass(
         out,
         RenderPassInfo::V1(ci.cast()),
         // SAFETY: the app's arguments, the create info with depth kept when a feature reads it.
-        |d| unsafe { (d.fns.fp_v1_0().create_render_pass)(device, ci, allocator, out) },
+        |d| unsafe { (d.next.fp_v1_0().create_render_pass)(device, ci, allocator, out) },
         // SAFETY: the create info is valid during the app's call.
         |h| unsafe { convert::render_pass(h, &*ci) },
     )
@@ -282,7 +282,7 @@ pub(super) unsafe extern "system" fn create_render_pass2(
         out,
         RenderPassInfo::V2(ci.cast()),
         // SAFETY: the app's arguments, the create info with depth kept when a feature reads it.
-        |d| unsafe { (d.fns.fp_v1_2().create_render_pass2)(device, ci, allocator, out) },
+        |d| unsafe { (d.next.fp_v1_2().create_render_pass2)(device, ci, allocator, out) },
         // SAFETY: the create info is valid during the app's call.
         |h| unsafe { convert::render_pass2(h, &*ci) },
     )
@@ -316,9 +316,9 @@ pub(super) unsafe extern "system" fn create_framebuffer(
         },
         |d, decided| match decided {
             // SAFETY: the app's info with only the feature's additions.
-            Some(Some(f)) => unsafe { (d.fns.fp_v1_0().create_framebuffer)(device, &f.info, allocator, out) },
+            Some(Some(f)) => unsafe { (d.next.fp_v1_0().create_framebuffer)(device, &f.info, allocator, out) },
             // SAFETY: forwarding the app's arguments unchanged.
-            _ => unsafe { (d.fns.fp_v1_0().create_framebuffer)(device, ci, allocator, out) },
+            _ => unsafe { (d.next.fp_v1_0().create_framebuffer)(device, ci, allocator, out) },
         },
         |d, r| {
             let ok = r == vk::Result::SUCCESS;
@@ -367,7 +367,7 @@ pub(super) unsafe extern "system" fn create_graphics_pipelines(
         // SAFETY: the app's infos, valid during its call; the amendment lives in the decision.
         |d| d.features.all().iter().find_map(|f| unsafe { f.amend_pipelines(d, infos, count) }),
         |d, decided| {
-            let create = d.fns.fp_v1_0().create_graphics_pipelines;
+            let create = d.next.fp_v1_0().create_graphics_pipelines;
             if let Some(Some(m)) = decided {
                 // SAFETY: the app's infos with only the feature's additions.
                 let r = unsafe { create(device, cache, count, m.info.as_ptr(), allocator, out) };
