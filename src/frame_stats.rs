@@ -20,6 +20,9 @@ use std::sync::Mutex;
 pub struct FrameRecord {
     /// 0-based number of the frame (count of successful `xrEndFrame`s before it).
     pub frame: u64,
+    /// Seconds since the Unix epoch at the frame's `xrEndFrame` (`stereoshim stats` groups frames
+    /// by it).
+    pub time: f64,
     /// The live `mask.enabled` the frame was recorded under.
     pub mask_enabled: bool,
     /// The live `foveation.enabled` (benchmarks switch it as `{feature}_enabled`).
@@ -44,6 +47,7 @@ impl FrameRecord {
     pub fn to_json(&self) -> String {
         let mut record = serde_json::Map::new();
         record.insert("frame".into(), self.frame.into());
+        record.insert("time".into(), self.time.into());
         record.insert("mask_enabled".into(), self.mask_enabled.into());
         record.insert("foveation_enabled".into(), self.foveation_enabled.into());
         record.insert("far_field_enabled".into(), self.far_field_enabled.into());
@@ -173,7 +177,7 @@ mod tests {
         };
         *stats.get_mut::<RdmFrameStats>().unwrap() = RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() };
         *stats.get_mut::<VrsFrameStats>().unwrap() = VrsFrameStats { passes: 3, ..Default::default() };
-        let r = FrameRecord { frame: 7, mask_enabled: true, foveation_enabled: true, far_field_enabled: false, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true), gpu_ms: None };
+        let r = FrameRecord { frame: 7, time: 1.5, mask_enabled: true, foveation_enabled: true, far_field_enabled: false, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true), gpu_ms: None };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
         assert_eq!(v["frame"], 7);
         assert_eq!(v["vulkan_half"], true);

@@ -14,6 +14,7 @@ pub mod private_fs;
 pub mod registry;
 pub mod settings;
 pub mod shared;
+pub mod stats_summary;
 pub mod submission;
 pub mod swapchain_images;
 pub mod track;

@@ -78,10 +78,19 @@ fn bad_usage_is_reported() {
     let home = common::output_dir("cli-usage");
     let (code, text) = stereoshim(&["frobnicate"], &home, &home);
     assert_eq!(code, 2);
-    assert!(text.contains("usage:"), "{text}");
+    assert!(text.contains("Usage:"), "{text}");
     let (code, text) = stereoshim(&["run"], &home, &home);
     assert_eq!(code, 2);
-    assert!(text.contains("-- APP"), "{text}");
+    assert!(text.contains("-- <APP>"), "{text}");
+    // --help of the command and of every subcommand: exit 0, never a panic.
+    for sub in [&[][..], &["install"], &["uninstall"], &["status"], &["run"], &["manifest"], &["stats"]] {
+        let args: Vec<&str> = sub.iter().copied().chain(["--help"]).collect();
+        let (code, text) = stereoshim(&args, &home, &home);
+        assert_eq!(code, 0, "{args:?}: {text}");
+        assert!(text.contains("Usage: stereoshim"), "{args:?}: {text}");
+    }
+    let (code, text) = stereoshim(&["install", "--user", "--system"], &home, &home);
+    assert_eq!(code, 2, "{text}");
 }
 
 #[test]
@@ -108,4 +117,80 @@ fn manifest_prints_and_regenerates() {
         let ours = std::fs::read(out.join(kind).join("stereoshim.json")).unwrap();
         assert_eq!(ours, std::fs::read(repo.join(kind).join("stereoshim.json")).unwrap(), "{kind}");
     }
+}
+
+/// `stereoshim stats`: the layer's stats file of a real run summarised per second and as CSV,
+/// an unreadable line named with its number, and `--follow` printing what is appended.
+#[test]
+fn stats_summarises_the_layers_file() {
+    const FRAMES: u64 = 12;
+    let home = common::output_dir("cli-stats");
+    let stats = home.join("layer-stats.jsonl");
+    let _ = std::fs::remove_file(&stats);
+    let run = Run::new("cli-stats")
+        .with_layer()
+        .env("MOCK_XR_EXIT_AFTER", &FRAMES.to_string())
+        .env("MOCK_XR_CAPTURE_FRAMES", "0")
+        .env("STEREOSHIM_MASK_ENABLED", "1")
+        .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap())
+        .run();
+    run.assert_ok();
+    let file = stats.to_str().unwrap();
+    let (code, text) = stereoshim(&["stats", file], &home, &home);
+    assert_eq!(code, 0, "{text}");
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split_whitespace().collect()).collect();
+    assert!(!rows.is_empty(), "{text}");
+    let frames: u64 = rows.iter().map(|r| r[1].parse::<u64>().unwrap()).sum();
+    assert_eq!(frames, FRAMES, "every frame in one second or another:\n{text}");
+    let masked: u64 = rows.iter().map(|r| r[2].parse::<u64>().unwrap()).sum();
+    assert!(masked > 0, "the mask's passes are counted:\n{text}");
+    assert!(text.contains("mask.eye_unknown"), "frame 0's reason is listed:\n{text}");
+
+    let (code, csv) = stereoshim(&["stats", "--csv", file], &home, &home);
+    assert_eq!(code, 0, "{csv}");
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len() as u64, FRAMES + 1, "a header and a row per frame:\n{csv}");
+    assert!(lines[1..].iter().enumerate().all(|(i, l)| l.starts_with(&format!("{i},"))), "{csv}");
+
+    let mut bad = std::fs::read_to_string(&stats).unwrap();
+    bad.push_str("{not json\n");
+    let broken = home.join("broken.jsonl");
+    std::fs::write(&broken, bad).unwrap();
+    let (code, text) = stereoshim(&["stats", broken.to_str().unwrap()], &home, &home);
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains(&format!("broken.jsonl:{}: not a JSON line", FRAMES + 1)), "{text}");
+
+    // --follow: lines appended later (a second apart) are summarised as they come.
+    let growing = home.join("growing.jsonl");
+    let first: Vec<String> = std::fs::read_to_string(&stats).unwrap().lines().map(String::from).collect();
+    let shifted = |l: &str, dt: f64| {
+        let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
+        v["time"] = (v["time"].as_f64().unwrap() + dt).into();
+        v.to_string() + "\n"
+    };
+    std::fs::write(&growing, shifted(&first[0], 0.0)).unwrap();
+    let mut child = Command::new(target_dir().join("stereoshim"))
+        .args(["stats", "--follow", growing.to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        use std::io::Write;
+        let mut f = std::fs::OpenOptions::new().append(true).open(&growing).unwrap();
+        // Frame 1 in the next second completes second 0; frame 2 two seconds later completes 1.
+        f.write_all(shifted(&first[1], 1.0).as_bytes()).unwrap();
+        f.write_all(shifted(&first[2], 3.0).as_bytes()).unwrap();
+    }
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut got = Vec::new();
+    for _ in 0..3 {
+        let mut l = String::new();
+        std::io::BufRead::read_line(&mut out, &mut l).unwrap();
+        got.push(l);
+    }
+    child.kill().unwrap();
+    let _ = child.wait();
+    assert!(got[0].starts_with("second"), "{got:?}");
+    let seconds: Vec<&str> = got[1..].iter().map(|l| l.split_whitespace().next().unwrap()).collect();
+    assert_eq!(seconds, ["0", "1"], "{got:?}");
 }

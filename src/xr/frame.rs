@@ -52,6 +52,7 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
     let vulkan_half = session.map(|s| s.vulkan_half);
     let record = crate::frame_stats::FrameRecord {
         frame,
+        time: std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0.0, |d| d.as_secs_f64()),
         mask_enabled: settings.mask.enabled,
         foveation_enabled: settings.foveation.enabled,
         far_field_enabled: settings.far_field.enabled,
