@@ -20,49 +20,47 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
+/// A/B benchmark of stereoshim's features within one xr-scene run on the mock runtime.
+#[derive(clap::Parser)]
+#[command(about, long_about = None)]
 struct Args {
+    /// HMD profile of the mock runtime (MOCK_XR_HMD).
+    #[arg(long, default_value = "index")]
     hmd: String,
+    /// xr-scene `--layout`.
+    #[arg(long, default_value = "per-eye")]
     layout: String,
+    /// xr-scene `--scale`.
+    #[arg(long, default_value = "0.5")]
     scale: String,
+    /// xr-scene `--shading-cost`: how fragment-bound the frame is.
+    #[arg(long, default_value = "64")]
     shading_cost: String,
+    /// Frames of the run.
+    #[arg(long, default_value_t = 400)]
     frames: u64,
+    /// Frames per mode before switching between features off (A) and on (B).
+    #[arg(long, default_value_t = 40)]
     period: u64,
+    /// The feature(s) switched, comma separated (`mask,foveation,far_field`).
+    #[arg(long, default_value = "mask")]
     feature: String,
-    /// Extra xr-scene arguments (`--app-args "--empty"`).
-    app_args: Vec<String>,
-    /// Extra config lines for both modes (`--config 'mask.source = "synthesized"'`).
+    /// Extra xr-scene arguments, space separated (`--app-args "--empty"`).
+    #[arg(long, default_value = "", allow_hyphen_values = true)]
+    app_args: String,
+    /// Extra config lines for both modes, `;` separated (`--config 'mask.source = "synthesized"'`).
+    #[arg(long, default_value = "")]
     config: String,
 }
 
-fn parse_args() -> Args {
-    let mut a = Args {
-        hmd: "index".into(),
-        layout: "per-eye".into(),
-        scale: "0.5".into(),
-        shading_cost: "64".into(),
-        frames: 400,
-        period: 40,
-        feature: "mask".into(),
-        app_args: Vec::new(),
-        config: String::new(),
-    };
-    let argv: Vec<String> = std::env::args().skip(1).collect();
-    for pair in argv.chunks(2) {
-        let v = pair.get(1).cloned().unwrap_or_default();
-        match pair[0].as_str() {
-            "--hmd" => a.hmd = v,
-            "--layout" => a.layout = v,
-            "--scale" => a.scale = v,
-            "--shading-cost" => a.shading_cost = v,
-            "--frames" => a.frames = v.parse().expect("--frames N"),
-            "--period" => a.period = v.parse().expect("--period N"),
-            "--feature" => a.feature = v,
-            "--app-args" => a.app_args = v.split_whitespace().map(String::from).collect(),
-            "--config" => a.config = v.replace(';', "\n"),
-            other => panic!("unknown argument {other}"),
-        }
+impl Args {
+    fn app_args(&self) -> Vec<String> {
+        self.app_args.split_whitespace().map(String::from).collect()
     }
-    a
+
+    fn config(&self) -> String {
+        self.config.replace(';', "\n")
+    }
 }
 
 /// The config text for mode B (features on) or A (off); `feature` may list several, comma
@@ -90,18 +88,19 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() {
-    let a = parse_args();
-    let tag: String = (a.app_args.concat() + &a.config).chars().filter(|c| c.is_ascii_alphanumeric()).collect();
+    let a = <Args as clap::Parser>::parse();
+    let (app_args, extra_config) = (a.app_args(), a.config());
+    let tag: String = (app_args.concat() + &extra_config).chars().filter(|c| c.is_ascii_alphanumeric()).collect();
     let name = format!("bench-{}-{}-{}-{tag}", a.feature, a.hmd, a.layout);
     let dir = common::output_dir(&name);
     let (layer_stats, app_stats, capture) = (dir.join("layer-stats.jsonl"), dir.join("app-stats.json"), dir.join("capture"));
     let config = dir.join("config/stereoshim/config.toml");
     std::fs::create_dir_all(config.parent().unwrap()).unwrap();
-    write_config(&config, &config_text(&a.feature, false, &layer_stats, &a.config));
+    write_config(&config, &config_text(&a.feature, false, &layer_stats, &extra_config));
 
     let mut child = Command::new(common::xr_scene_exe())
         .args(["--layout", &a.layout, "--scale", &a.scale, "--shading-cost", &a.shading_cost])
-        .args(&a.app_args)
+        .args(&app_args)
         .arg("--stats")
         .arg(&app_stats)
         .env("XR_RUNTIME_JSON", common::runtime_manifest())
@@ -141,7 +140,7 @@ fn main() {
         if in_mode >= a.period {
             on = !on;
             in_mode = 0;
-            write_config(&config, &config_text(&a.feature, on, &layer_stats, &a.config));
+            write_config(&config, &config_text(&a.feature, on, &layer_stats, &extra_config));
         }
         std::thread::sleep(Duration::from_millis(2));
     }

@@ -16,27 +16,37 @@ mod common;
 use common::far_field::{analyse, split_from_px, Analysis};
 use common::Run;
 
+/// GPU proof of the monoscopic far field: xr-scene without and with the layer, frames compared.
+#[derive(clap::Parser)]
+#[command(about, long_about = None)]
+struct Args {
+    /// Layouts to run, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "per-eye")]
+    layouts: Vec<String>,
+    /// Far-field settings `shift:split_px`, comma separated (shift: infinity or depth).
+    #[arg(long, value_delimiter = ',', default_value = "infinity:1,infinity:4,depth:1,depth:4")]
+    settings: Vec<String>,
+    /// HMD profile of the mock runtime (MOCK_XR_HMD).
+    #[arg(long, default_value = "index")]
+    hmd: String,
+    /// xr-scene `--scale`.
+    #[arg(long, default_value = "1.0")]
+    scale: String,
+    /// The frame compared (at least 1: multiview and side-by-side reuse the frame before).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
+    frame: u64,
+    /// Extra xr-scene arguments, space separated (`--app-args "--shading-cost 64"`).
+    #[arg(long, default_value = "", allow_hyphen_values = true)]
+    app_args: String,
+    /// Run without the Khronos validation layer.
+    #[arg(long)]
+    no_validation: bool,
+}
+
 fn main() {
-    let mut layouts = vec!["per-eye".to_string()];
-    let mut settings = vec!["infinity:1".to_string(), "infinity:4".to_string(), "depth:1".to_string(), "depth:4".to_string()];
-    let (mut hmd, mut scale, mut frame, mut app_args, mut validation) = ("index".to_string(), "1.0".to_string(), 3u64, Vec::<String>::new(), true);
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        if a == "--no-validation" {
-            validation = false;
-            continue;
-        }
-        let v = it.next().unwrap_or_else(|| panic!("{a} needs a value"));
-        match a.as_str() {
-            "--layouts" => layouts = v.split(',').map(String::from).collect(),
-            "--settings" => settings = v.split(',').map(String::from).collect(),
-            "--hmd" => hmd = v,
-            "--scale" => scale = v,
-            "--frame" => frame = v.parse().expect("--frame N"),
-            "--app-args" => app_args = v.split_whitespace().map(String::from).collect(),
-            other => panic!("unknown argument {other}"),
-        }
-    }
+    let a = <Args as clap::Parser>::parse();
+    let (layouts, settings, hmd, scale, frame, validation) = (a.layouts, a.settings, a.hmd, a.scale, a.frame, !a.no_validation);
+    let app_args: Vec<String> = a.app_args.split_whitespace().map(String::from).collect();
     println!("| layout | shift | split px | split m | reused px | of the view | near px (all identical) | far px | far PSNR dB | shaded off | shaded on | saved | layer: views reused / pixels counted |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for layout in &layouts {

@@ -22,64 +22,56 @@ mod common;
 
 use common::{Fov, Run, RunOutput};
 
+/// GPU proof of foveated rendering: xr-scene (or hello_xr) without the layer, with VRS and with RDM.
+#[derive(clap::Parser)]
+#[command(about, long_about = None)]
 struct Args {
+    /// Layouts to run, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "per-eye,side-by-side,multiview")]
     layouts: Vec<String>,
+    /// xr-scene renderings to run, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "dynamic,render-pass")]
     renderings: Vec<String>,
+    /// Foveation methods to run, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "vrs,rdm")]
     methods: Vec<String>,
+    /// foveation.preset.
+    #[arg(long, default_value = "balanced", value_parser = ["subtle", "balanced", "aggressive"])]
     preset: String,
+    /// The VRS texel size assumed for the fovea's margin (pixels).
+    #[arg(long, default_value_t = 16.0)]
     texel: f64,
+    /// HMD profile of the mock runtime (MOCK_XR_HMD).
+    #[arg(long, default_value = "index")]
     hmd: String,
+    /// xr-scene `--scale`.
+    #[arg(long, default_value = "1.0")]
     scale: String,
-    /// xr-scene `--depth`: standard or reverse.
+    /// xr-scene `--depth`.
+    #[arg(long, default_value = "standard", value_parser = ["standard", "reverse"])]
     depth: String,
+    /// Run without the Khronos validation layer.
+    #[arg(long = "no-validation", action = clap::ArgAction::SetFalse)]
     validation: bool,
-    /// More xr-scene arguments for every run (`--app-args "--vulkan-api 1.0 --secondary"`).
-    app_args: Vec<String>,
-    /// `--app hello_xr:Vulkan2` (or `:Vulkan`): run Khronos hello_xr (from PATH; a Vulkan 1.0
-    /// app that links libvulkan) with that graphics plugin instead of xr-scene. Layouts and
-    /// renderings do not apply: hello_xr renders one per-eye render pass per view.
+    /// More xr-scene arguments for every run, space separated (`--app-args "--vulkan-api 1.0 --secondary"`).
+    #[arg(long = "app-args", default_value = "", allow_hyphen_values = true)]
+    app_args_text: String,
+    /// `hello_xr:Vulkan2` (or `:Vulkan`): run Khronos hello_xr (from PATH; a Vulkan 1.0 app that
+    /// links libvulkan) with that graphics plugin instead of xr-scene. Layouts and renderings do
+    /// not apply: hello_xr renders one per-eye render pass per view.
+    #[arg(long = "app", value_name = "hello_xr:PLUGIN", value_parser = hello_xr_plugin)]
     hello_xr: Option<String>,
+    #[arg(skip)]
+    app_args: Vec<String>,
+}
+
+fn hello_xr_plugin(v: &str) -> Result<String, String> {
+    v.strip_prefix("hello_xr:").map(String::from).ok_or_else(|| format!("expected hello_xr:PLUGIN, got {v:?}"))
 }
 
 fn parse_args() -> Args {
-    let mut a = Args {
-        layouts: vec!["per-eye".into(), "side-by-side".into(), "multiview".into()],
-        renderings: vec!["dynamic".into(), "render-pass".into()],
-        methods: vec!["vrs".into(), "rdm".into()],
-        preset: "balanced".into(),
-        texel: 16.0,
-        hmd: "index".into(),
-        scale: "1.0".into(),
-        depth: "standard".into(),
-        validation: true,
-        app_args: Vec::new(),
-        hello_xr: None,
-    };
-    let argv: Vec<String> = std::env::args().skip(1).collect();
-    let mut i = 0;
-    let list = |v: &str| v.split(',').filter(|s| !s.is_empty()).map(String::from).collect::<Vec<_>>();
-    while i < argv.len() {
-        let v = argv.get(i + 1).cloned().unwrap_or_default();
-        match argv[i].as_str() {
-            "--no-validation" => {
-                a.validation = false;
-                i += 1;
-                continue;
-            }
-            "--layouts" => a.layouts = list(&v),
-            "--renderings" => a.renderings = list(&v),
-            "--methods" => a.methods = list(&v),
-            "--preset" => a.preset = v,
-            "--texel" => a.texel = v.parse().expect("--texel N"),
-            "--hmd" => a.hmd = v,
-            "--scale" => a.scale = v,
-            "--depth" => a.depth = v,
-            "--app-args" => a.app_args = v.split_whitespace().map(String::from).collect(),
-            "--app" => a.hello_xr = Some(v.strip_prefix("hello_xr:").expect("--app hello_xr:PLUGIN").to_string()),
-            other => panic!("unknown argument {other}"),
-        }
-        i += 2;
-    }
+    let mut a = <Args as clap::Parser>::parse();
+    a.app_args = a.app_args_text.split_whitespace().map(String::from).collect();
     a
 }
 

@@ -70,11 +70,24 @@ fn sample(layout: &str, v: Variant, round: usize, frames: u64) -> (BTreeMap<Stri
     (per_call, counts)
 }
 
+/// CPU time per intercepted call: no layer, layer with features off, every feature.
+#[derive(clap::Parser)]
+#[command(about, long_about = None)]
+struct Args {
+    /// Rounds; each runs the three variants, rotated.
+    #[arg(default_value_t = 6, value_parser = clap::value_parser!(u64).range(1..))]
+    rounds: u64,
+    /// Frames per run (the first 10 are dropped).
+    #[arg(default_value_t = 300, value_parser = clap::value_parser!(u64).range(11..))]
+    frames: u64,
+    /// xr-scene `--layout`.
+    #[arg(default_value = "per-eye", value_parser = ["per-eye", "multiview", "side-by-side"])]
+    layout: String,
+}
+
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let rounds: usize = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(6);
-    let frames: u64 = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(300);
-    let layout = args.get(3).cloned().unwrap_or_else(|| "per-eye".into());
+    let args = <Args as clap::Parser>::parse();
+    let (rounds, frames, layout) = (args.rounds as usize, args.frames, args.layout);
     let variants = [Variant::NoLayer, Variant::FeaturesOff, Variant::EveryFeature];
     // Per variant, per call: the per-run medians.
     let mut medians: [BTreeMap<String, Vec<f64>>; 3] = Default::default();

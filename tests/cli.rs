@@ -82,15 +82,62 @@ fn bad_usage_is_reported() {
     let (code, text) = stereoshim(&["run"], &home, &home);
     assert_eq!(code, 2);
     assert!(text.contains("-- <APP>"), "{text}");
-    // --help of the command and of every subcommand: exit 0, never a panic.
-    for sub in [&[][..], &["install"], &["uninstall"], &["status"], &["run"], &["manifest"], &["stats"]] {
-        let args: Vec<&str> = sub.iter().copied().chain(["--help"]).collect();
-        let (code, text) = stereoshim(&args, &home, &home);
-        assert_eq!(code, 0, "{args:?}: {text}");
-        assert!(text.contains("Usage: stereoshim"), "{args:?}: {text}");
+    // --help of the command and of every subcommand it lists: exit 0, never a panic.
+    let (code, text) = stereoshim(&["--help"], &home, &home);
+    assert_eq!(code, 0, "{text}");
+    let subcommands = listed_subcommands(&text);
+    for expected in ["install", "uninstall", "status", "run", "manifest", "stats"] {
+        assert!(subcommands.iter().any(|s| s == expected), "{expected} missing from --help: {text}");
+    }
+    for sub in &subcommands {
+        let (code, text) = stereoshim(&[sub, "--help"], &home, &home);
+        assert_eq!(code, 0, "{sub} --help: {text}");
+        assert!(text.contains(&format!("Usage: stereoshim {sub}")), "{sub} --help: {text}");
+        let (code, text) = stereoshim(&[sub, "--no-such-option"], &home, &home);
+        assert_eq!(code, 2, "{sub} --no-such-option: {text}");
+        assert!(!text.contains("panicked"), "{sub}: {text}");
     }
     let (code, text) = stereoshim(&["install", "--user", "--system"], &home, &home);
     assert_eq!(code, 2, "{text}");
+}
+
+/// The subcommands clap lists under "Commands:" (without its own `help`).
+fn listed_subcommands(help: &str) -> Vec<String> {
+    help.lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|s| *s != "help")
+        .map(String::from)
+        .collect()
+}
+
+/// Every binary of the workspace and every example (found in `examples/`, so a new one is covered
+/// without touching this test) answers `--help` with its usage (exit 0) and an unknown option
+/// with a usage error (exit 2), never with a panic.
+#[test]
+fn every_binary_and_example_answers_help() {
+    let examples = std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("examples")).unwrap();
+    let mut programs: Vec<std::path::PathBuf> = examples
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "rs"))
+        .map(|p| target_dir().join("examples").join(p.file_stem().unwrap()))
+        .collect();
+    assert!(programs.len() >= 4, "{programs:?}");
+    programs.extend([target_dir().join("stereoshim"), target_dir().join("xr-scene")]);
+    for program in &programs {
+        let run = |arg: &str| {
+            let out = Command::new(program).arg(arg).output().unwrap_or_else(|e| panic!("{}: {e} (cargo build --workspace --all-targets first)", program.display()));
+            (out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+        };
+        let (code, stdout, stderr) = run("--help");
+        assert_eq!(code, Some(0), "{} --help: {stdout}{stderr}", program.display());
+        assert!(stdout.contains("Usage:"), "{} --help: {stdout}", program.display());
+        let (code, stdout, stderr) = run("--no-such-option");
+        assert_eq!(code, Some(2), "{} --no-such-option: {stdout}{stderr}", program.display());
+        assert!(stderr.contains("error:") && !stderr.contains("panicked"), "{}: {stderr}", program.display());
+    }
 }
 
 #[test]

@@ -1,29 +1,32 @@
-//! Command-line parsing: the flag set is the test contract of docs/testing.md, small enough to parse by hand.
+//! Command-line parsing (clap): the flag set is the test contract of docs/testing.md; the checks of
+//! combinations that cannot work live in `parse`.
 
+use clap::{CommandFactory, Parser, ValueEnum};
 use std::path::PathBuf;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Layout {
     PerEye,
     Multiview,
     SideBySide,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Rendering {
     RenderPass,
+    #[value(name = "render-pass2")]
     RenderPass2,
     Dynamic,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum DepthMode {
     Standard,
     Reverse,
 }
 
 /// How the depth buffer of an eye pass starts out at its clear value (`--depth-clear`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum DepthClear {
     /// The pass's depth attachment has loadOp CLEAR.
     LoadOp,
@@ -33,21 +36,25 @@ pub enum DepthClear {
     Image,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum VulkanPath {
     Enable,
+    #[value(name = "enable2")]
     Enable2,
 }
 
 /// The Vulkan version the app asks for in `VkApplicationInfo::apiVersion` (`--vulkan-api`), and so
 /// the API it may use on its instance and device.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, ValueEnum)]
 pub enum VulkanApi {
     /// Vulkan 1.0: no multiview, no dynamic rendering, no 1.1+ structs; render pass 2 through
     /// `VK_KHR_create_renderpass2`.
+    #[value(name = "1.0")]
     V1_0,
     /// Vulkan 1.1: multiview core; render pass 2 and dynamic rendering through their KHR extensions.
+    #[value(name = "1.1")]
     V1_1,
+    #[value(name = "1.3")]
     V1_3,
 }
 
@@ -62,7 +69,7 @@ impl VulkanApi {
 }
 
 /// What lies beyond the scenery (`--sky`): far geometry, or nothing but the clear colour.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Sky {
     /// A sky dome of far geometry (1500 m) around the stage: every pixel not covered by scenery.
     Geometry,
@@ -71,7 +78,7 @@ pub enum Sky {
 }
 
 /// How a session and its instance are torn down (`--teardown`): every order OpenXR allows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Teardown {
     /// Children first: swapchains, session, the Vulkan device, the XR instance.
     Children,
@@ -82,7 +89,7 @@ pub enum Teardown {
     Instance,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ColorFamily {
     Srgb,
     Unorm,
@@ -166,343 +173,251 @@ pub struct Options {
     pub visibility_mask: bool,
 }
 
-impl Default for Options {
-    fn default() -> Self {
-        Options {
-            layout: Layout::PerEye,
-            rendering: Rendering::RenderPass,
-            depth: DepthMode::Standard,
-            depth_clear: DepthClear::LoadOp,
-            intermediate: false,
-            samples: 4,
-            submit_depth: false,
-            vulkan: VulkanPath::Enable2,
-            vulkan_api: VulkanApi::V1_3,
-            secondary: false,
-            threads: false,
-            teardown: Teardown::Children,
-            frames: None,
-            sessions: 1,
-            instances: 1,
-            recreate_swapchains: None,
-            scale: 1.0,
-            color_format: ColorFamily::Srgb,
-            shading_cost: 0,
-            animate: false,
-            bind_before_pass: false,
-            empty: false,
-            stats: None,
-            pixel_stats: None,
-            validation: false,
-            vk_layers: Vec::new(),
-            record_once: false,
-            rerecord_every: None,
-            sync_hazard: false,
-            thread_hazard: false,
-            sky: Sky::Geometry,
-            sky_first: false,
-            translucent: false,
-            far_movers: false,
-            submit2: false,
-            visibility_mask: false,
-        }
+/// The command line as clap sees it; `parse` turns it into checked `Options`.
+#[derive(Parser, Debug)]
+#[command(
+    name = "xr-scene",
+    about = "An unmodified stereo OpenXR + Vulkan app: the subject of stereoshim's end-to-end tests",
+    long_about = None
+)]
+struct Args {
+    /// Swapchain layout.
+    #[arg(long, value_enum, default_value_t = Layout::PerEye)]
+    layout: Layout,
+    /// How eye passes begin.
+    #[arg(long, value_enum, default_value_t = Rendering::RenderPass)]
+    rendering: Rendering,
+    /// Depth convention.
+    #[arg(long, value_enum, default_value_t = DepthMode::Standard)]
+    depth: DepthMode,
+    /// How depth is cleared: the pass's load op, vkCmdClearAttachments in the pass, or
+    /// vkCmdClearDepthStencilImage before it.
+    #[arg(long, value_enum, default_value_t = DepthClear::LoadOp)]
+    depth_clear: DepthClear,
+    /// Render offscreen, then resolve/copy to the swapchain.
+    #[arg(long)]
+    intermediate: bool,
+    /// Offscreen sample count with --intermediate [default: 4].
+    #[arg(long, value_parser = parse_samples)]
+    samples: Option<u32>,
+    /// Submit depth swapchains (XR_KHR_composition_layer_depth).
+    #[arg(long)]
+    submit_depth: bool,
+    /// OpenXR Vulkan binding extension.
+    #[arg(long, value_enum, default_value_t = VulkanPath::Enable2)]
+    vulkan: VulkanPath,
+    /// apiVersion of the app's VkInstance/VkDevice. 1.0: per-eye / side-by-side, render-pass /
+    /// render-pass2 (VK_KHR_create_renderpass2); 1.1: dynamic rendering through
+    /// VK_KHR_dynamic_rendering.
+    #[arg(long, value_enum, default_value_t = VulkanApi::V1_3)]
+    vulkan_api: VulkanApi,
+    /// Record each eye pass's contents into a secondary command buffer run by vkCmdExecuteCommands.
+    #[arg(long)]
+    secondary: bool,
+    /// Destroy swapchains, then the session, the Vulkan device and the XR instance (children);
+    /// leave the swapchains to xrDestroySession (session); or leave the last session and its
+    /// swapchains to xrDestroyInstance, destroying the Vulkan device after it (instance).
+    #[arg(long, value_enum, default_value_t = Teardown::Children)]
+    teardown: Teardown,
+    /// xrWaitFrame on a frame-pacing thread (the next frame's wait overlapping this frame), each
+    /// pass's secondary recorded on a worker thread with its own command pool, vkQueueSubmit on a
+    /// submit thread; implies --secondary.
+    #[arg(long)]
+    threads: bool,
+    /// Request exit after N frames (of each session).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    frames: Option<u64>,
+    /// End and recreate the session (swapchains, renderer) N times; prints each session's frames
+    /// and the process's resident memory to stderr.
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    sessions: u64,
+    /// Create and destroy the XR instance, Vulkan instance and device (and their sessions) N times.
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    instances: u64,
+    /// Every K frames destroy the swapchains and make new ones of another size (x1, x0.8, x1.2 of
+    /// --scale in turn).
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u64).range(1..))]
+    recreate_swapchains: Option<u64>,
+    /// Render at F x the recommended size, F in (0, 4].
+    #[arg(long, value_name = "F", default_value_t = 1.0, value_parser = parse_scale)]
+    scale: f32,
+    /// Swapchain colour format family.
+    #[arg(long, value_enum, default_value_t = ColorFamily::Srgb)]
+    color_format: ColorFamily,
+    /// K-iteration per-pixel busy loop.
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    shading_cost: u32,
+    /// Spin the near cube by frame number.
+    #[arg(long)]
+    animate: bool,
+    /// Set draw state before vkCmdBegin*, not inside the pass.
+    #[arg(long)]
+    bind_before_pass: bool,
+    /// Passes with their clears but no draws (layer cost benchmarks).
+    #[arg(long)]
+    empty: bool,
+    /// Write per-frame GPU time and shaded fragments as JSON.
+    #[arg(long, value_name = "FILE")]
+    stats: Option<PathBuf>,
+    /// Write per frame and view the shaded fragments of each pixel (DIR/frame-NNNNN-view-V.u32,
+    /// raw little-endian u32).
+    #[arg(long, value_name = "DIR")]
+    pixel_stats: Option<PathBuf>,
+    /// Enable VK_LAYER_KHRONOS_validation with synchronization validation (exit 3 on errors).
+    #[arg(long)]
+    validation: bool,
+    /// Also enable the Vulkan layer NAME in the app's instance create info (repeatable; after
+    /// validation, in order).
+    #[arg(long = "vk-layer", value_name = "NAME")]
+    vk_layers: Vec<String>,
+    /// Record each combination of acquired swapchain images' command buffers once and resubmit
+    /// them every frame (per-frame data in per-frame-in-flight buffers).
+    #[arg(long)]
+    record_once: bool,
+    /// With --record-once: every N-th frame re-records the command buffers it submits (the others
+    /// stay as recorded).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    rerecord_every: Option<u64>,
+    /// Leave out one barrier (counters' fill -> fragment shader): a hazard only synchronization
+    /// validation reports.
+    #[arg(long)]
+    sync_hazard: bool,
+    /// With --threads: the workers share one command pool, used by two threads at once (only
+    /// validation's thread-safety checks report it).
+    #[arg(long)]
+    thread_hazard: bool,
+    /// A sky dome of far geometry or just the clear colour.
+    #[arg(long, value_enum, default_value_t = Sky::Geometry)]
+    sky: Sky,
+    /// Draw the sky first in each eye pass, depth test and depth write off (default: last in the
+    /// scene's draw, depth-tested).
+    #[arg(long)]
+    sky_first: bool,
+    /// A translucent near pane blended over the far field, drawn after the opaque geometry, depth
+    /// write off.
+    #[arg(long)]
+    translucent: bool,
+    /// A far object (~250 m) that orbits the stage by frame number.
+    #[arg(long)]
+    far_movers: bool,
+    /// Submit frames with vkQueueSubmit2 (needs --vulkan-api 1.3).
+    #[arg(long)]
+    submit2: bool,
+    /// Fetch each view's hidden-area mesh (XR_KHR_visibility_mask).
+    #[arg(long)]
+    visibility_mask: bool,
+}
+
+fn parse_samples(v: &str) -> Result<u32, String> {
+    match v.parse::<u32>() {
+        Ok(n @ (1 | 2 | 4 | 8 | 16 | 32 | 64)) => Ok(n),
+        _ => Err(format!("must be a power of two 1..64, got {v:?}")),
     }
 }
 
-pub const USAGE: &str = "\
-usage: xr-scene [options]
-  --layout per-eye|multiview|side-by-side   swapchain layout (default per-eye)
-  --rendering render-pass|render-pass2|dynamic  (default render-pass)
-  --depth standard|reverse                  depth convention (default standard)
-  --depth-clear load-op|attachments|image   how depth is cleared: pass load op, vkCmdClearAttachments
-                                            in the pass, or vkCmdClearDepthStencilImage before it
-  --intermediate                            render offscreen, then resolve/copy to the swapchain
-  --samples N                               offscreen sample count with --intermediate (default 4)
-  --submit-depth                            submit depth swapchains (XR_KHR_composition_layer_depth)
-  --vulkan enable|enable2                   OpenXR Vulkan binding extension (default enable2)
-  --vulkan-api 1.0|1.1|1.3                  apiVersion of the app's VkInstance/VkDevice (default 1.3);
-                                            1.0: per-eye / side-by-side, render-pass / render-pass2
-                                            (VK_KHR_create_renderpass2); 1.1: dynamic rendering
-                                            through VK_KHR_dynamic_rendering
-  --secondary                               record each eye pass's contents into a secondary command
-                                            buffer run by vkCmdExecuteCommands
-  --teardown children|session|instance      destroy swapchains, then the session, the Vulkan device and
-                                            the XR instance (children); leave the swapchains to
-                                            xrDestroySession (session); or leave the last session and
-                                            its swapchains to xrDestroyInstance, destroying the Vulkan
-                                            device after it (instance)
-  --threads                                 xrWaitFrame on a frame-pacing thread (the next frame's
-                                            wait overlapping this frame), each pass's secondary
-                                            recorded on a worker thread with its own command pool,
-                                            vkQueueSubmit on a submit thread; implies --secondary
-  --frames N                                request exit after N frames (of each session)
-  --sessions N                              end and recreate the session (swapchains, renderer)
-                                            N times; prints each session's frames and the
-                                            process's resident memory to stderr
-  --instances N                             create and destroy the XR instance, Vulkan instance and
-                                            device (and their sessions) N times
-  --recreate-swapchains K                   every K frames destroy the swapchains and make new
-                                            ones of another size (x1, x0.8, x1.2 of --scale in
-                                            turn)
-  --scale F                                 render at F x the recommended size (default 1)
-  --color-format srgb|unorm                 swapchain colour format family (default srgb)
-  --shading-cost K                          K-iteration per-pixel busy loop (default 0)
-  --animate                                 spin the near cube by frame number
-  --bind-before-pass                        set draw state before vkCmdBegin*, not inside the pass
-  --empty                                   passes with their clears but no draws (layer cost benchmarks)
-  --stats FILE                              write per-frame GPU time and shaded fragments as JSON
-  --pixel-stats DIR                         write per frame and view the shaded fragments of each pixel
-                                            (DIR/frame-NNNNN-view-V.u32, raw little-endian u32)
-  --validation                              enable VK_LAYER_KHRONOS_validation with synchronization
-                                            validation (exit 3 on errors)
-  --vk-layer NAME                           also enable the Vulkan layer NAME in the app's instance
-                                            create info (repeatable; after validation, in order)
-  --record-once                             record each combination of acquired swapchain images'
-                                            command buffers once and resubmit them every frame
-                                            (per-frame data in per-frame-in-flight buffers)
-  --rerecord-every N                        with --record-once: every N-th frame re-records the
-                                            command buffers it submits (the others stay as recorded)
-  --sync-hazard                             leave out one barrier (counters' fill -> fragment shader):
-                                            a hazard only synchronization validation reports
-  --thread-hazard                           with --threads: the workers share one command pool, used
-                                            by two threads at once (only validation's thread-safety
-                                            checks report it)
-  --sky geometry|clear                      a sky dome of far geometry (default) or the clear colour
-  --sky-first                               draw the sky first in each eye pass, depth test and depth
-                                            write off (default: last in the scene's draw, depth-tested)
-  --translucent                             a translucent near pane blended over the far field, drawn
-                                            after the opaque geometry, depth write off
-  --far-movers                              a far object (~250 m) that orbits the stage by frame number
-  --submit2                                 submit frames with vkQueueSubmit2 (needs --vulkan-api 1.3)
-  --visibility-mask                         fetch each view's hidden-area mesh (XR_KHR_visibility_mask)
-  --help                                    show this text";
+fn parse_scale(v: &str) -> Result<f32, String> {
+    v.parse::<f32>().ok().filter(|f| f.is_finite() && *f > 0.0 && *f <= 4.0).ok_or_else(|| format!("must be a number in (0, 4], got {v:?}"))
+}
 
-/// Parses the arguments after the program name. `Err` carries the message for a usage error;
-/// `Ok(None)` means `--help` was asked for.
-pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Option<Options>, String> {
-    let mut o = Options::default();
-    let mut samples_given = false;
-    let mut it = args.into_iter();
-    while let Some(arg) = it.next() {
-        // Accept both `--flag value` and `--flag=value`.
-        let (flag, inline) = match arg.split_once('=') {
-            Some((f, v)) if f.starts_with("--") => (f.to_string(), Some(v.to_string())),
-            _ => (arg.clone(), None),
-        };
-        let mut value = |name: &str| -> Result<String, String> {
-            match inline.clone() {
-                Some(v) => Ok(v),
-                None => it.next().ok_or_else(|| format!("{name} needs a value")),
-            }
-        };
-        match flag.as_str() {
-            "--help" | "-h" => return Ok(None),
-            "--layout" => {
-                o.layout = match value("--layout")?.as_str() {
-                    "per-eye" => Layout::PerEye,
-                    "multiview" => Layout::Multiview,
-                    "side-by-side" => Layout::SideBySide,
-                    v => return Err(format!("unknown --layout {v:?}")),
-                }
-            }
-            "--rendering" => {
-                o.rendering = match value("--rendering")?.as_str() {
-                    "render-pass" => Rendering::RenderPass,
-                    "render-pass2" => Rendering::RenderPass2,
-                    "dynamic" => Rendering::Dynamic,
-                    v => return Err(format!("unknown --rendering {v:?}")),
-                }
-            }
-            "--depth" => {
-                o.depth = match value("--depth")?.as_str() {
-                    "standard" => DepthMode::Standard,
-                    "reverse" => DepthMode::Reverse,
-                    v => return Err(format!("unknown --depth {v:?}")),
-                }
-            }
-            "--depth-clear" => {
-                o.depth_clear = match value("--depth-clear")?.as_str() {
-                    "load-op" => DepthClear::LoadOp,
-                    "attachments" => DepthClear::Attachments,
-                    "image" => DepthClear::Image,
-                    v => return Err(format!("unknown --depth-clear {v:?}")),
-                }
-            }
-            "--vulkan" => {
-                o.vulkan = match value("--vulkan")?.as_str() {
-                    "enable" => VulkanPath::Enable,
-                    "enable2" => VulkanPath::Enable2,
-                    v => return Err(format!("unknown --vulkan {v:?}")),
-                }
-            }
-            "--vulkan-api" => {
-                o.vulkan_api = match value("--vulkan-api")?.as_str() {
-                    "1.0" => VulkanApi::V1_0,
-                    "1.1" => VulkanApi::V1_1,
-                    "1.3" => VulkanApi::V1_3,
-                    v => return Err(format!("unknown --vulkan-api {v:?} (1.0, 1.1 or 1.3)")),
-                }
-            }
-            "--teardown" => {
-                o.teardown = match value("--teardown")?.as_str() {
-                    "children" => Teardown::Children,
-                    "session" => Teardown::Session,
-                    "instance" => Teardown::Instance,
-                    v => return Err(format!("unknown --teardown {v:?} (children, session or instance)")),
-                }
-            }
-            "--sky" => {
-                o.sky = match value("--sky")?.as_str() {
-                    "geometry" => Sky::Geometry,
-                    "clear" => Sky::Clear,
-                    v => return Err(format!("unknown --sky {v:?} (geometry or clear)")),
-                }
-            }
-            "--color-format" => {
-                o.color_format = match value("--color-format")?.as_str() {
-                    "srgb" => ColorFamily::Srgb,
-                    "unorm" => ColorFamily::Unorm,
-                    v => return Err(format!("unknown --color-format {v:?}")),
-                }
-            }
-            "--samples" => {
-                let v = value("--samples")?;
-                o.samples = match v.parse::<u32>() {
-                    Ok(n @ (1 | 2 | 4 | 8 | 16 | 32 | 64)) => n,
-                    _ => return Err(format!("--samples must be a power of two 1..64, got {v:?}")),
-                };
-                samples_given = true;
-            }
-            "--frames" => {
-                let v = value("--frames")?;
-                o.frames = Some(
-                    v.parse::<u64>()
-                        .ok()
-                        .filter(|n| *n > 0)
-                        .ok_or_else(|| format!("--frames must be a positive integer, got {v:?}"))?,
-                );
-            }
-            "--sessions" => {
-                let v = value("--sessions")?;
-                o.sessions = v.parse::<u64>().ok().filter(|n| *n > 0).ok_or_else(|| format!("--sessions must be a positive integer, got {v:?}"))?;
-            }
-            "--instances" => {
-                let v = value("--instances")?;
-                o.instances = v.parse::<u64>().ok().filter(|n| *n > 0).ok_or_else(|| format!("--instances must be a positive integer, got {v:?}"))?;
-            }
-            "--recreate-swapchains" => {
-                let v = value("--recreate-swapchains")?;
-                o.recreate_swapchains = Some(v.parse::<u64>().ok().filter(|n| *n > 0).ok_or_else(|| format!("--recreate-swapchains must be a positive integer, got {v:?}"))?);
-            }
-            "--scale" => {
-                let v = value("--scale")?;
-                o.scale = v
-                    .parse::<f32>()
-                    .ok()
-                    .filter(|f| f.is_finite() && *f > 0.0 && *f <= 4.0)
-                    .ok_or_else(|| format!("--scale must be a number in (0, 4], got {v:?}"))?;
-            }
-            "--shading-cost" => {
-                let v = value("--shading-cost")?;
-                o.shading_cost = v
-                    .parse::<u32>()
-                    .map_err(|_| format!("--shading-cost must be a non-negative integer, got {v:?}"))?;
-            }
-            "--rerecord-every" => {
-                let v = value("--rerecord-every")?;
-                o.rerecord_every = Some(
-                    v.parse::<u64>()
-                        .ok()
-                        .filter(|n| *n > 0)
-                        .ok_or_else(|| format!("--rerecord-every must be a positive integer, got {v:?}"))?,
-                );
-            }
-            "--stats" => o.stats = Some(PathBuf::from(value("--stats")?)),
-            "--vk-layer" => o.vk_layers.push(value("--vk-layer")?),
-            "--pixel-stats" => o.pixel_stats = Some(PathBuf::from(value("--pixel-stats")?)),
-            "--intermediate" | "--submit-depth" | "--animate" | "--bind-before-pass" | "--empty" | "--validation" | "--secondary"
-            | "--threads" | "--record-once" | "--sync-hazard" | "--thread-hazard" | "--sky-first" | "--translucent" | "--far-movers" | "--submit2"
-            | "--visibility-mask"
-                if inline.is_some() =>
-            {
-                return Err(format!("{flag} takes no value"))
-            }
-            "--intermediate" => o.intermediate = true,
-            "--submit-depth" => o.submit_depth = true,
-            "--animate" => o.animate = true,
-            "--bind-before-pass" => o.bind_before_pass = true,
-            "--empty" => o.empty = true,
-            "--validation" => o.validation = true,
-            "--secondary" => o.secondary = true,
-            "--threads" => {
-                o.threads = true;
-                o.secondary = true;
-            }
-            "--record-once" => o.record_once = true,
-            "--sync-hazard" => o.sync_hazard = true,
-            "--thread-hazard" => o.thread_hazard = true,
-            "--sky-first" => o.sky_first = true,
-            "--translucent" => o.translucent = true,
-            "--far-movers" => o.far_movers = true,
-            "--submit2" => o.submit2 = true,
-            "--visibility-mask" => o.visibility_mask = true,
-            _ => return Err(format!("unknown argument {arg:?}")),
-        }
+/// Parses the arguments after the program name into checked `Options`. `Err` is clap's: a usage
+/// error, or the help text (`--help`), which `Error::exit` prints and exits with.
+pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::Error> {
+    let a = Args::try_parse_from(std::iter::once("xr-scene".to_string()).chain(args))?;
+    let usage = |msg: &str| Args::command().error(clap::error::ErrorKind::ArgumentConflict, msg);
+    if a.samples.is_some() && !a.intermediate {
+        return Err(usage("--samples only applies with --intermediate"));
     }
-    if samples_given && !o.intermediate {
-        return Err("--samples only applies with --intermediate".into());
-    }
-    if !o.intermediate {
-        o.samples = 1;
-    }
+    let samples = if a.intermediate { a.samples.unwrap_or(4) } else { 1 };
     // Depth rendered at N samples cannot simply be submitted: resolving it needs
     // VK_KHR_depth_stencil_resolve and a choice of resolve mode, which this app does not make.
-    if o.submit_depth && o.samples > 1 {
-        return Err("--submit-depth needs single-sampled depth: use --samples 1 with --intermediate".into());
+    if a.submit_depth && samples > 1 {
+        return Err(usage("--submit-depth needs single-sampled depth: use --samples 1 with --intermediate"));
     }
-    if o.vulkan_api == VulkanApi::V1_0 {
-        if o.layout == Layout::Multiview {
-            return Err("--layout multiview needs Vulkan 1.1 (multiview); use --vulkan-api 1.1 or 1.3".into());
+    if a.vulkan_api == VulkanApi::V1_0 {
+        if a.layout == Layout::Multiview {
+            return Err(usage("--layout multiview needs Vulkan 1.1 (multiview); use --vulkan-api 1.1 or 1.3"));
         }
-        if o.rendering == Rendering::Dynamic {
-            return Err("--rendering dynamic needs Vulkan 1.1 (VK_KHR_dynamic_rendering) or 1.3".into());
+        if a.rendering == Rendering::Dynamic {
+            return Err(usage("--rendering dynamic needs Vulkan 1.1 (VK_KHR_dynamic_rendering) or 1.3"));
         }
     }
-    if o.submit2 && o.vulkan_api != VulkanApi::V1_3 {
-        return Err("--submit2 needs Vulkan 1.3 (vkQueueSubmit2, synchronization2)".into());
+    if a.submit2 && a.vulkan_api != VulkanApi::V1_3 {
+        return Err(usage("--submit2 needs Vulkan 1.3 (vkQueueSubmit2, synchronization2)"));
+    }
+    if a.thread_hazard && !a.threads {
+        return Err(usage("--thread-hazard shares one command pool between the recording workers: it needs --threads"));
     }
     // State bound in a primary command buffer is not inherited by secondaries.
-    if o.thread_hazard && !o.threads {
-        return Err("--thread-hazard shares one command pool between the recording workers: it needs --threads".into());
+    if a.threads && a.bind_before_pass {
+        return Err(usage("--bind-before-pass cannot be combined with --threads: --threads records each pass into a secondary command buffer (on a worker thread), which inherits no state bound in the primary"));
     }
-    if o.threads && o.bind_before_pass {
-        return Err("--bind-before-pass cannot be combined with --threads: --threads records each pass into a secondary command buffer (on a worker thread), which inherits no state bound in the primary".into());
-    }
-    if o.secondary && o.bind_before_pass {
-        return Err("--bind-before-pass and --secondary exclude each other: a secondary command buffer inherits no bound state".into());
+    if a.secondary && a.bind_before_pass {
+        return Err(usage("--bind-before-pass and --secondary exclude each other: a secondary command buffer inherits no bound state"));
     }
     // Without --record-once every frame is re-recorded anyway.
-    if o.rerecord_every.is_some() && !o.record_once {
-        return Err("--rerecord-every only applies with --record-once".into());
+    if a.rerecord_every.is_some() && !a.record_once {
+        return Err(usage("--rerecord-every only applies with --record-once"));
     }
     // The left-out barrier guards the fragment shader's counter writes: without draws there is
     // no hazard to report, and the flag would prove nothing.
-    if o.sync_hazard && o.empty {
-        return Err("--sync-hazard needs draws: it cannot be combined with --empty".into());
+    if a.sync_hazard && a.empty {
+        return Err(usage("--sync-hazard needs draws: it cannot be combined with --empty"));
     }
     // Without sky geometry there is nothing to draw first.
-    if o.sky_first && o.sky == Sky::Clear {
-        return Err("--sky-first needs sky geometry: it cannot be combined with --sky clear".into());
+    if a.sky_first && a.sky == Sky::Clear {
+        return Err(usage("--sky-first needs sky geometry: it cannot be combined with --sky clear"));
     }
-    Ok(Some(o))
+    Ok(Options {
+        layout: a.layout,
+        rendering: a.rendering,
+        depth: a.depth,
+        depth_clear: a.depth_clear,
+        intermediate: a.intermediate,
+        samples,
+        submit_depth: a.submit_depth,
+        vulkan: a.vulkan,
+        vulkan_api: a.vulkan_api,
+        secondary: a.secondary || a.threads,
+        threads: a.threads,
+        teardown: a.teardown,
+        frames: a.frames,
+        sessions: a.sessions,
+        instances: a.instances,
+        recreate_swapchains: a.recreate_swapchains,
+        scale: a.scale,
+        color_format: a.color_format,
+        shading_cost: a.shading_cost,
+        animate: a.animate,
+        bind_before_pass: a.bind_before_pass,
+        empty: a.empty,
+        stats: a.stats,
+        pixel_stats: a.pixel_stats,
+        validation: a.validation,
+        vk_layers: a.vk_layers,
+        record_once: a.record_once,
+        rerecord_every: a.rerecord_every,
+        sync_hazard: a.sync_hazard,
+        thread_hazard: a.thread_hazard,
+        sky: a.sky,
+        sky_first: a.sky_first,
+        translucent: a.translucent,
+        far_movers: a.far_movers,
+        submit2: a.submit2,
+        visibility_mask: a.visibility_mask,
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// `Ok(None)`: the help text was asked for.
     fn p(args: &[&str]) -> Result<Option<Options>, String> {
-        parse(args.iter().map(|s| s.to_string()))
+        match parse(args.iter().map(|s| s.to_string())) {
+            Ok(o) => Ok(Some(o)),
+            Err(e) if e.kind() == clap::error::ErrorKind::DisplayHelp => Ok(None),
+            Err(e) => Err(e.to_string()),
+        }
     }
 
     #[test]

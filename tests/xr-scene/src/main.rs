@@ -20,17 +20,8 @@ use openxr as oxr;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    let opts = match cli::parse(std::env::args().skip(1)) {
-        Ok(Some(o)) => o,
-        Ok(None) => {
-            println!("{}", cli::USAGE);
-            return ExitCode::SUCCESS;
-        }
-        Err(e) => {
-            eprintln!("xr-scene: {e}\n\n{}", cli::USAGE);
-            return ExitCode::from(2);
-        }
-    };
+    // clap prints the help (exit 0) or the usage error (exit 2) itself.
+    let opts = cli::parse(std::env::args().skip(1)).unwrap_or_else(|e| e.exit());
     let result = run(&opts);
     // Everything is destroyed by now, so validation messages about teardown are counted too.
     let errors = gpu::validation_error_count();
