@@ -25,7 +25,7 @@ impl std::fmt::Display for ProbeError {
         match self {
             ProbeError::Failed(s) => write!(f, "{s}"),
             ProbeError::NeedsGraphics => {
-                write!(f, "this runtime needs a graphics session (it does not offer XR_MND_headless); use --hmd")
+                write!(f, "this runtime needs a graphics session; use --hmd (it offers no XR_MND_headless, the session without graphics the preview asks for)")
             }
         }
     }
