@@ -47,6 +47,7 @@ pub fn runtime_headset() -> Result<Headset, ProbeError> {
     let mut exts = oxr::ExtensionSet::default();
     exts.mnd_headless = true;
     exts.khr_visibility_mask = available.khr_visibility_mask;
+    exts.khr_convert_timespec_time = available.khr_convert_timespec_time;
     let app = oxr::ApplicationInfo {
         application_name: "stereoshim preview",
         application_version: 1,
@@ -65,10 +66,16 @@ pub fn runtime_headset() -> Result<Headset, ProbeError> {
     // which allows xrCreateSession without a graphics binding.
     let (session, mut waiter, _stream) = unsafe { instance.create_session::<oxr::Headless>(system, &oxr::headless::SessionCreateInfo {}) }
         .map_err(failed("xrCreateSession (headless)"))?;
-    // A display time to locate the views at: the first frame's, once the session runs.
-    wait_ready(&instance)?;
-    session.begin(stereo).map_err(failed("xrBeginSession"))?;
-    let time = waiter.wait().map_err(failed("xrWaitFrame"))?.predicted_display_time;
+    // A time to locate the views at: now, where the runtime converts clock times
+    // (XR_KHR_convert_timespec_time; Monado's headless xrWaitFrame predicts no usable time), else
+    // the first frame's predicted display time, once the session runs.
+    let time = if exts.khr_convert_timespec_time {
+        instance.now().map_err(failed("xrConvertTimespecTimeToTimeKHR"))?
+    } else {
+        wait_ready(&instance)?;
+        session.begin(stereo).map_err(failed("xrBeginSession"))?;
+        waiter.wait().map_err(failed("xrWaitFrame"))?.predicted_display_time
+    };
     let space = session.create_reference_space(oxr::ReferenceSpaceType::VIEW, oxr::Posef::IDENTITY).map_err(failed("xrCreateReferenceSpace"))?;
     let (_, located) = session.locate_views(stereo, time, &space).map_err(failed("xrLocateViews"))?;
     let views = located
@@ -90,7 +97,6 @@ pub fn runtime_headset() -> Result<Headset, ProbeError> {
             }
         })
         .collect();
-    let _ = session.request_exit();
     Ok(Headset { name, width, height, views })
 }
 
