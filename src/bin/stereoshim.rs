@@ -463,6 +463,7 @@ fn preview_summary(r: &serde_json::Value) -> String {
         }
     }
     let ff = &r["far_field"];
-    s += &format!("far field split: {} m at {} px (shift {})\n", ff["split_m"], ff["split_px"], ff["shift"].as_str().unwrap_or("?"));
+    let split = ff["split_m"].as_f64().map_or("none (no baseline or pixel budget)".to_string(), |m| format!("{m:.2} m"));
+    s += &format!("far field split: {split} at {} px (shift {})\n", ff["split_px"], ff["shift"].as_str().unwrap_or("?"));
     s
 }
