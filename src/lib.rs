@@ -22,3 +22,4 @@ pub mod vk;
 pub mod vk_manifest;
 pub mod xr;
 pub mod install;
+pub mod preview;

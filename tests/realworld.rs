@@ -848,3 +848,39 @@ fn vulkan2_layer_far_field() {
     check_frames_kept(&mut c, &root, base, &o, &spec);
     c.finish(&[&o, base]);
 }
+
+/// `stereoshim preview --runtime` on Monado: a session without graphics (XR_MND_headless) gives the
+/// simulated HMD's real views, recommended size and visibility masks, and the pictures.
+#[test]
+fn preview_runtime_on_monado() {
+    let Some(root) = root() else { return };
+    let _one = RUN_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = target_dir().join("test-output").join("realworld").join("preview-runtime");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut cmd = Command::new(realworld_dir().join("run"));
+    cmd.arg(&root).arg(&dir).arg(target_dir()).args(["--", "/opt/stereoshim", "preview", "--runtime", "--out", "/tmp/preview"]);
+    cmd.env("RW_DURATION", "0").env("RW_TIMEOUT", LIMIT_S.to_string());
+    cmd.stdout(Stdio::piped()).stderr(Stdio::piped());
+    let out = run_with_backstop(cmd, Duration::from_secs(LIMIT_S + 120), "realworld preview --runtime");
+    let runner = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    let log = std::fs::read_to_string(dir.join("app.log")).unwrap_or_default();
+    assert!(out.status.success(), "{runner}\n--- stereoshim preview:\n{log}");
+    let j: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("preview/preview.json")).unwrap_or_default()).expect("preview.json");
+    eprintln!("{}", log.lines().filter(|l| l.starts_with("view ") || l.contains("per view") || l.starts_with("far field")).collect::<Vec<_>>().join("\n"));
+    assert!(j["headset"].as_str().is_some_and(|n| n.contains("Monado")), "{}", j["headset"]);
+    assert!(j["width"].as_u64() > Some(0) && j["height"].as_u64() > Some(0));
+    let views = j["views"].as_array().expect("views");
+    assert_eq!(views.len(), 2);
+    for v in views {
+        let f = &v["fov"];
+        assert!(f["tan_left"].as_f64() < Some(0.0) && f["tan_right"].as_f64() > Some(0.0) && f["tan_down"].as_f64() < Some(0.0) && f["tan_up"].as_f64() > Some(0.0), "{f}");
+        // Monado's simulated HMD has a visibility mask (XR_KHR_visibility_mask): it is used.
+        assert_eq!(v["mask"]["source"], "runtime", "{v}");
+        assert!(v["mask"]["pixels_masked"].as_u64() > Some(0), "{v}");
+        for feature in ["mask", "vrs", "rdm", "far_field"] {
+            let png = dir.join("preview").join(v[feature]["png"].as_str().unwrap());
+            assert!(png.is_file(), "{}", png.display());
+        }
+    }
+}

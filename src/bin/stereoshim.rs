@@ -74,6 +74,49 @@ enum Cmd {
         #[arg(long)]
         app: Option<String>,
     },
+    /// Pictures and numbers of what the effective config would do on a headset: the hidden-area
+    /// mask, the VRS rate map, the RDM skip pattern and the far field's reuse region, per view.
+    #[command(group(ArgGroup::new("headset").required(true).args(["hmd", "runtime"])))]
+    Preview(PreviewArgs),
+}
+
+#[derive(clap::Args)]
+struct PreviewArgs {
+    /// A headset profile (the mock runtime's data: FOVs, resolution, lens masks).
+    #[arg(long, value_parser = PossibleValuesParser::new(hmd_profiles::profile::HMD_NAMES))]
+    hmd: Option<String>,
+    /// Ask the active OpenXR runtime for its views and masks (needs XR_MND_headless).
+    #[arg(long)]
+    runtime: bool,
+    /// The config file (default: the one the layer reads).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Apply this app's `[app.NAME]` section.
+    #[arg(long, value_name = "NAME")]
+    app: Option<String>,
+    /// Draw over this PNG (scaled to each view) instead of the angle grid.
+    #[arg(long, value_name = "PNG")]
+    image: Option<PathBuf>,
+    /// The far field's pixel budget (default: far_field.split_px).
+    #[arg(long, value_name = "N", value_parser = number_in(0.0, 64.0))]
+    split_px: Option<f64>,
+    /// Render at this fraction of the recommended resolution (the numbers are for that size).
+    #[arg(long, default_value_t = 1.0, value_parser = number_in(0.01, 4.0))]
+    scale: f64,
+    /// The GPU's shading-rate texel size in pixels (minFragmentShadingRateAttachmentTexelSize).
+    #[arg(long, default_value_t = stereoshim::preview::DEFAULT_VRS_TEXEL, value_parser = clap::value_parser!(u32).range(1..=64))]
+    vrs_texel: u32,
+    /// Where the PNGs and preview.json go (created if missing).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+}
+
+/// A clap value parser for a finite number in [min, max].
+fn number_in(min: f64, max: f64) -> impl Fn(&str) -> Result<f64, String> + Clone {
+    move |s| match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && (min..=max).contains(&v) => Ok(v),
+        _ => Err(format!("expected a number from {min} to {max}")),
+    }
 }
 
 #[derive(clap::Args)]
@@ -110,6 +153,7 @@ fn main() -> ExitCode {
         Cmd::Run { library, app } => run_cmd(library, &app),
         Cmd::Manifest { kind, library, shipped } => manifest_cmd(kind, library, shipped),
         Cmd::Stats { file, follow, csv, app } => stats_cmd(file, follow, csv, app),
+        Cmd::Preview(args) => preview_cmd(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -322,4 +366,104 @@ fn stats_cmd(file: Option<PathBuf>, follow: bool, csv: bool, app: Option<String>
         return Err(format!("{bad} line(s) of {} could not be read", path.display()));
     }
     Ok(())
+}
+
+/// Computes the preview (`stereoshim::preview`), writes one PNG per feature and view and
+/// `preview.json` into the output folder, and prints the numbers.
+fn preview_cmd(a: PreviewArgs) -> Result<(), String> {
+    use stereoshim::preview::{self, draw::Canvas};
+    let names: Vec<&str> = a.app.iter().map(String::as_str).collect();
+    let (config, diagnostics) = match &a.config {
+        Some(path) if !path.is_file() => return Err(format!("{}: no such config file", path.display())),
+        Some(path) => stereoshim::config::load_from(Some(path), &names),
+        None => stereoshim::config::load(&names),
+    };
+    for d in &diagnostics {
+        eprintln!("stereoshim: config: {d}");
+    }
+    let settings = stereoshim::settings::Settings::from_config(&config);
+    let mut headset = match &a.hmd {
+        Some(name) => {
+            let profile = hmd_profiles::profile::HmdProfile::by_name(name).ok_or("unknown headset")?;
+            preview::Headset::from_profile(profile, a.scale)
+        }
+        None => {
+            let mut h = stereoshim::xr::probe::runtime_headset().map_err(|e| e.to_string())?;
+            (h.width, h.height) = preview::scaled((h.width, h.height), a.scale);
+            h
+        }
+    };
+    if headset.views.len() != 2 {
+        return Err(format!("{} reports {} views; the preview needs two", headset.name, headset.views.len()));
+    }
+    headset.name = headset.name.trim().to_string();
+    let image = match &a.image {
+        Some(p) => Some(Canvas::from_png(&std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))?).map_err(|e| format!("{}: {e}", p.display()))?),
+        None => None,
+    };
+    let options = preview::Options { split_px: a.split_px, vrs_texel: a.vrs_texel };
+    let p = preview::compute(&headset, &settings, &options);
+    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let file_name = |feature: &str, view: usize| format!("{}-view-{view}.png", feature.replace('_', "-"));
+    let mut written = 0;
+    for (i, view) in headset.views.iter().enumerate() {
+        let base = match &image {
+            Some(img) => Canvas::resized(img, p.width, p.height),
+            None => Canvas::grid(p.width, p.height, &view.fov),
+        };
+        for (feature, picture) in preview::draw::view_pictures(&p, i, &base) {
+            let path = a.out.join(file_name(feature, i));
+            std::fs::write(&path, picture.png()?).map_err(|e| format!("{}: {e}", path.display()))?;
+            written += 1;
+        }
+    }
+    let report = preview::report(&headset, &settings, &p, &file_name);
+    let json_path = a.out.join("preview.json");
+    let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+    std::fs::write(&json_path, text + "\n").map_err(|e| format!("{}: {e}", json_path.display()))?;
+    print!("{}", preview_summary(&report));
+    println!("wrote {written} PNGs and {}", json_path.display());
+    Ok(())
+}
+
+/// The numbers of `preview.json` in lines for a person.
+fn preview_summary(r: &serde_json::Value) -> String {
+    let pct = |v: &serde_json::Value| format!("{:.1}%", v.as_f64().unwrap_or(0.0) * 100.0);
+    let on = |k: &str| if r["enabled"][k].as_bool() == Some(true) { "" } else { " [disabled in the config]" };
+    let mut s = format!("{}: {}x{} per view\n", r["headset"].as_str().unwrap_or("?"), r["width"], r["height"]);
+    for v in r["views"].as_array().into_iter().flatten() {
+        let i = &v["view"];
+        let m = &v["mask"];
+        s += &format!(
+            "view {i} mask ({}): {} px masked ({}){}\n",
+            m["source"].as_str().unwrap_or("none"),
+            m["pixels_masked"],
+            pct(&m["fraction"]),
+            on("mask")
+        );
+        let vrs = &v["vrs"];
+        let rates: Vec<String> = ["1x1", "2x1", "2x2"].iter().map(|k| format!("{k} {}", pct(&vrs["fractions"][k]))).collect();
+        s += &format!(
+            "view {i} VRS ({} px texels): {}; fragments saved: 2x1 {}, 2x2 {} (total {}){}\n",
+            vrs["texel"],
+            rates.join(", "),
+            vrs["fragments_saved"]["2x1"],
+            vrs["fragments_saved"]["2x2"],
+            vrs["fragments_saved_total"],
+            on("foveation")
+        );
+        if v["rdm"].is_object() {
+            s += &format!("view {i} RDM: {} px skipped ({}){}\n", v["rdm"]["pixels_skipped"], pct(&v["rdm"]["skipped_fraction"]), on("foveation"));
+        }
+        let f = &v["far_field"];
+        if f["role"] == "destination" {
+            s += &format!("view {i} far field: {} px reusable ({}) beyond the split{}\n", f["pixels_reusable"], pct(&f["share"]), on("far_field"));
+        } else {
+            s += &format!("view {i} far field: the source (renders everything){}\n", on("far_field"));
+        }
+    }
+    let ff = &r["far_field"];
+    let split = ff["split_m"].as_f64().map_or("none (no baseline or pixel budget)".to_string(), |m| format!("{m:.2} m"));
+    s += &format!("far field split: {split} at {} px (shift {})\n", ff["split_px"], ff["shift"].as_str().unwrap_or("?"));
+    s
 }

@@ -5,6 +5,7 @@
 mod actions;
 pub(crate) mod feature;
 mod frame;
+pub mod probe;
 mod instance;
 pub(crate) mod session;
 mod swapchain;

@@ -140,6 +140,17 @@ impl PixelMap {
     }
 }
 
+/// Whether destination pixel (x, y) (its centre) can take the source's colour where the scene
+/// there lies beyond the split: its bilinear footprint in the source's `width`×`height` copy, at
+/// `inv_z` (0 for `shift = infinity`; the split's 1/z for `shift = depth`, the largest shift a far
+/// sample gets), lies inside the copy. `shaders/far_field.frag` makes the same test (`inside` of
+/// `floor(uv − 0.5)` and the texel after it) before it looks at the source's depth.
+pub fn footprint_inside(map: &PixelMap, x: u32, y: u32, inv_z: f64, width: u32, height: u32) -> bool {
+    let Some((u, v)) = map.map(x as f64 + 0.5, y as f64 + 0.5, inv_z) else { return false };
+    let (t0x, t0y) = ((u - 0.5).floor(), (v - 0.5).floor());
+    t0x >= 0.0 && t0y >= 0.0 && t0x + 1.0 < width as f64 && t0y + 1.0 < height as f64
+}
+
 /// Which eye renders everything in `frame` (the source): fixed, or alternating every frame.
 pub fn source_view(frame: u64, source_view: u32, alternate: bool) -> u32 {
     if alternate {
@@ -294,6 +305,22 @@ mod tests {
         let at_inf = map.map(500.5, 500.5, 0.0).unwrap();
         let at_split = map.map(500.5, 500.5, 1.0 / one).unwrap();
         assert!(((at_split.0 - at_inf.0).hypot(at_split.1 - at_inf.1) - 1.9 / 1.9).abs() < 0.01, "{at_inf:?} {at_split:?}");
+    }
+
+    #[test]
+    fn footprints_inside_the_copy() {
+        let a = eye(0.0, 0.0);
+        let m = PixelMap::new(&a, &a);
+        // The same view: every pixel but the last row and column (their footprint's second texel
+        // lies outside) is inside.
+        assert!(footprint_inside(&m, 0, 0, 0.0, 1000, 1000));
+        assert!(footprint_inside(&m, 998, 998, 0.0, 1000, 1000));
+        assert!(!footprint_inside(&m, 999, 5, 0.0, 1000, 1000));
+        // Turned 20° left: the destination's left edge has no counterpart in the source.
+        let m = PixelMap::new(&a, &eye(0.0, 20.0));
+        assert!(!footprint_inside(&m, 0, 500, 0.0, 1000, 1000) && footprint_inside(&m, 900, 500, 0.0, 1000, 1000));
+        let back = ViewGeometry { orientation: DQuat::from_rotation_y(std::f64::consts::PI), ..a };
+        assert!(!footprint_inside(&PixelMap::new(&a, &back), 500, 500, 0.0, 1000, 1000));
     }
 
     #[test]

@@ -81,6 +81,18 @@ impl SourcePolicy {
     }
 }
 
+/// The source policy and the synthesized lens the mask's settings ask for (the OpenXR half and
+/// `stereoshim preview` both start here).
+pub fn from_settings(settings: &super::MaskSettings) -> (SourcePolicy, LensShape) {
+    let policy = match settings.source {
+        super::SourceSetting::Runtime => SourcePolicy::Runtime,
+        super::SourceSetting::Synthesized => SourcePolicy::Synthesized,
+        super::SourceSetting::Auto => SourcePolicy::Auto,
+    };
+    let radius = settings.synthesized_radius_deg;
+    (policy, LensShape { horizontal_deg: radius, vertical_deg: (radius * settings.synthesized_aspect).min(89.0) })
+}
+
 /// Picks a view's mask. `runtime` is the runtime's hidden mesh (None: the runtime offers no
 /// visibility mask; an empty mesh means "no mask" per the spec).
 pub fn choose(policy: SourcePolicy, runtime: Option<Vec<[f32; 2]>>, lens: &LensShape) -> Option<(MaskSource, Vec<[f32; 2]>)> {
@@ -159,6 +171,15 @@ mod tests {
         assert_eq!(choose(SourcePolicy::Auto, Some(vec![]), &lens).unwrap().0, MaskSource::Synthesized);
         assert!(choose(SourcePolicy::Runtime, None, &lens).is_none());
         assert_eq!(choose(SourcePolicy::Synthesized, Some(mesh), &lens).unwrap().0, MaskSource::Synthesized);
+    }
+
+    #[test]
+    fn settings_pick_the_policy_and_the_lens() {
+        let mut m = super::super::MaskSettings { enabled: true, source: super::super::SourceSetting::Synthesized, synthesized_radius_deg: 60.0, synthesized_aspect: 2.0, debug: false };
+        assert_eq!(from_settings(&m), (SourcePolicy::Synthesized, LensShape { horizontal_deg: 60.0, vertical_deg: 89.0 }));
+        m.source = super::super::SourceSetting::Auto;
+        m.synthesized_aspect = 0.5;
+        assert_eq!(from_settings(&m), (SourcePolicy::Auto, LensShape { horizontal_deg: 60.0, vertical_deg: 30.0 }));
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! Vulkan half at `xrBeginFrame` whenever they are due: at the start, after the runtime says they
 //! changed, and after a config reload that touched `mask.*`.
 
-use super::source::{self as mask_source, LensShape, SourcePolicy};
+use super::source as mask_source;
 use crate::settings::Settings;
 use crate::shared::ViewMask;
 use crate::xr::feature::XrFeature;
@@ -119,13 +119,7 @@ fn refresh_masks(s: &Session) {
     if !settings.mask.enabled || !s.features.mask.dirty.swap(false, Ordering::AcqRel) {
         return;
     }
-    let policy = match settings.mask.source {
-        crate::features::mask::SourceSetting::Runtime => SourcePolicy::Runtime,
-        crate::features::mask::SourceSetting::Synthesized => SourcePolicy::Synthesized,
-        crate::features::mask::SourceSetting::Auto => SourcePolicy::Auto,
-    };
-    let radius = settings.mask.synthesized_radius_deg;
-    let lens = LensShape { horizontal_deg: radius, vertical_deg: (radius * settings.mask.synthesized_aspect).min(89.0) };
+    let (policy, lens) = mask_source::from_settings(&settings.mask);
     let mut masks = Vec::new();
     for view in 0..STEREO_VIEWS {
         match mask_source::choose(policy, runtime_mask(s, view), &lens) {

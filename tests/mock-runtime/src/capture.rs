@@ -150,7 +150,7 @@ fn io_err(e: std::io::Error) -> xr::Result {
 
 /// Copies every job's region into one host-visible buffer and returns its bytes.
 fn read_back(s: &Session, jobs: &[Job], size: u64) -> XrResult<Vec<u8>> {
-    let vk = &s.vk;
+    let vk = s.vk()?;
     let d = &vk.device;
     let bci = vk::BufferCreateInfo::default().size(size).usage(vk::BufferUsageFlags::TRANSFER_DST).sharing_mode(vk::SharingMode::EXCLUSIVE);
     // SAFETY: valid device and create info.

@@ -65,7 +65,8 @@ pub unsafe extern "system" fn xr_wait_frame(
         core.waited = Some(t);
         out.predicted_display_time = xr::Time::from_nanos(t);
         out.predicted_display_period = xr::Duration::from_nanos(s.period());
-        out.should_render = matches!(core.state, xr::SessionState::VISIBLE | xr::SessionState::FOCUSED).into();
+        // A headless session (XR_MND_headless) never renders.
+        out.should_render = (s.vk.is_some() && matches!(core.state, xr::SessionState::VISIBLE | xr::SessionState::FOCUSED)).into();
         Ok(xr::Result::SUCCESS)
     })
 }
@@ -77,7 +78,9 @@ pub unsafe extern "system" fn xr_begin_frame(session: xr::Session, info: *const 
         // SAFETY: app input struct (may be NULL).
         unsafe { input_opt(info) }?;
         if s.instance.cfg.reenter {
-            s.vk.reenter("xrBeginFrame", true)?;
+            if let Some(vk) = &s.vk {
+                vk.reenter("xrBeginFrame", true)?;
+            }
         }
         let mut core = s.core.lock().unwrap();
         if !core.running {
@@ -225,7 +228,9 @@ pub unsafe extern "system" fn xr_end_frame(session: xr::Session, info: *const xr
         // SAFETY: app input struct.
         let info = unsafe { input(info) }?;
         if s.instance.cfg.reenter {
-            s.vk.reenter("xrEndFrame", true)?;
+            if let Some(vk) = &s.vk {
+                vk.reenter("xrEndFrame", true)?;
+            }
         }
         let frame = {
             let core = s.core.lock().unwrap();
@@ -295,7 +300,9 @@ pub unsafe extern "system" fn xr_locate_views(
         s.fail_point("xrLocateViews")?;
         check_view_config(info.view_configuration_type)?;
         if s.instance.cfg.reenter {
-            s.vk.reenter("xrLocateViews", false)?;
+            if let Some(vk) = &s.vk {
+                vk.reenter("xrLocateViews", false)?;
+            }
         }
         if info.display_time.as_nanos() <= 0 {
             return Err(xr::Result::ERROR_TIME_INVALID);

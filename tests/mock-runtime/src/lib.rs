@@ -40,6 +40,9 @@ pub const EXT_VULKAN_ENABLE2: &str = "XR_KHR_vulkan_enable2";
 pub const EXT_VISIBILITY_MASK: &str = "XR_KHR_visibility_mask";
 pub const EXT_DEPTH: &str = "XR_KHR_composition_layer_depth";
 pub const EXT_EYE_GAZE: &str = "XR_EXT_eye_gaze_interaction";
+/// Sessions without a graphics binding (`stereoshim preview --runtime`); hidden with
+/// `MOCK_XR_DISABLE_EXTENSIONS=XR_MND_headless`.
+pub const EXT_HEADLESS: &str = "XR_MND_headless";
 
 /// Offered extensions and their spec versions.
 pub const EXTENSIONS: &[(&str, u32)] = &[
@@ -48,6 +51,7 @@ pub const EXTENSIONS: &[(&str, u32)] = &[
     (EXT_VISIBILITY_MASK, 2),
     (EXT_DEPTH, 6),
     (EXT_EYE_GAZE, 2),
+    (EXT_HEADLESS, 2),
     // Controller-interaction extensions: each only adds an interaction profile (profiles.rs).
     ("XR_EXT_hp_mixed_reality_controller", 1),
     ("XR_EXT_samsung_odyssey_controller", 1),

@@ -12,7 +12,7 @@ use crate::instance::{self, Event, Instance};
 use crate::system::{check_system, check_view_config};
 use crate::util::{find_in_chain, guard, input, out_ptr, XrResult};
 use crate::vulkan::VkContext;
-use crate::{EXT_VULKAN_ENABLE, EXT_VULKAN_ENABLE2};
+use crate::{EXT_HEADLESS, EXT_VULKAN_ENABLE, EXT_VULKAN_ENABLE2};
 
 pub static SESSIONS: Registry<Session> = Registry::new();
 
@@ -40,7 +40,9 @@ pub struct Core {
 pub struct Session {
     pub handle: u64,
     pub instance: Arc<Instance>,
-    pub vk: Arc<VkContext>,
+    /// None: a headless session (XR_MND_headless, created without a graphics binding): no
+    /// swapchains, no rendering; views, spaces and visibility masks work.
+    pub vk: Option<Arc<VkContext>>,
     pub core: Mutex<Core>,
     /// Signalled when a waited frame is begun or the session starts or stops running: what an
     /// xrWaitFrame blocked on the previous frame's xrBeginFrame waits for.
@@ -52,6 +54,11 @@ pub struct Session {
 impl Session {
     pub fn fail_point(&self, f: &'static str) -> XrResult<()> {
         self.instance.fail_point(f)
+    }
+
+    /// The session's Vulkan device; a headless session has none.
+    pub fn vk(&self) -> XrResult<&Arc<VkContext>> {
+        self.vk.as_ref().ok_or(xr::Result::ERROR_VALIDATION_FAILURE)
     }
 
     pub fn period(&self) -> i64 {
@@ -108,7 +115,9 @@ pub fn destroy(s: &Arc<Session>) {
     for sc in crate::swapchain::SWAPCHAINS.remove_where(|sc| sc.session == s.handle) {
         crate::swapchain::destroy(&sc);
     }
-    s.vk.destroy_own_objects();
+    if let Some(vk) = &s.vk {
+        vk.destroy_own_objects();
+    }
     SESSIONS.remove(s.handle);
     s.instance.events.lock().unwrap().retain(|e| e.session() != s.handle);
 }
@@ -127,24 +136,34 @@ pub unsafe extern "system" fn xr_create_session(
         if info.create_flags != xr::SessionCreateFlags::EMPTY {
             return Err(xr::Result::ERROR_VALIDATION_FAILURE);
         }
-        if !inst.extension_enabled(EXT_VULKAN_ENABLE) && !inst.extension_enabled(EXT_VULKAN_ENABLE2) {
-            crate::log!("xrCreateSession: no graphics extension enabled");
-            return Err(xr::Result::ERROR_GRAPHICS_DEVICE_INVALID);
-        }
-        if !inst.vk.lock().unwrap().requirements_called {
-            return Err(xr::Result::ERROR_GRAPHICS_REQUIREMENTS_CALL_MISSING);
-        }
         // SAFETY: the app's input chain.
         let binding = unsafe { find_in_chain(info.next, xr::GraphicsBindingVulkanKHR::TYPE) } as *const xr::GraphicsBindingVulkanKHR;
-        if binding.is_null() {
-            crate::log!("xrCreateSession: no XrGraphicsBindingVulkanKHR");
-            return Err(xr::Result::ERROR_GRAPHICS_DEVICE_INVALID);
+        // XR_MND_headless: without a graphics binding, a session that does not interact with
+        // the display (no swapchains, nothing rendered).
+        let headless = binding.is_null() && inst.extension_enabled(EXT_HEADLESS);
+        if !headless {
+            if !inst.extension_enabled(EXT_VULKAN_ENABLE) && !inst.extension_enabled(EXT_VULKAN_ENABLE2) {
+                crate::log!("xrCreateSession: no graphics extension enabled");
+                return Err(xr::Result::ERROR_GRAPHICS_DEVICE_INVALID);
+            }
+            if !inst.vk.lock().unwrap().requirements_called {
+                return Err(xr::Result::ERROR_GRAPHICS_REQUIREMENTS_CALL_MISSING);
+            }
+            if binding.is_null() {
+                crate::log!("xrCreateSession: no XrGraphicsBindingVulkanKHR");
+                return Err(xr::Result::ERROR_GRAPHICS_DEVICE_INVALID);
+            }
         }
         if !SESSIONS.find(|s| s.instance.handle == inst.handle).is_empty() {
             return Err(xr::Result::ERROR_LIMIT_REACHED);
         }
-        // SAFETY: found in the chain with the binding's type.
-        let vk = Arc::new(VkContext::new(&inst, unsafe { &*binding })?);
+        let vk = if headless {
+            crate::log!("xrCreateSession: headless (XR_MND_headless)");
+            None
+        } else {
+            // SAFETY: found in the chain with the binding's type (non-null: checked above).
+            Some(Arc::new(VkContext::new(&inst, unsafe { &*binding })?))
+        };
         let (h, s) = SESSIONS.insert_with(|handle| Session {
             handle,
             instance: inst.clone(),
@@ -192,7 +211,10 @@ pub unsafe extern "system" fn xr_begin_session(session: xr::Session, info: *cons
         s.fail_point("xrBeginSession")?;
         // SAFETY: app input struct.
         let info = unsafe { input(info) }?;
-        check_view_config(info.primary_view_configuration_type)?;
+        // A headless session ignores the view configuration (it may be 0).
+        if s.vk.is_some() {
+            check_view_config(info.primary_view_configuration_type)?;
+        }
         let mut core = s.core.lock().unwrap();
         if core.running {
             return Err(xr::Result::ERROR_SESSION_RUNNING);

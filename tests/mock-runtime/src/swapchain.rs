@@ -144,7 +144,8 @@ pub unsafe extern "system" fn xr_enumerate_swapchain_formats(
     guard("xrEnumerateSwapchainFormats", || {
         let s = session::get(session)?;
         s.fail_point("xrEnumerateSwapchainFormats")?;
-        let f: Vec<i64> = supported_formats(&s.vk).iter().map(|f| f.as_raw() as i64).collect();
+        // A headless session enumerates no formats (XR_MND_headless).
+        let f: Vec<i64> = s.vk.as_ref().map(|vk| supported_formats(vk).iter().map(|f| f.as_raw() as i64).collect()).unwrap_or_default();
         // SAFETY: app array of `capacity` elements.
         unsafe { two_call_copy(capacity, count_out, formats, &f) }?;
         Ok(xr::Result::SUCCESS)
@@ -203,7 +204,9 @@ fn create(s: &Arc<Session>, info: &xr::SwapchainCreateInfo) -> XrResult<u64> {
         return Err(xr::Result::ERROR_VALIDATION_FAILURE);
     }
     let format = i32::try_from(info.format).map(vk::Format::from_raw).map_err(|_| xr::Result::ERROR_SWAPCHAIN_FORMAT_UNSUPPORTED)?;
-    if !supported_formats(&s.vk).contains(&format) {
+    // A headless session has no formats, so no swapchain.
+    let vk = s.vk.as_ref().ok_or(xr::Result::ERROR_SWAPCHAIN_FORMAT_UNSUPPORTED)?;
+    if !supported_formats(vk).contains(&format) {
         return Err(xr::Result::ERROR_SWAPCHAIN_FORMAT_UNSUPPORTED);
     }
     let depth = is_depth(format);
@@ -238,11 +241,11 @@ fn create(s: &Arc<Session>, info: &xr::SwapchainCreateInfo) -> XrResult<u64> {
         .usage(usage_to_vk(u, format))
         .sharing_mode(vk::SharingMode::EXCLUSIVE)
         .initial_layout(vk::ImageLayout::UNDEFINED);
-    let (images, memories) = create_images(&s.vk, &ci)?;
+    let (images, memories) = create_images(vk, &ci)?;
     let (h, _) = SWAPCHAINS.insert_with(|handle| Swapchain {
         handle,
         session: s.handle,
-        vk: s.vk.clone(),
+        vk: vk.clone(),
         format,
         width: info.width,
         height: info.height,

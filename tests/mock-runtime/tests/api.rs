@@ -597,3 +597,41 @@ fn capture_lists_no_masks_without_the_extension() {
     let captured = captured_masks(&dir);
     assert_eq!(captured, vec![vec![Vec::<[f32; 2]>::new(); 2]; 2]);
 }
+
+#[test]
+fn headless_session_without_a_binding() {
+    // XR_MND_headless: with the extension enabled, xrCreateSession without a graphics binding makes
+    // a session that renders nothing (no swapchain formats, shouldRender false) but answers for
+    // its views and masks; without it, the same call is refused.
+    let _g = serial();
+    let x = create_instance(&["XR_MND_headless", "XR_KHR_visibility_mask"]);
+    let f: pfn::CreateSession = x.f("xrCreateSession");
+    let ci = xr::SessionCreateInfo { ty: xr::SessionCreateInfo::TYPE, next: std::ptr::null(), create_flags: xr::SessionCreateFlags::EMPTY, system_id: x.system };
+    let mut s = xr::Session::NULL;
+    // SAFETY: valid arguments.
+    assert_eq!(unsafe { f(x.instance, &ci, &mut s) }, xr::Result::SUCCESS);
+    let formats: pfn::EnumerateSwapchainFormats = x.f("xrEnumerateSwapchainFormats");
+    let mut n = 99;
+    // SAFETY: valid arguments; a count-only call.
+    assert_eq!(unsafe { formats(s, 0, &mut n, std::ptr::null_mut()) }, xr::Result::SUCCESS);
+    assert_eq!(n, 0, "a headless session has no swapchain formats");
+    let (v, i) = mask(&x, s, 0, xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH);
+    assert!(area(&v, &i) > 0.0);
+    // The view configuration of a headless session's xrBeginSession is ignored (may be 0).
+    let begin: pfn::BeginSession = x.f("xrBeginSession");
+    let bi = xr::SessionBeginInfo { ty: xr::SessionBeginInfo::TYPE, next: std::ptr::null(), primary_view_configuration_type: xr::ViewConfigurationType::from_raw(0) };
+    // SAFETY: valid arguments.
+    assert_eq!(unsafe { begin(s, &bi) }, xr::Result::SUCCESS);
+    let wait: pfn::WaitFrame = x.f("xrWaitFrame");
+    // SAFETY: plain data.
+    let mut state: xr::FrameState = unsafe { std::mem::zeroed() };
+    state.ty = xr::FrameState::TYPE;
+    // SAFETY: valid arguments.
+    assert_eq!(unsafe { wait(s, std::ptr::null(), &mut state) }, xr::Result::SUCCESS);
+    assert_eq!(state.should_render, xr::FALSE);
+    drop(x);
+
+    std::env::set_var("MOCK_XR_DISABLE_EXTENSIONS", "XR_MND_headless");
+    assert_eq!(try_create_instance(&["XR_MND_headless"], xr::Version::new(1, 0, 0)).err(), Some(xr::Result::ERROR_EXTENSION_NOT_PRESENT));
+    std::env::remove_var("MOCK_XR_DISABLE_EXTENSIONS");
+}
