@@ -60,6 +60,21 @@ enum Cmd {
         #[arg(long, value_name = "DIR")]
         shipped: Option<PathBuf>,
     },
+    /// Check that the layer can work here: OpenXR loader and runtime, manifests, the Vulkan half,
+    /// the GPU's capabilities per feature, the config, conflicts. Each check is ok, warning or
+    /// error with a one-line fix. Exit status 0 when nothing is an error (warnings allowed), 1
+    /// when any check is an error.
+    Doctor {
+        /// Check the config as it applies to this app (its `[app.NAME]` table).
+        #[arg(long)]
+        app: Option<String>,
+        /// Read this config file instead of the default one.
+        #[arg(long, value_name = "FILE")]
+        config: Option<PathBuf>,
+        /// Print the findings as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Summarise the layer's stats file (`stats.file`) per second, or convert it to CSV.
     Stats {
         /// The stats file (default: `stats.file` of the effective config).
@@ -110,6 +125,7 @@ fn main() -> ExitCode {
         Cmd::Run { library, app } => run_cmd(library, &app),
         Cmd::Manifest { kind, library, shipped } => manifest_cmd(kind, library, shipped),
         Cmd::Stats { file, follow, csv, app } => stats_cmd(file, follow, csv, app),
+        Cmd::Doctor { app, config, json } => return doctor_cmd(app, config, json),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -257,6 +273,19 @@ fn manifest_cmd(kind: Option<String>, library: Option<PathBuf>, shipped: Option<
     let library = std::fs::canonicalize(find_library(library)?).map_err(|e| e.to_string())?;
     print!("{}", manifest::json(kind, &library));
     Ok(())
+}
+
+/// Runs every check and prints the findings (a table, or JSON); exit 1 when any is an error.
+fn doctor_cmd(app: Option<String>, config: Option<PathBuf>, json: bool) -> ExitCode {
+    use std::io::IsTerminal;
+    let report = stereoshim::doctor::run(&stereoshim::doctor::Options { app, config });
+    let out = std::io::stdout();
+    let colour = !json && out.is_terminal() && std::env::var_os("NO_COLOR").is_none();
+    let text = if json { report.json() } else { report.table(colour) };
+    let mut out = out.lock();
+    // A closed pipe (`doctor | head`) is not worth a panic.
+    let _ = out.write_all(text.as_bytes()).and_then(|_| out.flush());
+    ExitCode::from(report.exit_code())
 }
 
 /// Reads the stats file's lines, summarised per second (or one CSV row per frame). With

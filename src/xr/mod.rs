@@ -8,6 +8,7 @@ mod frame;
 mod instance;
 pub(crate) mod session;
 mod swapchain;
+pub mod probe;
 mod vulkan;
 
 use crate::config::Config;
