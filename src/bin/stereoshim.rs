@@ -60,10 +60,14 @@ enum Cmd {
         #[arg(long, value_name = "DIR")]
         shipped: Option<PathBuf>,
     },
-    /// Check that the layer can work here: OpenXR loader and runtime, manifests, the Vulkan half,
-    /// the GPU's capabilities per feature, the config, conflicts. Each check is ok, warning or
-    /// error with a one-line fix. Exit status 0 when nothing is an error (warnings allowed), 1
-    /// when any check is an error.
+    /// Check that the layer can work here; each check is ok, warning or error with a fix.
+    ///
+    /// Checks the OpenXR loader and the active runtime (an instance is created through the
+    /// loader, no session), stereoshim's manifests, the Vulkan half, the GPU's capabilities for
+    /// each feature (a short Vulkan probe), the effective config and its problems, and known
+    /// conflicts (other implicit OpenXR layers, VK_LAYER_PATH, VK_LOADER_LAYERS_DISABLE,
+    /// STEREOSHIM_DISABLE). Exit status: 0 when no check is an error (warnings allowed), 1 when
+    /// any is.
     Doctor {
         /// Check the config as it applies to this app (its `[app.NAME]` table).
         #[arg(long)]

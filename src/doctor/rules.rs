@@ -446,7 +446,7 @@ pub fn gpu(vk: &Result<VulkanFacts, String>, config: &Config) -> Vec<Finding> {
             Some(Method::Auto) | None => "none (auto does not foveate on a CPU implementation)".to_string(),
         };
         let c = format!("foveation.{i}");
-        let detail = format!("foveation.method = {} -> {picked}{}", config.choice("foveation.method"), if s.foveation.enabled { "" } else { " (foveation.enabled = false)" });
+        let detail = format!("foveation.method = {} -> {picked}{}", config.choice("foveation.method"), if s.foveation.enabled { "" } else { "; foveation.enabled = false" });
         out.push(match method {
             Some(Method::Vrs) if !attachment && s.foveation.enabled => warning(&c, detail, "set foveation.method = auto (rdm where there are no attachment rates)"),
             None | Some(Method::Auto) if s.foveation.enabled => warning(&c, detail, "set foveation.method = rdm to foveate anyway (slower than none on most CPU-rendered apps)"),

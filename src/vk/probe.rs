@@ -93,17 +93,15 @@ pub fn probe() -> Result<VulkanFacts, String> {
 }
 
 fn device(instance: &ash::Instance, instance_version: u32, pd: vk::PhysicalDevice) -> DeviceFacts {
-    // SAFETY (all queries below): `pd` is a physical device of `instance`, output structs are
-    // default-initialised and chained only with structs valid for the device's version or
-    // extensions (checked before each is chained).
+    // SAFETY: `pd` is a physical device of `instance`, which is alive.
     let props = unsafe { instance.get_physical_device_properties(pd) };
-    // SAFETY: see above.
+    // SAFETY: `pd` of the live `instance`; no layer name (null), ash sizes the output array.
     let extensions: Vec<String> = unsafe { instance.enumerate_device_extension_properties(pd) }
         .unwrap_or_default()
         .iter()
         .map(|e| name(e.extension_name_as_c_str()))
         .collect();
-    // SAFETY: see above.
+    // SAFETY: `pd` of the live `instance`; the output struct is written by value.
     let core = unsafe { instance.get_physical_device_features(pd) };
     let has = |e: &str| extensions.iter().any(|x| x == e);
     let version = props.api_version.min(instance_version);
@@ -129,7 +127,8 @@ fn device(instance: &ash::Instance, instance_version: u32, pd: vk::PhysicalDevic
         if with_fsr {
             f2 = f2.push_next(&mut fsr);
         }
-        // SAFETY: see above.
+        // SAFETY: `pd` of the live `instance`, whose version is at least 1.1 (checked above);
+        // every chained struct belongs to that version or to an extension the device lists.
         unsafe { instance.get_physical_device_features2(pd, &mut f2) };
         facts.multiview = multiview.multiview != 0;
         facts.dynamic_rendering = with_dynamic && dynamic.dynamic_rendering != 0;
@@ -141,7 +140,8 @@ fn device(instance: &ash::Instance, instance_version: u32, pd: vk::PhysicalDevic
             });
             let mut fsr_props = vk::PhysicalDeviceFragmentShadingRatePropertiesKHR::default();
             let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut fsr_props);
-            // SAFETY: see above.
+            // SAFETY: `pd` of the live `instance` (1.1 or later); the chained properties struct
+            // belongs to VK_KHR_fragment_shading_rate, which the device lists.
             unsafe { instance.get_physical_device_properties2(pd, &mut p2) };
             let t = fsr_props.min_fragment_shading_rate_attachment_texel_size;
             facts.fsr_texel = (t.width, t.height);

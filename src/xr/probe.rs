@@ -43,14 +43,14 @@ pub fn probe() -> Result<XrFacts, String> {
     // does. It stays loaded (forgotten below): runtimes it loads may leave thread-local
     // destructors or atexit handlers behind.
     let lib = unsafe { libloading::Library::new(LOADER) }.map_err(|e| e.to_string())?;
-    // SAFETY (the four lookups): the OpenXR loader exports every core command under its name, with
-    // the signature of `openxr_sys::pfn`.
+    // SAFETY: the OpenXR loader exports every core command under its name, with the signature of
+    // `openxr_sys::pfn` (here xrCreateInstance's).
     let create = unsafe { lib.get::<xr::pfn::CreateInstance>(b"xrCreateInstance") }.map_err(|e| e.to_string())?;
-    // SAFETY: see above.
+    // SAFETY: a core command the loader exports, typed as `openxr_sys::pfn::DestroyInstance`.
     let destroy = unsafe { lib.get::<xr::pfn::DestroyInstance>(b"xrDestroyInstance") }.map_err(|e| e.to_string())?;
-    // SAFETY: see above.
+    // SAFETY: a core command the loader exports, typed as `openxr_sys::pfn::GetInstanceProperties`.
     let properties = unsafe { lib.get::<xr::pfn::GetInstanceProperties>(b"xrGetInstanceProperties") }.map_err(|e| e.to_string())?;
-    // SAFETY: see above.
+    // SAFETY: a core command the loader exports, typed as `openxr_sys::pfn::EnumerateApiLayerProperties`.
     let layers = unsafe { lib.get::<xr::pfn::EnumerateApiLayerProperties>(b"xrEnumerateApiLayerProperties") }.map_err(|e| e.to_string())?;
     let (create, destroy, properties, layers) = (*create, *destroy, *properties, *layers);
     std::mem::forget(lib);
