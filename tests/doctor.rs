@@ -299,3 +299,53 @@ fn help_and_bad_arguments() {
     let out = home.command(&["doctor", "--app"]).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
 }
+
+/// On Monado inside the trixie root of the real-world tests (tests/realworld.rs,
+/// tests/realworld/run): healthy with its service running, an error naming the service without.
+/// Runs where that ground must run (`STEREOSHIM_REALWORLD_REQUIRED=1` or CI, as root; the root is
+/// cached), skipped loudly elsewhere.
+#[test]
+fn doctor_on_monado_in_the_trixie_root() {
+    let required = std::env::var_os("CI").is_some() || std::env::var("STEREOSHIM_REALWORLD_REQUIRED").is_ok_and(|v| v == "1");
+    if !required {
+        eprintln!("SKIPPED: stereoshim doctor on Monado in the trixie root (set STEREOSHIM_REALWORLD_REQUIRED=1, as root)");
+        return;
+    }
+    let realworld = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/realworld");
+    let out = Command::new(realworld.join("trixie-root")).output().expect("tests/realworld/trixie-root");
+    assert!(out.status.success(), "the trixie root: {}", String::from_utf8_lossy(&out.stderr));
+    let root = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    for (name, monado) in [("doctor-monado", true), ("doctor-monado-stopped", false)] {
+        let dir = common::output_dir(name);
+        std::fs::write(dir.join("pre.sh"), "/opt/stereoshim install --user\n").unwrap();
+        std::fs::write(dir.join("app.env"), "").unwrap();
+        // Inside the root: the run folder is /tmp, target/<profile> is /opt.
+        let mut cmd = Command::new(realworld.join("run"));
+        cmd.arg(&root).arg(&dir).arg(target_dir()).args(["--", "/opt/stereoshim", "doctor", "--json"]);
+        cmd.env("RW_DURATION", "0").env("RW_TIMEOUT", "60");
+        if !monado {
+            cmd.env("RW_NO_MONADO", "1");
+        }
+        let out = cmd.output().expect("tests/realworld/run");
+        let runner = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        let log = std::fs::read_to_string(dir.join("app.log")).unwrap_or_default();
+        // Monado and the loader write their own lines first; the JSON document is the rest.
+        let json = log.find("\n{\n").map(|i| &log[i + 1..]).unwrap_or_else(|| panic!("no JSON in the output:\n{runner}\n{log}"));
+        let v: Value = serde_json::from_str(json).unwrap_or_else(|e| panic!("{e}:\n{log}"));
+        let d = Doctor { code: v["exit_code"].as_i64().unwrap_or(-1) as i32, findings: v["findings"].as_array().cloned().unwrap_or_default(), text: log.clone() };
+        assert_eq!(out.status.code(), Some(d.code), "the run's status is doctor's: {runner}\n{log}");
+        assert!(d.has("openxr.runtime", "ok", "libopenxr_monado.so"), "{log}");
+        assert!(d.has("layer.manifest", "ok", ", this build"), "{log}");
+        assert!(d.has("vulkan.manifest", "ok", "the Vulkan loader lists VK_LAYER_STEREOSHIM_stereoshim"), "{log}");
+        if monado {
+            assert_eq!(d.code, 0, "{log}");
+            assert!(d.has("openxr.instance", "ok", "Monado"), "{log}");
+            assert!(d.has("openxr.loader", "ok", "libopenxr_loader.so.1.1"), "trixie's loader: {log}");
+        } else {
+            assert_eq!(d.code, 1, "{log}");
+            assert!(d.has("openxr.instance", "error", "xrCreateInstance: ERROR_RUNTIME_FAILURE"), "{log}");
+            assert!(d.fix("openxr.instance", "error").contains("monado-service"), "{log}");
+        }
+        println!("{name}:\n{json}");
+    }
+}

@@ -213,7 +213,7 @@ pub fn instance(xr: &XrProbe, runtime: &RuntimeFacts) -> Vec<Finding> {
         Err(code) => vec![error(
             C,
             format!("xrCreateInstance: {code}"),
-            format!("check the runtime (is its service running?) and the log file; {DISABLE_ENV}=1 stereoshim doctor tells whether the layer is the cause"),
+            format!("start the runtime's service if it has one (monado-service, wivrn-server, SteamVR); if it runs, `{DISABLE_ENV}=1 stereoshim doctor` tells whether the layer is the cause"),
         )],
     }
 }
