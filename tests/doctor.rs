@@ -119,6 +119,7 @@ fn healthy_setup_is_all_ok() {
     assert!(d.has("openxr.runtime", "ok", "libmock_runtime.so"), "{}", d.text);
     // The instance went through the OpenXR loader with the installed layer in its chain.
     assert!(d.has("openxr.instance", "ok", "mock"), "{}", d.text);
+    assert!(d.has("openxr.extensions", "ok", "XR_KHR_vulkan_enable2, XR_KHR_vulkan_enable; XR_KHR_visibility_mask"), "{}", d.text);
     assert!(d.has("layer.manifest", "ok", ", this build"), "{}", d.text);
     assert!(d.has("layer.vulkan", "ok", "negotiates Vulkan loader interface 2"), "{}", d.text);
     assert!(d.has("vulkan.manifest", "ok", "the Vulkan loader lists VK_LAYER_STEREOSHIM_stereoshim"), "{}", d.text);
@@ -340,6 +341,7 @@ fn doctor_on_monado_in_the_trixie_root() {
         if monado {
             assert_eq!(d.code, 0, "{log}");
             assert!(d.has("openxr.instance", "ok", "Monado"), "{log}");
+            assert!(d.has("openxr.extensions", "ok", "XR_KHR_vulkan_enable2"), "{log}");
             assert!(d.has("openxr.loader", "ok", "libopenxr_loader.so.1.1"), "trixie's loader: {log}");
         } else {
             assert_eq!(d.code, 1, "{log}");

@@ -218,6 +218,28 @@ pub fn instance(xr: &XrProbe, runtime: &RuntimeFacts) -> Vec<Finding> {
     }
 }
 
+/// What the runtime offers the layer: a Vulkan binding (required: stereoshim works on Vulkan apps
+/// only), hidden-area masks and eye gaze (optional, each feature has a fallback).
+pub fn extensions(xr: &XrProbe, runtime: &RuntimeFacts) -> Vec<Finding> {
+    const C: &str = "openxr.extensions";
+    let Ok(f) = xr else { return Vec::new() };
+    if runtime.manifest.is_none() {
+        return Vec::new();
+    }
+    let list = match &f.extensions {
+        Ok(l) => l,
+        Err(code) => return vec![error(C, format!("xrEnumerateInstanceExtensionProperties: {code}"), "check the runtime: it does not list its extensions")],
+    };
+    let has = |e: &str| list.iter().any(|x| x == e);
+    let vulkan: Vec<&str> = ["XR_KHR_vulkan_enable2", "XR_KHR_vulkan_enable"].into_iter().filter(|e| has(e)).collect();
+    if vulkan.is_empty() {
+        return vec![error(C, "the runtime offers neither XR_KHR_vulkan_enable2 nor XR_KHR_vulkan_enable: stereoshim works on Vulkan apps only", "use a runtime with Vulkan support (Monado, WiVRn, SteamVR)")];
+    }
+    let mask = if has("XR_KHR_visibility_mask") { "XR_KHR_visibility_mask (the runtime's hidden-area masks)" } else { "no XR_KHR_visibility_mask (mask.source auto: a synthesized lens outline)" };
+    let gaze = if has("XR_EXT_eye_gaze_interaction") { "XR_EXT_eye_gaze_interaction (gaze-following foveation)" } else { "no XR_EXT_eye_gaze_interaction (foveation on the optical axis)" };
+    vec![ok(C, format!("{}; {mask}; {gaze}", vulkan.join(", ")))]
+}
+
 // ---------------------------------------------------------------------------------------------
 // stereoshim's manifests and library
 

@@ -19,6 +19,9 @@ pub struct XrFacts {
     /// `xrEnumerateApiLayerProperties`: every layer the loader found (implicit and explicit), or
     /// why the call failed.
     pub layers: Result<Vec<String>, String>,
+    /// `xrEnumerateInstanceExtensionProperties`: the runtime's extensions (and implicit layers'),
+    /// or why the call failed.
+    pub extensions: Result<Vec<String>, String>,
     /// `xrCreateInstance` + `xrGetInstanceProperties`: the runtime's name and version, or the
     /// result code of the failed call.
     pub instance: Result<(String, String), String>,
@@ -52,9 +55,11 @@ pub fn probe() -> Result<XrFacts, String> {
     let properties = unsafe { lib.get::<xr::pfn::GetInstanceProperties>(b"xrGetInstanceProperties") }.map_err(|e| e.to_string())?;
     // SAFETY: a core command the loader exports, typed as `openxr_sys::pfn::EnumerateApiLayerProperties`.
     let layers = unsafe { lib.get::<xr::pfn::EnumerateApiLayerProperties>(b"xrEnumerateApiLayerProperties") }.map_err(|e| e.to_string())?;
-    let (create, destroy, properties, layers) = (*create, *destroy, *properties, *layers);
+    // SAFETY: a core command the loader exports, typed as `openxr_sys::pfn::EnumerateInstanceExtensionProperties`.
+    let extensions = unsafe { lib.get::<xr::pfn::EnumerateInstanceExtensionProperties>(b"xrEnumerateInstanceExtensionProperties") }.map_err(|e| e.to_string())?;
+    let (create, destroy, properties, layers, extensions) = (*create, *destroy, *properties, *layers, *extensions);
     std::mem::forget(lib);
-    let mut facts = XrFacts { loader: crate::vk::probe::mapped_file(create as usize), layers: Ok(Vec::new()), instance: Err(String::new()) };
+    let mut facts = XrFacts { loader: crate::vk::probe::mapped_file(create as usize), layers: Ok(Vec::new()), extensions: Ok(Vec::new()), instance: Err(String::new()) };
     facts.layers = (|| {
         let mut count = 0u32;
         // SAFETY: the two-call idiom: a count query with no array.
@@ -78,6 +83,28 @@ pub fn probe() -> Result<XrFacts, String> {
         }
         out.truncate(count as usize);
         Ok(out.iter().map(|l| text(&l.layer_name)).collect())
+    })();
+    facts.extensions = (|| {
+        let mut count = 0u32;
+        // SAFETY: the two-call idiom: a count query with no layer name and no array.
+        let r = unsafe { extensions(std::ptr::null(), 0, &mut count, std::ptr::null_mut()) };
+        if r != xr::Result::SUCCESS {
+            return Err(format!("{r:?}"));
+        }
+        let blank = xr::ExtensionProperties {
+            ty: xr::ExtensionProperties::TYPE,
+            next: std::ptr::null_mut(),
+            extension_name: [0; xr::MAX_EXTENSION_NAME_SIZE],
+            extension_version: 0,
+        };
+        let mut out = vec![blank; count as usize];
+        // SAFETY: an array of `count` initialised structs with their type set; no layer name.
+        let r = unsafe { extensions(std::ptr::null(), count, &mut count, out.as_mut_ptr()) };
+        if r != xr::Result::SUCCESS {
+            return Err(format!("{r:?}"));
+        }
+        out.truncate(count as usize);
+        Ok(out.iter().map(|e| text(&e.extension_name)).collect())
     })();
     let info = xr::InstanceCreateInfo {
         ty: xr::InstanceCreateInfo::TYPE,

@@ -65,7 +65,7 @@ fn runtime_findings() {
 fn instance_findings() {
     use crate::xr::probe::XrFacts;
     let rt = runtime_facts("{}", loaded(&[], None));
-    let probe = |instance: Result<(String, String), String>| -> XrProbe { Ok(XrFacts { loader: None, layers: Ok(vec![]), instance }) };
+    let probe = |instance: Result<(String, String), String>| -> XrProbe { Ok(XrFacts { loader: None, layers: Ok(vec![]), extensions: Ok(vec![]), instance }) };
     let f = instance(&probe(Ok(("Monado".into(), "25.0.0".into()))), &rt);
     assert_eq!((f[0].status, f[0].detail.as_str()), (Status::Ok, "Monado 25.0.0"));
     assert_eq!(instance(&probe(Err("ERROR_RUNTIME_UNAVAILABLE".into())), &rt)[0].status, Status::Warning);
@@ -289,4 +289,19 @@ fn conflict_findings() {
     let disable = |k: &str| (k == "VK_LOADER_LAYERS_DISABLE").then(|| "~all~".to_string());
     let f = conflicts(&[], None, false, &disable);
     assert!(f[0].status == Status::Warning && f[0].detail.contains("VK_LOADER_LAYERS_DISABLE=~all~"), "{f:?}");
+}
+
+#[test]
+fn runtime_extensions() {
+    use crate::xr::probe::XrFacts;
+    let rt = runtime_facts("{}", loaded(&[], None));
+    let probe = |ext: &[&str]| -> XrProbe {
+        Ok(XrFacts { loader: None, layers: Ok(vec![]), extensions: Ok(ext.iter().map(|e| e.to_string()).collect()), instance: Err(String::new()) })
+    };
+    let f = extensions(&probe(&["XR_KHR_vulkan_enable2", "XR_KHR_visibility_mask"]), &rt);
+    assert_eq!(f[0].status, Status::Ok, "{f:?}");
+    assert!(f[0].detail.contains("runtime's hidden-area masks") && f[0].detail.contains("optical axis"), "{f:?}");
+    let f = extensions(&probe(&["XR_KHR_opengl_enable"]), &rt);
+    assert!(f[0].status == Status::Error && f[0].detail.contains("Vulkan apps only"), "{f:?}");
+    assert!(extensions(&probe(&[]), &RuntimeFacts::default()).is_empty());
 }
