@@ -553,12 +553,27 @@ const KNOWN_CONFLICTS: &[(&str, &str)] = &[
 /// `VK_LOADER_LAYERS_DISABLE` globs (`*` anywhere) that match `name`, or the special values that
 /// disable every (explicit) layer.
 pub fn disables_layer(filter: &str, name: &str) -> bool {
+    // The classic greedy matcher (back to the last `*` on a mismatch): O(pattern × name), so no
+    // filter, however many stars it has, makes the check slow.
     fn glob(p: &[u8], s: &[u8]) -> bool {
-        match p.split_first() {
-            None => s.is_empty(),
-            Some((b'*', rest)) => (0..=s.len()).any(|i| glob(rest, &s[i..])),
-            Some((c, rest)) => s.split_first().is_some_and(|(d, srest)| c.eq_ignore_ascii_case(d) && glob(rest, srest)),
+        let (mut pi, mut si, mut star, mut mark) = (0, 0, None, 0);
+        while si < s.len() {
+            if pi < p.len() && p[pi] != b'*' && p[pi].eq_ignore_ascii_case(&s[si]) {
+                pi += 1;
+                si += 1;
+            } else if pi < p.len() && p[pi] == b'*' {
+                star = Some(pi);
+                mark = si;
+                pi += 1;
+            } else if let Some(sp) = star {
+                pi = sp + 1;
+                mark += 1;
+                si = mark;
+            } else {
+                return false;
+            }
         }
+        p[pi..].iter().all(|&c| c == b'*')
     }
     filter.split(',').map(str::trim).any(|f| f == "~all~" || f == "~explicit~" || glob(f.as_bytes(), name.as_bytes()))
 }

@@ -270,6 +270,12 @@ fn layer_disable_filters() {
     assert!(!disables_layer("~implicit~", VK_LAYER_NAME), "the Vulkan half is an explicit layer");
     assert!(!disables_layer("VK_LAYER_KHRONOS_*", VK_LAYER_NAME));
     assert!(!disables_layer("", VK_LAYER_NAME));
+    assert!(disables_layer("VK_*_STEREOSHIM_*shim", VK_LAYER_NAME));
+    assert!(!disables_layer("VK_*_STEREOSHIM_*x", VK_LAYER_NAME));
+    // Many stars and no match: answered at once (a backtracking matcher takes years here).
+    let t = std::time::Instant::now();
+    assert!(!disables_layer(&format!("{}x", "*".repeat(40)), VK_LAYER_NAME));
+    assert!(t.elapsed() < std::time::Duration::from_secs(1));
 }
 
 #[test]
