@@ -4,6 +4,7 @@
 
 pub mod config;
 pub mod core;
+pub mod doctor;
 pub mod features;
 pub mod frame_stats;
 pub mod guard;

@@ -60,6 +60,25 @@ enum Cmd {
         #[arg(long, value_name = "DIR")]
         shipped: Option<PathBuf>,
     },
+    /// Check that the layer can work here; each check is ok, warning or error with a fix.
+    ///
+    /// Checks the OpenXR loader and the active runtime (an instance is created through the
+    /// loader, no session), stereoshim's manifests, the Vulkan half, the GPU's capabilities for
+    /// each feature (a short Vulkan probe), the effective config and its problems, and known
+    /// conflicts (other implicit OpenXR layers, VK_LAYER_PATH, VK_LOADER_LAYERS_DISABLE,
+    /// STEREOSHIM_DISABLE). Exit status: 0 when no check is an error (warnings allowed), 1 when
+    /// any is.
+    Doctor {
+        /// Check the config as it applies to this app (its `[app.NAME]` table).
+        #[arg(long)]
+        app: Option<String>,
+        /// Read this config file instead of the default one.
+        #[arg(long, value_name = "FILE")]
+        config: Option<PathBuf>,
+        /// Print the findings as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Summarise the layer's stats file (`stats.file`) per second, or convert it to CSV.
     Stats {
         /// The stats file (default: `stats.file` of the effective config).
@@ -154,6 +173,7 @@ fn main() -> ExitCode {
         Cmd::Manifest { kind, library, shipped } => manifest_cmd(kind, library, shipped),
         Cmd::Stats { file, follow, csv, app } => stats_cmd(file, follow, csv, app),
         Cmd::Preview(args) => preview_cmd(args),
+        Cmd::Doctor { app, config, json } => return doctor_cmd(app, config, json),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -303,6 +323,19 @@ fn manifest_cmd(kind: Option<String>, library: Option<PathBuf>, shipped: Option<
     Ok(())
 }
 
+/// Runs every check and prints the findings (a table, or JSON); exit 1 when any is an error.
+fn doctor_cmd(app: Option<String>, config: Option<PathBuf>, json: bool) -> ExitCode {
+    use std::io::IsTerminal;
+    let report = stereoshim::doctor::run(&stereoshim::doctor::Options { app, config });
+    let out = std::io::stdout();
+    let colour = !json && out.is_terminal() && std::env::var_os("NO_COLOR").is_none();
+    let text = if json { report.json() } else { report.table(colour) };
+    let mut out = out.lock();
+    // A closed pipe (`doctor | head`) is not worth a panic.
+    let _ = out.write_all(text.as_bytes()).and_then(|_| out.flush());
+    ExitCode::from(report.exit_code())
+}
+
 /// Reads the stats file's lines, summarised per second (or one CSV row per frame). With
 /// `follow`, keeps reading what the layer appends; a second is printed once a later frame shows
 /// it is complete.
@@ -388,7 +421,7 @@ fn preview_cmd(a: PreviewArgs) -> Result<(), String> {
             preview::Headset::from_profile(profile, a.scale)
         }
         None => {
-            let mut h = stereoshim::xr::probe::runtime_headset().map_err(|e| e.to_string())?;
+            let mut h = stereoshim::xr::headless::runtime_headset().map_err(|e| e.to_string())?;
             (h.width, h.height) = preview::scaled((h.width, h.height), a.scale);
             h
         }

@@ -17,6 +17,7 @@ pub(crate) mod lifetime;
 pub mod loader;
 pub(crate) mod secondary;
 mod own;
+pub mod probe;
 #[cfg(test)]
 pub(crate) mod test_chain;
 

@@ -5,10 +5,11 @@
 mod actions;
 pub(crate) mod feature;
 mod frame;
-pub mod probe;
+pub mod headless;
 mod instance;
 pub(crate) mod session;
 mod swapchain;
+pub mod probe;
 mod vulkan;
 
 use crate::config::Config;

@@ -1,120 +1,150 @@
-//! `stereoshim preview --runtime`: the layer's OpenXR *client* side, asking the active runtime
-//! (through the Khronos loader) for its real view configuration, the views' FOVs and poses
-//! (`xrLocateViews` in VIEW space) and the visibility masks (`XR_KHR_visibility_mask`). Both need a
-//! session; without rendering anything that is an `XR_MND_headless` session (no graphics
-//! binding). A runtime without that extension is reported, not worked around: a Vulkan session
-//! would need a device only to ask for numbers. The two unsafe calls are the loader's load and
-//! the session's creation; the `openxr` crate does the rest.
+//! `stereoshim doctor`'s OpenXR probe: loads the system's OpenXR loader as an app would, lists the
+//! API layers it finds, and creates (and at once destroys) an instance with no extensions and no
+//! session, to learn which runtime answers. Only facts come out of here; what they mean is decided
+//! by the pure `crate::doctor::rules`. Never used inside an app's process.
 
-use crate::preview::{Headset, View};
-use crate::shared::ViewFov;
-use openxr as oxr;
-use std::time::{Duration, Instant};
+use openxr_sys as xr;
+use openxr_sys::Handle as _;
+use std::ffi::c_char;
+use std::path::PathBuf;
 
-/// Why the runtime could not be asked.
-#[derive(Debug, PartialEq)]
-pub enum ProbeError {
-    /// No loader, no runtime, or a call failed: the words say which.
-    Failed(String),
-    /// The runtime offers no `XR_MND_headless`.
-    NeedsGraphics,
+/// The loader's soname, as apps link it.
+pub const LOADER: &str = "libopenxr_loader.so.1";
+
+/// What the OpenXR loader reports.
+#[derive(Clone, Debug, PartialEq)]
+pub struct XrFacts {
+    /// The loader file mapped.
+    pub loader: Option<PathBuf>,
+    /// `xrEnumerateApiLayerProperties`: every layer the loader found (implicit and explicit), or
+    /// why the call failed.
+    pub layers: Result<Vec<String>, String>,
+    /// `xrEnumerateInstanceExtensionProperties`: the runtime's extensions (and implicit layers'),
+    /// or why the call failed.
+    pub extensions: Result<Vec<String>, String>,
+    /// `xrCreateInstance` + `xrGetInstanceProperties`: the runtime's name and version, or the
+    /// result code of the failed call.
+    pub instance: Result<(String, String), String>,
 }
 
-impl std::fmt::Display for ProbeError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ProbeError::Failed(s) => write!(f, "{s}"),
-            ProbeError::NeedsGraphics => {
-                write!(f, "this runtime needs a graphics session; use --hmd (it offers no XR_MND_headless, the session without graphics the preview asks for)")
-            }
+fn text(chars: &[c_char]) -> String {
+    let bytes: Vec<u8> = chars.iter().take_while(|&&c| c != 0).map(|&c| c as u8).collect();
+    String::from_utf8_lossy(&bytes).into_owned()
+}
+
+fn fixed<const N: usize>(s: &str) -> [c_char; N] {
+    let mut out = [0 as c_char; N];
+    for (o, b) in out.iter_mut().zip(s.bytes().take(N - 1)) {
+        *o = b as c_char;
+    }
+    out
+}
+
+/// Loads the OpenXR loader and asks it. Err: no loader.
+pub fn probe() -> Result<XrFacts, String> {
+    // SAFETY: loading the system's OpenXR loader runs its initialisers, which every OpenXR app
+    // does. It stays loaded (forgotten below): runtimes it loads may leave thread-local
+    // destructors or atexit handlers behind.
+    let lib = unsafe { libloading::Library::new(LOADER) }.map_err(|e| e.to_string())?;
+    // SAFETY: the OpenXR loader exports every core command under its name, with the signature of
+    // `openxr_sys::pfn` (here xrCreateInstance's).
+    let create = unsafe { lib.get::<xr::pfn::CreateInstance>(b"xrCreateInstance") }.map_err(|e| e.to_string())?;
+    // SAFETY: a core command the loader exports, typed as `openxr_sys::pfn::DestroyInstance`.
+    let destroy = unsafe { lib.get::<xr::pfn::DestroyInstance>(b"xrDestroyInstance") }.map_err(|e| e.to_string())?;
+    // SAFETY: a core command the loader exports, typed as `openxr_sys::pfn::GetInstanceProperties`.
+    let properties = unsafe { lib.get::<xr::pfn::GetInstanceProperties>(b"xrGetInstanceProperties") }.map_err(|e| e.to_string())?;
+    // SAFETY: a core command the loader exports, typed as `openxr_sys::pfn::EnumerateApiLayerProperties`.
+    let layers = unsafe { lib.get::<xr::pfn::EnumerateApiLayerProperties>(b"xrEnumerateApiLayerProperties") }.map_err(|e| e.to_string())?;
+    // SAFETY: a core command the loader exports, typed as `openxr_sys::pfn::EnumerateInstanceExtensionProperties`.
+    let extensions = unsafe { lib.get::<xr::pfn::EnumerateInstanceExtensionProperties>(b"xrEnumerateInstanceExtensionProperties") }.map_err(|e| e.to_string())?;
+    let (create, destroy, properties, layers, extensions) = (*create, *destroy, *properties, *layers, *extensions);
+    std::mem::forget(lib);
+    let mut facts = XrFacts { loader: crate::vk::probe::mapped_file(create as usize), layers: Ok(Vec::new()), extensions: Ok(Vec::new()), instance: Err(String::new()) };
+    facts.layers = (|| {
+        let mut count = 0u32;
+        // SAFETY: the two-call idiom: a count query with no array.
+        let r = unsafe { layers(0, &mut count, std::ptr::null_mut()) };
+        if r != xr::Result::SUCCESS {
+            return Err(format!("{r:?}"));
         }
-    }
-}
-
-fn failed(what: &str) -> impl Fn(oxr::sys::Result) -> ProbeError + '_ {
-    move |r| ProbeError::Failed(format!("{what}: {r}"))
-}
-
-/// The active runtime's stereo views, recommended size and hidden-area meshes.
-pub fn runtime_headset() -> Result<Headset, ProbeError> {
-    // SAFETY: the library loaded is the Khronos OpenXR loader (libopenxr_loader.so.1), which
-    // implements the OpenXR API it is loaded for; the entry points are resolved by name from it.
-    let entry = unsafe { oxr::Entry::load(&()) }.map_err(|e| ProbeError::Failed(format!("no OpenXR loader (libopenxr_loader.so.1): {e}")))?;
-    let available = entry.enumerate_extensions().map_err(failed("no OpenXR runtime (xrEnumerateInstanceExtensionProperties)"))?;
-    if !available.mnd_headless {
-        return Err(ProbeError::NeedsGraphics);
-    }
-    let mut exts = oxr::ExtensionSet::default();
-    exts.mnd_headless = true;
-    exts.khr_visibility_mask = available.khr_visibility_mask;
-    exts.khr_convert_timespec_time = available.khr_convert_timespec_time;
-    let app = oxr::ApplicationInfo {
-        application_name: "stereoshim preview",
-        application_version: 1,
-        engine_name: "stereoshim",
-        engine_version: 1,
-        api_version: oxr::Version::new(1, 0, 0),
+        let blank = xr::ApiLayerProperties {
+            ty: xr::ApiLayerProperties::TYPE,
+            next: std::ptr::null_mut(),
+            layer_name: [0; xr::MAX_API_LAYER_NAME_SIZE],
+            spec_version: xr::Version::new(0, 0, 0),
+            layer_version: 0,
+            description: [0; xr::MAX_API_LAYER_DESCRIPTION_SIZE],
+        };
+        let mut out = vec![blank; count as usize];
+        // SAFETY: an array of `count` initialised structs with their type set.
+        let r = unsafe { layers(count, &mut count, out.as_mut_ptr()) };
+        if r != xr::Result::SUCCESS {
+            return Err(format!("{r:?}"));
+        }
+        out.truncate(count as usize);
+        Ok(out.iter().map(|l| text(&l.layer_name)).collect())
+    })();
+    facts.extensions = (|| {
+        let mut count = 0u32;
+        // SAFETY: the two-call idiom: a count query with no layer name and no array.
+        let r = unsafe { extensions(std::ptr::null(), 0, &mut count, std::ptr::null_mut()) };
+        if r != xr::Result::SUCCESS {
+            return Err(format!("{r:?}"));
+        }
+        let blank = xr::ExtensionProperties {
+            ty: xr::ExtensionProperties::TYPE,
+            next: std::ptr::null_mut(),
+            extension_name: [0; xr::MAX_EXTENSION_NAME_SIZE],
+            extension_version: 0,
+        };
+        let mut out = vec![blank; count as usize];
+        // SAFETY: an array of `count` initialised structs with their type set; no layer name.
+        let r = unsafe { extensions(std::ptr::null(), count, &mut count, out.as_mut_ptr()) };
+        if r != xr::Result::SUCCESS {
+            return Err(format!("{r:?}"));
+        }
+        out.truncate(count as usize);
+        Ok(out.iter().map(|e| text(&e.extension_name)).collect())
+    })();
+    let info = xr::InstanceCreateInfo {
+        ty: xr::InstanceCreateInfo::TYPE,
+        next: std::ptr::null(),
+        create_flags: xr::InstanceCreateFlags::EMPTY,
+        application_info: xr::ApplicationInfo {
+            application_name: fixed("stereoshim-doctor"),
+            application_version: 1,
+            engine_name: fixed("stereoshim"),
+            engine_version: 1,
+            // 1.0: every runtime in use accepts it.
+            api_version: xr::Version::new(1, 0, 0),
+        },
+        enabled_api_layer_count: 0,
+        enabled_api_layer_names: std::ptr::null(),
+        enabled_extension_count: 0,
+        enabled_extension_names: std::ptr::null(),
     };
-    let instance = entry.create_instance(&app, &exts, &[], &()).map_err(failed("xrCreateInstance"))?;
-    let system = instance.system(oxr::FormFactor::HEAD_MOUNTED_DISPLAY).map_err(failed("xrGetSystem"))?;
-    let name = instance.system_properties(system).map(|p| p.system_name).unwrap_or_default();
-    let stereo = oxr::ViewConfigurationType::PRIMARY_STEREO;
-    let config_views = instance.enumerate_view_configuration_views(system, stereo).map_err(failed("xrEnumerateViewConfigurationViews"))?;
-    let first = config_views.first().ok_or_else(|| ProbeError::Failed("the runtime reports no stereo views".into()))?;
-    let (width, height) = (first.recommended_image_rect_width, first.recommended_image_rect_height);
-    // SAFETY: a headless session takes no graphics objects; the instance enabled XR_MND_headless,
-    // which allows xrCreateSession without a graphics binding.
-    let (session, mut waiter, _stream) = unsafe { instance.create_session::<oxr::Headless>(system, &oxr::headless::SessionCreateInfo {}) }
-        .map_err(failed("xrCreateSession (headless)"))?;
-    // A time to locate the views at: now, where the runtime converts clock times
-    // (XR_KHR_convert_timespec_time; Monado's headless xrWaitFrame predicts no usable time), else
-    // the first frame's predicted display time, once the session runs.
-    let time = if exts.khr_convert_timespec_time {
-        instance.now().map_err(failed("xrConvertTimespecTimeToTimeKHR"))?
+    let mut instance = xr::Instance::NULL;
+    // SAFETY: a valid create info without layers or extensions; a writable handle.
+    let r = unsafe { create(&info, &mut instance) };
+    facts.instance = if r != xr::Result::SUCCESS {
+        Err(format!("{r:?}"))
     } else {
-        wait_ready(&instance)?;
-        session.begin(stereo).map_err(failed("xrBeginSession"))?;
-        waiter.wait().map_err(failed("xrWaitFrame"))?.predicted_display_time
+        let mut p = xr::InstanceProperties {
+            ty: xr::InstanceProperties::TYPE,
+            next: std::ptr::null_mut(),
+            runtime_version: xr::Version::new(0, 0, 0),
+            runtime_name: [0; xr::MAX_RUNTIME_NAME_SIZE],
+        };
+        // SAFETY: the instance just created; a writable struct with its type set.
+        let r = unsafe { properties(instance, &mut p) };
+        // SAFETY: the instance just created, nothing made from it.
+        unsafe { destroy(instance) };
+        if r == xr::Result::SUCCESS {
+            let v = p.runtime_version;
+            Ok((text(&p.runtime_name), format!("{}.{}.{}", v.major(), v.minor(), v.patch())))
+        } else {
+            Err(format!("xrGetInstanceProperties: {r:?}"))
+        }
     };
-    let space = session.create_reference_space(oxr::ReferenceSpaceType::VIEW, oxr::Posef::IDENTITY).map_err(failed("xrCreateReferenceSpace"))?;
-    let (_, located) = session.locate_views(stereo, time, &space).map_err(failed("xrLocateViews"))?;
-    let views = located
-        .iter()
-        .enumerate()
-        .map(|(i, v)| {
-            let hidden = exts.khr_visibility_mask.then(|| {
-                session.get_visibility_mask_khr(stereo, i as u32, oxr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH).ok().map(|m| {
-                    let vertices: Vec<[f32; 2]> = m.vertices.iter().map(|p| [p.x, p.y]).collect();
-                    crate::features::mask::source::expand(&vertices, &m.indices)
-                })
-            });
-            let f = v.fov;
-            View {
-                fov: ViewFov { tan_left: f.angle_left.tan(), tan_right: f.angle_right.tan(), tan_up: f.angle_up.tan(), tan_down: f.angle_down.tan() },
-                orientation: [v.pose.orientation.x, v.pose.orientation.y, v.pose.orientation.z, v.pose.orientation.w],
-                position: [v.pose.position.x, v.pose.position.y, v.pose.position.z],
-                hidden: hidden.flatten(),
-            }
-        })
-        .collect();
-    Ok(Headset { name, width, height, views })
-}
-
-/// Polls events until the session is READY (a headless session gets there from IDLE at once).
-fn wait_ready(instance: &oxr::Instance) -> Result<(), ProbeError> {
-    let deadline = Instant::now() + Duration::from_secs(5);
-    let mut buffer = oxr::EventDataBuffer::new();
-    loop {
-        while let Some(event) = instance.poll_event(&mut buffer).map_err(failed("xrPollEvent"))? {
-            if let oxr::Event::SessionStateChanged(e) = event {
-                if e.state() == oxr::SessionState::READY {
-                    return Ok(());
-                }
-            }
-        }
-        if Instant::now() > deadline {
-            return Err(ProbeError::Failed("the headless session did not become READY within 5 s".into()));
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    Ok(facts)
 }
