@@ -6,6 +6,7 @@ mod actions;
 pub(crate) mod feature;
 mod frame;
 mod instance;
+mod overlay;
 pub(crate) mod session;
 mod swapchain;
 mod vulkan;
@@ -120,6 +121,10 @@ intercepts! {
     "xrSuggestInteractionProfileBindings" => suggest_interaction_profile_bindings: SuggestInteractionProfileBindings,
     "xrCreateActionSpace" => create_action_space: CreateActionSpace,
     "xrLocateSpace" => locate_space: LocateSpace,
+    "xrEnumerateSwapchainFormats" => enumerate_swapchain_formats: EnumerateSwapchainFormats,
+    "xrCreateReferenceSpace" => create_reference_space: CreateReferenceSpace,
+    "xrDestroySpace" => destroy_space: DestroySpace,
+    "xrGetSystemProperties" => get_system_properties: GetSystemProperties,
     }
 }
 
