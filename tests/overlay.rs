@@ -191,3 +191,15 @@ fn the_overlays_objects_go_with_each_session() {
     assert_eq!(on.log_lines("overlay: 392x48 swapchain").len(), 3, "one overlay per session: {}", on.log);
     assert_nothing_tracked(&on);
 }
+
+/// An app that leaves its session to `xrDestroyInstance` (and destroys its device after it): the
+/// overlay's Vulkan objects still go first, while the device lives (validation would report them
+/// alive at `vkDestroyDevice` otherwise).
+#[test]
+fn the_overlays_objects_go_with_an_instance_destroyed_first() {
+    let on = with_overlay(Run::new("overlay-teardown").with_layer().args(["--teardown", "instance"]), "overlay-teardown").run();
+    on.assert_ok().assert_log_lacks(Half::Both, "internal failure");
+    assert_eq!(on.log_lines("overlay: 392x48 swapchain").len(), 1, "{}", on.log);
+    assert_eq!(on.log_lines("overlay: objects of session").len(), 1, "{}", on.log);
+    assert_nothing_tracked(&on);
+}
