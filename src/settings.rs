@@ -34,6 +34,8 @@ pub struct Settings {
     pub mask: MaskSettings,
     pub foveation: FoveationSettings,
     pub far_field: FarFieldSettings,
+    /// `overlay.*`: the in-headset stats panel.
+    pub overlay: crate::features::overlay::OverlaySettings,
     pub stats_file: String,
     /// `stats.gpu_time`: the submit hooks bracket submissions with timestamps (`vk::gpu_time`).
     pub stats_gpu_time: bool,
@@ -54,6 +56,7 @@ impl Settings {
             mask: MaskSettings::from_config(c),
             foveation: FoveationSettings::from_config(c),
             far_field: FarFieldSettings::from_config(c),
+            overlay: crate::features::overlay::OverlaySettings::from_config(c),
             stats_file: c.text("stats.file").to_string(),
             stats_gpu_time: c.bool("stats.gpu_time"),
             fail_in: c.text("debug.fail_in").split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),

@@ -883,4 +883,30 @@ fn preview_runtime_on_monado() {
             assert!(png.is_file(), "{}", png.display());
         }
     }
+/// The in-headset stats overlay on Monado (issue 12): the layer submits its quad after hello_xr's
+/// layer (its own swapchain, a VIEW space; core_validation below the layer validates both), the
+/// frames keep coming as without the layer, and no validation error. Its swapchain, space and
+/// Vulkan objects go with the session.
+#[test]
+fn vulkan2_layer_overlay() {
+    let Some(root) = root() else { return };
+    let base = baseline(&root, "Vulkan2");
+    let env = [("STEREOSHIM_OVERLAY_ENABLED", "true"), ("STEREOSHIM_MASK_ENABLED", "true")];
+    let spec = Spec { layer: Layer::Explicit, env: env.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect(), ..Spec::new("vulkan2-overlay", "Vulkan2") };
+    let o = run(&root, &spec);
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, base);
+    check_clean_exit(&mut c, &o);
+    check_layer_loaded(&mut c, &o);
+    check_validation(&mut c, &o);
+    c.check(o.rendered() > 0, || format!("{}: no frame rendered", o.name));
+    let made = o.log.lines().filter(|l| l.contains("overlay: 392x48 swapchain")).count();
+    c.check(made == 1, || format!("{}: the overlay was made {made} times (want once):\n{}", o.name, o.log));
+    for bad in ["overlay: cannot be shown", "overlay: updating its image failed", "the runtime refused the frame", "no room for the overlay"] {
+        c.check(!o.log.contains(bad), || format!("{}: the layer logged {bad:?}:\n{}", o.name, o.log));
+    }
+    let destroyed = o.log.lines().filter(|l| l.contains("overlay: objects of session")).count();
+    c.check(destroyed == 1, || format!("{}: the overlay's objects were destroyed {destroyed} times (want once)", o.name));
+    check_frames_kept(&mut c, &root, base, &o, &spec);
+    c.finish(&[&o, base]);
 }

@@ -10,6 +10,9 @@
 pub mod far_field;
 pub mod foveation;
 pub mod mask;
+/// Not a registry plug-in: the overlay draws nothing into the app's passes (its shell is
+/// `crate::xr::overlay`).
+pub mod overlay;
 
 use crate::config::KeySpec;
 use crate::core::stats::FrameStats;

@@ -447,6 +447,7 @@ pub(super) unsafe extern "system" fn create_device(
             features: crate::features::DeviceFeatures::new(&super::feature::DeviceInit { settings: &device_settings, memory, rates, set_loader_data, software }),
             settings: device_settings.clone(),
             set_loader_data,
+            memory,
             inject: Default::default(),
             lifetime: Default::default(),
             secondary: Default::default(),

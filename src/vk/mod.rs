@@ -91,6 +91,8 @@ pub(crate) struct DeviceState {
     pub settings: Arc<crate::settings::Settings>,
     /// The loader's callback for dispatchable objects the layer creates itself.
     pub set_loader_data: Option<PfnSetDeviceLoaderData>,
+    /// The physical device's memory types (for the layer's own allocations).
+    pub memory: vk::PhysicalDeviceMemoryProperties,
     /// Every registered feature's per-device object (`crate::features`).
     pub features: crate::features::DeviceFeatures,
     /// The injection chassis: triggers, pipeline cache.

@@ -67,6 +67,7 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
         for w in s.summary.lock().unwrap_or_else(|e| e.into_inner()).add_frame(&enabled, &record.stats) {
             tracing::warn!("{w}");
         }
+        super::overlay::frame_ended(s, &settings, &record, &enabled);
     }
     if frame == 0 || !record.stats.is_empty() {
         tracing::debug!("frame stats: {}", record.to_json());
@@ -237,10 +238,45 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
             (Ok(s), Some(info)) => crate::features::XR_FEATURES.iter().find_map(|f| f.amend_frame_end(&s, info)),
             _ => None,
         };
-        let r = match &amended {
+        // The overlay's quad goes after the app's (or the amended) layers, in a new array: the
+        // app's own is never changed.
+        let base = amended.as_ref().map(|a| a.info).or(app_info.copied());
+        let quad = match (session::lookup(session), base) {
+            (Ok(s), Some(b)) if b.layer_count == 0 || !b.layers.is_null() => super::overlay::quad(&s, &super::settings(&inst), b.layer_count),
+            _ => None,
+        };
+        let with_overlay = quad.as_ref().zip(base).map(|(q, b)| {
+            // SAFETY: the frame's layer pointers, valid for this call (non-null when counted, checked above).
+            let mut layers: Vec<*const xr::CompositionLayerBaseHeader> = unsafe { crate::vk::convert::slice(b.layers, b.layer_count) }.to_vec();
+            layers.push((q as *const xr::CompositionLayerQuad).cast());
+            (layers, b)
+        });
+        let with_overlay = with_overlay.map(|(layers, b)| {
+            let info = xr::FrameEndInfo { layer_count: layers.len() as u32, layers: layers.as_ptr(), ..b };
+            (info, layers)
+        });
+        let call_app = |down: &mut guard::Down<xr::Result>| match &amended {
             // SAFETY: the app's frame with only the feature's changes; it lives until the call returns.
             Some(a) => down.call(|| unsafe { next(session, &a.info) }),
             None => down.call(plain),
+        };
+        let r = match &with_overlay {
+            Some((info, _layers)) => {
+                // SAFETY: the frame with the overlay's quad appended; `_layers` and the quad live
+                // until the call returns.
+                let r = down.call(|| unsafe { next(session, info) });
+                if r.into_raw() < 0 && r != xr::Result::ERROR_SESSION_LOST && r != xr::Result::ERROR_INSTANCE_LOST {
+                    // The runtime refused the frame with the quad: the app's frame goes down as it
+                    // was, and the overlay stays off.
+                    if let Ok(s) = session::lookup(session) {
+                        super::overlay::refused(&s, r);
+                    }
+                    call_app(down)
+                } else {
+                    r
+                }
+            }
+            None => call_app(down),
         };
         if r != xr::Result::SUCCESS {
             return Ok(r);

@@ -239,6 +239,11 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: xr::Instance) ->
     let plain = || unsafe { next(instance) };
     guard::run("xrDestroyInstance", &inst.pass_through, |down| {
         let _span = tracing::debug_span!("xrDestroyInstance").entered();
+        // Sessions the app did not destroy take the overlay's objects with them: its Vulkan
+        // objects are the layer's to destroy, while the session's device is still alive.
+        for (_, s) in state().sessions.values().into_iter().filter(|(_, s)| s.instance.handle == instance) {
+            super::overlay::destroy(&s);
+        }
         let r = down.call(plain);
         if r == xr::Result::SUCCESS {
             // Children die with their instance (spec): drop their state too.

@@ -7,6 +7,7 @@ pub(crate) mod feature;
 mod frame;
 pub mod headless;
 mod instance;
+mod overlay;
 pub(crate) mod session;
 mod swapchain;
 pub mod probe;
@@ -122,6 +123,10 @@ intercepts! {
     "xrSuggestInteractionProfileBindings" => suggest_interaction_profile_bindings: SuggestInteractionProfileBindings,
     "xrCreateActionSpace" => create_action_space: CreateActionSpace,
     "xrLocateSpace" => locate_space: LocateSpace,
+    "xrEnumerateSwapchainFormats" => enumerate_swapchain_formats: EnumerateSwapchainFormats,
+    "xrCreateReferenceSpace" => create_reference_space: CreateReferenceSpace,
+    "xrDestroySpace" => destroy_space: DestroySpace,
+    "xrGetSystemProperties" => get_system_properties: GetSystemProperties,
     }
 }
 

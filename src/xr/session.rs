@@ -42,6 +42,10 @@ pub(crate) struct Session {
     /// What the enabled features did over the session (`notices`): warnings once per reason, and a
     /// summary when the session ends.
     pub summary: Mutex<crate::notices::Summary>,
+    /// The system the session was created for (the overlay asks for its `maxLayerCount`).
+    pub system_id: xr::SystemId,
+    /// The in-headset stats overlay's objects and text (`overlay.enabled`).
+    pub overlay: super::overlay::OverlaySession,
 }
 
 pub(crate) fn fov_tangents(fov: &xr::Fovf) -> ViewFov {
@@ -98,6 +102,8 @@ pub(super) unsafe extern "system" fn create_session(
         let _span = tracing::debug_span!("xrCreateSession").entered();
         // SAFETY: the app's create info is valid for this call (or null, which the runtime rejects).
         let binding = unsafe { create_info.as_ref().and_then(|ci| vulkan_binding(ci.next.cast())) };
+        // SAFETY: as above.
+        let system_id = unsafe { create_info.as_ref() }.map_or(xr::SystemId::NULL, |ci| ci.system_id);
         let r = down.call(plain);
         if r != xr::Result::SUCCESS {
             return Ok(r);
@@ -136,6 +142,8 @@ pub(super) unsafe extern "system" fn create_session(
             features: Default::default(),
             vulkan_half,
             summary: Default::default(),
+            system_id,
+            overlay: Default::default(),
         };
         state().sessions.insert(handle.into_raw(), Arc::new(s));
         Ok(r)
@@ -152,6 +160,11 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
     // SAFETY: forwarding the app's handle.
     let plain = || unsafe { next(session) };
     guard::run("xrDestroySession", &inst.pass_through, |down| {
+        // The overlay's objects are the layer's own children of the session: they go first,
+        // while the session (and its device) are alive.
+        if let Ok(s) = lookup(session) {
+            super::overlay::destroy(&s);
+        }
         let r = down.call(plain);
         if r == xr::Result::SUCCESS && known {
             let st = state();

@@ -577,6 +577,22 @@ pub struct Layer {
     pub layer_flags: u64,
     pub space: String,
     pub views: Vec<View>,
+    /// A quad layer's own fields (docs/testing.md); None for projection layers.
+    #[serde(default)]
+    pub quad: Option<Quad>,
+}
+
+/// A captured quad layer: pose and size (metres) in its space, its sub-image and PNG.
+#[derive(Debug, Deserialize, Clone)]
+pub struct Quad {
+    pub pose: Pose,
+    pub size: [f32; 2],
+    pub eye_visibility: i32,
+    pub swapchain: u64,
+    pub format: i32,
+    pub image_rect: Rect,
+    pub image_array_index: u32,
+    pub file: String,
 }
 
 #[derive(Debug, Deserialize, Clone)]

@@ -42,6 +42,19 @@ pub struct SubmittedLayer {
     pub flags: u64,
     pub space: &'static str,
     pub views: Vec<SubmittedView>,
+    /// A quad layer's own fields (None for projection layers).
+    pub quad: Option<SubmittedQuad>,
+}
+
+/// What a quad layer showed: its sub-image, pose and size in its space, which eyes see it.
+pub struct SubmittedQuad {
+    pub pose: xr::Posef,
+    pub size: [f32; 2],
+    pub eye_visibility: i32,
+    pub swapchain: Arc<Swapchain>,
+    pub image_index: u32,
+    pub rect: xr::Rect2Di,
+    pub array_index: u32,
 }
 
 #[derive(Debug, Default)]
@@ -66,6 +79,11 @@ pub fn file_name(frame: u64, layer: usize, view: usize, depth: bool) -> String {
     let layer = if layer == 0 { String::new() } else { format!("-layer-{layer}") };
     let suffix = if depth { "-depth" } else { "" };
     format!("frame-{frame:05}{layer}-view-{view}{suffix}.png")
+}
+
+/// A quad layer's captured sub-image: `frame-NNNNN-layer-L-quad.png`.
+pub fn quad_file_name(frame: u64, layer: usize) -> String {
+    format!("frame-{frame:05}-layer-{layer}-quad.png")
 }
 
 /// Bytes per texel of what vkCmdCopyImageToBuffer writes for the copied aspect.
@@ -308,6 +326,11 @@ pub fn capture_frame(s: &Session, frame: u64, display_time: i64, blend: i32, lay
                 size += b.div_ceil(16) * 16;
             }
         }
+        if let Some(q) = &layer.quad {
+            let bytes = q.rect.extent.width as u64 * q.rect.extent.height as u64 * texel_size(q.swapchain.format);
+            jobs.push(Job { sc: &q.swapchain, image_index: q.image_index, rect: q.rect, layer: q.array_index, file: quad_file_name(frame, li), offset: size });
+            size += bytes.div_ceil(16) * 16;
+        }
     }
     if !jobs.is_empty() {
         let bytes = read_back(s, &jobs, size)?;
@@ -350,7 +373,19 @@ pub fn capture_frame(s: &Session, frame: u64, display_time: i64, blend: i32, lay
                     })
                 })
                 .collect();
-            json!({ "type": l.kind, "layer_flags": l.flags, "space": l.space, "views": views })
+            let quad = l.quad.as_ref().map_or(Value::Null, |q| {
+                let o = q.pose.orientation;
+                let p = q.pose.position;
+                json!({
+                    "pose": { "orientation": [num(o.x), num(o.y), num(o.z), num(o.w)], "position": [num(p.x), num(p.y), num(p.z)] },
+                    "size": [num(q.size[0]), num(q.size[1])],
+                    "eye_visibility": q.eye_visibility,
+                    "swapchain": q.swapchain.handle, "format": q.swapchain.format.as_raw(),
+                    "image_rect": rect_json(&q.rect), "image_array_index": q.array_index,
+                    "image_index": q.image_index, "file": quad_file_name(frame, li),
+                })
+            });
+            json!({ "type": l.kind, "layer_flags": l.flags, "space": l.space, "views": views, "quad": quad })
         })
         .collect();
     let masks = visibility_masks_json(s);
@@ -375,6 +410,7 @@ mod tests {
         assert_eq!(file_name(3, 0, 1, false), "frame-00003-view-1.png");
         assert_eq!(file_name(12, 0, 0, true), "frame-00012-view-0-depth.png");
         assert_eq!(file_name(0, 2, 0, false), "frame-00000-layer-2-view-0.png");
+        assert_eq!(quad_file_name(7, 1), "frame-00007-layer-1-quad.png");
     }
 
     fn decode(bytes: &[u8]) -> (png::ColorType, png::BitDepth, Vec<u8>) {

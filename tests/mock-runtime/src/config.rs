@@ -56,6 +56,8 @@ pub struct Config {
     /// `MOCK_XR_REENTER=1`: the runtime calls Vulkan on the app's device from inside its frame
     /// and swapchain calls (`VkContext::reenter`).
     pub reenter: bool,
+    /// `maxLayerCount` of the system (`MOCK_XR_MAX_LAYERS`, default 16): xrEndFrame refuses more.
+    pub max_layers: u32,
 }
 
 fn var(name: &str) -> Option<String> {
@@ -154,6 +156,11 @@ impl Config {
                 .map(|s| FrameList::parse(&s))
                 .transpose()?,
             exit_after: parse_u64("MOCK_XR_EXIT_AFTER")?,
+            max_layers: match parse_u64("MOCK_XR_MAX_LAYERS")? {
+                None => crate::system::MAX_LAYERS,
+                Some(n @ 1..=16) => n as u32,
+                Some(n) => return Err(format!("MOCK_XR_MAX_LAYERS={n}: want 1..=16")),
+            },
             gaze: Gaze::parse(var("MOCK_XR_GAZE").as_deref(), var("MOCK_XR_GAZE_PATH").as_deref(), var("MOCK_XR_GAZE_HOLD").as_deref())?,
             eye_tracker: var("MOCK_XR_EYE_TRACKER").is_none_or(|v| v.trim() != "0"),
             disabled_extensions: var("MOCK_XR_DISABLE_EXTENSIONS")

@@ -6,11 +6,11 @@ use std::sync::Arc;
 use glam::Vec3;
 use openxr_sys as xr;
 
-use crate::capture::{self, SubmittedDepth, SubmittedLayer, SubmittedView};
+use crate::capture::{self, SubmittedDepth, SubmittedLayer, SubmittedQuad, SubmittedView};
 use crate::session::{self, Session};
 use crate::space::{self, Pose};
 use crate::swapchain::{self, Swapchain};
-use crate::system::{check_view_config, MAX_LAYERS};
+use crate::system::check_view_config;
 use crate::util::{find_in_chain, guard, input, input_opt, output, two_call, XrResult};
 use crate::EXT_DEPTH;
 
@@ -200,7 +200,7 @@ unsafe fn check_layer(s: &Session, p: *const xr::CompositionLayerBaseHeader) -> 
                 }
                 out.push(SubmittedView { pose: v.pose, fov: v.fov, swapchain: sc, image_index, rect: v.sub_image.image_rect, array_index: v.sub_image.image_array_index, depth });
             }
-            Ok(SubmittedLayer { kind: "projection", flags: l.layer_flags.into_raw(), space: sp.name(), views: out })
+            Ok(SubmittedLayer { kind: "projection", flags: l.layer_flags.into_raw(), space: sp.name(), views: out, quad: None })
         }
         xr::StructureType::COMPOSITION_LAYER_QUAD => {
             // SAFETY: its type says so.
@@ -211,8 +211,24 @@ unsafe fn check_layer(s: &Session, p: *const xr::CompositionLayerBaseHeader) -> 
             if !matches!(l.eye_visibility, xr::EyeVisibility::BOTH | xr::EyeVisibility::LEFT | xr::EyeVisibility::RIGHT) {
                 return Err(xr::Result::ERROR_VALIDATION_FAILURE);
             }
-            check_sub_image(s, &l.sub_image)?;
-            Ok(SubmittedLayer { kind: "quad", flags: l.layer_flags.into_raw(), space: sp.name(), views: Vec::new() })
+            if !(l.size.width > 0.0 && l.size.height > 0.0 && l.size.width.is_finite() && l.size.height.is_finite()) {
+                crate::log!("xrEndFrame: quad size {}x{}", l.size.width, l.size.height);
+                return Err(xr::Result::ERROR_VALIDATION_FAILURE);
+            }
+            let (sc, image_index) = check_sub_image(s, &l.sub_image)?;
+            if swapchain::is_depth(sc.format) {
+                return Err(xr::Result::ERROR_VALIDATION_FAILURE);
+            }
+            let quad = SubmittedQuad {
+                pose: l.pose,
+                size: [l.size.width, l.size.height],
+                eye_visibility: l.eye_visibility.into_raw(),
+                swapchain: sc,
+                image_index,
+                rect: l.sub_image.image_rect,
+                array_index: l.sub_image.image_array_index,
+            };
+            Ok(SubmittedLayer { kind: "quad", flags: l.layer_flags.into_raw(), space: sp.name(), views: Vec::new(), quad: Some(quad) })
         }
         other => {
             crate::log!("xrEndFrame: unsupported layer type {other:?}");
@@ -247,7 +263,7 @@ pub unsafe extern "system" fn xr_end_frame(session: xr::Session, info: *const xr
         if info.environment_blend_mode != xr::EnvironmentBlendMode::OPAQUE {
             return Err(xr::Result::ERROR_ENVIRONMENT_BLEND_MODE_UNSUPPORTED);
         }
-        if info.layer_count > MAX_LAYERS {
+        if info.layer_count > s.instance.cfg.max_layers {
             return Err(xr::Result::ERROR_LAYER_LIMIT_EXCEEDED);
         }
         // SAFETY: count/array from the app.

@@ -68,7 +68,7 @@ pub unsafe extern "system" fn xr_get_system_properties(
         p.graphics_properties = xr::SystemGraphicsProperties {
             max_swapchain_image_height: hmd.max.1,
             max_swapchain_image_width: hmd.max.0,
-            max_layer_count: MAX_LAYERS,
+            max_layer_count: inst.cfg.max_layers,
         };
         p.tracking_properties = xr::SystemTrackingProperties { orientation_tracking: xr::TRUE, position_tracking: xr::TRUE };
         if inst.extension_enabled(EXT_EYE_GAZE) {
