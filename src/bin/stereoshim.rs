@@ -74,6 +74,19 @@ enum Cmd {
         #[arg(long)]
         app: Option<String>,
     },
+    /// Ask running apps with the layer to save their next frame's eye images as PNGs (in
+    /// `screenshot.dir`, else $XDG_PICTURES_DIR/stereoshim).
+    Screenshot {
+        /// Only the app with this process id (default: every running app with the layer).
+        #[arg(long)]
+        pid: Option<u32>,
+        /// Wait until the pictures are written and print their paths.
+        #[arg(long)]
+        wait: bool,
+        /// How long --wait waits, in seconds.
+        #[arg(long, value_name = "SECONDS", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=3600))]
+        timeout: u64,
+    },
 }
 
 #[derive(clap::Args)]
@@ -110,6 +123,9 @@ fn main() -> ExitCode {
         Cmd::Run { library, app } => run_cmd(library, &app),
         Cmd::Manifest { kind, library, shipped } => manifest_cmd(kind, library, shipped),
         Cmd::Stats { file, follow, csv, app } => stats_cmd(file, follow, csv, app),
+        Cmd::Screenshot { pid, wait, timeout } => {
+            stereoshim::features::screenshot::command::request(&env, pid, wait, std::time::Duration::from_secs(timeout)).map(|lines| lines.iter().for_each(|l| println!("{l}")))
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
