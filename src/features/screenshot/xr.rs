@@ -158,7 +158,10 @@ fn register(w: &mut Watch, app: &str) {
     let folder = match crate::private_fs::private_dir(&base, std::path::Path::new("stereoshim/screenshot")) {
         Ok(f) => f,
         Err(e) => {
-            tracing::warn!("screenshot: no runtime folder ({e}): `stereoshim screenshot` cannot reach this app");
+            // The folder checks speak of manifests; the reason is what matters here.
+            let e = e.to_string();
+            let reason = e.split(": refusing").next().unwrap_or(&e);
+            tracing::warn!("screenshot: no private runtime folder ({reason}): `stereoshim screenshot` cannot reach this app");
             return;
         }
     };
