@@ -182,7 +182,8 @@ fn per_eye_screenshot_equals_the_capture() {
 }
 
 /// One multiview swapchain (a view per array layer), the folder from `$XDG_PICTURES_DIR`, asked
-/// for by touching `screenshot.trigger`.
+/// for by touching `screenshot.trigger`; with radial density masking, whose reconstruction at the
+/// same release must be in the picture (the screenshot comes last in the registry).
 #[test]
 fn multiview_screenshot_by_touch_equals_the_capture() {
     let name = "screenshot-multiview";
@@ -190,8 +191,12 @@ fn multiview_screenshot_by_touch_equals_the_capture() {
     let _ = std::fs::remove_dir_all(&pics);
     let touch = target_dir().join("test-output/screenshot-multiview-touch");
     let _ = std::fs::remove_file(&touch);
+    let stats_file = target_dir().join("test-output").join(name).join("layer-stats.jsonl");
     let run = run(name)
+        .env("STEREOSHIM_STATS_FILE", stats_file.to_str().unwrap())
         .args(["--layout", "multiview"])
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
         .env("XDG_PICTURES_DIR", pics.to_str().unwrap())
         .env("STEREOSHIM_SCREENSHOT_TRIGGER", touch.to_str().unwrap());
     let mut seen: Option<Instant> = None;
@@ -207,7 +212,19 @@ fn multiview_screenshot_by_touch_equals_the_capture() {
     });
     out.assert_ok();
     assert!(touch.exists(), "{name}: never touched; log:\n{}", out.log);
-    assert_matches_capture("multiview", &out, &pics.join("stereoshim"));
+    let shot = assert_matches_capture("multiview", &out, &pics.join("stereoshim"));
+    // RDM reconstructed both views of that frame (else the comparison would not show the order),
+    // and the frame's stats line counts the screenshot's views.
+    let stats = std::fs::read_to_string(&stats_file).expect("stats.file");
+    let line: serde_json::Value = stats
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .find(|l| l["frame"].as_u64() == Some(shot.frame))
+        .unwrap_or_else(|| panic!("no stats line for frame {}", shot.frame));
+    let reconstructed: u64 = line["rdm"]["reconstructed"].as_object().map(|m| m.values().filter_map(|v| v.as_u64()).sum()).unwrap_or(0);
+    assert_eq!(reconstructed, 2, "{line}");
+    assert_eq!(line["screenshot"]["views"], 2, "{line}");
+    assert_eq!(stats.lines().filter(|l| l.contains("\"screenshot\"")).count(), 1, "one frame had a screenshot");
 }
 
 /// One side-by-side swapchain (two rects), `screenshot.dir`, with `mask.debug`: the tint is in the
