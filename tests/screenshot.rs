@@ -227,14 +227,14 @@ fn multiview_screenshot_by_touch_equals_the_capture() {
     assert_eq!(stats.lines().filter(|l| l.contains("\"screenshot\"")).count(), 1, "one frame had a screenshot");
 }
 
-/// One side-by-side swapchain (two rects), `screenshot.dir`, with `mask.debug`: the tint is in the
-/// pictures as in the capture.
+/// One side-by-side swapchain (two rects) of a UNORM format, `screenshot.dir`, with `mask.debug`:
+/// the tint is in the pictures as in the capture.
 #[test]
 fn side_by_side_screenshot_with_mask_tint_equals_the_capture() {
     let pics = target_dir().join("test-output/screenshot-sbs-pictures");
     let _ = std::fs::remove_dir_all(&pics);
     let run = run("screenshot-side-by-side")
-        .args(["--layout", "side-by-side"])
+        .args(["--layout", "side-by-side", "--color-format", "unorm"])
         .env("STEREOSHIM_MASK_ENABLED", "1")
         .env("STEREOSHIM_MASK_DEBUG", "1")
         .env("STEREOSHIM_SCREENSHOT_DIR", pics.to_str().unwrap());

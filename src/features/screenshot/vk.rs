@@ -79,7 +79,13 @@ struct Armed {
     copies: Vec<Copy>,
     /// Time spent in the app's `xrReleaseSwapchainImage` calls on the copies, µs.
     release_us: u64,
+    /// Frames armed without a copy so far.
+    empty_frames: u32,
 }
+
+/// Frames a request stays armed while nothing can be copied (no image tied to a view yet, or
+/// none that can be copied) before it is answered with an error instead of waiting forever.
+const MAX_EMPTY_FRAMES: u32 = 30;
 
 #[derive(Default)]
 struct State {
@@ -163,22 +169,24 @@ pub(crate) fn request(device: u64, frame: u64, request: Request) -> Requested {
     if st.busy || st.handoff.is_some() || st.armed.is_some() || st.closed {
         return Requested::Busy;
     }
-    st.armed = Some(Armed { frame, request, copies: Vec::new(), release_us: 0 });
+    st.armed = Some(Armed { frame, request, copies: Vec::new(), release_us: 0, empty_frames: 0 });
     me.armed.store(true, Ordering::Release);
     Requested::Armed
 }
 
 /// `xrBeginFrame` of `frame`: the armed frame (an earlier one) is over. Its copies go to the
 /// thread; an armed frame that copied nothing (no image was tied to a view yet: the first frame)
-/// stays armed for this one. Returns whether a frame is still armed.
+/// stays armed for this one, up to `MAX_EMPTY_FRAMES` (then the thread answers with an error).
+/// Returns whether a frame is still armed.
 pub(crate) fn frame_begun(device: u64, frame: u64) -> bool {
     let Some(d) = crate::vk::layer().devices.get(crate::vk::dispatch_key(vk::Device::from_raw(device))) else { return false };
     let me = &d.features.screenshot;
     let mut st = lock(&me.jobs.state);
     match st.armed.as_mut() {
         None => false,
-        Some(a) if a.copies.is_empty() => {
+        Some(a) if a.copies.is_empty() && a.empty_frames + 1 < MAX_EMPTY_FRAMES => {
             a.frame = frame;
+            a.empty_frames += 1;
             true
         }
         Some(_) => {
