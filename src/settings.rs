@@ -11,6 +11,7 @@ use crate::config::Config;
 use crate::features::far_field::FarFieldSettings;
 use crate::features::foveation::FoveationSettings;
 use crate::features::mask::MaskSettings;
+use crate::features::screenshot::ScreenshotSettings;
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, RwLock};
@@ -36,6 +37,7 @@ pub struct Settings {
     pub far_field: FarFieldSettings,
     /// `overlay.*`: the in-headset stats panel.
     pub overlay: crate::features::overlay::OverlaySettings,
+    pub screenshot: ScreenshotSettings,
     pub stats_file: String,
     /// `stats.gpu_time`: the submit hooks bracket submissions with timestamps (`vk::gpu_time`).
     pub stats_gpu_time: bool,
@@ -57,6 +59,7 @@ impl Settings {
             foveation: FoveationSettings::from_config(c),
             far_field: FarFieldSettings::from_config(c),
             overlay: crate::features::overlay::OverlaySettings::from_config(c),
+            screenshot: ScreenshotSettings::from_config(c),
             stats_file: c.text("stats.file").to_string(),
             stats_gpu_time: c.bool("stats.gpu_time"),
             fail_in: c.text("debug.fail_in").split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),

@@ -342,3 +342,55 @@ fn far_field_on_hello_xr_is_bit_identical() {
         assert!(reused >= FRAMES - 2, "{tag}: the destination view reused the far field in {reused} frames: {:?}\n{}", far.stats, far.out.log);
     }
 }
+
+/// A screenshot of hello_xr (its own swapchain format, per-eye swapchains and frame loop) asked
+/// for mid-run with `stereoshim screenshot --wait`: each view's picture equals the runtime's
+/// capture of the frame the layer names, and the app ends cleanly.
+#[test]
+fn screenshot_of_hello_xr_equals_the_capture() {
+    let name = "hello-xr-screenshot";
+    let dir = common::target_dir().join("test-output").join(name);
+    // Nothing of an earlier run may look like this one's progress to the asker.
+    let _ = std::fs::remove_dir_all(&dir);
+    let pictures = common::target_dir().join("test-output/hello-xr-screenshot-pictures");
+    let _ = std::fs::remove_dir_all(&pictures);
+    let asker = {
+        let dir = dir.clone();
+        std::thread::spawn(move || {
+            let folder = dir.join("run/stereoshim/screenshot");
+            let started = Instant::now();
+            while started.elapsed() < timeout() {
+                let announced = std::fs::read_dir(&folder).is_ok_and(|d| {
+                    d.flatten().any(|e| e.file_name().to_str().and_then(stereoshim::features::screenshot::rules::instance_pid).is_some())
+                });
+                if announced && dir.join("capture/frame-00003-view-0.png").exists() {
+                    let out = Command::new(common::target_dir().join("stereoshim"))
+                        .args(["screenshot", "--wait", "--timeout", "60"])
+                        .env("XDG_RUNTIME_DIR", dir.join("run"))
+                        .output()
+                        .expect("run stereoshim");
+                    return Some((out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned()));
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            None
+        })
+    };
+    let r = run(name, "Vulkan2", true, &[("MOCK_XR_EXIT_AFTER", "20"), ("STEREOSHIM_SCREENSHOT_DIR", pictures.to_str().unwrap())]);
+    let asked = asker.join().expect("asker");
+    assert_eq!(r.out.code, Some(0), "{name}: hello_xr failed; output:\n{}", tail(&r.out.stderr, 6000));
+    assert!(r.validation_errors.is_empty(), "{name}: {:#?}", r.validation_errors);
+    let (code, stdout, stderr) = asked.unwrap_or_else(|| panic!("{name}: never asked; log:\n{}", r.out.log));
+    assert_eq!(code, Some(0), "{stdout}{stderr}\nlog:\n{}", r.out.log);
+    let sidecar = std::fs::read_dir(&pictures).unwrap().flatten().map(|e| e.path()).find(|p| p.extension().is_some_and(|x| x == "json")).expect("the screenshot's JSON");
+    let shot: serde_json::Value = serde_json::from_slice(&std::fs::read(&sidecar).unwrap()).unwrap();
+    let frame = shot["frame"].as_u64().expect("frame");
+    assert!(frame >= 3, "{shot}");
+    let views = r.out.views(frame);
+    assert_eq!(stdout.lines().count(), views.len(), "{stdout}");
+    for v in views {
+        let file = shot["views"].as_array().unwrap().iter().find(|x| x["view"] == v.view).and_then(|x| x["file"].as_str()).unwrap_or_else(|| panic!("no view {} in {shot}", v.view));
+        assert!(stdout.lines().any(|l| l == file), "{stdout}");
+        image::assert_identical(&format!("{name}-view-{}", v.view), &Image::load(Path::new(file)), &r.out.image(&v.file));
+    }
+}

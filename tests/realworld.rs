@@ -883,6 +883,8 @@ fn preview_runtime_on_monado() {
             assert!(png.is_file(), "{}", png.display());
         }
     }
+}
+
 /// The in-headset stats overlay on Monado (issue 12): the layer submits its quad after hello_xr's
 /// layer (its own swapchain, a VIEW space; core_validation below the layer validates both), the
 /// frames keep coming as without the layer, and no validation error. Its swapchain, space and

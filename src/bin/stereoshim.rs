@@ -93,6 +93,19 @@ enum Cmd {
         #[arg(long)]
         app: Option<String>,
     },
+    /// Ask running apps with the layer to save their next frame's eye images as PNGs (in
+    /// `screenshot.dir`, else $XDG_PICTURES_DIR/stereoshim).
+    Screenshot {
+        /// Only the app with this process id (default: every running app with the layer).
+        #[arg(long)]
+        pid: Option<u32>,
+        /// Wait until the pictures are written and print their paths.
+        #[arg(long)]
+        wait: bool,
+        /// How long --wait waits, in seconds.
+        #[arg(long, value_name = "SECONDS", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=3600))]
+        timeout: u64,
+    },
     /// Pictures and numbers of what the effective config would do on a headset: the hidden-area
     /// mask, the VRS rate map, the RDM skip pattern and the far field's reuse region, per view.
     #[command(group(ArgGroup::new("headset").required(true).args(["hmd", "runtime"])))]
@@ -174,6 +187,9 @@ fn main() -> ExitCode {
         Cmd::Stats { file, follow, csv, app } => stats_cmd(file, follow, csv, app),
         Cmd::Preview(args) => preview_cmd(args),
         Cmd::Doctor { app, config, json } => return doctor_cmd(app, config, json),
+        Cmd::Screenshot { pid, wait, timeout } => {
+            stereoshim::features::screenshot::command::request(&env, pid, wait, std::time::Duration::from_secs(timeout)).map(|lines| lines.iter().for_each(|l| println!("{l}")))
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -13,6 +13,7 @@ pub mod mask;
 /// Not a registry plug-in: the overlay draws nothing into the app's passes (its shell is
 /// `crate::xr::overlay`).
 pub mod overlay;
+pub mod screenshot;
 
 use crate::config::KeySpec;
 use crate::core::stats::FrameStats;
@@ -71,10 +72,13 @@ registry! {
         rdm: foveation::rdm::vk::RdmDevice,
         vrs: foveation::vrs::vk::VrsDevice,
         far_field: far_field::vk::FarFieldDevice,
+        // Last: it copies the images as the runtime gets them, after RDM's reconstruction.
+        screenshot: screenshot::vk::ScreenshotDevice,
     }
     openxr {
         mask: mask::xr::MaskXr => mask::xr::MaskSession,
         foveation: foveation::xr::FoveationXr => foveation::xr::FoveationSession,
         far_field: far_field::xr::FarFieldXr => far_field::xr::FarFieldSession,
+        screenshot: screenshot::xr::ScreenshotXr => screenshot::xr::ScreenshotSession,
     }
 }
