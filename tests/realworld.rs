@@ -912,3 +912,126 @@ fn vulkan2_layer_overlay() {
     check_frames_kept(&mut c, &root, base, &o, &spec);
     c.finish(&[&o, base]);
 }
+
+/// Screenshots on Monado (issue 12): `screenshot.trigger` is touched once hello_xr has rendered
+/// `SHOT_AFTER_FRAMES` frames; the layer writes one PNG per view and the sidecar JSON into
+/// `screenshot.dir`, each picture the size of hello_xr's swapchain for that view and showing its
+/// cubes over the clear colour (several colours, none filling the picture); the frame is the one
+/// the stats name, nothing is left out, the log has no screenshot failure, validation is clean and
+/// the frames keep coming as without the layer (the copy runs on the GPU, the encoding on a thread).
+#[test]
+fn vulkan2_layer_screenshot() {
+    let Some(root) = root() else { return };
+    let base = baseline(&root, "Vulkan2");
+    let name = "vulkan2-screenshot";
+    let dir = target_dir().join("test-output").join("realworld").join(name);
+    // Nothing of an earlier run may look like this one's progress to the toucher.
+    let _ = std::fs::remove_dir_all(&dir);
+    let env = [("STEREOSHIM_SCREENSHOT_TRIGGER", "/tmp/shot.trigger"), ("STEREOSHIM_SCREENSHOT_DIR", "/tmp/shots")];
+    let spec = Spec { layer: Layer::Explicit, env: env.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect(), ..Spec::new(name, "Vulkan2") };
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    // Touches the trigger (from outside the root: the run dir is its /tmp) once the layer's stats
+    // file has SHOT_AFTER_FRAMES lines (one per xrEndFrame); returns the count it saw then.
+    let toucher = {
+        let (dir, stop) = (dir.clone(), stop.clone());
+        std::thread::spawn(move || {
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                let ended = std::fs::read_to_string(dir.join("stats.jsonl")).map(|t| t.lines().count()).unwrap_or(0);
+                if ended >= SHOT_AFTER_FRAMES {
+                    std::fs::write(dir.join("shot.trigger"), b"").expect("touch the trigger");
+                    return Some(ended);
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            None
+        })
+    };
+    let o = run(&root, &spec);
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let touched = toucher.join().expect("toucher");
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, base);
+    check_clean_exit(&mut c, &o);
+    check_layer_loaded(&mut c, &o);
+    check_validation(&mut c, &o);
+    c.check(touched.is_some(), || format!("{name}: hello_xr never reached {SHOT_AFTER_FRAMES} frames: the trigger was not touched"));
+    let failures: Vec<&str> = o.log.lines().filter(|l| l.contains("screenshot") && (l.contains("WARN") || l.contains("ERROR"))).collect();
+    c.check(failures.is_empty(), || format!("{name}: the layer logged screenshot failures:\n{}", failures.join("\n")));
+    let taken = o.log.lines().filter(|l| l.contains("screenshot: taking frame")).count();
+    c.check(taken == 1, || format!("{name}: {taken} screenshots taken (want 1, one touch):\n{}", o.log));
+    check_screenshot_files(&mut c, &o);
+    check_frames_kept(&mut c, &root, base, &o, &spec);
+    c.finish(&[&o, base]);
+}
+
+/// Frames hello_xr has ended when the test asks for the screenshot (20 Hz on Monado: 3 s in).
+const SHOT_AFTER_FRAMES: usize = 60;
+/// hello_xr's clear colour for an opaque blend mode (0.184, 0.310, 0.310 linear) as 8-bit sRGB.
+const CLEAR_SRGB: [u16; 3] = [119, 151, 151];
+
+/// The screenshot's files in the run's `shots/` (the root's `/tmp/shots`): see `vulkan2_layer_screenshot`.
+fn check_screenshot_files(c: &mut Checks, o: &Outcome) {
+    let name = &o.name;
+    let shots = o.dir.join("shots");
+    let files: Vec<PathBuf> = walk(&shots).into_iter().filter(|p| p.is_file()).collect();
+    let of = |ext: &str| files.iter().filter(|p| p.extension().is_some_and(|x| x == ext)).cloned().collect::<Vec<_>>();
+    let (pngs, jsons) = (of("png"), of("json"));
+    c.check(files.len() == 3 && pngs.len() == 2 && jsons.len() == 1, || format!("{name}: want 2 PNGs and 1 JSON in {}, found {files:?}", shots.display()));
+    let Some(sidecar) = jsons.first() else { return };
+    let shot: Value = serde_json::from_slice(&std::fs::read(sidecar).unwrap_or_default()).unwrap_or_default();
+    eprintln!("{name}: {}", sidecar.display());
+    // The frame is the one the stats name, and both views were copied there.
+    let frame = shot["frame"].as_u64();
+    let line = o.stats.iter().find(|s| frame.is_some() && s["frame"].as_u64() == frame);
+    c.check(line.is_some_and(|s| s["screenshot"]["views"].as_u64() == Some(2) && s["screenshot"]["not_applied"].as_object().is_some_and(|m| m.is_empty())), || {
+        format!("{name}: stats of the screenshot's frame {frame:?}: {:?} (want 2 views, nothing not applied); sidecar {shot}", line.map(|s| &s["screenshot"]))
+    });
+    c.check(o.log.contains(&format!("screenshot of frame {}: 2 view(s) in /tmp/shots", frame.unwrap_or(u64::MAX))), || format!("{name}: no \"written\" line for frame {frame:?}:\n{}", o.log));
+    let sizes = swapchain_sizes(&o.app_log);
+    let views = shot["views"].as_array().cloned().unwrap_or_default();
+    c.check(views.len() == 2 && sizes.len() == 2, || format!("{name}: {} views in the sidecar, {} swapchain sizes in hello_xr's log (want 2 each): {shot}", views.len(), sizes.len()));
+    for v in &views {
+        let i = v["view"].as_u64().unwrap_or(u64::MAX) as usize;
+        // Paths in the sidecar are as seen inside the root (/tmp is the run dir).
+        let inside = v["file"].as_str().unwrap_or("");
+        let file = o.dir.join(inside.strip_prefix("/tmp/").unwrap_or(inside));
+        if !pngs.contains(&file) {
+            c.check(false, || format!("{name}: view {i}: {inside} is not among the PNGs {pngs:?}"));
+            continue;
+        }
+        let img = common::image::Image::load(&file);
+        let (w, h) = (v["width"].as_u64(), v["height"].as_u64());
+        c.check(sizes.get(i) == Some(&(img.width, img.height)) && (w, h) == (Some(img.width as u64), Some(img.height as u64)), || {
+            format!("{name}: view {i}: picture {}x{}, sidecar {w:?}x{h:?}, hello_xr's swapchain {:?}", img.width, img.height, sizes.get(i))
+        });
+        let colours = colour_counts(&img);
+        let total = (img.width * img.height) as usize;
+        let common: Vec<String> = colours.iter().take(6).map(|(c, n)| format!("{c:?} {:.1} %", *n as f64 * 100.0 / total as f64)).collect();
+        eprintln!("{name}: view {i}: {}x{} ({} bytes), {} colours; most common: {}", img.width, img.height, std::fs::metadata(&file).map_or(0, |m| m.len()), colours.len(), common.join(", "));
+        // hello_xr's cubes over its clear colour: the most common colour is that clear colour
+        // (slate grey, stored sRGB: 119, 151, 151), it leaves at least 1 % of the picture, and
+        // at least three other colours (the cubes' faces) cover 0.05 % of it each. At Monado's
+        // 320x240 the cubes are small: 2.2 % of the picture.
+        let clear = colours.first().is_some_and(|(c, n)| c.iter().zip(CLEAR_SRGB).all(|(a, b)| a.abs_diff(b) <= 2) && *n * 100 <= total * 99);
+        let faces = colours.iter().skip(1).filter(|(_, n)| *n * 2000 >= total).count();
+        c.check(clear && faces >= 3, || format!("{name}: view {i} is not hello_xr's cubes over its clear colour: {}", common.join(", ")));
+    }
+}
+
+/// Each view's swapchain size as hello_xr logs it ("Creating swapchain for view N with dimensions
+/// Width=W Height=H ..."), in view order.
+fn swapchain_sizes(app_log: &str) -> Vec<(u32, u32)> {
+    let field = |l: &str, k: &str| l.split(k).nth(1).and_then(|r| r.split(|ch: char| !ch.is_ascii_digit()).next()).and_then(|n| n.parse().ok());
+    app_log.lines().filter(|l| l.contains("Creating swapchain for view")).filter_map(|l| Some((field(l, "Width=")?, field(l, "Height=")?))).collect()
+}
+
+/// The picture's colours (RGB) with their pixel counts, most common first.
+fn colour_counts(img: &common::image::Image) -> Vec<([u16; 3], usize)> {
+    let mut counts: HashMap<[u16; 3], usize> = HashMap::new();
+    for p in img.data.chunks_exact(img.channels as usize) {
+        *counts.entry([p[0], p[1], p[2]]).or_insert(0) += 1;
+    }
+    let mut v: Vec<_> = counts.into_iter().collect();
+    v.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    v
+}
