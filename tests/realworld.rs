@@ -955,13 +955,45 @@ fn vulkan2_layer_screenshot() {
     check_layer_loaded(&mut c, &o);
     check_validation(&mut c, &o);
     c.check(touched.is_some(), || format!("{name}: hello_xr never reached {SHOT_AFTER_FRAMES} frames: the trigger was not touched"));
-    let failures: Vec<&str> = o.log.lines().filter(|l| l.contains("screenshot") && (l.contains("WARN") || l.contains("ERROR"))).collect();
-    c.check(failures.is_empty(), || format!("{name}: the layer logged screenshot failures:\n{}", failures.join("\n")));
-    let taken = o.log.lines().filter(|l| l.contains("screenshot: taking frame")).count();
-    c.check(taken == 1, || format!("{name}: {taken} screenshots taken (want 1, one touch):\n{}", o.log));
     check_screenshot_files(&mut c, &o);
     check_frames_kept(&mut c, &root, base, &o, &spec);
     c.finish(&[&o, base]);
+}
+
+/// `stereoshim screenshot --wait` run inside the same root and PID namespace as hello_xr on Monado
+/// (started from `pre.sh` in the background: it waits for the layer's instance file in
+/// `$XDG_RUNTIME_DIR/stereoshim/screenshot`, then 3 s, then asks): it finds the app, exits 0 and
+/// prints the two pictures' paths, which are the ones in the sidecar; the files, log, validation
+/// and frames are checked as in `vulkan2_layer_screenshot`.
+#[test]
+fn vulkan2_layer_screenshot_command() {
+    let Some(root) = root() else { return };
+    let base = baseline(&root, "Vulkan2");
+    let name = "vulkan2-screenshot-command";
+    let pre = "( until ls /tmp/run/stereoshim/screenshot 2>/dev/null | grep -qx '[0-9]*\\.json'; do sleep 0.2; done\n  sleep 3\n  /opt/stereoshim screenshot --wait --timeout 30 > /tmp/shot-command.out 2> /tmp/shot-command.err\n  echo $? > /tmp/shot-command.rc ) &\n";
+    let env = [("STEREOSHIM_SCREENSHOT_DIR", "/tmp/shots")];
+    let spec = Spec { layer: Layer::Explicit, pre: Some(pre.into()), env: env.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect(), ..Spec::new(name, "Vulkan2") };
+    let o = run(&root, &spec);
+    let read = |f: &str| std::fs::read_to_string(o.dir.join(f)).unwrap_or_default();
+    let (rc, out, err) = (read("shot-command.rc"), read("shot-command.out"), read("shot-command.err"));
+    eprintln!("{name}: stereoshim screenshot --wait: exit {}, printed:\n{out}{err}", rc.trim());
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, base);
+    check_clean_exit(&mut c, &o);
+    check_layer_loaded(&mut c, &o);
+    check_validation(&mut c, &o);
+    c.check(rc.trim() == "0", || format!("{name}: stereoshim screenshot --wait exited {:?}:\n{out}{err}", rc.trim()));
+    let printed: Vec<&str> = out.lines().collect();
+    let sidecar: Vec<String> = screenshot_sidecars(&o).iter().flat_map(|j| j["views"].as_array().cloned().unwrap_or_default()).filter_map(|v| v["file"].as_str().map(str::to_string)).collect();
+    c.check(printed.len() == 2 && printed.iter().all(|p| sidecar.iter().any(|f| f == p)), || format!("{name}: the command printed {printed:?}; the sidecar names {sidecar:?}"));
+    check_screenshot_files(&mut c, &o);
+    check_frames_kept(&mut c, &root, base, &o, &spec);
+    c.finish(&[&o, base]);
+}
+
+/// The sidecar JSONs in the run's `shots/`.
+fn screenshot_sidecars(o: &Outcome) -> Vec<Value> {
+    walk(&o.dir.join("shots")).into_iter().filter(|p| p.extension().is_some_and(|x| x == "json")).filter_map(|p| serde_json::from_slice(&std::fs::read(p).ok()?).ok()).collect()
 }
 
 /// Frames hello_xr has ended when the test asks for the screenshot (20 Hz on Monado: 3 s in).
@@ -969,9 +1001,14 @@ const SHOT_AFTER_FRAMES: usize = 60;
 /// hello_xr's clear colour for an opaque blend mode (0.184, 0.310, 0.310 linear) as 8-bit sRGB.
 const CLEAR_SRGB: [u16; 3] = [119, 151, 151];
 
-/// The screenshot's files in the run's `shots/` (the root's `/tmp/shots`): see `vulkan2_layer_screenshot`.
+/// One screenshot taken, no screenshot warning in the layer's log, and its files in the run's
+/// `shots/` (the root's `/tmp/shots`): see `vulkan2_layer_screenshot`.
 fn check_screenshot_files(c: &mut Checks, o: &Outcome) {
     let name = &o.name;
+    let failures: Vec<&str> = o.log.lines().filter(|l| l.contains("screenshot") && (l.contains("WARN") || l.contains("ERROR"))).collect();
+    c.check(failures.is_empty(), || format!("{name}: the layer logged screenshot failures:\n{}", failures.join("\n")));
+    let taken = o.log.lines().filter(|l| l.contains("screenshot: taking frame")).count();
+    c.check(taken == 1, || format!("{name}: {taken} screenshots taken (want 1, one request):\n{}", o.log));
     let shots = o.dir.join("shots");
     let files: Vec<PathBuf> = walk(&shots).into_iter().filter(|p| p.is_file()).collect();
     let of = |ext: &str| files.iter().filter(|p| p.extension().is_some_and(|x| x == ext)).cloned().collect::<Vec<_>>();
