@@ -414,7 +414,7 @@ fn vulkan_api_1_0_refuses_multiview_and_dynamic() {
     for (args, needle) in [
         (&["--vulkan-api", "1.0", "--layout", "multiview"][..], "multiview needs Vulkan 1.1"),
         (&["--vulkan-api", "1.0", "--rendering", "dynamic"][..], "dynamic needs Vulkan 1.1"),
-        (&["--vulkan-api", "1.2"][..], "unknown --vulkan-api"),
+        (&["--vulkan-api", "1.2"][..], "invalid value '1.2' for '--vulkan-api"),
         (&["--secondary", "--bind-before-pass"][..], "exclude each other"),
     ] {
         let out = std::process::Command::new(common::xr_scene_exe()).args(args).output().expect("spawn xr-scene");

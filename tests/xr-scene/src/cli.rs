@@ -178,7 +178,9 @@ pub struct Options {
 #[command(
     name = "xr-scene",
     about = "An unmodified stereo OpenXR + Vulkan app: the subject of stereoshim's end-to-end tests",
-    long_about = None
+    long_about = None,
+    // The harness appends a test's arguments to its defaults: the last value given wins.
+    args_override_self = true
 )]
 struct Args {
     /// Swapchain layout.
@@ -567,6 +569,16 @@ mod tests {
         assert_eq!(o.stats.as_deref(), Some(std::path::Path::new("/tmp/s.json")));
         assert_eq!(o.pixel_stats.as_deref(), Some(std::path::Path::new("/tmp/px")));
         assert_eq!(p(&[]).unwrap().unwrap().pixel_stats, None);
+    }
+
+    /// An option given twice takes its last value (the harness appends a test's own arguments to
+    /// its defaults); a repeatable one (`--vk-layer`) collects them all.
+    #[test]
+    fn last_value_wins() {
+        assert_eq!(p(&["--scale", "0.5", "--scale", "0.25"]).unwrap().unwrap().scale, 0.25);
+        assert_eq!(p(&["--layout", "multiview", "--layout=side-by-side"]).unwrap().unwrap().layout, Layout::SideBySide);
+        assert!(p(&["--secondary", "--secondary"]).unwrap().unwrap().secondary);
+        assert_eq!(p(&["--vk-layer", "A", "--vk-layer", "B"]).unwrap().unwrap().vk_layers, ["A", "B"]);
     }
 
     #[test]
