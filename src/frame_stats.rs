@@ -29,6 +29,8 @@ pub struct FrameRecord {
     pub foveation_enabled: bool,
     /// The live `far_field.enabled`.
     pub far_field_enabled: bool,
+    /// The live `overlay.enabled` (so `examples/bench --feature overlay` can time it A/B).
+    pub overlay_enabled: bool,
     /// Every feature's counters (each writes its own fields).
     pub stats: FrameStats,
     /// The foveation the frame was recorded with (empty when off).
@@ -51,6 +53,7 @@ impl FrameRecord {
         record.insert("mask_enabled".into(), self.mask_enabled.into());
         record.insert("foveation_enabled".into(), self.foveation_enabled.into());
         record.insert("far_field_enabled".into(), self.far_field_enabled.into());
+        record.insert("overlay_enabled".into(), self.overlay_enabled.into());
         record.insert(
             "fovea".into(),
             self.fovea.iter().map(|f| serde_json::json!({"view": f.view, "center": f.center, "inner_deg": f.inner_deg, "middle_deg": f.middle_deg})).collect::<Vec<_>>().into(),
@@ -177,10 +180,11 @@ mod tests {
         };
         *stats.get_mut::<RdmFrameStats>().unwrap() = RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() };
         *stats.get_mut::<VrsFrameStats>().unwrap() = VrsFrameStats { passes: 3, ..Default::default() };
-        let r = FrameRecord { frame: 7, time: 1.5, mask_enabled: true, foveation_enabled: true, far_field_enabled: false, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true), gpu_ms: None };
+        let r = FrameRecord { frame: 7, time: 1.5, mask_enabled: true, foveation_enabled: true, far_field_enabled: false, overlay_enabled: false, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true), gpu_ms: None };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
         assert_eq!(v["frame"], 7);
         assert_eq!(v["vulkan_half"], true);
+        assert_eq!(v["overlay_enabled"], false);
         assert_eq!(v["passes_masked"], 2);
         assert_eq!(v["not_masked"]["no_depth_attachment"], 1);
         assert_eq!(v["pixels_masked"]["0"], 1234);

@@ -27,17 +27,19 @@ screenshot.dir = "$OUT/pictures"
 stats.file = "$OUT/layer-stats.jsonl"
 TOML
 echo "== xr-scene, implicit layer: mask + VRS + overlay, validation, a screenshot mid-run"
-"${E[@]}" MOCK_XR_HMD=index MOCK_XR_EXIT_AFTER=600 MOCK_XR_CAPTURE=$OUT/capture MOCK_XR_CAPTURE_FRAMES=300,599 \
+"${E[@]}" MOCK_XR_HMD=index MOCK_XR_EXIT_AFTER=3000 MOCK_XR_CAPTURE=$OUT/capture MOCK_XR_CAPTURE_FRAMES=300 \
   timeout -k 5 120 ./xr-scene --scale 1.0 --shading-cost 64 --rendering dynamic --validation > $OUT/app.txt 2>&1 &
 app=$!
-sleep 4
+sleep 3
 "${E[@]}" timeout -k 5 60 ./stereoshim screenshot --wait --timeout 30; echo "screenshot exit $?"
 wait $app; echo "xr-scene exit $?"
 tail -3 $OUT/app.txt
 ls -la $OUT/pictures $OUT/capture | head -20
+cp $OUT/capture/frame-00300-layer-1-quad.png $OUT/overlay-h100.png
 cat $OUT/pictures/*.json 2>/dev/null | head -30
 grep -i "overlay\|screenshot\|vrs" $H/state/stereoshim/stereoshim.log | head -20
-b() { echo "== $*"; timeout -k 5 100 examples/bench --scale 1.0 --frames 240 --period 20 "$@" 2>&1 | tail -2; }
+# A/B in one process: the bench switches overlay.enabled live (the frame's `overlay_enabled`).
+b() { echo "== $*"; timeout -k 5 100 examples/bench --scale 1.0 --frames 480 --period 20 "$@" 2>&1 | tail -3; }
 b --feature overlay --shading-cost 64 --layout per-eye
 b --feature overlay --shading-cost 0 --app-args "--empty" --layout per-eye
 b --feature overlay --shading-cost 64 --layout multiview
