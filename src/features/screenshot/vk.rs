@@ -2,7 +2,9 @@
 //! app releases is copied — every view it shows, its `imageRect` of its array layer — into a
 //! host-visible buffer by a layer command buffer on the session's queue, after the app's work and
 //! the other features' (RDM's reconstruction: this feature is last in the registry), with a fence.
-//! The app's `xrReleaseSwapchainImage` waits for nothing. Once every view is copied (or the next
+//! The app's `xrReleaseSwapchainImage` waits for nothing, and makes no large allocation: the
+//! read-back buffers are made on a thread of the layer's when the request comes (`prepare`), and
+//! the frames begun before they are ready are not copied. Once every view is copied (or the next
 //! `xrBeginFrame` comes), a thread of the layer's waits for the fences, reads the buffers, frees
 //! every object and encodes the PNGs (`write`). `vkDestroyDevice` waits for the read-back (bounded
 //! by the fence timeout) and briefly for the encoding, and reads anything still pending itself.
@@ -70,6 +72,17 @@ struct Copy {
     memory: vk::DeviceMemory,
     coherent: bool,
     views: Vec<ViewCopy>,
+    /// Its buffer was made ahead (`prepare`), not inside the release.
+    made_ahead: bool,
+}
+
+/// A host-visible read-back buffer, made ahead for one swapchain's views.
+struct Staging {
+    swapchain: u64,
+    buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+    coherent: bool,
+    size: u64,
 }
 
 /// An armed frame and the copies made of it so far.
@@ -81,6 +94,9 @@ struct Armed {
     release_us: u64,
     /// Frames armed without a copy so far.
     empty_frames: u32,
+    /// The read-back buffers were ready when this frame began: only then are its images copied
+    /// (so a frame is copied whole, never one eye before the buffers came and one after).
+    ready: bool,
 }
 
 /// Frames a request stays armed while nothing can be copied (no image tied to a view yet, or
@@ -100,6 +116,10 @@ struct State {
     closed: bool,
     /// Copies whose fence did not signal in time: freed at `vkDestroyDevice` (the device idle).
     leftover: Vec<Copy>,
+    /// The read-back buffers are being made (`prepare`).
+    preparing: bool,
+    /// Read-back buffers made ahead and not used yet.
+    staging: Vec<Staging>,
 }
 
 struct Jobs {
@@ -169,9 +189,94 @@ pub(crate) fn request(device: u64, frame: u64, request: Request) -> Requested {
     if st.busy || st.handoff.is_some() || st.armed.is_some() || st.closed {
         return Requested::Busy;
     }
-    st.armed = Some(Armed { frame, request, copies: Vec::new(), release_us: 0, empty_frames: 0 });
+    // The buffers for every swapchain image the last xrEndFrame tied to a view, made on a thread
+    // of the layer's: allocating tens of MB of host memory inside the app's release would cost it
+    // a frame (12 ms on an H100 at the Index's size).
+    let needs: Vec<(u64, u64)> = shared()
+        .swapchains
+        .values()
+        .iter()
+        .filter_map(|(_, sc)| {
+            let uses: Vec<_> = sc.uses().into_iter().filter(|u| !u.depth).map(|u| (u.view, u.image_rect, u.image_array_index)).collect();
+            let views = views_of(me, sc, &uses)?;
+            Some((sc.handle, buffer_size(&views)))
+        })
+        .collect();
+    st.preparing = !needs.is_empty();
+    st.armed = Some(Armed { frame, request, copies: Vec::new(), release_us: 0, empty_frames: 0, ready: needs.is_empty() });
     me.armed.store(true, Ordering::Release);
+    if !needs.is_empty() {
+        drop(st);
+        let (fns, jobs, memory) = (d.fns.clone(), me.jobs.clone(), me.memory);
+        let spawned = std::thread::Builder::new().name("stereoshim-screenshot".into()).spawn(move || prepare(&fns, &memory, &jobs, &needs));
+        if let Err(e) = spawned {
+            // The releases make their buffers themselves, as they would for a swapchain not
+            // known at the request.
+            tracing::warn!("screenshot: no thread to prepare the read-back ({e}); made at the release");
+            let mut st = lock(&me.jobs.state);
+            st.preparing = false;
+            if let Some(a) = st.armed.as_mut() {
+                a.ready = true;
+            }
+        }
+    }
     Requested::Armed
+}
+
+/// The thread of a request: makes the read-back buffers of `needs` (swapchain, size), then marks
+/// the request ready for the next frame begun.
+fn prepare(fns: &ash::Device, memory: &vk::PhysicalDeviceMemoryProperties, jobs: &Jobs, needs: &[(u64, u64)]) {
+    let mut made = Vec::new();
+    for &(swapchain, size) in needs {
+        match make_staging(fns, memory, swapchain, size) {
+            Ok(s) => made.push(s),
+            // That swapchain's release makes its own (and logs if it cannot either).
+            Err(e) => tracing::warn!("screenshot: read-back buffer for swapchain {swapchain:#x}: {e}"),
+        }
+    }
+    let mut st = lock(&jobs.state);
+    st.staging.extend(made);
+    st.preparing = false;
+    jobs.changed.notify_all();
+}
+
+/// A host-visible buffer of `size` bytes (cached memory where there is some: it is read by the CPU).
+fn make_staging(fns: &ash::Device, memory: &vk::PhysicalDeviceMemoryProperties, swapchain: u64, size: u64) -> Result<Staging, String> {
+    let mut s = Staging { swapchain, buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null(), coherent: true, size };
+    let e = |what: &'static str| move |r: vk::Result| format!("{what}: {r}");
+    // SAFETY: valid create infos on our device, which outlives this call (vkDestroyDevice waits
+    // for `preparing` to end); the objects are ours, destroyed on failure here.
+    let r = unsafe {
+        (|| -> Result<(), String> {
+            s.buffer = fns.create_buffer(&vk::BufferCreateInfo::default().size(size).usage(vk::BufferUsageFlags::TRANSFER_DST), None).map_err(e("buffer"))?;
+            let req = fns.get_buffer_memory_requirements(s.buffer);
+            let host = vk::MemoryPropertyFlags::HOST_VISIBLE;
+            let ty = crate::vk::lifetime::memory_type(memory, req.memory_type_bits, host | vk::MemoryPropertyFlags::HOST_CACHED)
+                .or_else(|| crate::vk::lifetime::memory_type(memory, req.memory_type_bits, host))
+                .ok_or("no host-visible memory type")?;
+            s.coherent = memory.memory_types[ty as usize].property_flags.contains(vk::MemoryPropertyFlags::HOST_COHERENT);
+            s.memory = fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None).map_err(e("memory"))?;
+            fns.bind_buffer_memory(s.buffer, s.memory, 0).map_err(e("bind"))
+        })()
+    };
+    match r {
+        Ok(()) => Ok(s),
+        Err(msg) => {
+            // SAFETY: never used by the GPU; null handles are ignored.
+            unsafe { destroy_staging(fns, &s) };
+            Err(msg)
+        }
+    }
+}
+
+/// # Safety
+/// The buffer is not in use by the GPU (never submitted, or its copy completed).
+unsafe fn destroy_staging(fns: &ash::Device, s: &Staging) {
+    // SAFETY: per the contract; null handles are ignored.
+    unsafe {
+        fns.destroy_buffer(s.buffer, None);
+        fns.free_memory(s.memory, None);
+    }
 }
 
 /// `xrBeginFrame` of `frame`: the armed frame (an earlier one) is over. Its copies go to the
@@ -182,11 +287,13 @@ pub(crate) fn frame_begun(device: u64, frame: u64) -> bool {
     let Some(d) = crate::vk::layer().devices.get(crate::vk::dispatch_key(vk::Device::from_raw(device))) else { return false };
     let me = &d.features.screenshot;
     let mut st = lock(&me.jobs.state);
+    let preparing = st.preparing;
     match st.armed.as_mut() {
         None => false,
         Some(a) if a.copies.is_empty() && a.empty_frames + 1 < MAX_EMPTY_FRAMES => {
             a.frame = frame;
             a.empty_frames += 1;
+            a.ready = !preparing;
             true
         }
         Some(_) => {
@@ -202,7 +309,8 @@ pub(crate) fn frame_begun(device: u64, frame: u64) -> bool {
 fn hand_off(d: &DeviceState, me: &ScreenshotDevice, mut st: MutexGuard<'_, State>, armed: Option<Armed>) {
     if let Some(a) = &armed {
         let views: usize = a.copies.iter().map(|c| c.views.len()).sum();
-        tracing::info!("screenshot: frame {}: {views} view(s) in {} copies submitted, {} µs in xrReleaseSwapchainImage", a.frame, a.copies.len(), a.release_us);
+        let ahead = a.copies.iter().filter(|c| c.made_ahead).count();
+        tracing::info!("screenshot: frame {}: {views} view(s) in {} copies submitted ({ahead} into buffers made ahead), {} µs in xrReleaseSwapchainImage", a.frame, a.copies.len(), a.release_us);
     }
     st.handoff = armed;
     st.busy = true;
@@ -239,10 +347,15 @@ fn work(fns: &ash::Device, jobs: &Jobs) {
         lock(&jobs.state).leftover.extend(leftover);
         (pictures, frame, request)
     });
-    {
+    let unused = {
         let mut st = lock(&jobs.state);
         st.reading = false;
         jobs.changed.notify_all();
+        std::mem::take(&mut st.staging)
+    };
+    for s in unused {
+        // SAFETY: made ahead and never submitted (a used one left `staging` for its copy).
+        unsafe { destroy_staging(fns, &s) };
     }
     if let Some((pictures, frame, request)) = pictures {
         write::write(&request, frame, pictures);
@@ -325,8 +438,18 @@ impl VkFeature for ScreenshotDevice {
         if uses.is_empty() {
             return;
         }
+        // Not before the read-back buffers are made (the frame stays armed for a later one).
+        if !lock(&self.jobs.state).armed.as_ref().is_some_and(|a| a.ready) {
+            return;
+        }
         let Some(views) = plan(self, d, &sc, image, &uses.iter().map(|u| (u.view, u.image_rect, u.image_array_index)).collect::<Vec<_>>()) else { return };
-        let copy = match copy(self, d, image, &sc.desc, views, family, queue_index) {
+        let size = buffer_size(&views);
+        let staging = {
+            let mut st = lock(&self.jobs.state);
+            let i = st.staging.iter().position(|s| s.swapchain == swapchain && s.size >= size);
+            i.map(|i| st.staging.swap_remove(i))
+        };
+        let copy = match copy(self, d, image, &sc.desc, views, staging, family, queue_index) {
             Ok(c) => c,
             Err(e) => {
                 self.log_once("copy failed", || tracing::warn!("screenshot: the copy of swapchain {swapchain:#x} failed: {e}"));
@@ -360,8 +483,8 @@ impl VkFeature for ScreenshotDevice {
     fn destroy(&self, d: &DeviceState) {
         let mut st = lock(&self.jobs.state);
         st.closed = true;
-        // Reading is bounded by the fence timeout, so this wait is too.
-        while st.reading {
+        // Reading is bounded by the fence timeout, so this wait is too; making buffers is short.
+        while st.reading || st.preparing {
             st = self.jobs.changed.wait(st).unwrap_or_else(|e| e.into_inner());
         }
         let deadline = std::time::Instant::now() + ENCODE_WAIT;
@@ -375,8 +498,13 @@ impl VkFeature for ScreenshotDevice {
         }
         let pending: Vec<Armed> = [st.handoff.take(), st.armed.take()].into_iter().flatten().collect();
         let leftover = std::mem::take(&mut st.leftover);
+        let unused = std::mem::take(&mut st.staging);
         self.armed.store(false, Ordering::Release);
         drop(st);
+        for s in unused {
+            // SAFETY: never submitted.
+            unsafe { destroy_staging(&d.fns, &s) };
+        }
         // What is still pending is read and written here: the app is ending anyway.
         for a in pending {
             let (pictures, late) = read_back(&d.fns, a.copies);
@@ -404,6 +532,17 @@ fn expected_views() -> Vec<u32> {
 /// What to copy of `image` for its `uses` (view, rect, layer), with each view's offset in the
 /// buffer; None (counted, logged once) when the image cannot be copied.
 fn plan(me: &ScreenshotDevice, d: &DeviceState, sc: &crate::shared::Swapchain, image: u64, uses: &[(u32, ImageRect, u32)]) -> Option<Vec<ViewCopy>> {
+    let usage = d.track.images.get(image).map(|i| i.usage);
+    if usage.is_some_and(|u| !u.contains(vk::ImageUsageFlags::TRANSFER_SRC)) {
+        me.not_applied("usage", || format!("swapchain image usage {usage:?} lacks TRANSFER_SRC"));
+        return None;
+    }
+    views_of(me, sc, uses)
+}
+
+/// The views of `uses` (view, rect, layer) of one of the swapchain's images and their offsets in
+/// the read-back buffer; None (counted, logged once) when its images cannot be copied.
+fn views_of(me: &ScreenshotDevice, sc: &crate::shared::Swapchain, uses: &[(u32, ImageRect, u32)]) -> Option<Vec<ViewCopy>> {
     let desc = &sc.desc;
     let Some(texels) = Texels::of(desc.format as i32) else {
         me.not_applied("format", || format!("swapchain format {:?} is not converted", vk::Format::from_raw(desc.format as i32)));
@@ -411,11 +550,6 @@ fn plan(me: &ScreenshotDevice, d: &DeviceState, sc: &crate::shared::Swapchain, i
     };
     if desc.sample_count > 1 {
         me.not_applied("multisampled", || format!("swapchain {:#x} is multisampled", sc.handle));
-        return None;
-    }
-    let usage = d.track.images.get(image).map(|i| i.usage);
-    if usage.is_some_and(|u| !u.contains(vk::ImageUsageFlags::TRANSFER_SRC)) {
-        me.not_applied("usage", || format!("swapchain image usage {usage:?} lacks TRANSFER_SRC"));
         return None;
     }
     let mut offset = 0;
@@ -431,11 +565,28 @@ fn plan(me: &ScreenshotDevice, d: &DeviceState, sc: &crate::shared::Swapchain, i
     (!views.is_empty()).then_some(views)
 }
 
-/// Records and submits the copy of `views` of `image` on the session's queue.
-fn copy(me: &ScreenshotDevice, d: &DeviceState, image: u64, desc: &crate::shared::SwapchainDesc, views: Vec<ViewCopy>, family: u32, queue_index: u32) -> Result<Copy, String> {
-    let Some(set_loader_data) = me.set_loader_data else { return Err("the loader gave no vkSetDeviceLoaderData".into()) };
-    let size = views.iter().map(|v| v.offset + v.region.2 as u64 * v.region.3 as u64 * v.texels.bytes_per_texel()).max().unwrap_or(0).max(16);
-    let mut c = Copy { pool: vk::CommandPool::null(), fence: vk::Fence::null(), buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null(), coherent: true, views };
+/// The read-back buffer's size for `views`.
+fn buffer_size(views: &[ViewCopy]) -> u64 {
+    views.iter().map(|v| v.offset + v.region.2 as u64 * v.region.3 as u64 * v.texels.bytes_per_texel()).max().unwrap_or(0).max(16)
+}
+
+/// Records and submits the copy of `views` of `image` on the session's queue, into `staging` (made
+/// ahead) or a buffer made here (a swapchain not known at the request).
+#[allow(clippy::too_many_arguments)]
+fn copy(me: &ScreenshotDevice, d: &DeviceState, image: u64, desc: &crate::shared::SwapchainDesc, views: Vec<ViewCopy>, staging: Option<Staging>, family: u32, queue_index: u32) -> Result<Copy, String> {
+    let Some(set_loader_data) = me.set_loader_data else {
+        if let Some(s) = staging {
+            // SAFETY: never submitted.
+            unsafe { destroy_staging(&d.fns, &s) };
+        }
+        return Err("the loader gave no vkSetDeviceLoaderData".into());
+    };
+    let made_ahead = staging.is_some();
+    let staging = match staging {
+        Some(s) => s,
+        None => make_staging(&d.fns, &me.memory, 0, buffer_size(&views))?,
+    };
+    let mut c = Copy { pool: vk::CommandPool::null(), fence: vk::Fence::null(), buffer: staging.buffer, memory: staging.memory, coherent: staging.coherent, views, made_ahead };
     let e = |what: &'static str| move |r: vk::Result| format!("{what}: {r}");
     // SAFETY: valid create infos on our device; our own command buffer recorded and submitted
     // once on the session's queue, which the OpenXR Vulkan binding lets a call inside
@@ -446,15 +597,6 @@ fn copy(me: &ScreenshotDevice, d: &DeviceState, image: u64, desc: &crate::shared
     let r = unsafe {
         (|| -> Result<(), String> {
             let f = &d.fns;
-            c.buffer = f.create_buffer(&vk::BufferCreateInfo::default().size(size).usage(vk::BufferUsageFlags::TRANSFER_DST), None).map_err(e("buffer"))?;
-            let req = f.get_buffer_memory_requirements(c.buffer);
-            let host = vk::MemoryPropertyFlags::HOST_VISIBLE;
-            let ty = crate::vk::lifetime::memory_type(&me.memory, req.memory_type_bits, host | vk::MemoryPropertyFlags::HOST_CACHED)
-                .or_else(|| crate::vk::lifetime::memory_type(&me.memory, req.memory_type_bits, host))
-                .ok_or("no host-visible memory type")?;
-            c.coherent = me.memory.memory_types[ty as usize].property_flags.contains(vk::MemoryPropertyFlags::HOST_COHERENT);
-            c.memory = f.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None).map_err(e("memory"))?;
-            f.bind_buffer_memory(c.buffer, c.memory, 0).map_err(e("bind"))?;
             c.pool = f.create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(family), None).map_err(e("command pool"))?;
             let alloc = vk::CommandBufferAllocateInfo::default().command_pool(c.pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1);
             let cb = f.allocate_command_buffers(&alloc).map_err(e("command buffer"))?[0];
