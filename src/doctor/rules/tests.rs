@@ -1,3 +1,5 @@
+//! Unit tests of the doctor's rules: gathered facts in, findings (status, words, fix) out.
+
 use super::*;
 use crate::config::Inputs;
 use crate::track::device_ext::FsrSupport;
