@@ -183,6 +183,40 @@ pub(crate) fn memory_type(props: &vk::PhysicalDeviceMemoryProperties, bits: u32,
     (0..props.memory_type_count).find(|&i| bits & (1 << i) != 0 && props.memory_types[i as usize].property_flags.contains(wanted))
 }
 
+/// A buffer of `size` bytes with `usage`, bound to new memory of the first type that has all of
+/// one entry of `preferences` (tried in order); the type's flags come back with it. Nothing is
+/// left behind on failure. The layer's one way to make a buffer with memory of its own.
+pub(crate) fn bound_buffer(
+    fns: &ash::Device,
+    props: &vk::PhysicalDeviceMemoryProperties,
+    size: u64,
+    usage: vk::BufferUsageFlags,
+    preferences: &[vk::MemoryPropertyFlags],
+) -> Result<(vk::Buffer, vk::DeviceMemory, vk::MemoryPropertyFlags), String> {
+    let info = vk::BufferCreateInfo::default().size(size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
+    // SAFETY: a valid create info on the caller's device.
+    let buffer = unsafe { fns.create_buffer(&info, None) }.map_err(|e| format!("vkCreateBuffer: {e}"))?;
+    // SAFETY: our buffer, just made.
+    let req = unsafe { fns.get_buffer_memory_requirements(buffer) };
+    let Some(t) = preferences.iter().find_map(|&wanted| memory_type(props, req.memory_type_bits, wanted)) else {
+        // SAFETY: our unused buffer.
+        unsafe { fns.destroy_buffer(buffer, None) };
+        return Err(format!("no memory type with {preferences:?}"));
+    };
+    let alloc = vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(t);
+    // SAFETY: a valid allocate info; the memory is bound once, to our unused buffer; on failure
+    // both are freed (nothing else knows them).
+    let r = unsafe { fns.allocate_memory(&alloc, None).and_then(|m| fns.bind_buffer_memory(buffer, m, 0).map(|_| m).inspect_err(|_| fns.free_memory(m, None))) };
+    match r {
+        Ok(m) => Ok((buffer, m, props.memory_types[t as usize].property_flags)),
+        Err(e) => {
+            // SAFETY: our unused buffer.
+            unsafe { fns.destroy_buffer(buffer, None) };
+            Err(format!("vkAllocateMemory / vkBindBufferMemory: {e}"))
+        }
+    }
+}
+
 /// A host buffer that goes back to its device's pool (bounded) when its last holder lets go:
 /// what a recording's injected draws read.
 pub(crate) struct PooledBuffer {

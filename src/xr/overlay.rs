@@ -315,15 +315,8 @@ fn vulkan_objects(d: &DeviceState, family: u32, queue_index: u32, ov: &mut Overl
     // SAFETY: valid create infos on the session's device, through the layer's counted table;
     // whatever was made before a failure is in `ov` and destroyed by the caller.
     unsafe {
-        ov.buffer = d
-            .fns
-            .create_buffer(&vk::BufferCreateInfo::default().size(size).usage(vk::BufferUsageFlags::TRANSFER_SRC).sharing_mode(vk::SharingMode::EXCLUSIVE), None)
-            .map_err(vk_err("vkCreateBuffer"))?;
-        let req = d.fns.get_buffer_memory_requirements(ov.buffer);
-        let ty = crate::vk::lifetime::memory_type(&d.memory, req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT)
-            .ok_or("no host-visible, coherent memory type")?;
-        ov.memory = d.fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None).map_err(vk_err("vkAllocateMemory"))?;
-        d.fns.bind_buffer_memory(ov.buffer, ov.memory, 0).map_err(vk_err("vkBindBufferMemory"))?;
+        let host = vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
+        (ov.buffer, ov.memory, _) = crate::vk::lifetime::bound_buffer(&d.fns, &d.memory, size, vk::BufferUsageFlags::TRANSFER_SRC, &[host])?;
         ov.mapped = d.fns.map_memory(ov.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()).map_err(vk_err("vkMapMemory"))? as usize;
         ov.pool = d
             .fns

@@ -410,29 +410,8 @@ pub(super) fn make_slots(
 
 /// The tiles' storage buffer (device-local; filled by the layer's commands only).
 fn tile_buffer(d: &DeviceState, memory: &vk::PhysicalDeviceMemoryProperties, size: u64) -> Result<(vk::Buffer, vk::DeviceMemory), String> {
-    let info = vk::BufferCreateInfo::default().size(size.max(8)).usage(vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST);
-    // SAFETY: valid create infos; on failure everything made here is destroyed, on success the
-    // caller hands both to `Slots`, whose drop puts them in the device's trash.
-    unsafe {
-        let buffer = d.fns.create_buffer(&info, None).map_err(|e| e.to_string())?;
-        let req = d.fns.get_buffer_memory_requirements(buffer);
-        let t = lifetime::memory_type(memory, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL).or_else(|| lifetime::memory_type(memory, req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
-        let Some(t) = t else {
-            d.fns.destroy_buffer(buffer, None);
-            return Err("no memory type for the far field's tiles".into());
-        };
-        let mem = match d.fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(t), None) {
-            Ok(m) => m,
-            Err(e) => {
-                d.fns.destroy_buffer(buffer, None);
-                return Err(e.to_string());
-            }
-        };
-        if let Err(e) = d.fns.bind_buffer_memory(buffer, mem, 0) {
-            d.fns.destroy_buffer(buffer, None);
-            d.fns.free_memory(mem, None);
-            return Err(e.to_string());
-        }
-        Ok((buffer, mem))
-    }
+    let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
+    // The caller hands both to `Slots`, whose drop puts them in the device's trash.
+    let (buffer, mem, _) = lifetime::bound_buffer(&d.fns, memory, size.max(8), usage, &[vk::MemoryPropertyFlags::DEVICE_LOCAL, vk::MemoryPropertyFlags::empty()])?;
+    Ok((buffer, mem))
 }

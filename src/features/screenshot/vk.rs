@@ -242,31 +242,9 @@ fn prepare(fns: &ash::Device, memory: &vk::PhysicalDeviceMemoryProperties, jobs:
 
 /// A host-visible buffer of `size` bytes (cached memory where there is some: it is read by the CPU).
 fn make_staging(fns: &ash::Device, memory: &vk::PhysicalDeviceMemoryProperties, swapchain: u64, size: u64) -> Result<Staging, String> {
-    let mut s = Staging { swapchain, buffer: vk::Buffer::null(), memory: vk::DeviceMemory::null(), coherent: true, size };
-    let e = |what: &'static str| move |r: vk::Result| format!("{what}: {r}");
-    // SAFETY: valid create infos on our device, which outlives this call (vkDestroyDevice waits
-    // for `preparing` to end); the objects are ours, destroyed on failure here.
-    let r = unsafe {
-        (|| -> Result<(), String> {
-            s.buffer = fns.create_buffer(&vk::BufferCreateInfo::default().size(size).usage(vk::BufferUsageFlags::TRANSFER_DST), None).map_err(e("buffer"))?;
-            let req = fns.get_buffer_memory_requirements(s.buffer);
-            let host = vk::MemoryPropertyFlags::HOST_VISIBLE;
-            let ty = crate::vk::lifetime::memory_type(memory, req.memory_type_bits, host | vk::MemoryPropertyFlags::HOST_CACHED)
-                .or_else(|| crate::vk::lifetime::memory_type(memory, req.memory_type_bits, host))
-                .ok_or("no host-visible memory type")?;
-            s.coherent = memory.memory_types[ty as usize].property_flags.contains(vk::MemoryPropertyFlags::HOST_COHERENT);
-            s.memory = fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None).map_err(e("memory"))?;
-            fns.bind_buffer_memory(s.buffer, s.memory, 0).map_err(e("bind"))
-        })()
-    };
-    match r {
-        Ok(()) => Ok(s),
-        Err(msg) => {
-            // SAFETY: never used by the GPU; null handles are ignored.
-            unsafe { destroy_staging(fns, &s) };
-            Err(msg)
-        }
-    }
+    let host = vk::MemoryPropertyFlags::HOST_VISIBLE;
+    let (buffer, memory, flags) = crate::vk::lifetime::bound_buffer(fns, memory, size, vk::BufferUsageFlags::TRANSFER_DST, &[host | vk::MemoryPropertyFlags::HOST_CACHED, host])?;
+    Ok(Staging { swapchain, buffer, memory, coherent: flags.contains(vk::MemoryPropertyFlags::HOST_COHERENT), size })
 }
 
 /// # Safety
