@@ -308,5 +308,5 @@ fn run_hello_xr(r: &Run, plugin: &str) -> RunOutput {
         (false, false) => status,
     };
     let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
-    RunOutput { name: r.name.clone(), code, signal, stderr: text, capture, frames, stats: None, elapsed: started.elapsed(), log }
+    RunOutput { name: r.name.clone(), code, signal, crash: None, stderr: text, capture, frames, stats: None, elapsed: started.elapsed(), log }
 }

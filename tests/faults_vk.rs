@@ -110,7 +110,7 @@ fn hard_failures(o: &RunOutput) -> Vec<String> {
         .collect();
     bad.extend(o.log.lines().filter(|l| l.contains("internal failure") || l.contains("panicked")).map(|l| format!("{}: layer log: {l}", o.name)));
     if o.signal.is_some() {
-        bad.push(format!("{}: killed by signal {:?}; stderr:\n{}", o.name, o.signal, o.stderr));
+        bad.push(format!("{}: killed by signal {:?}\n{}", o.name, o.signal, o.crash.as_deref().unwrap_or(&o.stderr)));
     }
     bad
 }

@@ -124,6 +124,7 @@ fn run_output(name: &str, frames_spec: &[(u64, &[ViewSpec])], colour: u16) -> Ru
         name: name.into(),
         code: Some(0),
         signal: None,
+        crash: None,
         stderr: String::new(),
         capture,
         frames: Some(frames),

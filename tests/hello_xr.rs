@@ -64,6 +64,7 @@ fn run(name: &str, plugin: &str, layer: bool, env: &[(&str, &str)]) -> HelloRun 
     let stats_file = dir.join("layer-stats.jsonl");
     let mut cmd = Command::new(hello_xr_exe());
     common::isolate(&mut cmd, &dir, &capture, layer);
+    common::crash::prepare(&mut cmd, &dir);
     cmd.args(["-g", plugin])
         // Runtime diagnostics: every OpenXR call the mock refuses is logged ("xrFunc -> ERROR_…").
         .env("MOCK_XR_LOG", "1")
@@ -90,7 +91,7 @@ fn run(name: &str, plugin: &str, layer: bool, env: &[(&str, &str)]) -> HelloRun 
             break s;
         }
         if started.elapsed() > timeout() {
-            let backtrace = all_thread_backtraces(child.id());
+            let backtrace = common::crash::live_backtraces(child.id());
             let _ = child.kill();
             let _ = child.wait();
             let output: String = readers.into_iter().flatten().map(|r| r.join().unwrap_or_default()).collect();
@@ -113,7 +114,9 @@ fn run(name: &str, plugin: &str, layer: bool, env: &[(&str, &str)]) -> HelloRun 
         .map(|t| t.lines().map(|l| serde_json::from_str(l).expect("stats line parses")).collect())
         .unwrap_or_default();
     let validation_errors = output.lines().filter(|l| l.contains("Validation Error")).map(str::to_string).collect();
-    let out = RunOutput { name: name.to_string(), code: status.code(), signal: std::os::unix::process::ExitStatusExt::signal(&status), stderr: output, capture, frames, stats: None, elapsed: started.elapsed(), log };
+    let elapsed = started.elapsed();
+    let crash = common::crash::report(&common::crash::Ended { name, dir: &dir, program: &hello_xr_exe(), pid: child.id(), status, elapsed, stderr: &output, log: &log });
+    let out = RunOutput { name: name.to_string(), code: status.code(), signal: std::os::unix::process::ExitStatusExt::signal(&status), crash, stderr: output, capture, frames, stats: None, elapsed, log };
     HelloRun { out, stats, validation_errors }
 }
 
@@ -134,15 +137,11 @@ fn tail(s: &str, n: usize) -> &str {
 }
 
 /// `thread apply all bt` of a live process through gdb (attached in batch mode), or why not.
-fn all_thread_backtraces(pid: u32) -> String {
-    match Command::new("gdb").args(["-p", &pid.to_string(), "-batch", "-nx", "-ex", "thread apply all bt"]).output() {
-        Ok(o) => format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)),
-        Err(e) => format!("(no backtrace: gdb not runnable: {e})"),
-    }
-}
-
 impl HelloRun {
     fn assert_clean_exit(&self) {
+        if let Some(report) = &self.out.crash {
+            panic!("{}: hello_xr crashed\n{report}", self.out.name);
+        }
         assert_eq!(self.out.code, Some(0), "{}: hello_xr failed; output:\n{}", self.out.name, tail(&self.out.stderr, 6000));
         let n = self.out.frames().frames.len() as u64;
         assert_eq!(n, FRAMES, "{}: {n} frames captured", self.out.name);

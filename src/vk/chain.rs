@@ -142,7 +142,16 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: vk::Instance, al
         // SAFETY: forwarding the app's arguments to the next layer.
         unsafe { (state.fns.fp_v1_0().destroy_instance)(instance, allocator) };
         // Only after the call down: the next layer may still call back during destruction.
+        // `instance` is freed memory now: only the key read above is used (issue 23).
         layer().instances.remove(key);
+        // What the layer still keys by dispatch key: an app that destroyed its devices before
+        // its last instance leaves 0 of each (tests/lifecycle.rs checks every teardown order).
+        tracing::info!(
+            "vulkan layer tables: instances={} devices={} own_tables={}",
+            layer().instances.len(),
+            layer().devices.len(),
+            super::own::registered()
+        );
     })
 }
 
@@ -567,8 +576,9 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
         }
         // SAFETY: forwarding the app's arguments.
         unsafe { (dev.next.fp_v1_0().destroy_device)(device, allocator) };
+        // From here `device` is freed memory: only the key read above is used.
         layer().devices.remove(key);
-        super::own::unregister(device);
+        super::own::unregister(key);
     })
 }
 

@@ -178,10 +178,29 @@ pub(crate) fn device_of<H: Handle>(handle: H) -> Option<Arc<DeviceState>> {
     state
 }
 
-/// Whether the Vulkan half created the state of this `VkDevice` (the OpenXR half asks, to log
-/// whether the session's device is one the layer can act on). The handle must be a live device.
-pub(crate) fn device_is_tracked(device: u64) -> bool {
-    layer().devices.get(dispatch_key(vk::Device::from_raw(device))).is_some()
+/// A `VkDevice` as the OpenXR half holds it: its dispatch key, read once at `xrCreateSession`,
+/// when the runtime has just accepted the device in the session's graphics binding. Every later
+/// lookup from the OpenXR half (each `xrBeginFrame`, `xrReleaseSwapchainImage`) goes by this key
+/// and never reads the app's handle again, so a device the app destroyed out of order (before its
+/// session) is a missed lookup, not a read of freed memory (issue 23).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct DeviceKey(usize);
+
+impl DeviceKey {
+    /// Reads the key of `device`, which must be a live `VkDevice` (the runtime validated it).
+    pub(crate) fn of_live(device: u64) -> DeviceKey {
+        DeviceKey(dispatch_key(vk::Device::from_raw(device)))
+    }
+    /// The device's state, while the Vulkan half tracks it.
+    pub(crate) fn state(self) -> Option<Arc<DeviceState>> {
+        layer().devices.get(self.0)
+    }
+}
+
+/// Whether the Vulkan half created the state of this device (the OpenXR half asks, to log
+/// whether the session's device is one the layer can act on).
+pub(crate) fn device_is_tracked(device: DeviceKey) -> bool {
+    device.state().is_some()
 }
 
 /// Every feature's statistics of the frame that just ended, summed over devices (each device
@@ -221,9 +240,9 @@ fn merge_gpu_times(times: impl Iterator<Item = (u64, crate::core::gpu_time::GpuF
 
 /// `xrReleaseSwapchainImage` of `index` of `swapchain` is about to go down: the features act on
 /// the released image (`binding`: the session's device, queue family and queue index).
-pub fn before_release(binding: Option<(u64, u32, u32)>, swapchain: u64, index: Option<u32>) {
+pub(crate) fn before_release(binding: Option<(DeviceKey, u32, u32)>, swapchain: u64, index: Option<u32>) {
     let (Some((device, family, queue)), Some(index)) = (binding, index) else { return };
-    let Some(d) = layer().devices.get(dispatch_key(vk::Device::from_raw(device))) else { return };
+    let Some(d) = device.state() else { return };
     if d.pass_through.is_on() {
         return;
     }

@@ -72,9 +72,17 @@ pub(crate) unsafe fn register(device: vk::Device, next: &ash::Device, next_gdpa:
     (fns, counted)
 }
 
-/// `vkDestroyDevice`, after the layer destroyed its objects.
-pub(crate) fn unregister(device: vk::Device) {
-    tables().remove(super::dispatch_key(device));
+/// `vkDestroyDevice`, after the layer destroyed its objects and the call went down. Takes the
+/// dispatch key read *before* that call: the `VkDevice` is freed memory now, and reading its
+/// first word again would look up junk and leak the table (issue 23).
+pub(crate) fn unregister(key: usize) {
+    tables().remove(key);
+}
+
+/// How many devices have a counting table (0 once every device is destroyed; the
+/// `vulkan layer tables` log line at `vkDestroyInstance`).
+pub(crate) fn registered() -> usize {
+    tables().len()
 }
 
 fn table(device: vk::Device) -> Option<Arc<Counted>> {

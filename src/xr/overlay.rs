@@ -219,7 +219,7 @@ fn setup(s: &Session) -> Result<Overlay, String> {
     if !s.vulkan_half {
         return Err("stereoshim's Vulkan layer is not in the session's device".into());
     }
-    let device = crate::vk::device_of(vk::Device::from_raw(b.device)).ok_or("the session's device is not tracked")?;
+    let device = b.device_key.state().ok_or("the session's device is not tracked")?;
     let max_layers = max_layers(s)?;
     let offered = formats(s)?;
     let format = rules::choose_format(&offered).ok_or_else(|| format!("no 8-bit RGBA/BGRA swapchain format among {offered:?}"))?;

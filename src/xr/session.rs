@@ -16,6 +16,9 @@ pub(crate) struct VulkanBinding {
     pub instance: u64,
     pub physical_device: u64,
     pub device: u64,
+    /// `device`'s dispatch key, read once here: every later lookup of the device's state uses
+    /// it, never the app's handle again.
+    pub device_key: crate::vk::DeviceKey,
     pub queue_family_index: u32,
     pub queue_index: u32,
 }
@@ -65,7 +68,8 @@ pub(super) fn lookup(session: xr::Session) -> Result<Arc<Session>, Option<Arc<In
 /// Finds `XrGraphicsBindingVulkanKHR` in a session create info's chain.
 ///
 /// # Safety
-/// `next` must be a valid OpenXR structure chain.
+/// `next` must be a valid OpenXR structure chain, and the runtime must have accepted it (the
+/// session was created): its `VkDevice` is then live and its dispatch key is read.
 unsafe fn vulkan_binding(mut next: *const xr::BaseInStructure) -> Option<VulkanBinding> {
     // SAFETY: walking a valid chain (caller's contract); each `ty` tells the struct's layout.
     unsafe {
@@ -76,6 +80,7 @@ unsafe fn vulkan_binding(mut next: *const xr::BaseInStructure) -> Option<VulkanB
                     instance: b.instance as u64,
                     physical_device: b.physical_device as u64,
                     device: b.device as u64,
+                    device_key: crate::vk::DeviceKey::of_live(b.device as u64),
                     queue_family_index: b.queue_family_index,
                     queue_index: b.queue_index,
                 });
@@ -100,18 +105,18 @@ pub(super) unsafe extern "system" fn create_session(
     guard::run("xrCreateSession", &inst.pass_through, |down| {
         inst.check_fault("xrCreateSession")?;
         let _span = tracing::debug_span!("xrCreateSession").entered();
-        // SAFETY: the app's create info is valid for this call (or null, which the runtime rejects).
-        let binding = unsafe { create_info.as_ref().and_then(|ci| vulkan_binding(ci.next.cast())) };
-        // SAFETY: as above.
-        let system_id = unsafe { create_info.as_ref() }.map_or(xr::SystemId::NULL, |ci| ci.system_id);
         let r = down.call(plain);
         if r != xr::Result::SUCCESS {
             return Ok(r);
         }
+        // SAFETY: the app's create info is valid for this call, and the runtime accepted it (the
+        // call succeeded), so the binding's device is live.
+        let binding = unsafe { create_info.as_ref().and_then(|ci| vulkan_binding(ci.next.cast())) };
+        // SAFETY: as above.
+        let system_id = unsafe { create_info.as_ref() }.map_or(xr::SystemId::NULL, |ci| ci.system_id);
         // SAFETY: success means the runtime wrote the new handle.
         let handle = unsafe { *session };
-        // The runtime validated the binding (the call succeeded), so the device is live.
-        let vulkan_half = binding.as_ref().is_some_and(|b| crate::vk::device_is_tracked(b.device));
+        let vulkan_half = binding.as_ref().is_some_and(|b| crate::vk::device_is_tracked(b.device_key));
         match &binding {
             Some(b) => tracing::info!(
                 "session {:#x} renders on VkDevice {:#x} (queue family {}, index {}); the Vulkan half {}",

@@ -203,7 +203,7 @@ pub(super) unsafe extern "system" fn release_swapchain_image(
             // Radial density masking: fill the skipped quads before the runtime sees the image
             // (the oldest acquired one is the one going back).
             let index = sc.acquired.lock().unwrap_or_else(|e| e.into_inner()).front().copied();
-            crate::vk::before_release(sc.session.binding.map(|b| (b.device, b.queue_family_index, b.queue_index)), swapchain.into_raw(), index);
+            crate::vk::before_release(sc.session.binding.map(|b| (b.device_key, b.queue_family_index, b.queue_index)), swapchain.into_raw(), index);
         }
         let r = down.call(plain);
         if let (Some(sc), xr::Result::SUCCESS) = (sc.as_ref(), r) {

@@ -2,6 +2,7 @@
 //! collects what the runtime captured, and compares images with artifacts a person can look at.
 #![allow(dead_code)] // each test binary uses a different subset
 
+pub mod crash;
 pub mod far_field;
 pub mod image;
 pub mod rdm;
@@ -112,10 +113,12 @@ impl Run {
     pub fn run(&self) -> RunOutput {
         let (dir, mut cmd) = self.prepare();
         let started = std::time::Instant::now();
-        let out = cmd.output().expect("spawn xr-scene");
+        let child = cmd.stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().expect("spawn xr-scene");
+        let pid = child.id();
+        let out = child.wait_with_output().expect("wait for xr-scene");
         let elapsed = started.elapsed();
         let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-        self.collect(&dir, out.status, stderr, elapsed)
+        self.collect(&dir, &cmd, pid, out.status, stderr, elapsed)
     }
 
     /// Like [`Run::run`], but calls `during(run dir)` every few milliseconds while the app runs,
@@ -134,16 +137,25 @@ impl Run {
                 break status;
             }
             if started.elapsed() > limit {
+                let backtraces = crash::live_backtraces(child.id());
                 let _ = child.kill();
                 let _ = child.wait();
-                panic!("{}: xr-scene still running after {limit:?}; stderr:\n{}", self.name, std::fs::read_to_string(&stderr_path).unwrap_or_default());
+                let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
+                panic!(
+                    "=== HANG: {}: xr-scene still running after {limit:?}; killed; run folder kept: {} ===\n\
+                     --- stderr ---\n{}\n--- layer log, last 40 lines ---\n{}\n--- every thread's backtrace (gdb) ---\n{backtraces}",
+                    self.name,
+                    dir.display(),
+                    std::fs::read_to_string(&stderr_path).unwrap_or_default(),
+                    crash::tail_lines(&log, 40)
+                );
             }
             during(&dir);
             std::thread::sleep(std::time::Duration::from_millis(5));
         };
         let elapsed = started.elapsed();
         let stderr = std::fs::read_to_string(&stderr_path).unwrap_or_default();
-        self.collect(&dir, status, stderr, elapsed)
+        self.collect(&dir, &cmd, child.id(), status, stderr, elapsed)
     }
 
     /// The layer's config file of a run in `dir` (`$XDG_CONFIG_HOME/stereoshim/config.toml`).
@@ -176,14 +188,16 @@ impl Run {
             cmd.arg("--pixel-stats").arg(dir.join("pixel-stats"));
         }
         isolate(&mut cmd, &dir, &capture, self.layer);
+        crash::prepare(&mut cmd, &dir);
         for (k, v) in &self.env {
             cmd.env(k, v);
         }
         (dir, cmd)
     }
 
-    /// Reads what a finished run left in `dir`.
-    fn collect(&self, dir: &Path, status: std::process::ExitStatus, stderr: String, elapsed: std::time::Duration) -> RunOutput {
+    /// Reads what a finished run (process `pid` of `cmd`) left in `dir`; a death by signal is
+    /// reported at once (`crash::report`).
+    fn collect(&self, dir: &Path, cmd: &Command, pid: u32, status: std::process::ExitStatus, stderr: String, elapsed: std::time::Duration) -> RunOutput {
         use std::os::unix::process::ExitStatusExt;
         let capture = dir.join("capture");
         std::fs::write(dir.join("stderr.txt"), &stderr).ok();
@@ -194,7 +208,9 @@ impl Run {
             .ok()
             .map(|b| serde_json::from_slice::<Stats>(&b).expect("stats.json parses"));
         let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
-        RunOutput { name: self.name.clone(), code: status.code(), signal: status.signal(), stderr, capture, frames, stats, elapsed, log }
+        let program = PathBuf::from(cmd.get_program());
+        let crash = crash::report(&crash::Ended { name: &self.name, dir, program: &program, pid, status, elapsed, stderr: &stderr, log: &log });
+        RunOutput { name: self.name.clone(), code: status.code(), signal: status.signal(), crash, stderr, capture, frames, stats, elapsed, log }
     }
 }
 
@@ -225,6 +241,24 @@ pub fn assert_nothing_tracked(out: &RunOutput) {
         // The layer's own Vulkan objects (`own.*`, src/vk/own.rs) are listed there too, and all
         // destroyed right after it.
         assert_eq!(l.split_whitespace().filter(|w| w.starts_with("own.")).count(), 15, "{l}");
+    }
+    assert_tables_empty(out);
+}
+
+/// After each `vkDestroyInstance` and `xrDestroyInstance` (the app destroyed its devices and
+/// sessions before, or with, their instance) the layer keys nothing by a handle any more: no
+/// instance, device, own-object counting table, session or swapchain outlives its object. A
+/// removal that looked up the wrong key (issue 23: the dispatch key read from a freed `VkDevice`)
+/// shows here as a count above 0.
+pub fn assert_tables_empty(out: &RunOutput) {
+    for prefix in ["vulkan layer tables:", "openxr layer tables:"] {
+        let lines = out.log_lines(prefix);
+        assert!(!lines.is_empty(), "{}: no {prefix:?} line:\n{}", out.name, out.log);
+        for l in lines {
+            let counts: Vec<&str> = l.split_once(prefix).map(|(_, r)| r).unwrap_or_default().split_whitespace().collect();
+            assert!(counts.len() >= 3, "{l}");
+            assert!(counts.iter().all(|w| w.ends_with("=0")), "{}: the layer still keys state by a handle that is gone: {l}", out.name);
+        }
     }
 }
 
@@ -474,6 +508,9 @@ pub struct RunOutput {
     pub code: Option<i32>,
     /// The signal that killed the app, if one did (then `code` is None).
     pub signal: Option<i32>,
+    /// The crash report of a death by signal (`crash::report`): signal, time, log tails, every
+    /// thread's backtrace.
+    pub crash: Option<String>,
     pub stderr: String,
     pub capture: PathBuf,
     pub frames: Option<Frames>,
@@ -486,6 +523,9 @@ pub struct RunOutput {
 impl RunOutput {
     /// Asserts a clean run: exit 0 (which under `--validation` also means no validation error).
     pub fn assert_ok(&self) -> &Self {
+        if let Some(report) = &self.crash {
+            panic!("{}: the app crashed\n{report}", self.name);
+        }
         assert_eq!(self.code, Some(0), "{}: xr-scene failed; stderr:\n{}", self.name, self.stderr);
         self
     }

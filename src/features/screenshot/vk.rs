@@ -182,8 +182,8 @@ impl ScreenshotDevice {
 }
 
 /// Arms `frame` on `device` for `request` (the OpenXR side, at `xrBeginFrame`).
-pub(crate) fn request(device: u64, frame: u64, request: Request) -> Requested {
-    let Some(d) = crate::vk::layer().devices.get(crate::vk::dispatch_key(vk::Device::from_raw(device))) else { return Requested::NoDevice };
+pub(crate) fn request(device: crate::vk::DeviceKey, frame: u64, request: Request) -> Requested {
+    let Some(d) = device.state() else { return Requested::NoDevice };
     let me = &d.features.screenshot;
     let mut st = lock(&me.jobs.state);
     if st.busy || st.handoff.is_some() || st.armed.is_some() || st.closed {
@@ -261,8 +261,8 @@ unsafe fn destroy_staging(fns: &ash::Device, s: &Staging) {
 /// thread; an armed frame that copied nothing (no image was tied to a view yet: the first frame)
 /// stays armed for this one, up to `MAX_EMPTY_FRAMES` (then the thread answers with an error).
 /// Returns whether a frame is still armed.
-pub(crate) fn frame_begun(device: u64, frame: u64) -> bool {
-    let Some(d) = crate::vk::layer().devices.get(crate::vk::dispatch_key(vk::Device::from_raw(device))) else { return false };
+pub(crate) fn frame_begun(device: crate::vk::DeviceKey, frame: u64) -> bool {
+    let Some(d) = device.state() else { return false };
     let me = &d.features.screenshot;
     let mut st = lock(&me.jobs.state);
     let preparing = st.preparing;

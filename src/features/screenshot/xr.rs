@@ -87,7 +87,7 @@ impl XrFeature for ScreenshotXr {
         let frame = s.instance.stats.frames_ended.load(Ordering::Relaxed);
         let mut w = s.features.screenshot.watch.lock().unwrap_or_else(|e| e.into_inner());
         if w.armed {
-            w.armed = shot_vk::frame_begun(binding.device, frame);
+            w.armed = shot_vk::frame_begun(binding.device_key, frame);
         }
         let settings = crate::xr::settings(&s.instance);
         if !(settings.enabled && settings.screenshot.enabled) {
@@ -122,7 +122,7 @@ impl XrFeature for ScreenshotXr {
             dir: output_folder(&settings),
             done: w.folder.as_ref().map(|f| rules::done_file(f, pid)),
         };
-        match shot_vk::request(binding.device, frame, request) {
+        match shot_vk::request(binding.device_key, frame, request) {
             Requested::Armed => {
                 w.armed = true;
                 w.touch_pending = false;

@@ -58,6 +58,10 @@ pub struct Config {
     pub reenter: bool,
     /// `maxLayerCount` of the system (`MOCK_XR_MAX_LAYERS`, default 16): xrEndFrame refuses more.
     pub max_layers: u32,
+    /// `MOCK_XR_CRASH_AT`: the app's `xrEndFrame` of this frame kills the process with SIGSEGV
+    /// (a write through a null pointer), so the harness's crash report can be tested against a
+    /// crash whose place is known (tests/crash_report.rs).
+    pub crash_at: Option<u64>,
 }
 
 fn var(name: &str) -> Option<String> {
@@ -179,6 +183,7 @@ impl Config {
                 Some("1") => true,
                 Some(v) => return Err(format!("MOCK_XR_REENTER={v:?}: want 0 or 1")),
             },
+            crash_at: parse_u64("MOCK_XR_CRASH_AT")?,
         })
     }
 

@@ -276,6 +276,9 @@ pub unsafe extern "system" fn xr_end_frame(session: xr::Session, info: *const xr
         if s.instance.cfg.captures(frame) {
             capture::capture_frame(&s, frame, info.display_time.as_nanos(), info.environment_blend_mode.into_raw(), &layers)?;
         }
+        if s.instance.cfg.crash_at == Some(frame) {
+            crash_on_purpose(frame);
+        }
         let mut core = s.core.lock().unwrap();
         core.begun = None;
         core.frames_ended += 1;
@@ -346,4 +349,14 @@ pub unsafe extern "system" fn xr_locate_views(
         }?;
         Ok(xr::Result::SUCCESS)
     })
+}
+
+/// `MOCK_XR_CRASH_AT`: dies by SIGSEGV inside the app's `xrEndFrame`, as a runtime or layer bug
+/// would; not inlined, so the crash report's backtrace names it.
+#[inline(never)]
+fn crash_on_purpose(frame: u64) {
+    crate::log!("xrEndFrame of frame {frame}: crashing on purpose (MOCK_XR_CRASH_AT)");
+    let null = std::hint::black_box(std::ptr::null_mut::<u64>());
+    // SAFETY: none: this write is meant to fault (SIGSEGV), which is all the function is for.
+    unsafe { null.write_volatile(frame) };
 }
