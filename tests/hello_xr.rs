@@ -30,10 +30,10 @@ use common::{hidden_pixels, mask_edge_pixels, Half, RunOutput};
 
 /// Frames each run submits (frame 0 is never masked: the eye use of the images is not yet known).
 const FRAMES: u64 = 3;
-/// A run on lavapipe takes a few seconds; anything near this is a hang (`HELLO_XR_TIMEOUT_S`
-/// overrides it).
-fn timeout() -> Duration {
-    let s = std::env::var("HELLO_XR_TIMEOUT_S").ok().and_then(|v| v.parse().ok()).unwrap_or(120);
+/// A run on lavapipe takes a few seconds of CPU time; more than this is a hang, as is a run that
+/// uses none for `watchdog::STALL` (`HELLO_XR_CPU_BUDGET_S` overrides the budget).
+fn cpu_budget() -> Duration {
+    let s = std::env::var("HELLO_XR_CPU_BUDGET_S").ok().and_then(|v| v.parse().ok()).unwrap_or(120);
     Duration::from_secs(s)
 }
 /// Pixels this close to the mask outline may go either way (vertex snapping, f32 vs f64 mapping).
@@ -86,20 +86,21 @@ fn run(name: &str, plugin: &str, layer: bool, env: &[(&str, &str)]) -> HelloRun 
     // Kept open until hello_xr exits: end of input would be its "key pressed, quit".
     let stdin = child.stdin.take();
     let readers = [child.stdout.take().map(drain), child.stderr.take().map(drain)];
+    let mut watchdog = common::watchdog::Watchdog::new(child.id(), cpu_budget());
     let status = loop {
         if let Some(s) = child.try_wait().expect("wait for hello_xr") {
             break s;
         }
-        if started.elapsed() > timeout() {
+        if let Some(why) = watchdog.hung() {
             let backtrace = common::crash::live_backtraces(child.id());
             let _ = child.kill();
             let _ = child.wait();
             let output: String = readers.into_iter().flatten().map(|r| r.join().unwrap_or_default()).collect();
             std::fs::write(dir.join("output.txt"), &output).ok();
             panic!(
-                "{name}: hello_xr -g {plugin} did not finish within {:?} (hang); killed.\n\
+                "{name}: hello_xr -g {plugin} hung after {:.1?}: {why}; killed.\n\
                  backtrace of every thread:\n{backtrace}\noutput (last 4000 bytes):\n{}",
-                timeout(),
+                started.elapsed(),
                 tail(&output, 4000)
             );
         }
@@ -353,29 +354,42 @@ fn screenshot_of_hello_xr_equals_the_capture() {
     let _ = std::fs::remove_dir_all(&dir);
     let pictures = common::target_dir().join("test-output/hello-xr-screenshot-pictures");
     let _ = std::fs::remove_dir_all(&pictures);
+    // hello_xr runs until the asker is done (`MOCK_XR_EXIT_ON`), not for a frame count a loaded
+    // machine could use up before the request reached the layer.
+    let stop = common::target_dir().join("test-output/hello-xr-screenshot.stop");
+    let _ = std::fs::remove_file(&stop);
     let asker = {
-        let dir = dir.clone();
+        let (dir, stop) = (dir.clone(), stop.clone());
         std::thread::spawn(move || {
             let folder = dir.join("run/stereoshim/screenshot");
-            let started = Instant::now();
-            while started.elapsed() < timeout() {
+            let answer = loop {
                 let announced = std::fs::read_dir(&folder).is_ok_and(|d| {
                     d.flatten().any(|e| e.file_name().to_str().and_then(stereoshim::features::screenshot::rules::instance_pid).is_some())
                 });
                 if announced && dir.join("capture/frame-00003-view-0.png").exists() {
                     let out = Command::new(common::target_dir().join("stereoshim"))
-                        .args(["screenshot", "--wait", "--timeout", "60"])
+                        .args(["screenshot", "--wait", "--timeout", "600"])
                         .env("XDG_RUNTIME_DIR", dir.join("run"))
                         .output()
                         .expect("run stereoshim");
-                    return Some((out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned()));
+                    break Some((out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned()));
+                }
+                // hello_xr ended (or never started) without the layer announcing itself.
+                if dir.join("output.txt").exists() {
+                    break None;
                 }
                 std::thread::sleep(Duration::from_millis(20));
-            }
-            None
+            };
+            std::fs::write(&stop, b"").unwrap();
+            answer
         })
     };
-    let r = run(name, "Vulkan2", true, &[("MOCK_XR_EXIT_AFTER", "20"), ("STEREOSHIM_SCREENSHOT_DIR", pictures.to_str().unwrap())]);
+    let r = run(
+        name,
+        "Vulkan2",
+        true,
+        &[("MOCK_XR_EXIT_AFTER", ""), ("MOCK_XR_EXIT_ON", stop.to_str().unwrap()), ("STEREOSHIM_SCREENSHOT_DIR", pictures.to_str().unwrap())],
+    );
     let asked = asker.join().expect("asker");
     assert_eq!(r.out.code, Some(0), "{name}: hello_xr failed; output:\n{}", tail(&r.out.stderr, 6000));
     assert!(r.validation_errors.is_empty(), "{name}: {:#?}", r.validation_errors);

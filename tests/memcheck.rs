@@ -97,6 +97,7 @@ fn valgrind(log_dir: &Path) -> Vec<std::ffi::OsString> {
         "--errors-for-leak-kinds=definite",
         "--num-callers=40",
         "--smc-check=all-non-file",
+        "--keep-debuginfo=yes",
         "--gen-suppressions=all",
     ]
     .iter()
@@ -149,7 +150,10 @@ fn parse(log: &str) -> Vec<Report> {
             }
             continue;
         }
-        if cur.is_none() && !body.starts_with(' ') {
+        // A line that is not indented starts a report (or a message such as valgrind's own
+        // warnings, which have no stack); indented ones ("Address … free'd") belong to it.
+        if !body.starts_with(' ') {
+            reports.extend(cur.take());
             cur = Some(Report { what: trimmed.to_string(), stack: Vec::new() });
         }
     }
@@ -290,6 +294,7 @@ fn memcheck_reports_are_parsed_and_attributed() {
     let log = "\
 ==123== Memcheck, a memory error detector
 ==123== 
+==123== Warning: invalid file descriptor -1 in syscall close()
 ==123== Invalid read of size 8
 ==123==    at 0x5A1B2C3: stereoshim::vk::dispatch_key (mod.rs:167)
 ==123==    by 0x5A1B2D4: stereoshim::vk::own::unregister (own.rs:75)

@@ -6,8 +6,8 @@
 //! Every run: Vulkan validation (`VK_LAYER_KHRONOS_validation`, log to a file), the OpenXR
 //! `core_validation` layer below stereoshim and `api_dump` above it (frames are counted from its
 //! `xrEndFrame` records: runtime- and layer-independent). hello_xr gets its "any key" on stdin after
-//! `DURATION_S` and must then exit 0; a run past `LIMIT_S` is a hang (backtrace of every thread in
-//! the failure message).
+//! `DURATION_S` and must then exit 0; a run that uses more than `LIMIT_S` of CPU time, or none for
+//! a minute, is a hang (backtrace of every thread in the failure message).
 
 mod common;
 
@@ -21,8 +21,9 @@ use std::time::{Duration, Instant};
 
 /// Seconds hello_xr runs before it is asked to quit.
 const DURATION_S: u64 = 10;
-/// Hard limit of one app run inside the root (then: backtrace, kill, failure).
-const LIMIT_S: u64 = 60;
+/// CPU-time budget of one app run inside the root, in seconds (then, or after 60 s without any CPU
+/// time: backtrace, kill, failure; tests/realworld/driver). CPU time, so load cannot reach it.
+const LIMIT_S: u64 = 120;
 /// Frames compared: rendered frames whose `displayTime` lies in [first + SKIP, first + SKIP + WINDOW].
 /// SKIP leaves out the start-up transient: with mask + RDM the layer creates its pipelines at the
 /// first eye passes, which on lavapipe stalls frames 2–9 by up to ~1.3 s in all (reported as
@@ -85,7 +86,7 @@ fn build_root() -> Result<PathBuf, String> {
     let start = Instant::now();
     let mut cmd = Command::new(realworld_dir().join("trixie-root"));
     cmd.stdout(Stdio::piped()).stderr(Stdio::piped());
-    let out = run_with_backstop(cmd, Duration::from_secs(30 * 60), "trixie-root");
+    let out = run_with_backstop(cmd, Duration::from_secs(30 * 60), Duration::from_secs(15 * 60), "trixie-root");
     let stderr = String::from_utf8_lossy(&out.stderr);
     match out.status.code() {
         Some(0) => {
@@ -100,7 +101,7 @@ fn build_root() -> Result<PathBuf, String> {
 
 /// Runs `cmd` in its own process group; past `limit` the group is killed (by its id) and the test
 /// fails with what the command printed.
-fn run_with_backstop(mut cmd: Command, limit: Duration, what: &str) -> std::process::Output {
+fn run_with_backstop(mut cmd: Command, cpu_budget: Duration, stall: Duration, what: &str) -> std::process::Output {
     use std::os::unix::process::CommandExt;
     cmd.process_group(0);
     let child = cmd.spawn().unwrap_or_else(|e| panic!("{what}: {e}"));
@@ -109,13 +110,20 @@ fn run_with_backstop(mut cmd: Command, limit: Duration, what: &str) -> std::proc
     std::thread::spawn(move || {
         let _ = tx.send(child.wait_with_output());
     });
-    match rx.recv_timeout(limit) {
-        Ok(out) => out.unwrap_or_else(|e| panic!("{what}: {e}")),
-        Err(_) => {
+    // Judged by the CPU time of the whole tree (the namespace: driver, Monado, app), never by the
+    // clock: the driver's own watchdogs come first; this one only catches the driver itself stuck.
+    let mut watchdog = common::watchdog::Watchdog::new(pid, cpu_budget).with_stall(stall);
+    loop {
+        match rx.recv_timeout(Duration::from_millis(200)) {
+            Ok(out) => return out.unwrap_or_else(|e| panic!("{what}: {e}")),
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => panic!("{what}: the waiting thread ended without the output"),
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+        }
+        if let Some(why) = watchdog.hung() {
             let _ = Command::new("kill").args(["-KILL", "--", &format!("-{pid}")]).status();
-            let out = rx.recv_timeout(Duration::from_secs(30)).ok().and_then(|o| o.ok());
+            let out = rx.recv().ok().and_then(|o| o.ok());
             let text = out.map(|o| format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)));
-            panic!("{what}: still running after {} s (backstop), killed process group {pid}:\n{}", limit.as_secs(), text.unwrap_or_default());
+            panic!("{what}: hung (backstop): {why}; killed process group {pid}:\n{}", text.unwrap_or_default());
         }
     }
 }
@@ -336,9 +344,10 @@ fn run(root: &Path, spec: &Spec) -> Outcome {
     }
     cmd.stdout(Stdio::piped()).stderr(Stdio::piped());
     let started = Instant::now();
-    // The driver's own limits (app LIMIT_S, pre/post 60 s, Monado 30 + 15 s, gdb 90 s each) come
-    // first; this backstop only catches the driver itself hanging.
-    let out = run_with_backstop(cmd, Duration::from_secs(LIMIT_S + 420), &format!("realworld run {}", spec.name));
+    // The driver's own watchdogs (app LIMIT_S of CPU time, pre/post 60 s, Monado's start 60 s and
+    // stop 30 s, a minute without CPU time for each; gdb 90 s) come first; this backstop only
+    // catches the driver itself stuck.
+    let out = run_with_backstop(cmd, Duration::from_secs(LIMIT_S + 420), common::watchdog::STALL, &format!("realworld run {}", spec.name));
     let runner = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap_or_default();
     let result = read("result")
@@ -801,23 +810,52 @@ fn walk(dir: &Path) -> Vec<PathBuf> {
 
 // --- the harness itself ---
 
-/// A hang fails loudly: a process past its limit gets every thread's backtrace printed, then is
-/// killed, and the run reports it (here `sleep` stands in for a hung app).
-#[test]
-fn harness_reports_hang_with_backtrace() {
-    let Some(root) = root() else { return };
+/// Runs `program` as the app inside the root, without Monado, with `env` for the driver; returns
+/// the driver's exit status and everything it printed.
+fn driver_alone(name: &str, program: &[&str], env: &[(&str, &str)]) -> (Option<i32>, String) {
+    let root = root().expect("the root");
     let _one = RUN_LOCK.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = target_dir().join("test-output").join("realworld").join("harness-hang");
+    let dir = target_dir().join("test-output").join("realworld").join(name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let mut cmd = Command::new(realworld_dir().join("run"));
-    cmd.arg(&root).arg(&dir).arg(target_dir()).args(["--", "sleep", "600"]);
-    cmd.env("RW_DURATION", "0").env("RW_TIMEOUT", "3").env("RW_NO_MONADO", "1");
+    cmd.arg(&root).arg(&dir).arg(target_dir()).arg("--").args(program);
+    cmd.env("RW_DURATION", "0").env("RW_NO_MONADO", "1").envs(env.iter().copied());
     cmd.stdout(Stdio::piped()).stderr(Stdio::piped());
-    let out = run_with_backstop(cmd, Duration::from_secs(180), "harness-hang");
-    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
-    assert_eq!(out.status.code(), Some(124), "{text}");
-    assert!(text.contains("=== HANG: app") && text.contains("Thread 1") && text.contains("#0 "), "no backtrace:\n{text}");
+    let out = run_with_backstop(cmd, Duration::from_secs(180), common::watchdog::STALL, name);
+    (out.status.code(), format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr)))
+}
+
+/// A hang fails loudly: every thread's backtrace is printed, then the app is killed, and the run
+/// reports it. A deadlock is a process tree that uses no CPU (`sleep` stands in for it, with a
+/// 3 s stall allowed instead of 60); a livelock one that uses more CPU time than its budget (a
+/// busy loop, with a 2 s budget). Neither is judged by the clock.
+#[test]
+fn harness_reports_hang_with_backtrace() {
+    if root().is_none() {
+        return;
+    }
+    let (code, text) = driver_alone("harness-hang", &["sleep", "600"], &[("RW_STALL", "3")]);
+    assert_eq!(code, Some(124), "{text}");
+    assert!(text.contains("=== HANG: app") && text.contains("used no CPU time for") && text.contains("Thread 1") && text.contains("#0 "), "no backtrace:\n{text}");
+    let (code, text) = driver_alone("harness-livelock", &["bash", "-c", "while :; do :; done"], &[("RW_TIMEOUT", "2")]);
+    assert_eq!(code, Some(124), "{text}");
+    assert!(text.contains("=== HANG: app") && text.contains("more than its budget of 2 s") && text.contains("#0 "), "no backtrace:\n{text}");
+}
+
+/// A crash fails loudly too: an app that dies by a signal (bash killing itself with SIGSEGV)
+/// gets the signal, the time, the tails of its output and every thread's backtrace from its core
+/// dump in the driver's output.
+#[test]
+fn harness_reports_crash_with_backtrace() {
+    if root().is_none() {
+        return;
+    }
+    let (code, text) = driver_alone("harness-crash", &["bash", "-c", "echo about to crash; kill -SEGV $$"], &[]);
+    assert_eq!(code, Some(128 + 11), "{text}");
+    assert!(text.contains("=== CRASH: app") && text.contains("killed by SEGV (11)"), "{text}");
+    assert!(text.contains("about to crash"), "the app's output tail:\n{text}");
+    assert!(text.contains("every thread's backtrace, from the core dump") && text.contains("#0 "), "no backtrace:\n{text}");
 }
 
 /// The monoscopic far field on Monado (hello_xr submits no depth info: its projection range comes
@@ -862,7 +900,7 @@ fn preview_runtime_on_monado() {
     cmd.arg(&root).arg(&dir).arg(target_dir()).args(["--", "/opt/stereoshim", "preview", "--runtime", "--out", "/tmp/preview"]);
     cmd.env("RW_DURATION", "0").env("RW_TIMEOUT", LIMIT_S.to_string());
     cmd.stdout(Stdio::piped()).stderr(Stdio::piped());
-    let out = run_with_backstop(cmd, Duration::from_secs(LIMIT_S + 120), "realworld preview --runtime");
+    let out = run_with_backstop(cmd, Duration::from_secs(LIMIT_S + 120), common::watchdog::STALL, "realworld preview --runtime");
     let runner = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     let log = std::fs::read_to_string(dir.join("app.log")).unwrap_or_default();
     assert!(out.status.success(), "{runner}\n--- stereoshim preview:\n{log}");

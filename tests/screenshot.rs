@@ -16,15 +16,54 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 use stereoshim::features::screenshot::rules;
 
-/// Frames per run: enough for the app to still be running when the request arrives.
-const FRAMES: &str = "60";
+/// Frames a run makes after the test is done with it (the request answered): the app runs on.
+const AFTER: u64 = 5;
 /// The head turns (mock runtime), so every frame's images differ and a screenshot matches the
 /// capture of its own frame only.
 const YAW: &str = "30";
 
-/// A run of xr-scene through the layer, the head turning, `FRAMES` frames.
+/// A run of xr-scene through the layer, the head turning, until the test touches the run's stop
+/// file (`MOCK_XR_EXIT_ON`, [`Stop`]): a frame count could run out before a loaded machine got
+/// the request to the layer.
 fn run(name: &str) -> Run {
-    Run::new(name).with_layer().env("MOCK_XR_EXIT_AFTER", FRAMES).env("MOCK_XR_HEAD_YAW_DEG_PER_S", YAW)
+    let stop = stop_file(name);
+    let _ = std::fs::remove_file(&stop);
+    Run::new(name).with_layer().env("MOCK_XR_EXIT_AFTER", "").env("MOCK_XR_EXIT_ON", stop.to_str().unwrap()).env("MOCK_XR_HEAD_YAW_DEG_PER_S", YAW)
+}
+
+/// The file whose existence ends run `name`.
+fn stop_file(name: &str) -> PathBuf {
+    target_dir().join("test-output").join(format!("{name}.stop"))
+}
+
+/// Ends a run `AFTER` frames after the test is done with it.
+struct Stop {
+    file: PathBuf,
+    at: Option<u64>,
+}
+
+impl Stop {
+    fn new(name: &str) -> Stop {
+        Stop { file: stop_file(name), at: None }
+    }
+    /// Called while the app runs (in `dir`): once `done`, the app makes `AFTER` more frames and
+    /// ends.
+    fn poll(&mut self, dir: &Path, done: bool) {
+        let captured = captured_frames(dir);
+        if done && self.at.is_none() {
+            self.at = Some(captured + AFTER);
+        }
+        if self.at.is_some_and(|at| captured >= at) && !self.file.exists() {
+            std::fs::write(&self.file, b"").unwrap();
+        }
+    }
+}
+
+/// How many frames the runtime has captured in run `dir`.
+fn captured_frames(dir: &Path) -> u64 {
+    std::fs::read_dir(dir.join("capture"))
+        .map(|d| d.flatten().filter(|e| e.file_name().to_str().is_some_and(|n| n.starts_with("frame-") && n.ends_with("-view-0.png"))).count() as u64)
+        .unwrap_or(0)
 }
 /// The tint `mask.debug` paints (magenta, shaders/mask.frag), as 8-bit RGB.
 const TINT: [u16; 3] = [255, 0, 255];
@@ -72,10 +111,12 @@ fn announced(dir: &Path) -> bool {
 /// rendering; returns the run and the command's (exit code, stdout, stderr).
 fn run_with_screenshot(run: &Run) -> (RunOutput, (i32, String, String)) {
     let mut answer = None;
+    let mut stop = Stop::new(&run.name);
     let out = run.run_while(Duration::from_secs(240), |dir| {
         if answer.is_none() && rendering(dir) {
-            answer = Some(stereoshim(&["screenshot", "--wait", "--timeout", "60"], dir));
+            answer = Some(stereoshim(&["screenshot", "--wait", "--timeout", "600"], dir));
         }
+        stop.poll(dir, answer.is_some());
     });
     let answer = answer.unwrap_or_else(|| panic!("{}: the layer never announced itself; log:\n{}", run.name, out.log));
     (out, answer)
@@ -138,6 +179,7 @@ fn per_eye_screenshot_equals_the_capture() {
     // the run itself): written from the first poll, before the layer reads it at the request.
     let run = base.clone().env("HOME", home.to_str().unwrap());
     let mut answer = None;
+    let mut stop = Stop::new(&run.name);
     let out = run.run_while(Duration::from_secs(240), |dir| {
         let dirs = dir.join("config/user-dirs.dirs");
         if !dirs.exists() {
@@ -145,8 +187,9 @@ fn per_eye_screenshot_equals_the_capture() {
             std::fs::write(&dirs, "# xdg-user-dirs\nXDG_PICTURES_DIR=\"$HOME/Bilder\"\n").unwrap();
         }
         if answer.is_none() && rendering(dir) {
-            answer = Some(stereoshim(&["screenshot", "--wait", "--timeout", "60"], dir));
+            answer = Some(stereoshim(&["screenshot", "--wait", "--timeout", "600"], dir));
         }
+        stop.poll(dir, answer.is_some());
     });
     out.assert_ok();
     let (code, stdout, stderr) = answer.expect("asked");
@@ -175,7 +218,13 @@ fn per_eye_screenshot_equals_the_capture() {
     // changed nothing the runtime got, nor how many frames the app made).
     let home2 = target_dir().join("test-output/screenshot-home-none");
     let _ = std::fs::remove_dir_all(&home2);
-    let mut quiet = base.env("HOME", home2.to_str().unwrap()).env("XDG_PICTURES_DIR", home2.join("pics").to_str().unwrap());
+    // As many frames as the run with the request made.
+    let frames = out.frames().frames.len().to_string();
+    let mut quiet = base
+        .env("HOME", home2.to_str().unwrap())
+        .env("XDG_PICTURES_DIR", home2.join("pics").to_str().unwrap())
+        .env("MOCK_XR_EXIT_ON", "")
+        .env("MOCK_XR_EXIT_AFTER", &frames);
     quiet.name = "screenshot-none".into();
     let none = quiet.run();
     none.assert_ok();
@@ -204,10 +253,12 @@ fn multiview_screenshot_by_touch_equals_the_capture() {
         .env("XDG_PICTURES_DIR", pics.to_str().unwrap())
         .env("STEREOSHIM_SCREENSHOT_TRIGGER", touch.to_str().unwrap());
     let mut seen: Option<Instant> = None;
+    let mut stop = Stop::new(&run.name);
     let out = run.run_while(Duration::from_secs(240), |dir| {
         if seen.is_none() && rendering(dir) {
             seen = Some(Instant::now());
         }
+        stop.poll(dir, !sidecars(&pics.join("stereoshim")).is_empty());
         // The layer noted the file's absence at its first look (when it announced itself); a
         // touch after that is a request.
         if seen.is_some_and(|t| t.elapsed() > Duration::from_millis(50)) && !touch.exists() {
@@ -264,7 +315,8 @@ fn unwritable_folder_is_reported_and_the_app_runs_on() {
         .env("STEREOSHIM_SCREENSHOT_DIR", blocker.join("shots").to_str().unwrap());
     let (out, (code, stdout, stderr)) = run_with_screenshot(&run);
     out.assert_ok();
-    assert_eq!(out.frames().frames.len(), FRAMES.parse::<usize>().unwrap());
+    // The app ran on past the failed request, to its end.
+    assert!(out.frames().frames.len() as u64 > 10 + AFTER, "{} frames", out.frames().frames.len());
     assert_eq!(code, 1, "{stdout}{stderr}");
     assert!(stderr.contains("screenshot-blocker/shots"), "{stderr}");
     assert_eq!(out.log_lines("not written").len(), 1, "{}", out.log);

@@ -6,6 +6,7 @@ pub mod crash;
 pub mod far_field;
 pub mod image;
 pub mod rdm;
+pub mod watchdog;
 
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -53,6 +54,10 @@ pub fn runtime_manifest() -> PathBuf {
     std::fs::rename(&tmp, &path).unwrap();
     path
 }
+
+/// The CPU time an xr-scene run may use before it counts as a hang (`Run::run`): far above the
+/// longest run of the suite (seconds), and CPU time, so a loaded machine does not reach it.
+pub const DEFAULT_CPU_BUDGET: std::time::Duration = std::time::Duration::from_secs(600);
 
 /// One xr-scene invocation: app flags plus mock-runtime environment.
 #[derive(Clone, Debug)]
@@ -110,21 +115,18 @@ impl Run {
         self
     }
 
+    /// Runs the app to its end. A hang fails the test with every thread's backtrace
+    /// ([`Run::run_while`] with [`DEFAULT_CPU_BUDGET`]).
     pub fn run(&self) -> RunOutput {
-        let (dir, mut cmd) = self.prepare();
-        let started = std::time::Instant::now();
-        let child = cmd.stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().expect("spawn xr-scene");
-        let pid = child.id();
-        let out = child.wait_with_output().expect("wait for xr-scene");
-        let elapsed = started.elapsed();
-        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-        self.collect(&dir, &cmd, pid, out.status, stderr, elapsed)
+        self.run_while(DEFAULT_CPU_BUDGET, |_| {})
     }
 
     /// Like [`Run::run`], but calls `during(run dir)` every few milliseconds while the app runs,
     /// e.g. to rewrite the layer's config file ([`Run::config_file`]) after some frames. The app
-    /// is killed (and the test fails) if it runs longer than `limit`.
-    pub fn run_while(&self, limit: std::time::Duration, mut during: impl FnMut(&Path)) -> RunOutput {
+    /// is a hang, killed after every thread's backtrace is taken (and the test fails), when its
+    /// process tree uses more than `cpu_budget` of CPU time or none at all for
+    /// [`watchdog::STALL`]: never because the machine is busy with other work.
+    pub fn run_while(&self, cpu_budget: std::time::Duration, mut during: impl FnMut(&Path)) -> RunOutput {
         let (dir, mut cmd) = self.prepare();
         // To a file, not a pipe: nobody reads a pipe while the app runs, and a full one would
         // block it.
@@ -132,19 +134,21 @@ impl Run {
         cmd.stdout(std::process::Stdio::null()).stderr(std::fs::File::create(&stderr_path).expect("stderr file"));
         let started = std::time::Instant::now();
         let mut child = cmd.spawn().expect("spawn xr-scene");
+        let mut watchdog = watchdog::Watchdog::new(child.id(), cpu_budget);
         let status = loop {
             if let Some(status) = child.try_wait().expect("wait for xr-scene") {
                 break status;
             }
-            if started.elapsed() > limit {
+            if let Some(why) = watchdog.hung() {
                 let backtraces = crash::live_backtraces(child.id());
                 let _ = child.kill();
                 let _ = child.wait();
                 let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
                 panic!(
-                    "=== HANG: {}: xr-scene still running after {limit:?}; killed; run folder kept: {} ===\n\
+                    "=== HANG: {}: xr-scene hung after {:.1?}: {why}; killed; run folder kept: {} ===\n\
                      --- stderr ---\n{}\n--- layer log, last 40 lines ---\n{}\n--- every thread's backtrace (gdb) ---\n{backtraces}",
                     self.name,
+                    started.elapsed(),
                     dir.display(),
                     std::fs::read_to_string(&stderr_path).unwrap_or_default(),
                     crash::tail_lines(&log, 40)

@@ -62,6 +62,11 @@ pub struct Config {
     /// (a write through a null pointer), so the harness's crash report can be tested against a
     /// crash whose place is known (tests/crash_report.rs).
     pub crash_at: Option<u64>,
+    /// `MOCK_XR_EXIT_ON=FILE`: once FILE exists, the next `xrEndFrame` ends the session as
+    /// `MOCK_XR_EXIT_AFTER` does. A test that must act while the app runs (ask for a screenshot)
+    /// ends the app when it is done, not after a frame count that a loaded machine may reach
+    /// before the test acted.
+    pub exit_on: Option<std::path::PathBuf>,
 }
 
 fn var(name: &str) -> Option<String> {
@@ -184,6 +189,7 @@ impl Config {
                 Some(v) => return Err(format!("MOCK_XR_REENTER={v:?}: want 0 or 1")),
             },
             crash_at: parse_u64("MOCK_XR_CRASH_AT")?,
+            exit_on: var("MOCK_XR_EXIT_ON").map(Into::into),
         })
     }
 

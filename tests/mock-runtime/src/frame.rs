@@ -282,7 +282,8 @@ pub unsafe extern "system" fn xr_end_frame(session: xr::Session, info: *const xr
         let mut core = s.core.lock().unwrap();
         core.begun = None;
         core.frames_ended += 1;
-        if s.instance.cfg.exit_after.is_some_and(|n| core.frames_ended >= n) {
+        let cfg = &s.instance.cfg;
+        if cfg.exit_after.is_some_and(|n| core.frames_ended >= n) || cfg.exit_on.as_ref().is_some_and(|f| f.exists()) {
             s.stop(&mut core);
         }
         s.maybe_change_mask(&mut core);
