@@ -14,7 +14,7 @@ use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use stereoshim::manifest::{self, Kind};
 
 // ---------------------------------------------------------------------------------------------
@@ -501,7 +501,7 @@ impl Loaders {
         for (k, v) in extra {
             cmd.env(k, v);
         }
-        let out = run_with_timeout(cmd, &dir, Duration::from_secs(60));
+        let out = run_with_watchdog(cmd, &dir, Duration::from_secs(60));
         let log = std::fs::read_to_string(dir.join("state/stereoshim/stereoshim.log")).unwrap_or_default();
         let probe = Probe { label: format!("{} {mode} {env:?} {extra:?}", self.label), out, log };
         // The loaders in the process are this set's, not whatever the system has.
@@ -517,29 +517,30 @@ impl Loaders {
     }
 }
 
-/// Runs `cmd` with its output in `dir`, killing it after `limit`.
-fn run_with_timeout(mut cmd: Command, dir: &Path, limit: Duration) -> String {
+/// Runs `cmd` with its output in `dir`, killing it when it hangs: more than `cpu_budget` of CPU
+/// time, or none for a minute (`common::watchdog`: load beside the suite cannot fake a hang).
+fn run_with_watchdog(mut cmd: Command, dir: &Path, cpu_budget: Duration) -> String {
     use std::process::Stdio;
     let (o, e) = (dir.join("stdout"), dir.join("stderr"));
     cmd.stdout(Stdio::from(std::fs::File::create(&o).unwrap())).stderr(Stdio::from(std::fs::File::create(&e).unwrap()));
     let mut child = cmd.spawn().expect("spawn the probe");
-    let start = Instant::now();
+    let mut watchdog = common::watchdog::Watchdog::new(child.id(), cpu_budget);
     let status = loop {
         if let Some(s) = child.try_wait().unwrap() {
-            break Some(s);
+            break Ok(s);
         }
-        if start.elapsed() > limit {
+        if let Some(why) = watchdog.hung() {
             let _ = child.kill(); // our own child, by its handle
             let _ = child.wait();
-            break None;
+            break Err(why);
         }
         std::thread::sleep(Duration::from_millis(50));
     };
     let text = std::fs::read_to_string(&o).unwrap_or_default() + &std::fs::read_to_string(&e).unwrap_or_default();
     match status {
-        None => panic!("the probe hung for {limit:?} (killed):\n{text}"),
-        Some(s) if !s.success() => panic!("the probe failed ({s}):\n{text}"),
-        Some(_) => text,
+        Err(why) => panic!("the probe hung: {why} (killed):\n{text}"),
+        Ok(s) if !s.success() => panic!("the probe failed ({s}):\n{text}"),
+        Ok(_) => text,
     }
 }
 
