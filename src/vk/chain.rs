@@ -445,6 +445,7 @@ pub(super) unsafe extern "system" fn create_device(
         let state = DeviceState {
             caps,
             handle: device,
+            key: dispatch_key(device),
             next_gdpa,
             fns,
             next,
@@ -463,7 +464,7 @@ pub(super) unsafe extern "system" fn create_device(
             gpu_time: super::gpu_time::GpuTimeDevice::new(inst.fns.clone(), pd, queue_infos),
             repeats: Default::default(),
         };
-        layer().devices.insert(dispatch_key(device), Arc::new(state));
+        layer().devices.insert(state.key, Arc::new(state));
         r
     })
 }

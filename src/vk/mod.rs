@@ -69,6 +69,8 @@ pub(crate) struct ExtFns {
 /// What the layer keeps per `VkDevice`.
 pub(crate) struct DeviceState {
     pub handle: vk::Device,
+    /// `handle`'s dispatch key, read at creation: the key of this state in `Layer::devices`.
+    pub key: usize,
     /// What the device was created with: every layer object is checked against it.
     pub caps: crate::track::caps::DeviceCaps,
     pub next_gdpa: vk::PFN_vkGetDeviceProcAddr,
@@ -201,6 +203,14 @@ impl DeviceKey {
 /// whether the session's device is one the layer can act on).
 pub(crate) fn device_is_tracked(device: DeviceKey) -> bool {
     device.state().is_some()
+}
+
+/// Whether `state` is still the state of a live device: the app has not destroyed the device
+/// since (which removes the state; a later device under the same key has a new one). Whoever
+/// holds a device's state past a call of the app's (the OpenXR half's overlay) checks it before
+/// touching the device again, never the app's handle.
+pub(crate) fn device_is_live(state: &Arc<DeviceState>) -> bool {
+    layer().devices.get(state.key).is_some_and(|d| Arc::ptr_eq(&d, state))
 }
 
 /// Every feature's statistics of the frame that just ended, summed over devices (each device

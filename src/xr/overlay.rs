@@ -434,23 +434,29 @@ fn record_and_submit(ov: &Overlay, image: vk::Image) -> Result<(), String> {
 /// and swapchain down the chain.
 fn destroy_objects(s: &Session, ov: Overlay) {
     let d = &ov.device;
-    // SAFETY: our objects on the session's device, which outlives the session (graphics binding);
-    // the fence wait makes sure the GPU no longer uses them; null handles are skipped.
-    unsafe {
-        if ov.fence != vk::Fence::null() {
-            if let Err(e) = d.fns.wait_for_fences(&[ov.fence], true, WAIT_NS) {
-                tracing::warn!("overlay: waiting for its last upload failed ({e}); destroying its objects anyway");
+    // The spec has the device outlive the session; an app that destroyed it first took the
+    // overlay's Vulkan objects with it (vkDestroyDevice), and the device must not be touched.
+    if !crate::vk::device_is_live(d) {
+        tracing::warn!("overlay: the app destroyed the session's VkDevice before the session; its Vulkan objects went with the device");
+    } else {
+        // SAFETY: our objects on the session's device, checked live just above; the fence wait
+        // makes sure the GPU no longer uses them; null handles are skipped.
+        unsafe {
+            if ov.fence != vk::Fence::null() {
+                if let Err(e) = d.fns.wait_for_fences(&[ov.fence], true, WAIT_NS) {
+                    tracing::warn!("overlay: waiting for its last upload failed ({e}); destroying its objects anyway");
+                }
+                d.fns.destroy_fence(ov.fence, None);
             }
-            d.fns.destroy_fence(ov.fence, None);
-        }
-        if ov.pool != vk::CommandPool::null() {
-            d.fns.destroy_command_pool(ov.pool, None);
-        }
-        if ov.buffer != vk::Buffer::null() {
-            d.fns.destroy_buffer(ov.buffer, None);
-        }
-        if ov.memory != vk::DeviceMemory::null() {
-            d.fns.free_memory(ov.memory, None);
+            if ov.pool != vk::CommandPool::null() {
+                d.fns.destroy_command_pool(ov.pool, None);
+            }
+            if ov.buffer != vk::Buffer::null() {
+                d.fns.destroy_buffer(ov.buffer, None);
+            }
+            if ov.memory != vk::DeviceMemory::null() {
+                d.fns.free_memory(ov.memory, None);
+            }
         }
     }
     let next = &s.instance.next;
