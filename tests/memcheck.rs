@@ -172,7 +172,6 @@ struct Outcome {
 }
 
 fn run_case(case: &Case) -> Outcome {
-    let dir = common::target_dir().join("test-output").join(&case.name);
     // The harness's run folder is made (fresh) by `Run`; the logs go beside it.
     let log_dir = common::target_dir().join("test-output").join(format!("{}-logs", case.name));
     let _ = std::fs::remove_dir_all(&log_dir);
@@ -184,7 +183,6 @@ fn run_case(case: &Case) -> Outcome {
     // Lavapipe's rasteriser threads serialise under valgrind anyway; none is faster.
     run = run.env("LP_NUM_THREADS", "0");
     let out = run.run();
-    let _ = dir;
     outcome(&case.name, out.code == Some(0), &log_dir, &out.stderr)
 }
 

@@ -59,6 +59,40 @@ impl Watchdog {
     pub fn cpu_used(&self) -> Duration {
         ticks_to_duration(self.last_ticks)
     }
+
+    /// The same, in clock ticks (the unit of /proc/stat, for [`MachineCpu`]).
+    pub fn cpu_ticks(&self) -> u64 {
+        self.last_ticks
+    }
+}
+
+/// The whole machine's CPU time from /proc/stat, to tell how much of it other processes took
+/// while a run was measured (a frame-rate comparison means nothing on a machine another job
+/// keeps busy).
+#[derive(Clone, Copy, Debug)]
+pub struct MachineCpu {
+    busy: u64,
+    total: u64,
+}
+
+impl MachineCpu {
+    pub fn now() -> MachineCpu {
+        let text = std::fs::read_to_string("/proc/stat").unwrap_or_default();
+        let fields: Vec<u64> = text.lines().next().unwrap_or_default().split_whitespace().skip(1).filter_map(|f| f.parse().ok()).collect();
+        // user nice system idle iowait irq softirq steal (guest time is already in user).
+        let total: u64 = fields.iter().take(8).sum();
+        let idle = fields.get(3).copied().unwrap_or(0) + fields.get(4).copied().unwrap_or(0);
+        MachineCpu { busy: total.saturating_sub(idle), total }
+    }
+
+    /// The share (0..1) of the machine's CPU time since `self` that processes other than a
+    /// tree which used `tree_ticks` in that time took.
+    pub fn others_share_since(&self, tree_ticks: u64) -> f64 {
+        let now = MachineCpu::now();
+        let total = now.total.saturating_sub(self.total).max(1);
+        let others = now.busy.saturating_sub(self.busy).saturating_sub(tree_ticks);
+        others as f64 / total as f64
+    }
 }
 
 fn ticks_to_duration(ticks: u64) -> Duration {
