@@ -74,7 +74,7 @@ fn full_cases() -> Vec<Case> {
             .env("XDG_DATA_DIRS", &format!("{}:/usr/local/share:/usr/share", data.display()));
         cases.push(Case { name: name.into(), run });
     }
-    let mut overlay = features("memcheck-full-overlay-screenshot", &["--layout", "per-eye"]);
+    let mut overlay = features("memcheck-full-overlay", &["--layout", "per-eye"]);
     overlay.run = overlay.run.env("STEREOSHIM_OVERLAY_ENABLED", "1");
     cases.push(overlay);
     cases
@@ -171,6 +171,15 @@ struct Outcome {
     logs: Vec<PathBuf>,
 }
 
+impl Outcome {
+    /// The summary line of a case (`seconds`: how long it ran, when measured).
+    fn line(&self, seconds: Option<f64>) -> String {
+        let time = seconds.map_or(String::new(), |s| format!("{s:>6.0} s  "));
+        let exit = if self.ok_exit { "ok" } else { "FAIL" };
+        format!("{:<42} exit {exit:<4} stereoshim reports {:<3} other reports {:<4} {time}({})", self.name, self.ours.len(), self.others, self.suppressed)
+    }
+}
+
 fn run_case(case: &Case) -> Outcome {
     // The harness's run folder is made (fresh) by `Run`; the logs go beside it.
     let log_dir = common::target_dir().join("test-output").join(format!("{}-logs", case.name));
@@ -217,15 +226,7 @@ fn judge(cases: Vec<Case>, summary: Option<&Path>) {
     for case in &cases {
         let started = std::time::Instant::now();
         let o = run_case(case);
-        let line = format!(
-            "{:<42} exit {:<4} stereoshim reports {:<3} other reports {:<4} {:>6.0} s  ({})",
-            o.name,
-            if o.ok_exit { "ok" } else { "FAIL" },
-            o.ours.len(),
-            o.others,
-            started.elapsed().as_secs_f64(),
-            o.suppressed
-        );
+        let line = o.line(Some(started.elapsed().as_secs_f64()));
         eprintln!("{line}");
         lines.push(line);
         if !o.ok_exit {
@@ -251,7 +252,7 @@ fn memcheck_quick() {
 
 /// `scripts/memcheck`: every configuration, hello_xr included.
 #[test]
-#[ignore = "about an hour on 2 cores: scripts/memcheck runs it"]
+#[ignore = "about 9 minutes on 2 cores (30 with a build beside it): scripts/memcheck runs it"]
 fn memcheck_full() {
     let mut cases = full_cases();
     cases.retain(|c| std::env::var("MEMCHECK_ONLY").map_or(true, |only| c.name.contains(&only)));
@@ -280,7 +281,7 @@ fn hello_xr_under_memcheck() {
     eprintln!("{name}: exit {:?}, stereoshim reports {}, other reports {}", out.status.code(), o.ours.len(), o.others);
     let summary = common::target_dir().join("test-output/memcheck/summary.txt");
     let mut text = std::fs::read_to_string(&summary).unwrap_or_default();
-    text += &format!("{:<42} exit {:<4} stereoshim reports {:<3} other reports {:<4} ({})\n", name, if o.ok_exit { "ok" } else { "FAIL" }, o.ours.len(), o.others, o.suppressed);
+    text += &(o.line(None) + "\n");
     std::fs::write(&summary, text).unwrap();
     assert!(o.ok_exit && o.ours.is_empty(), "{name}: {:#?}", o.ours);
 }
