@@ -32,10 +32,13 @@ pub enum NotMasked {
     /// `multiview`, `dynamicRendering`): the layer never creates an object the device cannot
     /// legally have.
     DeviceLacks,
+    /// A post-process pass (its draws never test depth: tonemap, upscale, TAA resolve) writes
+    /// the eye's image; the eye pass is behind it (the data-flow walk finds it).
+    PostPass,
 }
 
 impl NotMasked {
-    pub const ALL: [NotMasked; 11] = [
+    pub const ALL: [NotMasked; 12] = [
         NotMasked::NotEyePass,
         NotMasked::EyeUnknown,
         NotMasked::NoDepthAttachment,
@@ -47,6 +50,7 @@ impl NotMasked {
         NotMasked::IntermediateOff,
         NotMasked::LayerError,
         NotMasked::DeviceLacks,
+        NotMasked::PostPass,
     ];
     pub fn name(&self) -> &'static str {
         match self {
@@ -61,6 +65,7 @@ impl NotMasked {
             NotMasked::IntermediateOff => "intermediate_off",
             NotMasked::LayerError => "layer_error",
             NotMasked::DeviceLacks => "device_lacks",
+            NotMasked::PostPass => "post_pass",
         }
     }
 }

@@ -12,7 +12,7 @@ pub struct ViewportRect {
 }
 
 /// A pixel rectangle (scissor, render area, image rect).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct PixelRect {
     pub x: i32,
     pub y: i32,

@@ -105,11 +105,12 @@ macro_rules! feature_stats_any {
 pub fn common_hint(reason: &str) -> &'static str {
     match reason {
         "eye_unknown" => {
-            "the pass renders into an image the layer cannot tie to an eye (not a swapchain image, nor copied into one 1:1); \
-             frame 0 is always so. If it persists, a layer above stereoshim may create the swapchain images elsewhere: \
-             report the app and runtime"
+            "the pass renders into an image the layer cannot tie to an eye: not a swapchain image, nor reached from one by \
+             the data-flow walk (why is logged once as \"data-flow walk: …\"); the first frames are always so. If no walk \
+             reason is logged, the cause is unknown: report the app and runtime"
         }
-        "no_depth_attachment" => "the app renders its eyes without a depth buffer: the mask and RDM need one; nothing to do",
+        "no_depth_attachment" => "a pass into an eye's image has no depth buffer: an app that renders its eyes without depth (the mask and RDM need one), or a post-process pass before the data-flow walk has seen a frame",
+        "post_pass" => "a post-process pass (tonemap, upscale, TAA: its draws never test depth) writes the eye's image; the eye passes behind it are found by the data-flow walk and counted on their own: nothing to do",
         "depth_not_cleared" => "the app loads depth instead of clearing it: the layer cannot know the depth to fail against",
         "depth_clear_not_0_1" => "the app clears depth to a value other than 0 or 1: not supported",
         "secondary" => "the pass's contents are in secondary command buffers the layer could not reach",

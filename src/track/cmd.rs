@@ -293,6 +293,12 @@ pub struct CmdState {
     descriptor_sets: Vec<StateCmd>,
     /// The compute bind point's state, which a dispatch of the layer's outside passes replaces.
     pub compute: ComputeState,
+    /// Whether this recording feeds the data-flow walk (something injects): decided at begin.
+    pub flow_on: bool,
+    /// What the recording reads and writes, for the data-flow walk (`track::flow`).
+    pub flow: super::flow::Recorder,
+    /// Push descriptors' images in effect: (bind point, set number) → images.
+    pub pushed: Vec<((i32, u32), Vec<super::descriptors::BoundImage>)>,
 }
 
 /// What the app bound at `VK_PIPELINE_BIND_POINT_COMPUTE` (restored after the layer's own
@@ -438,9 +444,63 @@ impl CmdState {
     pub fn forget_graphics_state(&mut self) {
         let (recording, usage, pass) = (self.recording, self.usage, self.pass.take());
         let depth_image_clears = std::mem::take(&mut self.depth_image_clears);
+        let (flow_on, flow) = (self.flow_on, std::mem::take(&mut self.flow));
         // Secondaries may use state the layer cannot restore; the veto stays as it was.
         let veto = self.veto;
-        *self = CmdState { recording, usage, pass, depth_image_clears, veto, ..CmdState::default() };
+        *self = CmdState { recording, usage, pass, depth_image_clears, veto, flow_on, flow, ..CmdState::default() };
+    }
+
+    /// The descriptor sets bound now at the graphics (or compute) bind point, by set number.
+    pub fn bound_sets(&self, compute: bool) -> Vec<u64> {
+        let list = if compute { &self.compute.sets } else { &self.descriptor_sets };
+        let mut slots: Vec<u64> = Vec::new();
+        for b in list {
+            if let StateCmd::BindDescriptorSets { first, sets, .. } = b {
+                let end = *first as usize + sets.len();
+                if slots.len() < end {
+                    slots.resize(end, 0);
+                }
+                slots[*first as usize..end].copy_from_slice(sets);
+            }
+        }
+        slots.retain(|s| *s != 0);
+        slots
+    }
+
+    /// Push descriptors' images in effect at a bind point.
+    pub fn pushed_images(&self, bind_point: vk::PipelineBindPoint) -> Vec<super::descriptors::BoundImage> {
+        self.pushed.iter().filter(|((bp, _), _)| *bp == bind_point.as_raw()).flat_map(|(_, i)| i.iter().copied()).collect()
+    }
+
+    /// `vkCmdPushDescriptorSetKHR`: replaces what was pushed to that set number.
+    pub fn push_descriptors(&mut self, bind_point: vk::PipelineBindPoint, set: u32, images: Vec<super::descriptors::BoundImage>) {
+        let key = (bind_point.as_raw(), set);
+        self.pushed.retain(|(k, _)| *k != key);
+        if self.pushed.len() < MAX_PUSHES {
+            self.pushed.push((key, images));
+        }
+    }
+
+    /// A draw is about to be recorded: its reads for the data-flow walk.
+    pub fn flow_draw(&mut self) {
+        if !self.flow_on {
+            return;
+        }
+        let tested = self.depth_tested();
+        let viewport = self.viewports.first().copied().flatten().map(|v| {
+            let (x0, y0) = (v.x.min(v.x + v.width), v.y.min(v.y + v.height));
+            crate::core::rect::PixelRect { x: x0.round() as i32, y: y0.round() as i32, width: v.width.abs().round() as u32, height: v.height.abs().round() as u32 }
+        });
+        let (sets, pushed) = if tested == Some(false) { (self.bound_sets(false), self.pushed_images(vk::PipelineBindPoint::GRAPHICS)) } else { (Vec::new(), Vec::new()) };
+        self.flow.draw(tested, super::flow::DrawRecord { viewport, sets, pushed });
+    }
+
+    /// A dispatch is about to be recorded: its reads and writes for the data-flow walk.
+    pub fn flow_dispatch(&mut self) {
+        if self.flow_on {
+            let (sets, pushed) = (self.bound_sets(true), self.pushed_images(vk::PipelineBindPoint::COMPUTE));
+            self.flow.dispatch(sets, pushed);
+        }
     }
 
     /// Whether a draw now would test depth: the bound pipeline's depth test (or its dynamic

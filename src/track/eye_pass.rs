@@ -35,6 +35,8 @@ pub enum Eyes {
     Swapchain(Vec<EyeSource>),
     /// An image the app copies / resolves / blits into a swapchain image, 1:1.
     Intermediate(Vec<EyeSource>),
+    /// Only post-process passes (draws that never test depth) were seen writing it.
+    Post,
     /// Neither (yet).
     Unknown,
 }
@@ -98,7 +100,7 @@ pub struct Facts<'a> {
 
 /// The depth attachment of the pass's current subpass / rendering, and whether this is where its
 /// contents start (cleared by the load op: first subpass using it, or a non-resuming rendering).
-fn depth_attachment(pass: &PassInstance) -> Option<(&AttachmentUse, bool, vk::ImageLayout)> {
+pub fn depth_attachment(pass: &PassInstance) -> Option<(&AttachmentUse, bool, vk::ImageLayout)> {
     if let Some(r) = &pass.rendering {
         let d = r.depth.as_ref().filter(|d| d.attachment.view != 0)?;
         let starts = d.attachment.load_op == vk::AttachmentLoadOp::CLEAR && !r.resuming();
@@ -180,6 +182,7 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
     let mut found: Option<(&AttachmentUse, Vec<EyeSource>, bool)> = None;
     let mut unknown_swapchain = false;
     let mut has_color = false;
+    let mut post = false;
     for att in eye_candidates(pass) {
         let is_depth = att.image_view.as_ref().is_some_and(|v| {
             v.range.aspect_mask.intersects(vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL)
@@ -192,11 +195,18 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
                 break;
             }
             Eyes::Intermediate(s) if !s.is_empty() && found.is_none() => found = Some((att, s, true)),
+            Eyes::Post => post = true,
             _ => {}
         }
     }
     let Some((att, sources, intermediate)) = found else {
-        return Err(if unknown_swapchain || has_color { NotMasked::EyeUnknown } else { NotMasked::NotEyePass });
+        return Err(if post {
+            NotMasked::PostPass
+        } else if unknown_swapchain || has_color {
+            NotMasked::EyeUnknown
+        } else {
+            NotMasked::NotEyePass
+        });
     };
     if intermediate && !facts.intermediate_enabled {
         return Err(NotMasked::IntermediateOff);

@@ -4,9 +4,12 @@
 
 pub mod caps;
 pub mod cmd;
+pub mod descriptors;
 pub mod device_ext;
 pub mod eye_pass;
+pub mod flow;
 pub mod resources;
+pub mod traced;
 
 use crate::registry::HandleMap;
 use crate::shared::Shared;
@@ -91,6 +94,10 @@ pub struct DeviceTracker {
     /// Transfers (copy / resolve / blit) from other images into swapchain images, by source
     /// image: how intermediate eye targets are found.
     transfers: Mutex<HashMap<u64, Vec<Transfer>>>,
+    /// Descriptor sets' images (what draws and dispatches read and write).
+    pub descriptors: descriptors::Descriptors,
+    /// What the data-flow walk learned (`traced`).
+    pub traced: traced::Traced,
 }
 
 /// One recorded transfer region into a swapchain image.
@@ -117,8 +124,14 @@ impl DeviceTracker {
         self.pipelines.insert(p.handle, Arc::new(p));
     }
 
-    pub fn begin_command_buffer(&self, cb: u64, usage: vk::CommandBufferUsageFlags) {
-        if self.with_cb(cb, |s| s.begin(usage)).is_some() {
+    /// `vkBeginCommandBuffer`; `flow`: the recording feeds the data-flow walk.
+    pub fn begin_command_buffer(&self, cb: u64, usage: vk::CommandBufferUsageFlags, flow: bool) {
+        if self.with_cb(cb, |s| {
+            s.begin(usage);
+            s.flow_on = flow;
+        })
+        .is_some()
+        {
             Stats::bump(&self.stats.command_buffers_begun, 1);
         }
     }
@@ -231,7 +244,19 @@ impl DeviceTracker {
 
     fn open_pass(&self, cb: u64, pass: PassInstance, count: bool) {
         let (kind, swapchain) = (pass.kind, pass.swapchain_attachments() as u64);
-        if self.with_cb(cb, |s| s.pass = Some(pass)).is_none() || !count {
+        let opened = self.with_cb(cb, |s| {
+            if s.flow_on {
+                let mut record = self.pass_record(&pass);
+                if !record.depth_cleared && eye_pass::depth_loads(&pass) {
+                    // Loaded from an image cleared by vkCmdClearDepthStencilImage just before.
+                    let depth = record.depth.map(|d| d.image);
+                    record.depth_cleared = s.depth_image_clears.iter().any(|(i, _)| Some(*i) == depth);
+                }
+                s.flow.begin_pass(record);
+            }
+            s.pass = Some(pass);
+        });
+        if opened.is_none() || !count {
             return;
         }
         let counter = match kind {
@@ -247,6 +272,10 @@ impl DeviceTracker {
         self.with_cb(cb, |s| {
             if let Some(p) = &mut s.pass {
                 p.subpass += 1;
+                if s.flow_on {
+                    let record = self.pass_record(p);
+                    s.flow.begin_pass(record);
+                }
             }
         });
     }
@@ -271,6 +300,7 @@ impl DeviceTracker {
     /// Forgets what was learned about a destroyed image.
     pub fn forget_image(&self, image: u64) {
         self.images.remove(image);
+        self.traced.forget_image(image);
         self.transfers.lock().unwrap_or_else(|e| e.into_inner()).remove(&image);
     }
 
@@ -294,7 +324,73 @@ impl DeviceTracker {
     }
 
     pub fn end_pass(&self, cb: u64) {
-        self.with_cb(cb, |s| s.pass = None);
+        self.with_cb(cb, |s| {
+            s.pass = None;
+            s.flow.end_pass();
+        });
+    }
+
+    /// A transfer (copy, blit, resolve) for the data-flow walk.
+    pub fn flow_transfer(&self, cb: u64, src: u64, dst: u64, regions: &[eye_pass::TransferRegion]) {
+        self.with_cb(cb, |s| {
+            if s.flow_on && !regions.is_empty() {
+                s.flow.transfer(src, dst, regions.to_vec());
+            }
+        });
+    }
+
+    /// What an attachment's view shows, for the data-flow walk.
+    fn image_use(&self, a: &AttachmentUse) -> Option<flow::ImageUse> {
+        let v = a.image_view.as_ref()?;
+        let layers = self.images.get(v.image).map_or(v.range.layer_count, |i| v.range.layers_of(i.array_layers));
+        Some(flow::ImageUse { image: v.image, base_layer: v.range.base_array_layer, layers, mip: v.range.base_mip_level })
+    }
+
+    /// The data-flow record of the pass's current subpass / rendering.
+    pub fn pass_record(&self, pass: &PassInstance) -> flow::PassRecord {
+        let a = pass.render_area;
+        let mut r = flow::PassRecord {
+            view_mask: pass.view_mask(),
+            render_area: crate::core::rect::PixelRect { x: a.x, y: a.y, width: a.width, height: a.height },
+            depth_cleared: eye_pass::depth_attachment(pass).is_some_and(|(_, starts, _)| starts),
+            depth: eye_pass::depth_attachment(pass).and_then(|(d, _, _)| self.image_use(d)),
+            ..Default::default()
+        };
+        if let Some(dr) = &pass.rendering {
+            for c in &dr.color {
+                let Some(u) = self.image_use(&c.attachment) else { continue };
+                r.colors.push(u);
+                r.color_loads.push(c.attachment.load_op == vk::AttachmentLoadOp::LOAD || dr.resuming());
+                if c.resolve_view != 0 && c.resolve_mode != vk::ResolveModeFlags::NONE {
+                    if let Some(v) = self.views.get(c.resolve_view) {
+                        let layers = self.images.get(v.image).map_or(v.range.layer_count, |i| v.range.layers_of(i.array_layers));
+                        r.resolves.push((r.colors.len() - 1, flow::ImageUse { image: v.image, base_layer: v.range.base_array_layer, layers, mip: v.range.base_mip_level }));
+                    }
+                }
+            }
+            return r;
+        }
+        let Some(rp) = pass.render_pass.as_ref() else { return r };
+        let Some(sub) = rp.subpasses.get(pass.subpass as usize) else { return r };
+        let first_use = |index: u32| {
+            !rp.subpasses[..pass.subpass as usize].iter().any(|s| {
+                s.color.iter().chain(&s.resolve).chain(&s.input).chain(s.depth_stencil.iter()).any(|x| x.used() == Some(index))
+            })
+        };
+        for (j, c) in sub.color.iter().enumerate() {
+            let Some(i) = c.used() else { continue };
+            let Some(u) = pass.attachments.get(i as usize).and_then(|a| self.image_use(a)) else { continue };
+            r.colors.push(u);
+            let load = rp.attachments.get(i as usize).is_some_and(|d| d.load_op == vk::AttachmentLoadOp::LOAD);
+            r.color_loads.push(!first_use(i) || load);
+            if let Some(ri) = sub.resolve.get(j).and_then(|x| x.used()) {
+                if let Some(ru) = pass.attachments.get(ri as usize).and_then(|a| self.image_use(a)) {
+                    r.resolves.push((r.colors.len() - 1, ru));
+                }
+            }
+        }
+        r.inputs = sub.input.iter().filter_map(|x| x.used()).filter_map(|i| pass.attachments.get(i as usize)).filter_map(|a| self.image_use(a)).collect();
+        r
     }
 }
 
@@ -384,7 +480,7 @@ mod tests {
     #[test]
     fn render_pass_begin_resolves_swapchain_attachments_and_clears() {
         let (t, shared) = tracker_with_pass();
-        t.begin_command_buffer(9, vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+        t.begin_command_buffer(9, vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT, false);
         let clears = vec![ClearValue([0; 4]), ClearValue([1.0f32.to_bits(), 0, 0, 0])];
         let area = Rect { x: 0, y: 0, width: 64, height: 64 };
         let begin = RenderPassBegin { render_pass: 1, framebuffer: 2, render_area: area, clear_values: clears, attachment_views: None };
@@ -472,13 +568,13 @@ mod tests {
     #[test]
     fn pool_reset_and_destroy_reach_their_buffers() {
         let (t, _) = tracker_with_pass();
-        t.begin_command_buffer(9, vk::CommandBufferUsageFlags::empty());
+        t.begin_command_buffer(9, vk::CommandBufferUsageFlags::empty(), false);
         t.reset_pool(5);
         assert_eq!(t.with_cb(9, |s| s.recording), Some(false));
         t.destroy_pool(5);
         assert!(t.command_buffers.get(9).is_none() && t.pools.get(5).is_none());
         // Unknown command buffers are ignored, never invented.
-        t.begin_command_buffer(9, vk::CommandBufferUsageFlags::empty());
+        t.begin_command_buffer(9, vk::CommandBufferUsageFlags::empty(), false);
         assert!(t.command_buffers.is_empty());
         assert!(t.stats.summary().contains("command_buffers_begun=1"));
     }

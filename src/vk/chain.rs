@@ -519,6 +519,15 @@ fn load_ext(gdpa: vk::PFN_vkGetDeviceProcAddr, device: vk::Device) -> ExtFns {
         cmd_set_color_blend_enable: get(c"vkCmdSetColorBlendEnableEXT").map(|p| unsafe { std::mem::transmute(p) }),
         // SAFETY: see above.
         cmd_set_depth_clamp_enable: get(c"vkCmdSetDepthClampEnableEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above (the core 1.4 name and the KHR one have the same type).
+        cmd_push_descriptor_set: get(c"vkCmdPushDescriptorSet").or_else(|| get(c"vkCmdPushDescriptorSetKHR")).map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above.
+        cmd_push_descriptor_set_with_template: get(c"vkCmdPushDescriptorSetWithTemplate")
+            .or_else(|| get(c"vkCmdPushDescriptorSetWithTemplateKHR"))
+            // SAFETY: see above.
+            .map(|p| unsafe { std::mem::transmute(p) }),
+        // SAFETY: see above.
+        cmd_bind_descriptor_buffers: get(c"vkCmdBindDescriptorBuffersEXT").map(|p| unsafe { std::mem::transmute(p) }),
     }
 }
 

@@ -64,6 +64,9 @@ pub(crate) struct ExtFns {
     pub cmd_set_color_write_mask: Option<vk::PFN_vkCmdSetColorWriteMaskEXT>,
     pub cmd_set_color_blend_enable: Option<vk::PFN_vkCmdSetColorBlendEnableEXT>,
     pub cmd_set_depth_clamp_enable: Option<vk::PFN_vkCmdSetDepthClampEnableEXT>,
+    pub cmd_push_descriptor_set: Option<vk::PFN_vkCmdPushDescriptorSetKHR>,
+    pub cmd_push_descriptor_set_with_template: Option<vk::PFN_vkCmdPushDescriptorSetWithTemplateKHR>,
+    pub cmd_bind_descriptor_buffers: Option<vk::PFN_vkCmdBindDescriptorBuffersEXT>,
 }
 
 /// What the layer keeps per `VkDevice`.
@@ -408,6 +411,28 @@ intercepts! {
     Device "vkCmdSetColorWriteMaskEXT" => hooks::cmd_set_color_write_mask as vk::PFN_vkCmdSetColorWriteMaskEXT;
     Device "vkCmdSetColorBlendEnableEXT" => hooks::cmd_set_color_blend_enable as vk::PFN_vkCmdSetColorBlendEnableEXT;
     Device "vkCmdSetDepthClampEnableEXT" => hooks::cmd_set_depth_clamp_enable as vk::PFN_vkCmdSetDepthClampEnableEXT;
+    Device "vkCreateDescriptorSetLayout" => hooks::create_descriptor_set_layout as vk::PFN_vkCreateDescriptorSetLayout;
+    Device "vkDestroyDescriptorSetLayout" => hooks::destroy_descriptor_set_layout as vk::PFN_vkDestroyDescriptorSetLayout;
+    Device "vkAllocateDescriptorSets" => hooks::allocate_descriptor_sets as vk::PFN_vkAllocateDescriptorSets;
+    Device "vkFreeDescriptorSets" => hooks::free_descriptor_sets as vk::PFN_vkFreeDescriptorSets;
+    Device "vkResetDescriptorPool" => hooks::reset_descriptor_pool as vk::PFN_vkResetDescriptorPool;
+    Device "vkDestroyDescriptorPool" => hooks::destroy_descriptor_pool as vk::PFN_vkDestroyDescriptorPool;
+    Device "vkUpdateDescriptorSets" => hooks::update_descriptor_sets as vk::PFN_vkUpdateDescriptorSets;
+    Device "vkCreateDescriptorUpdateTemplate" => hooks::create_descriptor_update_template as vk::PFN_vkCreateDescriptorUpdateTemplate;
+    Device "vkCreateDescriptorUpdateTemplateKHR" => hooks::create_descriptor_update_template as vk::PFN_vkCreateDescriptorUpdateTemplate;
+    Device "vkDestroyDescriptorUpdateTemplate" => hooks::destroy_descriptor_update_template as vk::PFN_vkDestroyDescriptorUpdateTemplate;
+    Device "vkDestroyDescriptorUpdateTemplateKHR" => hooks::destroy_descriptor_update_template as vk::PFN_vkDestroyDescriptorUpdateTemplate;
+    Device "vkUpdateDescriptorSetWithTemplate" => hooks::update_descriptor_set_with_template as vk::PFN_vkUpdateDescriptorSetWithTemplate;
+    Device "vkUpdateDescriptorSetWithTemplateKHR" => hooks::update_descriptor_set_with_template as vk::PFN_vkUpdateDescriptorSetWithTemplate;
+    Device "vkCmdPushDescriptorSetKHR" => hooks::cmd_push_descriptor_set as vk::PFN_vkCmdPushDescriptorSetKHR;
+    Device "vkCmdPushDescriptorSet" => hooks::cmd_push_descriptor_set as vk::PFN_vkCmdPushDescriptorSetKHR;
+    Device "vkCmdPushDescriptorSetWithTemplateKHR" => hooks::cmd_push_descriptor_set_with_template as vk::PFN_vkCmdPushDescriptorSetWithTemplateKHR;
+    Device "vkCmdPushDescriptorSetWithTemplate" => hooks::cmd_push_descriptor_set_with_template as vk::PFN_vkCmdPushDescriptorSetWithTemplateKHR;
+    Device "vkCmdBindDescriptorBuffersEXT" => hooks::cmd_bind_descriptor_buffers as vk::PFN_vkCmdBindDescriptorBuffersEXT;
+    Device "vkCmdDispatch" => hooks::cmd_dispatch as vk::PFN_vkCmdDispatch;
+    Device "vkCmdDispatchIndirect" => hooks::cmd_dispatch_indirect as vk::PFN_vkCmdDispatchIndirect;
+    Device "vkCmdDispatchBase" => hooks::cmd_dispatch_base as vk::PFN_vkCmdDispatchBase;
+    Device "vkCmdDispatchBaseKHR" => hooks::cmd_dispatch_base as vk::PFN_vkCmdDispatchBase;
     Device "vkQueueSubmit" => hooks::queue_submit as vk::PFN_vkQueueSubmit;
     Device "vkQueueSubmit2" => hooks::queue_submit2 as vk::PFN_vkQueueSubmit2;
     Device "vkQueueSubmit2KHR" => hooks::queue_submit2 as vk::PFN_vkQueueSubmit2;

@@ -6,7 +6,7 @@
 
 use super::hook_decided;
 use crate::vk::inject;
-use ash::vk;
+use ash::vk::{self, Handle};
 
 /// Hooks a draw: `before_draw` first, then the app's call unchanged.
 macro_rules! draw_hook {
@@ -16,7 +16,11 @@ macro_rules! draw_hook {
                 $call,
                 $cb,
                 (),
-                |d| inject::before_draw(d, $cb),
+                |d| {
+                    // What the draw reads, for the data-flow walk; then the armed injection.
+                    d.track.with_cb($cb.as_raw(), |s| s.flow_draw());
+                    inject::before_draw(d, $cb)
+                },
                 // SAFETY: forwarding the app's arguments unchanged to the next layer's command.
                 |$d, _| unsafe { $next },
                 |_, ()| Ok(()),

@@ -15,9 +15,11 @@ use crate::track::cmd::StateCmd;
 use ash::vk::{self, Handle};
 use std::sync::Arc;
 
+mod descriptors;
 mod draw;
 mod record;
 mod submit;
+pub(super) use descriptors::*;
 pub(super) use draw::*;
 pub(super) use record::*;
 pub(super) use submit::*;

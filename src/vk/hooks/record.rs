@@ -25,8 +25,10 @@ pub(in crate::vk) unsafe extern "system" fn begin_command_buffer(cb: vk::Command
                 // and its previous recording's holds go once its submissions are known complete.
                 super::super::secondary::release(d, &[cb.as_raw()]);
                 lifetime::close(d, &[cb.as_raw()]);
+                // The data-flow walk is fed while anything injects (decided per recording).
+                let flow = inject::any_injects(d, &d.settings());
                 // SAFETY: a valid begin info.
-                d.track.begin_command_buffer(cb.as_raw(), unsafe { (*info).flags });
+                d.track.begin_command_buffer(cb.as_raw(), unsafe { (*info).flags }, flow);
             }
             Ok(())
         },
@@ -71,7 +73,18 @@ pub(in crate::vk) unsafe extern "system" fn cmd_execute_commands(cb: vk::Command
             unsafe { execute(cb, n, cbs) }
         },
         |d, ()| {
-            d.track.with_cb(cb.as_raw(), |s| s.forget_graphics_state());
+            // The secondaries' reads and writes happen here, for the data-flow walk.
+            // SAFETY: `n` app handles, valid during its call.
+            let secondaries = unsafe { convert::slice(cbs, n) };
+            let recorded: Vec<_> = secondaries.iter().filter_map(|s| d.track.with_cb(s.as_raw(), |st| st.flow.clone())).collect();
+            d.track.with_cb(cb.as_raw(), |s| {
+                if s.flow_on {
+                    for r in &recorded {
+                        s.flow.execute(r);
+                    }
+                }
+                s.forget_graphics_state()
+            });
             Ok(())
         },
     )
@@ -403,6 +416,7 @@ fn transfer(d: &DeviceState, cb: vk::CommandBuffer, src: vk::Image, dst: vk::Ima
     if inject::any_injects(d, &d.settings()) {
         d.track.record_transfer(crate::shared::shared(), src.as_raw(), dst.as_raw(), &regions);
     }
+    d.track.flow_transfer(cb.as_raw(), src.as_raw(), dst.as_raw(), &regions);
     for f in d.features.all() {
         f.transfer(d, cb, src.as_raw(), dst.as_raw(), &regions);
     }
@@ -574,6 +588,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_clear_attachments(
             let (atts, rects) = unsafe { (convert::slice(attachments, n), convert::slice(rects, rect_count)) };
             let depth = atts.iter().find(|a| a.aspect_mask.contains(vk::ImageAspectFlags::DEPTH));
             if let Some(a) = depth {
+                d.track.with_cb(cb.as_raw(), |s| s.flow.depth_cleared());
                 // SAFETY: a depth clear's value is the depthStencil member.
                 let value = unsafe { a.clear_value.depth_stencil.depth };
                 let rects = rects.iter().map(|r| PixelRect { x: r.rect.offset.x, y: r.rect.offset.y, width: r.rect.extent.width, height: r.rect.extent.height }).collect();

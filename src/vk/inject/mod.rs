@@ -472,12 +472,21 @@ fn depth_image(pass: &PassInstance) -> Option<u64> {
 /// Which eyes an attachment shows: a swapchain image's published uses, or an intermediate
 /// target's learned ones (logged once per image).
 pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) -> Eyes {
+    let image = a.image_view.as_ref().map(|v| v.image);
     if let Some(sc) = &a.swapchain {
+        if image.is_some_and(|i| d.track.traced.is_post(i)) {
+            return Eyes::Post;
+        }
         return Eyes::Swapchain(sc.swapchain.uses().iter().map(EyeSource::from_use).collect());
     }
-    let Some(image) = a.image_view.as_ref().map(|v| v.image) else { return Eyes::Unknown };
-    match d.track.intermediate_eyes(shared(), image) {
+    let Some(image) = image else { return Eyes::Unknown };
+    let traced = || match d.track.traced.eyes(image) {
+        Some(t) => Eyes::Intermediate(t.eyes),
+        None if d.track.traced.is_post(image) => Eyes::Post,
         None => Eyes::Unknown,
+    };
+    match d.track.intermediate_eyes(shared(), image) {
+        None => traced(),
         Some(learned) => {
             let first = lock(&d.inject.books).logged_targets.insert(image);
             match learned {
@@ -493,12 +502,34 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
                     Eyes::Intermediate(e)
                 }
                 Learned::Rejected(why) => {
-                    if first {
+                    let t = traced();
+                    if first && t == Eyes::Unknown {
                         tracing::info!(image = format_args!("{image:#x}"), "not an intermediate eye target: {why}");
                     }
-                    Eyes::Unknown
+                    t
                 }
             }
+        }
+    }
+}
+
+/// The app submits `cbs`: their recorded data flow joins the window, and every swapchain image
+/// they write is walked back to its eye passes (`track::traced`); what the walk learned or could
+/// not trace is logged once.
+pub(crate) fn walk_submitted(d: &DeviceState, cbs: &[u64]) {
+    let snaps: Vec<_> = cbs.iter().filter_map(|cb| d.track.with_cb(*cb, |s| s.flow_on.then(|| s.flow.snapshot())).flatten()).collect();
+    if snaps.is_empty() {
+        return;
+    }
+    let world = crate::track::traced::TrackerWorld { descriptors: &d.track.descriptors, views: &d.track.views, images: &d.track.images, shared: shared() };
+    for note in d.track.traced.submitted(&world, snaps) {
+        match note {
+            crate::track::traced::Note::Traced { image, eyes, chain, depth } => tracing::info!(
+                image = format_args!("{image:#x}"),
+                "data-flow walk: {} of an eye pass, reached from the swapchain through {chain}; eyes {eyes:?}",
+                if depth { "depth image" } else { "colour target" }
+            ),
+            crate::track::traced::Note::Untraced(why) => tracing::info!("data-flow walk: {why} (logged once)"),
         }
     }
 }
