@@ -35,6 +35,9 @@ pub enum Eyes {
     Swapchain(Vec<EyeSource>),
     /// An image the app copies / resolves / blits into a swapchain image, 1:1.
     Intermediate(Vec<EyeSource>),
+    /// An eye pass's target the data-flow walk reached from a swapchain image through
+    /// post-processing (draws, compute, scaled blits): what the runtime gets is derived from it.
+    Traced(Vec<EyeSource>),
     /// Only post-process passes (draws that never test depth) were seen writing it.
     Post,
     /// Neither (yet).
@@ -77,6 +80,9 @@ pub struct MaskPlan {
     pub fail_depth: f32,
     pub layout: EyeLayout,
     pub intermediate: bool,
+    /// The eyes were found by the data-flow walk: a post-process chain reads the target before
+    /// the runtime does (so nothing may leave holes in it past the pass).
+    pub traced: bool,
     /// The image whose eyes were found (for the log).
     pub image: u64,
     /// Multiview: the pass's view mask (one draw; view `i` of the mask is gl_ViewIndex `i`).
@@ -178,8 +184,8 @@ pub fn depth_loads(pass: &PassInstance) -> bool {
 /// The attachment of the open pass that shows eyes, which eyes its image holds, and whether it
 /// is an intermediate target: the eye-pass test shared by the mask, radial density masking and
 /// variable-rate shading (which needs no depth).
-pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p AttachmentUse, Vec<EyeSource>, bool), NotMasked> {
-    let mut found: Option<(&AttachmentUse, Vec<EyeSource>, bool)> = None;
+pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p AttachmentUse, Vec<EyeSource>, Via), NotMasked> {
+    let mut found: Option<(&AttachmentUse, Vec<EyeSource>, Via)> = None;
     let mut unknown_swapchain = false;
     let mut has_color = false;
     let mut post = false;
@@ -191,15 +197,16 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
         match (facts.eyes)(att) {
             Eyes::Swapchain(s) if s.is_empty() => unknown_swapchain = true,
             Eyes::Swapchain(s) => {
-                found = Some((att, s, false));
+                found = Some((att, s, Via::Swapchain));
                 break;
             }
-            Eyes::Intermediate(s) if !s.is_empty() && found.is_none() => found = Some((att, s, true)),
+            Eyes::Intermediate(s) if !s.is_empty() && found.is_none() => found = Some((att, s, Via::Transfer)),
+            Eyes::Traced(s) if !s.is_empty() && found.is_none() => found = Some((att, s, Via::Walk)),
             Eyes::Post => post = true,
             _ => {}
         }
     }
-    let Some((att, sources, intermediate)) = found else {
+    let Some((att, sources, via)) = found else {
         return Err(if post {
             NotMasked::PostPass
         } else if unknown_swapchain || has_color {
@@ -208,10 +215,21 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
             NotMasked::NotEyePass
         });
     };
-    if intermediate && !facts.intermediate_enabled {
+    if via != Via::Swapchain && !facts.intermediate_enabled {
         return Err(NotMasked::IntermediateOff);
     }
-    Ok((att, sources, intermediate))
+    Ok((att, sources, via))
+}
+
+/// How an eye pass's target was tied to the eyes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Via {
+    /// It is a swapchain image.
+    Swapchain,
+    /// It is transferred 1:1 into one.
+    Transfer,
+    /// The data-flow walk reached it through post-processing.
+    Walk,
 }
 
 /// The fail depth of a pass whose depth starts cleared to 0 or 1 here, else why not.
@@ -255,7 +273,8 @@ pub fn awaiting_eyes(pass: &PassInstance, facts: &Facts<'_>) -> Option<f32> {
 /// Decides whether the open pass gets a mask, and where.
 pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotMasked> {
     // Eyes first: a pass that shows no eye is not an eye pass, whatever its depth does.
-    let (att, sources, intermediate) = find_eyes(pass, facts)?;
+    let (att, sources, via) = find_eyes(pass, facts)?;
+    let (intermediate, traced) = (via != Via::Swapchain, via == Via::Walk);
     if facts.secondary_contents {
         return Err(NotMasked::Secondary);
     }
@@ -268,7 +287,7 @@ pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotM
     let mut sources = sources;
     sources.sort_by_key(|s| (s.layer, s.rect.x, s.rect.y, s.view));
     sources.dedup();
-    let plan = |layout, view_mask, draws: Vec<EyeDraw>| MaskPlan { fail_depth, layout, intermediate, image: att.image_view.as_ref().map_or(0, |v| v.image), view_mask, draws };
+    let plan = |layout, view_mask, draws: Vec<EyeDraw>| MaskPlan { fail_depth, layout, intermediate, traced, image: att.image_view.as_ref().map_or(0, |v| v.image), view_mask, draws };
     if view_mask != 0 {
         let mut draws = Vec::new();
         for i in (0..32).filter(|i| view_mask & (1 << i) != 0) {

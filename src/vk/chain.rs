@@ -124,8 +124,10 @@ pub(super) unsafe extern "system" fn create_instance(
                 convert::names(ci_ref.pp_enabled_extension_names, ci_ref.enabled_extension_count),
             )
         };
-        tracing::info!(api_version = %version(api_version), pass_through = pass_through.is_on(), "vulkan instance created");
-        let state = InstanceState { handle: instance, next_gipa, fns, api_version, extensions, pass_through, config };
+        // SAFETY: the application info and its engine name, when given, are valid during this call.
+        let engine = unsafe { ci_ref.p_application_info.as_ref().and_then(|a| a.p_engine_name.as_ref().map(|_| std::ffi::CStr::from_ptr(a.p_engine_name).to_string_lossy().into_owned())) };
+        tracing::info!(api_version = %version(api_version), pass_through = pass_through.is_on(), engine = engine.as_deref().unwrap_or("(none)"), "vulkan instance created");
+        let state = InstanceState { handle: instance, next_gipa, fns, api_version, extensions, pass_through, config, engine };
         layer().instances.insert(dispatch_key(instance), Arc::new(state));
         r
     })
@@ -443,6 +445,7 @@ pub(super) unsafe extern "system" fn create_device(
             .map(|q| (q.queue_family_index, q.queue_count, q.flags))
             .collect();
         let state = DeviceState {
+            engine: inst.engine.clone(),
             caps,
             handle: device,
             key: dispatch_key(device),
@@ -465,6 +468,7 @@ pub(super) unsafe extern "system" fn create_device(
             repeats: Default::default(),
         };
         layer().devices.insert(state.key, Arc::new(state));
+        super::device_stats::log_at_exit();
         r
     })
 }
@@ -538,34 +542,7 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
         // The app waited for the device to go idle: every recording's holds go now, so what
         // they counted on completion (e.g. the far field's reused pixels) is in the stats line.
         super::lifetime::release_holds(&dev);
-        let mut line = dev.track.stats.summary();
-        for summary in dev.features.all().iter().filter_map(|f| f.summary()) {
-            line.push(' ');
-            line.push_str(&summary);
-        }
-        if let Some(summary) = super::gpu_time::summary(&dev) {
-            line.push(' ');
-            line.push_str(&summary);
-        }
-        for (reason, n) in dev.inject.vetoed() {
-            line.push_str(&format!(" vetoed.{reason}={n}"));
-        }
-        // What the layer still tracks of the app's objects when the device goes: an app that
-        // destroyed everything leaves 0 of each; anything else is state the layer failed to
-        // forget (tests/lifecycle.rs checks it across sessions and instances).
-        let t = &dev.track;
-        line.push_str(&format!(
-            " live.images={} live.views={} live.render_passes={} live.framebuffers={} live.pipelines={} live.command_pools={} live.command_buffers={}",
-            t.images.len(),
-            t.views.len(),
-            t.render_passes.len(),
-            t.framebuffers.len(),
-            t.pipelines.len(),
-            t.pools.len(),
-            t.command_buffers.len()
-        ));
-        // What the layer itself holds on the device before it destroys it all below.
-        line.push_str(&dev.own.summary());
+        let line = super::device_stats::line(&dev);
         tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {line}");
         let repeats = dev.repeats.summary();
         if !repeats.is_empty() {

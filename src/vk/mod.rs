@@ -8,6 +8,7 @@
 
 pub(crate) mod convert;
 mod chain;
+mod device_stats;
 pub(crate) mod feature;
 pub(crate) mod gpu_time;
 mod hooks;
@@ -45,6 +46,8 @@ pub(crate) struct InstanceState {
     /// pass-through.
     pub pass_through: Arc<PassThrough>,
     pub config: Arc<Config>,
+    /// `VkApplicationInfo::pEngineName` (engine defaults such as the far field's depth range).
+    pub engine: Option<String>,
 }
 
 /// Extension commands that are not core in any version, loaded by name (None when the device
@@ -76,6 +79,8 @@ pub(crate) struct DeviceState {
     pub key: usize,
     /// What the device was created with: every layer object is checked against it.
     pub caps: crate::track::caps::DeviceCaps,
+    /// The instance's `VkApplicationInfo::pEngineName`.
+    pub engine: Option<String>,
     pub next_gdpa: vk::PFN_vkGetDeviceProcAddr,
     /// The device functions for everything the layer does itself: the next layer's (core names
     /// falling back to their KHR/EXT aliases, so the table works on devices that offer a command
@@ -190,6 +195,13 @@ pub(crate) fn device_of<H: Handle>(handle: H) -> Option<Arc<DeviceState>> {
 /// session) is a missed lookup, not a read of freed memory (issue 23).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct DeviceKey(usize);
+
+/// Logs the stats line of the session's device, still live (`at` says when).
+pub(crate) fn log_device_stats(device: DeviceKey, at: &str) {
+    if let Some(d) = device.state() {
+        device_stats::log_live(&d, at);
+    }
+}
 
 impl DeviceKey {
     /// Reads the key of `device`, which must be a live `VkDevice` (the runtime validated it).

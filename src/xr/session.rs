@@ -175,6 +175,9 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
             let st = state();
             if let Some(s) = st.sessions.get(session.into_raw()) {
                 tracing::info!("session {:#x} destroyed (binding {:?})", session.into_raw(), s.binding);
+                if let Some(b) = &s.binding {
+                    crate::vk::log_device_stats(b.device_key, "xrDestroySession");
+                }
                 for w in s.summary.lock().unwrap_or_else(|e| e.into_inner()).end() {
                     tracing::warn!("{w}");
                 }

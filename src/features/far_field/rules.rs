@@ -22,14 +22,15 @@ impl InverseDepth {
         let (n, f) = (r.near_z as f64, r.far_z as f64);
         let (d0, d1) = (r.min_depth as f64, r.max_depth as f64);
         // NaN fails every comparison, so it lands here too.
-        let valid = n > 0.0 && n.is_finite() && f > 0.0 && n != f && d1 > d0 && d0.is_finite() && d1.is_finite();
+        // One plane may be at infinity (an infinite projection; reversed Z puts it at min depth).
+        let valid = n > 0.0 && f > 0.0 && n != f && (n.is_finite() || f.is_finite()) && d1 > d0 && d0.is_finite() && d1.is_finite();
         if !valid {
             return None;
         }
-        let inv_f = if f.is_infinite() { 0.0 } else { 1.0 / f };
+        let inv = |z: f64| if z.is_infinite() { 0.0 } else { 1.0 / z };
         // depth = d0 + (d1 - d0)·(1/z - 1/n)/(1/f - 1/n)  ⇔  1/z = 1/n + (depth - d0)·k
-        let k = (inv_f - 1.0 / n) / (d1 - d0);
-        Some(InverseDepth { a: 1.0 / n - d0 * k, b: k })
+        let k = (inv(f) - inv(n)) / (d1 - d0);
+        Some(InverseDepth { a: inv(n) - d0 * k, b: k })
     }
     /// 1/z of a stored depth value.
     pub fn inv_z(&self, depth: f64) -> f64 {
@@ -43,6 +44,49 @@ impl InverseDepth {
     pub fn reversed(&self) -> bool {
         self.b > 0.0
     }
+}
+
+/// A documented engine's default projection, used for apps that submit no
+/// `XrCompositionLayerDepthInfoKHR` and have no configured range.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EngineDepth {
+    /// Near and far plane distances (metres; far may be infinite). The convention (reversed or
+    /// not) is read from the pass's depth clear, as for a configured range.
+    pub near: f64,
+    pub far: f64,
+    /// Where the numbers come from (for the log).
+    pub source: &'static str,
+}
+
+/// The default projection of the engine named in `VkApplicationInfo::pEngineName`; None for an
+/// engine without a documented default (its near plane is the app's choice: configure it).
+pub fn engine_depth(engine: &str) -> Option<EngineDepth> {
+    match engine {
+        // wgpu names itself "wgpu-hal"; its VR apps are Bevy + bevy_mod_openxr, whose
+        // `XrProjection` defaults to near 0.1 m with an infinite, reversed-Z projection.
+        "wgpu-hal" | "wgpu" => Some(EngineDepth { near: 0.1, far: f64::INFINITY, source: "wgpu (Bevy + bevy_mod_openxr's XrProjection: near 0.1 m, infinite far)" }),
+        _ => None,
+    }
+}
+
+/// Where the far field's depth range came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RangeSource {
+    DepthInfo,
+    Config,
+    Engine(&'static str),
+}
+
+/// `depth_range` with the engine's default as the last resort, and where the range came from.
+pub fn depth_range_with_engine(submitted: Option<DepthRange>, configured: Option<(f64, f64)>, engine: Option<EngineDepth>, reversed: bool) -> Option<(DepthRange, RangeSource)> {
+    if let Some(r) = submitted {
+        return Some((r, RangeSource::DepthInfo));
+    }
+    if let Some(r) = depth_range(None, configured, reversed) {
+        return Some((r, RangeSource::Config));
+    }
+    let e = engine?;
+    depth_range(None, Some((e.near, e.far)), reversed).map(|r| (r, RangeSource::Engine(e.source)))
 }
 
 /// The projection range to use: the app's depth info, else the configured range (near and far
@@ -272,8 +316,11 @@ mod tests {
         assert!(!std.reversed());
         let rev = InverseDepth::of(&DepthRange { near_z: 2000.0, far_z: 0.05, min_depth: 0.0, max_depth: 1.0 }).unwrap();
         assert!((rev.depth_of(0.05f32 as f64) - 1.0).abs() < 1e-9 && rev.depth_of(2000.0).abs() < 1e-9 && rev.reversed());
-        let inf = InverseDepth::of(&DepthRange { near_z: f32::INFINITY, far_z: 0.1, min_depth: 0.0, max_depth: 1.0 });
-        assert!(inf.is_none(), "min depth at infinity: near_z must be finite");
+        // Reversed infinite (Bevy): depth 1 at 0.1 m, 0 at infinity; 1/z = depth / 0.1.
+        let rev_inf = InverseDepth::of(&DepthRange { near_z: f32::INFINITY, far_z: 0.1, min_depth: 0.0, max_depth: 1.0 }).unwrap();
+        assert!(rev_inf.reversed());
+        assert!((rev_inf.depth_of(10.0) - 0.01).abs() < 1e-6 && rev_inf.depth_of(0.1) > 0.999);
+        assert!(InverseDepth::of(&DepthRange { near_z: f32::INFINITY, far_z: f32::INFINITY, min_depth: 0.0, max_depth: 1.0 }).is_none());
         let inf = InverseDepth::of(&DepthRange { near_z: 0.1, far_z: f32::INFINITY, min_depth: 0.0, max_depth: 1.0 }).unwrap();
         assert!((inf.depth_of(0.1f32 as f64)).abs() < 1e-9 && inf.inv_z(1.0).abs() < 1e-12);
         let ranged = InverseDepth::of(&DepthRange { near_z: 1.0, far_z: 100.0, min_depth: 0.25, max_depth: 0.75 }).unwrap();
@@ -290,6 +337,14 @@ mod tests {
         assert_eq!((rev.near_z, rev.far_z), (2.0, 1.0));
         assert!(InverseDepth::of(&rev).unwrap().reversed());
         assert_eq!(depth_range(None, None, false), None);
+        // The engine default comes last, and says so.
+        let wgpu = engine_depth("wgpu-hal");
+        let (r, src) = depth_range_with_engine(None, None, wgpu, true).unwrap();
+        assert!(matches!(src, RangeSource::Engine(s) if s.contains("Bevy")));
+        assert_eq!((r.near_z, r.far_z), (f32::INFINITY, 0.1));
+        assert_eq!(depth_range_with_engine(None, Some((1.0, 2.0)), wgpu, false).unwrap().1, RangeSource::Config);
+        assert_eq!(depth_range_with_engine(Some(info), None, wgpu, false).unwrap().1, RangeSource::DepthInfo);
+        assert_eq!(engine_depth("Unity"), None, "no documented default: the app's own choice");
     }
 
     #[test]

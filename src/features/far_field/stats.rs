@@ -55,7 +55,7 @@ impl FeatureStats for FarFieldStats {
     }
     fn hint(&self, reason: &str) -> &'static str {
         match reason {
-            "no_depth_range" => "the app submits no XrCompositionLayerDepthInfoKHR: set far_field.near_z and far_field.far_z to its projection range",
+            "no_depth_range" => "the app submits no XrCompositionLayerDepthInfoKHR and its engine (VkApplicationInfo::pEngineName) has no documented default: set far_field.near_z and far_field.far_z to its projection range",
             "several_colour_attachments" => "the pass writes several colour attachments (a G-buffer): the far field only reuses a lit eye image",
             "unsupported" => "a pass shape the far field does not handle (suspended rendering, mixed sample counts)",
             "depth_range_mismatch" => "the configured or submitted depth range has the other depth convention than the pass's clear: check far_field.near_z / far_z",

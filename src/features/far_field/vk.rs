@@ -192,6 +192,23 @@ impl FarFieldDevice {
         f(&mut b.total);
     }
 
+    /// Says once which source the depth range came from (the app's depth info, the config, or
+    /// the engine's documented default).
+    fn log_range_source(&self, source: rules::RangeSource) {
+        let key = match source {
+            rules::RangeSource::DepthInfo => "range:depth_info",
+            rules::RangeSource::Config => "range:config",
+            rules::RangeSource::Engine(_) => "range:engine",
+        };
+        if lock(&self.books).logged.insert(key) {
+            match source {
+                rules::RangeSource::DepthInfo => tracing::info!("far field depth range: from the app's XrCompositionLayerDepthInfoKHR"),
+                rules::RangeSource::Config => tracing::info!("far field depth range: from far_field.near_z / far_z"),
+                rules::RangeSource::Engine(e) => tracing::info!("far field depth range: the engine's documented default, {e} (the app submits no depth info; far_field.near_z / far_z override it)"),
+            }
+        }
+    }
+
     fn not_applied(&self, why: &'static str) {
         let first = {
             let mut b = lock(&self.books);
@@ -681,7 +698,12 @@ impl VkFeature for FarFieldDevice {
         let s = d.settings();
         let views = shared().far_field();
         let frame = views.current.as_ref().map_or(0, |c| c.0);
-        let inverse = |reversed| rules::depth_range(views.depth, s.far_field.configured_range, reversed).and_then(|r| InverseDepth::of(&r));
+        let engine = d.engine.as_deref().and_then(rules::engine_depth);
+        let inverse = |reversed| {
+            let (r, source) = rules::depth_range_with_engine(views.depth, s.far_field.configured_range, engine, reversed)?;
+            self.log_range_source(source);
+            InverseDepth::of(&r)
+        };
         let on = self.layer_enabled && s.far_field.enabled;
         for &cb in cbs {
             let idle = !lifetime::in_flight(d, cb);

@@ -447,7 +447,7 @@ fn inject_awaiting(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Sn
 /// secondaries need before the eyes are known.
 pub(crate) fn shape_only(pass: &PassInstance, fail_depth: f32) -> MaskPlan {
     let layout = if pass.view_mask() != 0 { eye_pass::EyeLayout::Multiview } else { eye_pass::EyeLayout::PerEye };
-    MaskPlan { fail_depth, layout, intermediate: false, image: 0, view_mask: pass.view_mask(), draws: Vec::new() }
+    MaskPlan { fail_depth, layout, intermediate: false, traced: false, image: 0, view_mask: pass.view_mask(), draws: Vec::new() }
 }
 
 fn attachments(pass: &PassInstance) -> Vec<&AttachmentUse> {
@@ -481,7 +481,7 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
     }
     let Some(image) = image else { return Eyes::Unknown };
     let traced = || match d.track.traced.eyes(image) {
-        Some(t) => Eyes::Intermediate(t.eyes),
+        Some(t) => Eyes::Traced(t.eyes),
         None if d.track.traced.is_post(image) => Eyes::Post,
         None => Eyes::Unknown,
     };

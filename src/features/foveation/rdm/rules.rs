@@ -284,6 +284,9 @@ pub enum NotApplied {
     /// The app's device was created without what the layer's draw needs for this pass (e.g.
     /// `multiview`): the layer never creates an object the device cannot legally have.
     DeviceLacks,
+    /// The eye pass's target is read by a post-process chain (found by the data-flow walk)
+    /// before the runtime sees it; the reconstruction runs at the image's release, too late.
+    PostChain,
 }
 
 impl NotApplied {
@@ -294,6 +297,7 @@ impl NotApplied {
             NotApplied::NotOneToOne => "not_one_to_one",
             NotApplied::SwapchainUsage => "swapchain_usage",
             NotApplied::DeviceLacks => "device_lacks",
+            NotApplied::PostChain => "post_chain",
         }
     }
 }
@@ -390,6 +394,7 @@ impl FeatureStats for RdmFrameStats {
     fn hint(&self, reason: &str) -> &'static str {
         match reason {
             "no_fovea" => "no fovea yet for the view (the first frame): nothing to do unless it persists",
+            "post_chain" => "the eye pass renders into a target a post-process chain (tonemap, bloom, TAA, upscale) reads before the runtime: RDM's reconstruction runs at the swapchain image's release, too late, so such passes are left whole; use foveation.method = \"vrs\" where the GPU has it",
             "not_one_to_one" => "the app copies the eye image to the swapchain scaled or offset: RDM cannot reconstruct it; use foveation.method = \"vrs\" where the GPU has it",
             "swapchain_usage" => "the swapchain image lacks the usage RDM's reconstruction needs",
             _ => crate::core::stats::common_hint(reason),

@@ -403,6 +403,14 @@ fn reconstruction_ready(me: &RdmDevice, d: &DeviceState, cb: vk::CommandBuffer, 
 
 fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<(), NotApplied> {
     let plan = at.plan;
+    if plan.traced {
+        // A tonemapper, bloom or TAA would read the checkerboard before any reconstruction at
+        // release: never leave holes in such a target.
+        log_once(me, "post chain".into(), || {
+            tracing::info!("radial density masking left an eye pass alone: a post-process chain reads its target {:#x} before the runtime does, and the reconstruction runs only at the swapchain image's release", plan.image)
+        });
+        return Err(NotApplied::PostChain);
+    }
     reconstruction_ready(me, d, at.cb, at.settings)?;
     let ((fovea_generation, views_generation), eyes) = params_now(&plan.draws)?;
     let p = pipeline(me, d, at.pass, plan)?;
