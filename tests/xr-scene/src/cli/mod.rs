@@ -1,7 +1,10 @@
 //! Command-line parsing (clap): the flag set is the test contract of docs/testing.md; the checks of
 //! combinations that cannot work live in `parse`.
 
+mod post;
+
 use clap::{CommandFactory, Parser, ValueEnum};
+use post::check_post;
 use std::path::PathBuf;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -491,66 +494,6 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         viewport_scale: a.viewport_scale,
         submit_texture: a.submit_texture,
     })
-}
-
-/// The combinations of the post-chain and submit-texture options that cannot work, each refused
-/// with the reason.
-fn check_post(a: &Args, samples: u32) -> Result<(), String> {
-    let tonemap_only = a.post == Some(PostEffect::Tonemap);
-    for (given, flag) in [
-        (a.post_compute, "--post-compute"),
-        (a.post_subpass, "--post-subpass"),
-        (a.post_depth_attachment, "--post-depth-attachment"),
-        (a.render_scale != 1.0, "--render-scale"),
-        (a.viewport_scale != 1.0, "--viewport-scale"),
-    ] {
-        if given && a.post.is_none() {
-            return Err(format!("{flag} needs a post chain: add --post tonemap (or bloom, taa)"));
-        }
-    }
-    if a.post.is_some() && a.intermediate {
-        return Err("--post and --intermediate exclude each other: the post chain's scene target is the intermediate".into());
-    }
-    if a.post_compute && !tonemap_only {
-        return Err("--post-compute replaces the tonemap draw: use it with --post tonemap".into());
-    }
-    if a.post_subpass {
-        if !tonemap_only {
-            return Err("--post-subpass replaces the tonemap draw: use it with --post tonemap".into());
-        }
-        if a.post_compute {
-            return Err("--post-subpass and --post-compute are two ways of the same tonemap: give one".into());
-        }
-        if a.rendering == Rendering::Dynamic {
-            return Err("--post-subpass needs a render pass object (subpasses): use --rendering render-pass or render-pass2".into());
-        }
-        if samples > 1 {
-            return Err("--post-subpass reads the scene as a single-sampled input attachment: use --samples 1".into());
-        }
-        if a.render_scale != 1.0 || a.viewport_scale != 1.0 {
-            return Err("--post-subpass reads each pixel's own input attachment value: it cannot scale (no --render-scale or --viewport-scale)".into());
-        }
-    }
-    if a.post_depth_attachment && (a.post_compute || a.post_subpass) {
-        return Err("--post-depth-attachment belongs to the tonemap draw's own pass: not with --post-compute or --post-subpass".into());
-    }
-    // Submitted depth must be the eye pass's depth at the swapchain's size, for every sample.
-    if a.submit_depth && a.post.is_some() && (samples > 1 || a.render_scale != 1.0 || a.viewport_scale != 1.0) {
-        return Err("--submit-depth with --post needs the eye pass's depth at the swapchain's size: --samples 1, no --render-scale or --viewport-scale".into());
-    }
-    // Per-pixel counts are per pixel of the swapchain's view rect.
-    if a.pixel_stats.is_some() && (a.render_scale != 1.0 || a.viewport_scale != 1.0) {
-        return Err("--pixel-stats counts per swapchain pixel: not with --render-scale or --viewport-scale".into());
-    }
-    if a.submit_texture == Some(SubmitTexture::DoubleWide) {
-        if a.layout != Layout::SideBySide {
-            return Err("--submit-texture double-wide renders both eyes side by side into one texture: it needs --layout side-by-side".into());
-        }
-        if a.submit_depth {
-            return Err("--submit-texture double-wide blits colour only: not with --submit-depth".into());
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]
