@@ -6,6 +6,7 @@ pub mod crash;
 pub mod far_field;
 pub mod geometry;
 pub mod image;
+pub mod post_chain;
 pub mod rdm;
 pub mod watchdog;
 

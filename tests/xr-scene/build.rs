@@ -14,7 +14,18 @@ const SHADERS: &[(&str, &str, &str, &[&str])] = &[
     ("scene.frag", "scene_mv.frag.spv", "vulkan1.1", &["-DMULTIVIEW"]),
     ("scene.vert", "scene_vk10.vert.spv", "vulkan1.0", &[]),
     ("scene.frag", "scene_vk10.frag.spv", "vulkan1.0", &[]),
+    // The post chain (`--post`): SPIR-V 1.0 wherever no multiview is needed, so one build serves
+    // every `--vulkan-api`.
+    ("fullscreen.vert", "fullscreen.vert.spv", "vulkan1.0", &[]),
+    ("post.frag", "post.frag.spv", "vulkan1.0", &[]),
+    ("post.frag", "post_mv.frag.spv", "vulkan1.1", &["-DMULTIVIEW"]),
+    ("post_compute.comp", "post.comp.spv", "vulkan1.0", &[]),
+    ("post_compute.comp", "post_array.comp.spv", "vulkan1.0", &["-DARRAY"]),
+    ("post_subpass.frag", "post_subpass.frag.spv", "vulkan1.0", &[]),
 ];
+
+/// Files the shaders `#include`: a change to one rebuilds them all.
+const INCLUDED: &[&str] = &["post_common.glsl"];
 
 fn main() {
     let manifest = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("CARGO_MANIFEST_DIR"));
@@ -22,6 +33,9 @@ fn main() {
     let shader_dir = manifest.join("shaders");
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed={}", shader_dir.display());
+    for inc in INCLUDED {
+        println!("cargo:rerun-if-changed={}", shader_dir.join(inc).display());
+    }
     for (src, dst, env, extra) in SHADERS {
         let src_path = shader_dir.join(src);
         println!("cargo:rerun-if-changed={}", src_path.display());

@@ -6,6 +6,7 @@ mod cli;
 mod error;
 mod gpu;
 mod passes;
+mod post;
 mod renderer;
 mod scene;
 mod stats;

@@ -1,6 +1,9 @@
 //! The three ways the app opens a render pass instance (`--rendering`): a classic render pass,
 //! a render pass made with vkCreateRenderPass2, or dynamic rendering. Each shape matters to the
-//! layer under test, which has to find and modify the app's eye passes in all of them.
+//! layer under test, which has to find and modify the app's eye passes in all of them. With
+//! `--post` the eye pass may also resolve its multisampled colour into a resolve attachment
+//! (`resolveImageView` with dynamic rendering), and with `--post-subpass` its render pass has a
+//! second subpass that reads the scene as an input attachment and writes the swapchain image.
 
 use crate::cli::Rendering;
 use crate::error::{Ctx, Result};
@@ -22,7 +25,17 @@ pub struct PassFormat {
     /// `--depth-clear attachments|image`: the depth (and stencil) attachment is loaded, not
     /// cleared by the pass; the app clears it itself (inside the pass or before it).
     pub load_depth: bool,
+    /// `--post --samples N>1`: the multisampled colour resolves into a single-sampled attachment
+    /// of the same format at the end of the pass (attachment 2), as Bevy's main pass does.
+    pub resolve: bool,
+    /// `--post-subpass`: the format of subpass 1's colour attachment (attachment 2: the swapchain
+    /// image, or the double-wide texture), which reads attachment 0 as an input attachment.
+    pub subpass_color: Option<vk::Format>,
 }
+
+/// The layout attachment 0 ends the pass in: read by subpass 1 with `--post-subpass` (and left
+/// so; the next frame discards it), else still a colour attachment.
+const SUBPASS_INPUT_LAYOUT: vk::ImageLayout = vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL;
 
 pub struct Passes {
     device: ash::Device,
@@ -30,7 +43,8 @@ pub struct Passes {
     pub format: PassFormat,
     /// Null for dynamic rendering.
     pub render_pass: vk::RenderPass,
-    framebuffers: HashMap<(vk::ImageView, vk::ImageView), vk::Framebuffer>,
+    /// By attachment views: colour, depth, and the resolve or subpass-1 attachment (or null).
+    framebuffers: HashMap<[vk::ImageView; 3], vk::Framebuffer>,
 }
 
 const COLOR_LAYOUT: vk::ImageLayout = vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL;
@@ -49,18 +63,29 @@ impl Passes {
         let depth_load = if format.load_depth { vk::AttachmentLoadOp::LOAD } else { vk::AttachmentLoadOp::CLEAR };
         // Images arrive in their attachment layouts (barriers outside the pass put them there),
         // so the passes themselves do no layout transitions.
+        // A multisampled colour that is resolved is not kept; a scene read by subpass 1 is not
+        // kept either (Godot Mobile's transient HDR buffer).
+        let color_store = if format.resolve || format.subpass_color.is_some() { vk::AttachmentStoreOp::DONT_CARE } else { vk::AttachmentStoreOp::STORE };
+        let color_final = if format.subpass_color.is_some() { SUBPASS_INPUT_LAYOUT } else { COLOR_LAYOUT };
+        // Attachment 2: the resolve target (same format, one sample) or subpass 1's colour.
+        let third = match (format.resolve, format.subpass_color) {
+            (true, _) => Some((format.color, vk::AttachmentLoadOp::DONT_CARE)),
+            (false, Some(f)) => Some((f, vk::AttachmentLoadOp::CLEAR)),
+            (false, None) => None,
+        };
+        let view_mask = format.view_mask.unwrap_or(0);
         match mode {
             Rendering::RenderPass => {
-                let attachments = [
+                let mut attachments = vec![
                     vk::AttachmentDescription::default()
                         .format(format.color)
                         .samples(format.samples)
                         .load_op(vk::AttachmentLoadOp::CLEAR)
-                        .store_op(vk::AttachmentStoreOp::STORE)
+                        .store_op(color_store)
                         .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
                         .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
                         .initial_layout(COLOR_LAYOUT)
-                        .final_layout(COLOR_LAYOUT),
+                        .final_layout(color_final),
                     vk::AttachmentDescription::default()
                         .format(format.depth)
                         .samples(format.samples)
@@ -71,17 +96,48 @@ impl Passes {
                         .initial_layout(DEPTH_LAYOUT)
                         .final_layout(DEPTH_LAYOUT),
                 ];
+                if let Some((f, load)) = third {
+                    attachments.push(
+                        vk::AttachmentDescription::default()
+                            .format(f)
+                            .samples(vk::SampleCountFlags::TYPE_1)
+                            .load_op(load)
+                            .store_op(vk::AttachmentStoreOp::STORE)
+                            .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
+                            .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
+                            .initial_layout(COLOR_LAYOUT)
+                            .final_layout(COLOR_LAYOUT),
+                    );
+                }
                 let color_ref = [vk::AttachmentReference { attachment: 0, layout: COLOR_LAYOUT }];
                 let depth_ref = vk::AttachmentReference { attachment: 1, layout: DEPTH_LAYOUT };
-                let subpass = [vk::SubpassDescription::default()
+                let third_ref = [vk::AttachmentReference { attachment: 2, layout: COLOR_LAYOUT }];
+                let input_ref = [vk::AttachmentReference { attachment: 0, layout: SUBPASS_INPUT_LAYOUT }];
+                let mut subpasses = vec![vk::SubpassDescription::default()
                     .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
                     .color_attachments(&color_ref)
                     .depth_stencil_attachment(&depth_ref)];
-                let masks = [format.view_mask.unwrap_or(0)];
+                if format.resolve {
+                    subpasses[0] = subpasses[0].resolve_attachments(&third_ref);
+                }
+                let dependencies = [subpass_dependency(view_mask)];
+                if format.subpass_color.is_some() {
+                    subpasses.push(
+                        vk::SubpassDescription::default()
+                            .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
+                            .input_attachments(&input_ref)
+                            .color_attachments(&third_ref),
+                    );
+                }
+                let masks = vec![view_mask; subpasses.len()];
+                let correlation = [view_mask];
                 let mut multiview = vk::RenderPassMultiviewCreateInfo::default()
                     .view_masks(&masks)
-                    .correlation_masks(&masks);
-                let mut info = vk::RenderPassCreateInfo::default().attachments(&attachments).subpasses(&subpass);
+                    .correlation_masks(&correlation);
+                let mut info = vk::RenderPassCreateInfo::default().attachments(&attachments).subpasses(&subpasses);
+                if subpasses.len() > 1 {
+                    info = info.dependencies(&dependencies);
+                }
                 if format.view_mask.is_some() {
                     info = info.push_next(&mut multiview);
                 }
@@ -89,16 +145,16 @@ impl Passes {
                 p.render_pass = unsafe { gpu.device.create_render_pass(&info, None) }.ctx("vkCreateRenderPass")?;
             }
             Rendering::RenderPass2 => {
-                let attachments = [
+                let mut attachments = vec![
                     vk::AttachmentDescription2::default()
                         .format(format.color)
                         .samples(format.samples)
                         .load_op(vk::AttachmentLoadOp::CLEAR)
-                        .store_op(vk::AttachmentStoreOp::STORE)
+                        .store_op(color_store)
                         .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
                         .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
                         .initial_layout(COLOR_LAYOUT)
-                        .final_layout(COLOR_LAYOUT),
+                        .final_layout(color_final),
                     vk::AttachmentDescription2::default()
                         .format(format.depth)
                         .samples(format.samples)
@@ -109,6 +165,19 @@ impl Passes {
                         .initial_layout(DEPTH_LAYOUT)
                         .final_layout(DEPTH_LAYOUT),
                 ];
+                if let Some((f, load)) = third {
+                    attachments.push(
+                        vk::AttachmentDescription2::default()
+                            .format(f)
+                            .samples(vk::SampleCountFlags::TYPE_1)
+                            .load_op(load)
+                            .store_op(vk::AttachmentStoreOp::STORE)
+                            .stencil_load_op(vk::AttachmentLoadOp::DONT_CARE)
+                            .stencil_store_op(vk::AttachmentStoreOp::DONT_CARE)
+                            .initial_layout(COLOR_LAYOUT)
+                            .final_layout(COLOR_LAYOUT),
+                    );
+                }
                 let color_ref = [vk::AttachmentReference2::default()
                     .attachment(0)
                     .layout(COLOR_LAYOUT)
@@ -117,13 +186,42 @@ impl Passes {
                     .attachment(1)
                     .layout(DEPTH_LAYOUT)
                     .aspect_mask(crate::targets::depth_aspect(format.depth));
-                let subpass = [vk::SubpassDescription2::default()
+                let third_ref = [vk::AttachmentReference2::default().attachment(2).layout(COLOR_LAYOUT).aspect_mask(vk::ImageAspectFlags::COLOR)];
+                let input_ref = [vk::AttachmentReference2::default()
+                    .attachment(0)
+                    .layout(SUBPASS_INPUT_LAYOUT)
+                    .aspect_mask(vk::ImageAspectFlags::COLOR)];
+                let mut subpasses = vec![vk::SubpassDescription2::default()
                     .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
-                    .view_mask(format.view_mask.unwrap_or(0))
+                    .view_mask(view_mask)
                     .color_attachments(&color_ref)
                     .depth_stencil_attachment(&depth_ref)];
-                let correlated = [format.view_mask.unwrap_or(0)];
-                let mut info = vk::RenderPassCreateInfo2::default().attachments(&attachments).subpasses(&subpass);
+                if format.resolve {
+                    subpasses[0] = subpasses[0].resolve_attachments(&third_ref);
+                }
+                if format.subpass_color.is_some() {
+                    subpasses.push(
+                        vk::SubpassDescription2::default()
+                            .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
+                            .view_mask(view_mask)
+                            .input_attachments(&input_ref)
+                            .color_attachments(&third_ref),
+                    );
+                }
+                let d = subpass_dependency(view_mask);
+                let dependencies = [vk::SubpassDependency2::default()
+                    .src_subpass(d.src_subpass)
+                    .dst_subpass(d.dst_subpass)
+                    .src_stage_mask(d.src_stage_mask)
+                    .dst_stage_mask(d.dst_stage_mask)
+                    .src_access_mask(d.src_access_mask)
+                    .dst_access_mask(d.dst_access_mask)
+                    .dependency_flags(d.dependency_flags)];
+                let correlated = [view_mask];
+                let mut info = vk::RenderPassCreateInfo2::default().attachments(&attachments).subpasses(&subpasses);
+                if subpasses.len() > 1 {
+                    info = info.dependencies(&dependencies);
+                }
                 if format.view_mask.is_some() {
                     info = info.correlated_view_masks(&correlated);
                 }
@@ -141,25 +239,26 @@ impl Passes {
         Ok(p)
     }
 
-    /// The framebuffer of a pass on `color`/`depth` (made the first time; render pass objects), or
-    /// null (dynamic rendering, which has none).
-    pub fn framebuffer(&mut self, color: vk::ImageView, depth: vk::ImageView, extent: vk::Extent2D) -> Result<vk::Framebuffer> {
+    /// The framebuffer of a pass on `views` (colour, depth, and the resolve or subpass-1
+    /// attachment or null; made the first time; render pass objects), or null (dynamic
+    /// rendering, which has none).
+    pub fn framebuffer(&mut self, views: [vk::ImageView; 3], extent: vk::Extent2D) -> Result<vk::Framebuffer> {
         if self.mode == Rendering::Dynamic {
             return Ok(vk::Framebuffer::null());
         }
-        if let Some(fb) = self.framebuffers.get(&(color, depth)) {
+        if let Some(fb) = self.framebuffers.get(&views) {
             return Ok(*fb);
         }
-        let attachments = [color, depth];
+        let count = if views[2] == vk::ImageView::null() { 2 } else { 3 };
         let info = vk::FramebufferCreateInfo::default()
             .render_pass(self.render_pass)
-            .attachments(&attachments)
+            .attachments(&views[..count])
             .width(extent.width)
             .height(extent.height)
             .layers(1);
         // SAFETY: views of live images compatible with the render pass.
         let fb = unsafe { self.device.create_framebuffer(&info, None) }.ctx("vkCreateFramebuffer")?;
-        self.framebuffers.insert((color, depth), fb);
+        self.framebuffers.insert(views, fb);
         Ok(fb)
     }
 
@@ -198,26 +297,18 @@ impl Passes {
     /// with `load_depth`). With `secondary` its contents are secondary command buffers (render
     /// pass: `VK_SUBPASS_CONTENTS_SECONDARY_COMMAND_BUFFERS`; dynamic rendering:
     /// `VK_RENDERING_CONTENTS_SECONDARY_COMMAND_BUFFERS_BIT`).
-    #[allow(clippy::too_many_arguments)]
-    pub fn begin(
-        &mut self,
-        gpu: &Gpu,
-        cmd: vk::CommandBuffer,
-        color: vk::ImageView,
-        depth: vk::ImageView,
-        extent: vk::Extent2D,
-        clear_depth: f32,
-        secondary: bool,
-    ) -> Result<()> {
+    pub fn begin(&mut self, gpu: &Gpu, cmd: vk::CommandBuffer, target: &crate::renderer::PassTarget, clear_depth: f32, secondary: bool) -> Result<()> {
+        let (color, depth, extent) = (target.color_view, target.depth_view, target.extent);
         let contents = if secondary { vk::SubpassContents::SECONDARY_COMMAND_BUFFERS } else { vk::SubpassContents::INLINE };
         let area = vk::Rect2D { offset: vk::Offset2D::default(), extent };
         let clears = [
             vk::ClearValue { color: vk::ClearColorValue { float32: [0.0, 0.0, 0.0, 1.0] } },
             vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: clear_depth, stencil: 0 } },
+            vk::ClearValue { color: vk::ClearColorValue { float32: [0.0, 0.0, 0.0, 1.0] } },
         ];
         match self.mode {
             Rendering::RenderPass | Rendering::RenderPass2 => {
-                let fb = self.framebuffer(color, depth, extent)?;
+                let fb = self.framebuffer(target.attachments(), extent)?;
                 let info = vk::RenderPassBeginInfo::default()
                     .render_pass(self.render_pass)
                     .framebuffer(fb)
@@ -237,12 +328,21 @@ impl Passes {
                 }
             }
             Rendering::Dynamic => {
-                let color_att = [vk::RenderingAttachmentInfo::default()
+                let mut color_att = [vk::RenderingAttachmentInfo::default()
                     .image_view(color)
                     .image_layout(COLOR_LAYOUT)
                     .load_op(vk::AttachmentLoadOp::CLEAR)
                     .store_op(vk::AttachmentStoreOp::STORE)
                     .clear_value(clears[0])];
+                if let Some(resolve) = target.resolve_view {
+                    // Averaged into the single-sampled target at the end of the pass; the
+                    // multisampled colour itself is not kept.
+                    color_att[0] = color_att[0]
+                        .store_op(vk::AttachmentStoreOp::DONT_CARE)
+                        .resolve_mode(vk::ResolveModeFlags::AVERAGE)
+                        .resolve_image_view(resolve)
+                        .resolve_image_layout(COLOR_LAYOUT);
+                }
                 let depth_att = vk::RenderingAttachmentInfo::default()
                     .image_view(depth)
                     .image_layout(DEPTH_LAYOUT)
@@ -295,6 +395,26 @@ impl Passes {
         }];
         // SAFETY: a pass with a depth attachment is open on `cmd`; the rect lies in its render area.
         unsafe { gpu.device.cmd_clear_attachments(cmd, &attachment, &rect) };
+    }
+
+    /// `--post-subpass`: from the scene's subpass to the tonemap's, whose commands are recorded
+    /// inline (also when the scene's were in a secondary command buffer).
+    pub fn next_subpass(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {
+        // SAFETY: a render pass with two subpasses is open on `cmd`, in its first subpass.
+        unsafe {
+            match self.mode {
+                Rendering::RenderPass => gpu.device.cmd_next_subpass(cmd, vk::SubpassContents::INLINE),
+                Rendering::RenderPass2 => {
+                    let begin = vk::SubpassBeginInfo::default().contents(vk::SubpassContents::INLINE);
+                    let end = vk::SubpassEndInfo::default();
+                    match gpu.render_pass2.as_ref().expect("render-pass2 loader") {
+                        RenderPass2::Core => gpu.device.cmd_next_subpass2(cmd, &begin, &end),
+                        RenderPass2::Khr(k) => k.cmd_next_subpass2(cmd, &begin, &end),
+                    }
+                }
+                Rendering::Dynamic => unreachable!("--post-subpass is refused with dynamic rendering"),
+            }
+        }
     }
 
     pub fn end(&self, gpu: &Gpu, cmd: vk::CommandBuffer) {
@@ -404,6 +524,23 @@ impl Passes {
             .map_err(|(_, e)| e)
             .ctx("vkCreateGraphicsPipelines")?;
         Ok(pipelines[0])
+    }
+}
+
+/// `--post-subpass`: subpass 1 reads what subpass 0 wrote at the same pixel (and view).
+fn subpass_dependency(view_mask: u32) -> vk::SubpassDependency {
+    let mut flags = vk::DependencyFlags::BY_REGION;
+    if view_mask != 0 {
+        flags |= vk::DependencyFlags::VIEW_LOCAL;
+    }
+    vk::SubpassDependency {
+        src_subpass: 0,
+        dst_subpass: 1,
+        src_stage_mask: vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
+        dst_stage_mask: vk::PipelineStageFlags::FRAGMENT_SHADER,
+        src_access_mask: vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+        dst_access_mask: vk::AccessFlags::INPUT_ATTACHMENT_READ,
+        dependency_flags: flags,
     }
 }
 

@@ -1,5 +1,9 @@
 //! Render targets: the colour (and depth) swapchains of the chosen layout, their image views, and
-//! the app-owned images (multisampled intermediate colour, private depth) the passes draw into.
+//! the app-owned images (multisampled intermediate colour, private depth, `--post`'s chain,
+//! `--submit-texture double-wide`'s texture) the passes draw into. Three sets of rects per view:
+//! where it is submitted (`views`), where the eye pass draws it (`scene_views`, scaled by
+//! `--render-scale` / `--viewport-scale`) and where the last pass before any blit writes it
+//! (`final_views`: the double-wide texture's halves, else the submitted rects).
 
 use crate::cli::{Layout, Options};
 use crate::error::{fail, Ctx, Result};
@@ -16,7 +20,7 @@ pub struct OwnedImage {
 }
 
 impl OwnedImage {
-    fn new(
+    pub fn new(
         gpu: &Gpu,
         format: vk::Format,
         extent: vk::Extent2D,
@@ -73,7 +77,7 @@ impl OwnedImage {
         }
     }
 
-    fn destroy(&mut self, d: &ash::Device) {
+    pub fn destroy(&mut self, d: &ash::Device) {
         // SAFETY: the device is idle (callers wait) and these handles are ours.
         unsafe {
             d.destroy_image_view(self.view, None);
@@ -122,9 +126,19 @@ pub struct Chain {
 
 /// Everything one render pass instance draws into: one per eye for per-eye, one otherwise.
 pub struct Slot {
+    /// The colour swapchain's size and array layers (2 for the multiview array and for
+    /// `--submit-texture double-wide`, else 1).
     pub extent: vk::Extent2D,
-    /// 2 for the multiview array, else 1.
     pub layers: u32,
+    /// The eye pass's target: its size (the swapchain's, or the double-wide texture's, times
+    /// `--render-scale`) and layers.
+    pub scene_extent: vk::Extent2D,
+    pub scene_layers: u32,
+    /// `--submit-texture double-wide`: the app's own double-wide texture (swapchain format), which
+    /// the last pass writes and the blits read.
+    pub double_wide: Option<OwnedImage>,
+    /// `--post`: the chain's images.
+    pub post: Option<crate::post::PostImages>,
     pub color: Chain,
     pub depth: Option<Chain>,
     /// Multisampled (or single-sampled) offscreen colour with `--intermediate`.
@@ -142,13 +156,57 @@ pub struct ViewRect {
     pub extent: vk::Extent2D,
 }
 
+impl Slot {
+    /// The image the frame's last pass (or copy) writes before any blit, with its view, size and
+    /// layers: the double-wide texture, else the acquired swapchain image.
+    pub fn final_image(&self, acquired_color: u32) -> (vk::Image, vk::ImageView, vk::Extent2D, u32) {
+        match &self.double_wide {
+            Some(dw) => (dw.image, dw.view, self.final_extent(), 1),
+            None => (self.color.images[acquired_color as usize], self.color.views[acquired_color as usize], self.extent, self.layers),
+        }
+    }
+
+    pub fn final_extent(&self) -> vk::Extent2D {
+        match &self.double_wide {
+            Some(_) => vk::Extent2D { width: self.extent.width * 2, height: self.extent.height },
+            None => self.extent,
+        }
+    }
+
+    pub fn final_layers(&self) -> u32 {
+        if self.double_wide.is_some() {
+            1
+        } else {
+            self.layers
+        }
+    }
+}
+
 pub struct Targets {
     device: ash::Device,
     pub slots: Vec<Slot>,
+    /// Where each view is submitted (`XrSwapchainSubImage`).
     pub views: [ViewRect; 2],
+    /// Where the eye pass draws each view (its viewport): `views`, or their place in the double-
+    /// wide texture, scaled by `--render-scale` and `--viewport-scale`.
+    pub scene_views: [ViewRect; 2],
+    /// Where the last pass writes each view: the double-wide texture's halves, else `views`.
+    pub final_views: [ViewRect; 2],
     pub color_format: vk::Format,
     pub depth_format: vk::Format,
     pub samples: vk::SampleCountFlags,
+}
+
+/// What `push_slot` makes: the swapchain's size and layers, the eye pass's target's, and each
+/// view's (x offset, size) in that target and in the image the frame's last pass writes (one
+/// entry per view drawn separately; multiview's one entry covers both layers).
+struct SlotShape {
+    extent: vk::Extent2D,
+    layers: u32,
+    scene_extent: vk::Extent2D,
+    scene_layers: u32,
+    scene_eyes: Vec<(i32, vk::Extent2D)>,
+    final_eyes: Vec<(i32, vk::Extent2D)>,
 }
 
 fn scaled(v: u32, scale: f32, max: u32) -> u32 {
@@ -161,6 +219,8 @@ impl Targets {
             device: gpu.device.clone(),
             slots: Vec::new(),
             views: [ViewRect { slot: 0, array_index: 0, offset_x: 0, extent: vk::Extent2D::default() }; 2],
+            scene_views: [ViewRect { slot: 0, array_index: 0, offset_x: 0, extent: vk::Extent2D::default() }; 2],
+            final_views: [ViewRect { slot: 0, array_index: 0, offset_x: 0, extent: vk::Extent2D::default() }; 2],
             color_format: vk::Format::UNDEFINED,
             depth_format: vk::Format::UNDEFINED,
             samples: vk::SampleCountFlags::from_raw(opts.samples),
@@ -216,50 +276,83 @@ impl Targets {
             width: size(0).width.max(size(1).width),
             height: size(0).height.max(size(1).height),
         };
+        // The eye pass's target is the swapchain's size times `--render-scale`, and each view is
+        // drawn into `--viewport-scale` of its part of it (top left, as DLSS-style engines do).
+        let by = |e: vk::Extent2D, f: f32| vk::Extent2D {
+            width: ((e.width as f32 * f).round() as u32).max(1),
+            height: ((e.height as f32 * f).round() as u32).max(1),
+        };
+        let target = |e: vk::Extent2D| by(e, opts.render_scale);
+        let drawn = |e: vk::Extent2D| by(target(e), opts.viewport_scale);
+        let double_wide = opts.submit_texture == Some(crate::cli::SubmitTexture::DoubleWide);
         match opts.layout {
             Layout::PerEye => {
                 for v in 0..2 {
                     let e = size(v);
-                    self.push_slot(opts, gpu, xs, e, 1)?;
+                    self.push_slot(opts, gpu, xs, SlotShape { extent: e, layers: 1, scene_extent: target(e), scene_layers: 1, scene_eyes: vec![(0, drawn(e))], final_eyes: vec![(0, e)] })?;
                     self.views[v] = ViewRect { slot: v, array_index: 0, offset_x: 0, extent: e };
+                    self.scene_views[v] = ViewRect { slot: v, array_index: 0, offset_x: 0, extent: drawn(e) };
                 }
             }
             Layout::Multiview => {
-                self.push_slot(opts, gpu, xs, shared, 2)?;
+                self.push_slot(opts, gpu, xs, SlotShape { extent: shared, layers: 2, scene_extent: target(shared), scene_layers: 2, scene_eyes: vec![(0, drawn(shared))], final_eyes: vec![(0, shared)] })?;
                 for v in 0..2 {
                     self.views[v] = ViewRect { slot: 0, array_index: v as u32, offset_x: 0, extent: shared };
+                    self.scene_views[v] = ViewRect { slot: 0, array_index: v as u32, offset_x: 0, extent: drawn(shared) };
                 }
             }
             Layout::SideBySide => {
+                // Both halves keep one size, so the target is twice one eye's scaled width.
+                let eye_target = target(shared);
+                let scene_extent = vk::Extent2D { width: eye_target.width * 2, height: eye_target.height };
+                let scene_eyes = (0..2).map(|v| (v * eye_target.width as i32, drawn(shared))).collect();
+                let final_eyes = (0..2).map(|v| (v * shared.width as i32, shared)).collect();
                 let wide = vk::Extent2D { width: shared.width * 2, height: shared.height };
-                self.push_slot(opts, gpu, xs, wide, 1)?;
+                // Double-wide: the swapchain is a 2-layer array of one eye's size; the texture the
+                // passes render is side by side.
+                let (extent, layers) = if double_wide { (shared, 2) } else { (wide, 1) };
+                self.push_slot(opts, gpu, xs, SlotShape { extent, layers, scene_extent, scene_layers: 1, scene_eyes, final_eyes })?;
                 for v in 0..2 {
-                    self.views[v] = ViewRect {
-                        slot: 0,
-                        array_index: 0,
-                        offset_x: (v as u32 * shared.width) as i32,
-                        extent: shared,
+                    let offset_x = (v as u32 * shared.width) as i32;
+                    self.views[v] = match double_wide {
+                        true => ViewRect { slot: 0, array_index: v as u32, offset_x: 0, extent: shared },
+                        false => ViewRect { slot: 0, array_index: 0, offset_x, extent: shared },
                     };
+                    self.final_views[v] = ViewRect { slot: 0, array_index: 0, offset_x, extent: shared };
+                    self.scene_views[v] = ViewRect { slot: 0, array_index: 0, offset_x: v as i32 * eye_target.width as i32, extent: drawn(shared) };
                 }
             }
+        }
+        if !double_wide {
+            self.final_views = self.views;
         }
         Ok(())
     }
 
-    fn push_slot(
-        &mut self,
-        opts: &Options,
-        gpu: &Gpu,
-        xs: &XrSession,
-        extent: vk::Extent2D,
-        layers: u32,
-    ) -> Result<()> {
+    fn push_slot(&mut self, opts: &Options, gpu: &Gpu, xs: &XrSession, shape: SlotShape) -> Result<()> {
+        let SlotShape { extent, layers, scene_extent, scene_layers, ref scene_eyes, ref final_eyes } = shape;
+        let double_wide = opts.submit_texture.is_some();
         let mut usage = xr::SwapchainUsageFlags::COLOR_ATTACHMENT;
-        if opts.intermediate {
+        // Written by a resolve, a copy or a blit; read by a copy into the TAA history.
+        if opts.intermediate || opts.post_compute || double_wide {
             usage |= xr::SwapchainUsageFlags::TRANSFER_DST;
         }
+        if opts.post == Some(crate::cli::PostEffect::Taa) && !double_wide {
+            usage |= xr::SwapchainUsageFlags::TRANSFER_SRC;
+        }
         let color = self.chain(xs, self.color_format, usage, extent, layers, vk::ImageAspectFlags::COLOR)?;
-        let mut slot = Slot { extent, layers, color, depth: None, offscreen: None, own_depth: None };
+        let mut slot = Slot {
+            extent,
+            layers,
+            scene_extent,
+            scene_layers,
+            color,
+            depth: None,
+            offscreen: None,
+            own_depth: None,
+            double_wide: None,
+            post: None,
+        };
         let push_and_err = |t: &mut Targets, slot: Slot, e| {
             t.slots.push(slot);
             Err(e)
@@ -286,8 +379,8 @@ impl Targets {
             match OwnedImage::new(
                 gpu,
                 self.depth_format,
-                extent,
-                layers,
+                scene_extent,
+                scene_layers,
                 self.samples,
                 if clear_by_transfer {
                     vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_DST
@@ -304,13 +397,37 @@ impl Targets {
             match OwnedImage::new(
                 gpu,
                 self.color_format,
-                extent,
-                layers,
+                scene_extent,
+                scene_layers,
                 self.samples,
                 vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC,
                 vk::ImageAspectFlags::COLOR,
             ) {
                 Ok(i) => slot.offscreen = Some(i),
+                Err(e) => return push_and_err(self, slot, e),
+            }
+        }
+        if double_wide {
+            // Rendered (or post-processed, copied, resolved) into, then blitted from; the TAA
+            // history is copied from it.
+            let wide = vk::Extent2D { width: extent.width * 2, height: extent.height };
+            let usage = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST;
+            match OwnedImage::new(gpu, self.color_format, wide, 1, vk::SampleCountFlags::TYPE_1, usage, vk::ImageAspectFlags::COLOR) {
+                Ok(i) => slot.double_wide = Some(i),
+                Err(e) => return push_and_err(self, slot, e),
+            }
+        }
+        if let Some(effect) = opts.post {
+            let shape = crate::post::SlotGeometry {
+                scene_extent,
+                layers: scene_layers,
+                scene_eyes: scene_eyes.clone(),
+                final_extent: slot.final_extent(),
+                final_layers: slot.final_layers(),
+                final_eyes: final_eyes.clone(),
+            };
+            match crate::post::PostImages::new(gpu, opts, effect, self.color_format, self.samples, shape) {
+                Ok(i) => slot.post = Some(i),
                 Err(e) => return push_and_err(self, slot, e),
             }
         }
@@ -422,6 +539,12 @@ impl Targets {
             }
             if let Some(i) = &mut s.own_depth {
                 i.destroy(&self.device);
+            }
+            if let Some(i) = &mut s.double_wide {
+                i.destroy(&self.device);
+            }
+            if let Some(p) = &mut s.post {
+                p.destroy(&self.device);
             }
         }
     }

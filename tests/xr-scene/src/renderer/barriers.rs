@@ -1,6 +1,7 @@
 //! The barriers of a frame's primary command buffer, outside the passes: the attachments put in
-//! their layouts before the passes (and `--depth-clear image`'s clears), and `--intermediate`'s
-//! resolve or copy into the swapchain images after them.
+//! their layouts before the passes (and `--depth-clear image`'s clears), `--intermediate`'s
+//! resolve or copy into the swapchain images (or the double-wide texture) after them, and
+//! `--submit-texture double-wide`'s blits into the swapchain's layers at the end.
 
 use super::{FrameSet, Renderer};
 use crate::cli::DepthClear;
@@ -15,20 +16,26 @@ impl Renderer {
         for (i, a) in acquired.iter().enumerate() {
             let slot = &targets.slots[i];
             let color_range = range(vk::ImageAspectFlags::COLOR, slot.layers);
-            let depth_range = range(depth_aspect(targets.depth_format), slot.layers);
+            let depth_range = range(depth_aspect(targets.depth_format), slot.scene_layers);
+            let scene_range = range(vk::ImageAspectFlags::COLOR, slot.scene_layers);
             let color_rw = vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE;
             let depth_rw = vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE;
-            match &slot.offscreen {
-                // Last frame's resolve/copy read it; its contents are cleared anyway.
-                Some(o) => images.push(image_barrier(
-                    o.image,
-                    color_range,
-                    vk::ImageLayout::UNDEFINED,
-                    vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-                    vk::AccessFlags::empty(),
-                    color_rw,
-                )),
-                // The runtime hands swapchain images out in COLOR_ATTACHMENT_OPTIMAL.
+            // The app's own colour targets: last frame's resolve, copy, blit or post-processing
+            // read them (an execution dependency on those stages, below); their contents are
+            // cleared or overwritten anyway.
+            let discard = |image: vk::Image, r| image_barrier(image, r, vk::ImageLayout::UNDEFINED, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::empty(), color_rw);
+            match (&slot.post, &slot.offscreen) {
+                (Some(p), _) => {
+                    images.push(discard(p.scene.image, scene_range));
+                    images.extend(p.scene_msaa.as_ref().map(|ms| discard(ms.image, scene_range)));
+                }
+                (None, Some(o)) => images.push(discard(o.image, scene_range)),
+                (None, None) => {}
+            }
+            match &slot.double_wide {
+                Some(dw) => images.push(discard(dw.image, range(vk::ImageAspectFlags::COLOR, 1))),
+                // The runtime hands swapchain images out in COLOR_ATTACHMENT_OPTIMAL. With the
+                // double-wide texture only the blits at the end write them.
                 None => images.push(image_barrier(
                     slot.color.images[a.color as usize],
                     color_range,
@@ -76,11 +83,16 @@ impl Renderer {
         if self.draw.depth_clear == DepthClear::Image {
             dst_stages |= vk::PipelineStageFlags::TRANSFER;
         }
+        let mut src_stages = vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | fragment_tests;
+        if self.post.is_some() {
+            // Last frame's post-processing read the HDR target (a draw, a subpass or a dispatch).
+            src_stages |= vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COMPUTE_SHADER;
+        }
         // SAFETY: recording state, outside any render pass.
         unsafe {
             self.device.cmd_pipeline_barrier(
                 cmd,
-                vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | fragment_tests,
+                src_stages,
                 dst_stages,
                 vk::DependencyFlags::empty(),
                 &[],
@@ -106,7 +118,7 @@ impl Renderer {
                 (_, _, Some(own)) => own.image,
                 _ => continue,
             };
-            let r = range(depth_aspect(targets.depth_format), slot.layers);
+            let r = range(depth_aspect(targets.depth_format), slot.scene_layers);
             // SAFETY: recording, outside any pass; the image was just put in TRANSFER_DST_OPTIMAL.
             unsafe { self.device.cmd_clear_depth_stencil_image(cmd, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &value, &[r]) };
             to_attachment.push(image_barrier(
@@ -133,7 +145,8 @@ impl Renderer {
     }
 
     /// `--intermediate`: resolve (N > 1) or copy (N = 1) each offscreen target into its swapchain
-    /// image, then hand the swapchain image back in COLOR_ATTACHMENT_OPTIMAL as the binding requires.
+    /// image (or the double-wide texture), then hand that back in COLOR_ATTACHMENT_OPTIMAL as the
+    /// binding requires.
     pub(super) fn resolve_to_swapchains(&self, cmd: vk::CommandBuffer, targets: &Targets, acquired: &[Acquired]) {
         let d = &self.device;
         let mut to_transfer = Vec::new();
@@ -141,8 +154,8 @@ impl Renderer {
         for (i, a) in acquired.iter().enumerate() {
             let slot = &targets.slots[i];
             let Some(off) = &slot.offscreen else { continue };
-            let r = range(vk::ImageAspectFlags::COLOR, slot.layers);
-            let sc = slot.color.images[a.color as usize];
+            let r = range(vk::ImageAspectFlags::COLOR, slot.scene_layers);
+            let (sc, ..) = slot.final_image(a.color);
             to_transfer.push(image_barrier(
                 off.image,
                 r,
@@ -186,10 +199,10 @@ impl Renderer {
                     aspect_mask: vk::ImageAspectFlags::COLOR,
                     mip_level: 0,
                     base_array_layer: 0,
-                    layer_count: slot.layers,
+                    layer_count: slot.scene_layers,
                 };
-                let extent = vk::Extent3D { width: slot.extent.width, height: slot.extent.height, depth: 1 };
-                let sc = slot.color.images[a.color as usize];
+                let extent = vk::Extent3D { width: slot.scene_extent.width, height: slot.scene_extent.height, depth: 1 };
+                let (sc, ..) = slot.final_image(a.color);
                 if self.samples == vk::SampleCountFlags::TYPE_1 {
                     let region = vk::ImageCopy {
                         src_subresource: layers,
@@ -221,13 +234,50 @@ impl Renderer {
             );
         }
     }
+
+    /// `--submit-texture double-wide`: each half of the double-wide texture blitted (same size,
+    /// nearest: a copy with bounds) into its layer of the swapchain image, as xrizer and
+    /// OpenComposite submit an OpenVR game's texture.
+    pub(super) fn blit_double_wide(&self, cmd: vk::CommandBuffer, targets: &Targets, acquired: &[Acquired]) {
+        let d = &self.device;
+        type S = vk::PipelineStageFlags;
+        type A = vk::AccessFlags;
+        type L = vk::ImageLayout;
+        for (i, a) in acquired.iter().enumerate() {
+            let slot = &targets.slots[i];
+            let Some(dw) = &slot.double_wide else { continue };
+            let sc = slot.color.images[a.color as usize];
+            let to_transfer = [
+                image_barrier(dw.image, range(vk::ImageAspectFlags::COLOR, 1), L::COLOR_ATTACHMENT_OPTIMAL, L::TRANSFER_SRC_OPTIMAL, A::COLOR_ATTACHMENT_WRITE, A::TRANSFER_READ),
+                image_barrier(sc, range(vk::ImageAspectFlags::COLOR, slot.layers), L::COLOR_ATTACHMENT_OPTIMAL, L::TRANSFER_DST_OPTIMAL, A::COLOR_ATTACHMENT_WRITE, A::TRANSFER_WRITE),
+            ];
+            let back = [image_barrier(sc, range(vk::ImageAspectFlags::COLOR, slot.layers), L::TRANSFER_DST_OPTIMAL, L::COLOR_ATTACHMENT_OPTIMAL, A::TRANSFER_WRITE, A::COLOR_ATTACHMENT_READ | A::COLOR_ATTACHMENT_WRITE)];
+            let (w, h) = (slot.extent.width as i32, slot.extent.height as i32);
+            let regions: Vec<vk::ImageBlit> = (0..slot.layers)
+                .map(|layer| vk::ImageBlit {
+                    src_subresource: vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: 1 },
+                    src_offsets: [vk::Offset3D { x: layer as i32 * w, y: 0, z: 0 }, vk::Offset3D { x: (layer as i32 + 1) * w, y: h, z: 1 }],
+                    dst_subresource: vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: layer, layer_count: 1 },
+                    dst_offsets: [vk::Offset3D { x: 0, y: 0, z: 0 }, vk::Offset3D { x: w, y: h, z: 1 }],
+                })
+                .collect();
+            // SAFETY: recording outside any pass; the images are in the layouts named.
+            unsafe {
+                // Whatever wrote last (the eye pass, the tonemap draw, or a copy or resolve that
+                // handed it back to COLOR_ATTACHMENT_OPTIMAL) is before the blit.
+                d.cmd_pipeline_barrier(cmd, S::COLOR_ATTACHMENT_OUTPUT | S::TRANSFER, S::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &to_transfer);
+                d.cmd_blit_image(cmd, dw.image, L::TRANSFER_SRC_OPTIMAL, sc, L::TRANSFER_DST_OPTIMAL, &regions, vk::Filter::NEAREST);
+                d.cmd_pipeline_barrier(cmd, S::TRANSFER, S::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &back);
+            }
+        }
+    }
 }
 
-fn range(aspect: vk::ImageAspectFlags, layers: u32) -> vk::ImageSubresourceRange {
+pub(crate) fn range(aspect: vk::ImageAspectFlags, layers: u32) -> vk::ImageSubresourceRange {
     vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: layers }
 }
 
-fn image_barrier(
+pub(crate) fn image_barrier(
     image: vk::Image,
     range: vk::ImageSubresourceRange,
     old: vk::ImageLayout,

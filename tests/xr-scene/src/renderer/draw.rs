@@ -87,9 +87,22 @@ pub struct PassTarget {
     pub slot: usize,
     pub color_view: vk::ImageView,
     pub depth_view: vk::ImageView,
+    /// `--post --samples N>1`: the single-sampled target the colour resolves into.
+    pub resolve_view: Option<vk::ImageView>,
+    /// `--post-subpass`: subpass 1's colour attachment (the swapchain image or the double-wide
+    /// texture).
+    pub subpass_view: Option<vk::ImageView>,
     pub extent: vk::Extent2D,
     /// Null for dynamic rendering.
     pub framebuffer: vk::Framebuffer,
+}
+
+impl PassTarget {
+    /// The framebuffer's attachments: colour, depth, and the resolve or subpass-1 attachment (at
+    /// most one of them: the command line refuses MSAA with `--post-subpass`), or null.
+    pub fn attachments(&self) -> [vk::ImageView; 3] {
+        [self.color_view, self.depth_view, self.resolve_view.or(self.subpass_view).unwrap_or(vk::ImageView::null())]
+    }
 }
 
 /// What a pass's draws bind of their frame set: plain values, so that a worker thread needs
@@ -100,7 +113,7 @@ pub struct SetBinding {
     /// Per eye: the dynamic offsets of binding 1 (the per-view counters) and binding 2 (the
     /// per-pixel counters, or the per-view counters again without `--pixel-stats`).
     pub offsets: [[u32; 2]; 2],
-    /// Each view's image rect.
+    /// Each view's rect in the eye pass's target (its viewport).
     pub views: [ViewRect; 2],
 }
 
@@ -144,10 +157,12 @@ impl SceneDraw {
     }
 
     /// Viewport and scissor (with `viewport`), descriptor set and push constants of view `eye`.
-    fn bind(&self, rec: vk::CommandBuffer, pass: &PassTarget, set: &SetBinding, eye: u32, viewport: bool) {
+    fn bind(&self, rec: vk::CommandBuffer, _pass: &PassTarget, set: &SetBinding, eye: u32, viewport: bool) {
         let d = &self.device;
+        // Multiview's rects start at 0 in both layers; `--viewport-scale` makes every rect smaller
+        // than its target.
         let rect = set.views[eye as usize];
-        let (x, w) = if self.multiview { (0, pass.extent.width) } else { (rect.offset_x, rect.extent.width) };
+        let (x, w) = (rect.offset_x, rect.extent.width);
         let h = rect.extent.height;
         let pc = PushConstants { eye, pix_origin_x: x, pix_width: rect.extent.width, pix_height: h, ..self.push };
         // SAFETY: `rec` is recording (inside the pass, or before it with `--bind-before-pass`);
@@ -257,7 +272,7 @@ pub(super) fn max_spirv(api: crate::cli::VulkanApi) -> u32 {
         crate::cli::VulkanApi::V1_3 => 0x0001_0600,
     }
 }
-pub(super) fn shader_module(d: &ash::Device, bytes: &[u8], api: crate::cli::VulkanApi) -> Result<vk::ShaderModule> {
+pub(crate) fn shader_module(d: &ash::Device, bytes: &[u8], api: crate::cli::VulkanApi) -> Result<vk::ShaderModule> {
     let words = ash::util::read_spv(&mut std::io::Cursor::new(bytes)).ctx("reading SPIR-V")?;
     // Checked here too, so that a run without `--validation` fails as well (the validation layer
     // reports it as UNASSIGNED-CoreValidation-Shader-InconsistentSpirv).

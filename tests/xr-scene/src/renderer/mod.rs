@@ -5,7 +5,8 @@
 //! only resubmits it, as simple engines do, with the per-frame data in memory it reads.
 //! `--threads` records the passes' secondaries on worker threads and submits on a submit thread
 //! (`crate::threads`). What is drawn inside a pass is `draw`, the barriers around the passes
-//! `barriers`.
+//! `barriers`. With `--post` the eye passes render the chain's HDR target and `crate::post`
+//! records the rest; with `--submit-texture double-wide` the frame ends with the blits.
 
 mod barriers;
 mod draw;
@@ -18,7 +19,10 @@ use crate::stats::{GpuCounters, PixelCounters, BINDING_RANGE};
 use crate::targets::{depth_aspect, Targets};
 use crate::threads::{Submission, Submitter, Workers};
 use ash::vk;
-use draw::{shader_module, Buffer, PassTarget, PushConstants, SceneDraw, SetBinding, PC_MANUAL_SRGB, PC_PIXEL_STATS};
+pub(crate) use barriers::{image_barrier, range};
+pub(crate) use draw::shader_module;
+pub use draw::PassTarget;
+use draw::{Buffer, PushConstants, SceneDraw, SetBinding, PC_MANUAL_SRGB, PC_PIXEL_STATS};
 use glam::{Mat4, Vec4};
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -122,27 +126,34 @@ pub struct Renderer {
     /// entry of `sets_by_images`, each in flight until the frame that needs it again.
     sets: Vec<FrameSet>,
     sets_by_images: HashMap<Vec<Acquired>, usize>,
+    /// `--post`: the chain after the eye passes.
+    post: Option<crate::post::PostChain>,
 }
 
 impl Renderer {
     pub fn new(opts: &Options, gpu: &Gpu, targets: &Targets) -> Result<Renderer> {
         let d = &gpu.device;
         let multiview = opts.layout == Layout::Multiview;
+        let post = opts.post.is_some();
         let passes = Passes::new(
             gpu,
             opts.rendering,
             PassFormat {
-                color: targets.color_format,
+                // `--post`: the eye pass renders HDR, tonemapped later.
+                color: if post { crate::post::HDR_FORMAT } else { targets.color_format },
                 depth: targets.depth_format,
                 samples: targets.samples,
                 view_mask: multiview.then_some(0b11),
                 store_depth: opts.submit_depth,
                 has_stencil: depth_aspect(targets.depth_format).contains(vk::ImageAspectFlags::STENCIL),
                 load_depth: opts.depth_clear != DepthClear::LoadOp,
+                resolve: post && targets.samples != vk::SampleCountFlags::TYPE_1,
+                subpass_color: opts.post_subpass.then_some(targets.color_format),
             },
         )?;
         let view_sizes = targets.views.map(|v| (v.extent.width, v.extent.height));
-        let mut flags = if opts.color_format == crate::cli::ColorFamily::Unorm { PC_MANUAL_SRGB } else { 0 };
+        // The HDR target holds linear colour: only the tonemap encodes.
+        let mut flags = if opts.color_format == crate::cli::ColorFamily::Unorm && !post { PC_MANUAL_SRGB } else { 0 };
         if opts.pixel_stats.is_some() {
             flags |= PC_PIXEL_STATS;
         }
@@ -198,15 +209,16 @@ impl Renderer {
             submitter: Submitter::new(gpu, opts.threads)?,
             sets: Vec::new(),
             sets_by_images: HashMap::new(),
+            post: None,
         };
         if opts.threads {
             r.workers = Some(Workers::new(gpu, targets.slots.len())?);
         }
-        r.init(opts, gpu)?;
+        r.init(opts, gpu, targets)?;
         Ok(r)
     }
 
-    fn init(&mut self, opts: &Options, gpu: &Gpu) -> Result<()> {
+    fn init(&mut self, opts: &Options, gpu: &Gpu, targets: &Targets) -> Result<()> {
         let d = &gpu.device;
         // SAFETY: plain object creation on a live device; everything is destroyed in Drop.
         unsafe {
@@ -292,6 +304,9 @@ impl Renderer {
             d.destroy_shader_module(vert, None);
             d.destroy_shader_module(frag, None);
             created?;
+        }
+        if opts.post.is_some() {
+            self.post = Some(crate::post::PostChain::new(gpu, opts, targets, self.passes.render_pass)?);
         }
         self.upload_scene(gpu)
     }
@@ -463,6 +478,9 @@ impl Renderer {
                     .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
                     .dst_access_mask(vk::AccessFlags::VERTEX_ATTRIBUTE_READ | vk::AccessFlags::INDEX_READ)];
                 d.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::VERTEX_INPUT, vk::DependencyFlags::empty(), &mb, &[], &[]);
+                if let Some(post) = &self.post {
+                    post.record_init(cmd);
+                }
                 d.end_command_buffer(cmd).ctx("vkEndCommandBuffer")?;
                 self.submitter.submit(Submission { cmd, fence, submit2: false })?;
                 d.wait_for_fences(&[fence], true, u64::MAX).ctx("vkWaitForFences")
@@ -568,17 +586,26 @@ impl Renderer {
         let mut passes = Vec::new();
         for (slot_index, a) in acquired.iter().enumerate() {
             let slot = &targets.slots[slot_index];
-            let color_view = match &slot.offscreen {
-                Some(o) => o.view,
-                None => slot.color.views[a.color as usize],
+            let (_, final_view, _, _) = slot.final_image(a.color);
+            // The eye pass's colour: the post chain's HDR target (multisampled, resolved into the
+            // HDR target), `--intermediate`'s offscreen target, or the final image itself.
+            let (color_view, resolve_view) = match (&slot.post, &slot.offscreen) {
+                (Some(p), _) => match &p.scene_msaa {
+                    Some(ms) => (ms.view, Some(p.scene.view)),
+                    None => (p.scene.view, None),
+                },
+                (None, Some(o)) => (o.view, None),
+                (None, None) => (final_view, None),
             };
+            let subpass_view = self.passes.format.subpass_color.map(|_| final_view);
             let depth_view = match (&slot.depth, a.depth, &slot.own_depth) {
                 (Some(chain), Some(i), _) => chain.views[i as usize],
                 (_, _, Some(own)) => own.view,
                 _ => return Err(Error("internal: slot without depth".into())),
             };
-            let framebuffer = self.passes.framebuffer(color_view, depth_view, slot.extent)?;
-            passes.push(PassTarget { slot: slot_index, color_view, depth_view, extent: slot.extent, framebuffer });
+            let mut pass = PassTarget { slot: slot_index, color_view, depth_view, resolve_view, subpass_view, extent: slot.scene_extent, framebuffer: vk::Framebuffer::null() };
+            pass.framebuffer = self.passes.framebuffer(pass.attachments(), slot.scene_extent)?;
+            passes.push(pass);
         }
         let set = &self.sets[index];
         let cmd = set.cmd;
@@ -587,7 +614,7 @@ impl Renderer {
             let counters = set.counters.dynamic_offset(eye, multiview);
             [counters, set.pixels.as_ref().map_or(counters, |p| p.dynamic_offset(eye, multiview))]
         });
-        let binding = SetBinding { descriptor_set: set.descriptor_set, offsets, views: targets.views };
+        let binding = SetBinding { descriptor_set: set.descriptor_set, offsets, views: targets.scene_views };
         // A command buffer recorded once is submitted many times (and so are the secondaries it
         // executes): ONE_TIME_SUBMIT only where it is re-recorded for every submission.
         let usage = if self.record_once { vk::CommandBufferUsageFlags::empty() } else { vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT };
@@ -615,21 +642,30 @@ impl Renderer {
                         if self.workers.is_none() {
                             self.draw.record_secondary(gpu, &self.passes, sec, pass, &binding, usage, &|| {})?;
                         }
-                        self.passes.begin(gpu, cmd, pass.color_view, pass.depth_view, pass.extent, self.draw.clear_depth, true)?;
+                        self.passes.begin(gpu, cmd, pass, self.draw.clear_depth, true)?;
                         d.cmd_execute_commands(cmd, &[sec]);
                     }
                     None => {
                         if self.draw.bind_before_pass {
                             self.draw.bind_before_pass(cmd, pass, &binding);
                         }
-                        self.passes.begin(gpu, cmd, pass.color_view, pass.depth_view, pass.extent, self.draw.clear_depth, false)?;
+                        self.passes.begin(gpu, cmd, pass, self.draw.clear_depth, false)?;
                         self.draw.record_contents(gpu, &self.passes, cmd, pass, &binding);
                     }
                 }
+                if let (Some(post), Some(_)) = (&self.post, pass.subpass_view) {
+                    post.record_subpass(gpu, &self.passes, cmd, pass);
+                }
                 self.passes.end(gpu, cmd);
+            }
+            if let Some(post) = &mut self.post {
+                post.record(gpu, cmd, targets, acquired)?;
             }
             if self.intermediate {
                 self.resolve_to_swapchains(cmd, targets, acquired);
+            }
+            if targets.slots.iter().any(|s| s.double_wide.is_some()) {
+                self.blit_double_wide(cmd, targets, acquired);
             }
             set.counters.record_end(cmd);
             if let Some(p) = &set.pixels {

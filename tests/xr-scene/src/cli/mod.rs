@@ -1,7 +1,10 @@
 //! Command-line parsing (clap): the flag set is the test contract of docs/testing.md; the checks of
 //! combinations that cannot work live in `parse`.
 
+mod post;
+
 use clap::{CommandFactory, Parser, ValueEnum};
+use post::check_post;
 use std::path::PathBuf;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -89,6 +92,30 @@ pub enum Teardown {
     Instance,
 }
 
+/// The post-processing chain between the eye pass and the swapchain (`--post`), as engines record
+/// it: the eye pass renders into an RGBA16F target and full-screen draws take it from there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PostEffect {
+    /// One full-screen draw: tonemap the scene target into the swapchain image.
+    Tonemap,
+    /// A down-sample mip chain (half, quarter, eighth size) and its up-sample, added in the
+    /// tonemap draw.
+    Bloom,
+    /// A history buffer (the previous frame's output) blended into the tonemap draw, then the new
+    /// output copied into it.
+    Taa,
+}
+
+/// How the app hands its rendered eyes to the runtime (`--submit-texture`), other than the
+/// swapchain layout its passes render into.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SubmitTexture {
+    /// Both eyes rendered side by side into one double-wide texture of the app's, then blitted
+    /// (`vkCmdBlitImage` with bounds) each half into its layer of a 2-layer swapchain: what
+    /// xrizer and OpenComposite do with an OpenVR game's texture.
+    DoubleWide,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ColorFamily {
     Srgb,
@@ -171,6 +198,23 @@ pub struct Options {
     /// `--visibility-mask`: enable XR_KHR_visibility_mask and fetch each view's hidden-area mesh
     /// once after creating the session, as apps that draw their own mask do.
     pub visibility_mask: bool,
+    /// `--post`: the post-processing chain after the eye pass (none: the eye pass renders the
+    /// swapchain image, or `--intermediate`'s target).
+    pub post: Option<PostEffect>,
+    /// `--post-compute`: the tonemap is a compute dispatch into a storage image, copied into the
+    /// swapchain image.
+    pub post_compute: bool,
+    /// `--post-subpass`: the tonemap is a second subpass of the eye pass's render pass, reading
+    /// the scene as an input attachment.
+    pub post_subpass: bool,
+    /// `--post-depth-attachment`: the tonemap pass has a depth attachment (cleared, never tested).
+    pub post_depth_attachment: bool,
+    /// `--render-scale`: the eye pass's target is this fraction of the swapchain's size.
+    pub render_scale: f32,
+    /// `--viewport-scale`: the eye pass draws into this fraction of its (full-size) target.
+    pub viewport_scale: f32,
+    /// `--submit-texture double-wide`.
+    pub submit_texture: Option<SubmitTexture>,
 }
 
 /// The command line as clap sees it; `parse` turns it into checked `Options`.
@@ -308,6 +352,34 @@ struct Args {
     /// Fetch each view's hidden-area mesh (XR_KHR_visibility_mask).
     #[arg(long)]
     visibility_mask: bool,
+    /// Render the eye passes into an RGBA16F target, then post-process into the swapchain with
+    /// full-screen draws: tonemap; bloom (down/up-sample chain, then tonemap); taa (history
+    /// blended into the tonemap).
+    #[arg(long, value_enum)]
+    post: Option<PostEffect>,
+    /// With --post tonemap: tonemap in a compute dispatch into a storage image, then
+    /// vkCmdCopyImage into the swapchain image.
+    #[arg(long)]
+    post_compute: bool,
+    /// With --post tonemap: tonemap in a second subpass of the eye pass's render pass, reading
+    /// the scene as an input attachment (render-pass and render-pass2 only).
+    #[arg(long)]
+    post_subpass: bool,
+    /// With --post: the tonemap pass gets a depth attachment, cleared and never tested.
+    #[arg(long)]
+    post_depth_attachment: bool,
+    /// With --post: the eye passes render at F x the swapchain size, F in [0.5, 1]; the tonemap
+    /// upscales (bilinear).
+    #[arg(long, value_name = "F", default_value_t = 1.0, value_parser = parse_fraction)]
+    render_scale: f32,
+    /// With --post: the eye passes draw into an F x sub-rect (viewport and scissor) of a
+    /// full-size target, F in [0.5, 1]; the tonemap reads only that sub-rect.
+    #[arg(long, value_name = "F", default_value_t = 1.0, value_parser = parse_fraction)]
+    viewport_scale: f32,
+    /// With --layout side-by-side: render into a double-wide texture of the app's and blit each
+    /// half into its layer of a 2-layer swapchain.
+    #[arg(long, value_enum)]
+    submit_texture: Option<SubmitTexture>,
 }
 
 fn parse_samples(v: &str) -> Result<u32, String> {
@@ -315,6 +387,11 @@ fn parse_samples(v: &str) -> Result<u32, String> {
         Ok(n @ (1 | 2 | 4 | 8 | 16 | 32 | 64)) => Ok(n),
         _ => Err(format!("must be a power of two 1..64, got {v:?}")),
     }
+}
+
+/// `--render-scale`, `--viewport-scale`: what engines' dynamic resolution spans.
+fn parse_fraction(v: &str) -> Result<f32, String> {
+    v.parse::<f32>().ok().filter(|f| (0.5..=1.0).contains(f)).ok_or_else(|| format!("must be a number in [0.5, 1], got {v:?}"))
 }
 
 fn parse_scale(v: &str) -> Result<f32, String> {
@@ -326,10 +403,13 @@ fn parse_scale(v: &str) -> Result<f32, String> {
 pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::Error> {
     let a = Args::try_parse_from(std::iter::once("xr-scene".to_string()).chain(args))?;
     let usage = |msg: &str| Args::command().error(clap::error::ErrorKind::ArgumentConflict, msg);
-    if a.samples.is_some() && !a.intermediate {
-        return Err(usage("--samples only applies with --intermediate"));
+    if a.samples.is_some() && !a.intermediate && a.post.is_none() {
+        return Err(usage("--samples only applies with --intermediate or --post"));
     }
-    let samples = if a.intermediate { a.samples.unwrap_or(4) } else { 1 };
+    // `--intermediate` has always meant 4 samples unless told; the post chain's scene target is
+    // single-sampled unless told (Bevy's MSAA is one option among several).
+    let samples = if a.intermediate { a.samples.unwrap_or(4) } else { a.samples.unwrap_or(1) };
+    check_post(&a, samples).map_err(|m| usage(&m))?;
     // Depth rendered at N samples cannot simply be submitted: resolving it needs
     // VK_KHR_depth_stencil_resolve and a choice of resolve mode, which this app does not make.
     if a.submit_depth && samples > 1 {
@@ -406,6 +486,13 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         far_movers: a.far_movers,
         submit2: a.submit2,
         visibility_mask: a.visibility_mask,
+        post: a.post,
+        post_compute: a.post_compute,
+        post_subpass: a.post_subpass,
+        post_depth_attachment: a.post_depth_attachment,
+        render_scale: a.render_scale,
+        viewport_scale: a.viewport_scale,
+        submit_texture: a.submit_texture,
     })
 }
 
