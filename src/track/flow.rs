@@ -263,16 +263,23 @@ pub fn walk(ops: &[&Op], starts: &[(u32, Region)], world: &dyn World) -> Walked 
         let mut queue = vec![State { region, before: last + 1, frame_start, chain: Vec::new() }];
         let mut steps = 0;
         let mut seen = HashSet::new();
+        // Dead ends of this view's walk (a history buffer, a LUT's writer in an earlier frame)
+        // are only reasons when the view reached no eye pass at all.
+        let mut dead_ends = HashSet::new();
+        let found_before = out.found.len();
         while let Some(s) = queue.pop() {
             steps += 1;
             if steps > MAX_STEPS {
-                untraced.insert("the frame's data flow has more steps than the layer follows".into());
+                dead_ends.insert("the frame's data flow has more steps than the layer follows".into());
                 break;
             }
             if s.chain.len() > MAX_HOPS || !seen.insert((s.region, s.before)) {
                 continue;
             }
-            step(ops, view, &s, world, &mut queue, &mut out, &mut untraced);
+            step(ops, view, &s, world, &mut queue, &mut out, &mut dead_ends);
+        }
+        if out.found.len() == found_before {
+            untraced.extend(dead_ends);
         }
     }
     out.found.sort_by_key(|f| (f.image, f.eye.layer, f.eye.view, f.chain.len()));
@@ -518,6 +525,7 @@ fn pass_writes(ops: &[&Op], view: u32, s: &State, i: usize, p: &PassRecord, ci: 
         }
         let (reads, blind) = bound(&d.sets, &d.pushed, world);
         blind_seen.extend(blind);
+        let target = world.extent(color.image).map(|(w, h)| PixelRect { x: 0, y: 0, width: w, height: h });
         for (b, u) in reads {
             if u.image == color.image {
                 continue;
@@ -526,8 +534,17 @@ fn pass_writes(ops: &[&Op], view: u32, s: &State, i: usize, p: &PassRecord, ci: 
             if depth || b.access == ImageAccess::Storage {
                 continue;
             }
-            let rect = map_rect(&s.region.rect, &vp, &PixelRect { x: 0, y: 0, width: extent.0, height: extent.1 });
-            any |= follow(ops, s, i, Region { image: u.image, layer: input_layer(&u, s.region.layer), rect }, "draw", world, queue);
+            let input = PixelRect { x: 0, y: 0, width: extent.0, height: extent.1 };
+            // The draw samples the whole input over its viewport (a full-screen pass), or the
+            // input lines up with the target scaled by their extents (one draw per eye rect
+            // into a same-shaped image, e.g. side by side): the first mapping that can show the
+            // eye is followed.
+            let by_viewport = map_rect(&s.region.rect, &vp, &input);
+            let by_extent = target.map(|t| map_rect(&s.region.rect, &t, &input));
+            let rect = [Some(by_viewport), by_extent].into_iter().flatten().find(|r| input.contains(r) && shows_eye(r, &s.region.rect));
+            if let Some(rect) = rect {
+                any |= follow(ops, s, i, Region { image: u.image, layer: input_layer(&u, s.region.layer), rect }, "draw", world, queue);
+            }
         }
     }
     for u in &p.inputs {

@@ -240,3 +240,30 @@ fn rects_map_proportionally() {
     assert!(shows_eye(&rect(0, 0, 32, 16), &rect(0, 0, 64, 32)));
     assert!(!shows_eye(&rect(0, 0, 31, 8), &rect(0, 0, 64, 32)));
 }
+
+#[test]
+fn per_eye_post_draws_over_a_double_wide_image_map_by_extent() {
+    // Side by side: scene and post target both 128×32; one post draw per eye rect samples the
+    // whole scene image with UVs of its half (the viewport alone would say "the whole image").
+    let w = FakeWorld::default().image(100, 128, 32, 1, Some(1)).image(11, 128, 32, 1, None).depth(12, 128, 32).set(5, &[(11, S)]);
+    let mut post = post(100, 128, 32, 5);
+    post.draws.clear();
+    post.draw(Some(false), DrawRecord { viewport: Some(rect(0, 0, 64, 32)), sets: vec![5], pushed: vec![] });
+    post.draw(Some(false), DrawRecord { viewport: Some(rect(64, 0, 64, 32)), sets: vec![5], pushed: vec![] });
+    let starts = [(0, Region { image: 100, layer: 0, rect: rect(0, 0, 64, 32) }), (1, Region { image: 100, layer: 0, rect: rect(64, 0, 64, 32) })];
+    let r = run(&[Op::Pass(scene(11, 12, 128, 32)), Op::Pass(post)], &starts, &w);
+    let got: Vec<_> = r.found.iter().map(|f| (f.eye.view, f.eye.rect)).collect();
+    assert_eq!(got, vec![(0, rect(0, 0, 64, 32)), (1, rect(64, 0, 64, 32))]);
+}
+
+#[test]
+fn dead_ends_are_reasons_only_for_views_that_found_nothing() {
+    // A TAA-like history written last frame: a dead end, but the view found its eye pass.
+    let w = FakeWorld::default().image(100, 64, 32, 1, Some(1)).image(101, 64, 32, 1, Some(1)).image(11, 64, 32, 1, None).image(16, 64, 32, 1, None).depth(12, 64, 32).set(5, &[(11, S), (16, S)]);
+    let whole = rect(0, 0, 64, 32);
+    let copy = |src, dst| Op::Transfer { src, dst, regions: vec![TransferRegion { src_layer: 0, dst_layer: 0, layer_count: 1, src: whole, dst: whole }] };
+    let ops = vec![Op::Pass(post(101, 64, 32, 5)), copy(101, 16), Op::Pass(scene(11, 12, 64, 32)), Op::Pass(post(100, 64, 32, 5))];
+    let r = run(&ops, &[(0, region(100, 64, 32))], &w);
+    assert_eq!(r.found.len(), 1);
+    assert!(r.untraced.is_empty(), "{:?}", r.untraced);
+}

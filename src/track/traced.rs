@@ -21,6 +21,11 @@ use std::sync::{Arc, Mutex, MutexGuard};
 /// transfers the walk cares about.
 const WINDOW_OPS: usize = 16384;
 
+/// Walks of a swapchain an image's entry survives without being found again: engines that cycle
+/// per-frame targets (frames in flight, the ring of swapchain images) reach each one only every
+/// few frames; a chain that changed stops being applied after this many frames.
+const KEEP_WALKS: u64 = 4;
+
 /// One image's eyes as the walk found them.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TracedEyes {
@@ -29,6 +34,8 @@ pub struct TracedEyes {
     pub swapchain: u64,
     /// The path from the swapchain, for the log (e.g. "resolve ← draw").
     pub chain: String,
+    /// The swapchain's walk that last found it.
+    pub walk: u64,
 }
 
 /// What the layer logs once about a walk.
@@ -43,8 +50,10 @@ struct Books {
     window: VecDeque<Arc<Vec<Op>>>,
     window_ops: usize,
     eyes: HashMap<u64, TracedEyes>,
-    /// Image → swapchain whose walk found only post passes writing it.
-    post: HashMap<u64, u64>,
+    /// Image → (swapchain, its walk) whose walk found only post passes writing it.
+    post: HashMap<u64, (u64, u64)>,
+    /// Walks per swapchain.
+    walks_of: HashMap<u64, u64>,
     noted: HashSet<String>,
     walks: u64,
 }
@@ -191,25 +200,108 @@ fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, notes
         }
     }
     let eye_images: HashSet<u64> = walked.found.iter().map(|f| f.image).collect();
-    b.eyes.retain(|_, t| t.swapchain != sc);
-    b.post.retain(|_, s| *s != sc);
+    let walk = {
+        let n = b.walks_of.entry(sc).or_insert(0);
+        *n += 1;
+        *n
+    };
+    let stale = |s: u64, w: u64| s == sc && w + KEEP_WALKS <= walk;
+    b.eyes.retain(|_, t| !stale(t.swapchain, t.walk));
+    b.post.retain(|_, (s, w)| !stale(*s, *w));
+    for image in &eye_images {
+        b.post.remove(image);
+    }
     for (image, (mut list, chain, depth)) in eyes {
         list.sort_by_key(|s| (s.layer, s.rect.x, s.rect.y, s.view));
         list.dedup();
         let key = format!("traced {image:#x} {list:?}");
-        if b.noted.insert(key) {
+        // Bounded: dynamic resolution changes the rects every frame.
+        if b.noted.len() < 256 && b.noted.insert(key) {
             notes.push(Note::Traced { image, eyes: list.clone(), chain: chain.clone(), depth });
         }
-        b.eyes.insert(image, TracedEyes { eyes: list, swapchain: sc, chain });
+        b.post.remove(&image);
+        b.eyes.insert(image, TracedEyes { eyes: list, swapchain: sc, chain, walk });
     }
     for image in walked.post {
         if !eye_images.contains(&image) {
-            b.post.insert(image, sc);
+            b.eyes.remove(&image);
+            b.post.insert(image, (sc, walk));
         }
     }
     for why in walked.untraced {
         if b.noted.len() < 256 && b.noted.insert(why.clone()) {
             notes.push(Note::Untraced(why));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::rect::PixelRect;
+    use crate::shared::{EyeUse, ImageRect, Swapchain, SwapchainDesc};
+    use crate::track::flow::{DrawRecord, PassRecord};
+
+    fn image(h: u64, w: u32) -> Image {
+        Image {
+            handle: h,
+            image_type: vk::ImageType::TYPE_2D,
+            format: vk::Format::R8G8B8A8_UNORM,
+            extent: vk::Extent3D { width: w, height: 32, depth: 1 },
+            mip_levels: 1,
+            array_layers: 1,
+            samples: vk::SampleCountFlags::TYPE_1,
+            usage: vk::ImageUsageFlags::empty(),
+            flags: vk::ImageCreateFlags::empty(),
+        }
+    }
+
+    fn pass(color: u64, depth: Option<u64>, tested: bool, set: u64) -> Op {
+        let u = |image| ImageUse { image, base_layer: 0, layers: 1, mip: 0 };
+        let mut p = PassRecord { colors: vec![u(color)], color_loads: vec![false], depth: depth.map(u), depth_cleared: depth.is_some(), render_area: PixelRect { x: 0, y: 0, width: 64, height: 32 }, ..Default::default() };
+        p.draw(Some(tested), DrawRecord { viewport: None, sets: vec![set], pushed: vec![] });
+        Op::Pass(p)
+    }
+
+    /// Three swapchain images in a ring, each frame: scene into 10 (depth 12), tonemap into the
+    /// frame's swapchain image sampling 10 through set 5.
+    #[test]
+    fn a_ring_of_swapchain_images_keeps_every_post_mark_and_the_eyes() {
+        let shared = Shared::default();
+        let desc = SwapchainDesc { usage_flags: 0, format: 43, sample_count: 1, width: 64, height: 32, array_size: 1 };
+        let sc = Arc::new(Swapchain::new(77, desc, vec![100, 101, 102]));
+        shared.add_swapchain(sc.clone());
+        sc.set_uses(vec![EyeUse { view: 0, image_rect: ImageRect { x: 0, y: 0, width: 64, height: 32 }, image_array_index: 0, depth: false }]);
+        let (descriptors, views, images) = (Descriptors::default(), HandleMap::default(), HandleMap::default());
+        for (h, w) in [(100, 64), (101, 64), (102, 64), (10, 64), (12, 64)] {
+            images.insert(h, Arc::new(image(h, w)));
+            let range = crate::track::resources::SubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
+            views.insert(h + 1000, Arc::new(ImageView { handle: h + 1000, image: h, view_type: vk::ImageViewType::TYPE_2D, format: vk::Format::UNDEFINED, range }));
+        }
+        descriptors.add_layout(1, crate::track::descriptors::SetLayout::new(vec![crate::track::descriptors::LayoutBinding { binding: 0, ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, count: 1 }], vk::DescriptorSetLayoutCreateFlags::empty(), &[]));
+        descriptors.allocate(9, &[5], &[1]);
+        descriptors.update(&[(5, crate::track::descriptors::Write { binding: 0, element: 0, ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, views: vec![Some(1010)] })], &[]);
+        let world = TrackerWorld { descriptors: &descriptors, views: &views, images: &images, shared: &shared };
+        let t = Traced::default();
+        for frame in 0..6u64 {
+            let target = 100 + frame % 3;
+            let notes = t.submitted(&world, vec![Arc::new(vec![pass(10, Some(12), true, 0), pass(target, None, false, 5)])]);
+            if frame == 0 {
+                assert!(notes.iter().any(|n| matches!(n, Note::Traced { image: 10, .. })), "{notes:?}");
+            }
+        }
+        assert!(t.is_post(100) && t.is_post(101) && t.is_post(102), "every ring image keeps its mark");
+        assert_eq!(t.eyes(10).map(|e| e.eyes.len()), Some(1));
+        assert_eq!(t.eyes(12).map(|e| e.eyes.len()), Some(1), "the depth image too");
+        // The chain changes: the scene now renders straight into the swapchain; the old
+        // intermediate is forgotten after a few walks.
+        for frame in 0..(KEEP_WALKS + 1) {
+            let target = 100 + frame % 3;
+            t.submitted(&world, vec![Arc::new(vec![pass(target, Some(12), true, 0)])]);
+        }
+        assert_eq!(t.eyes(10), None);
+        assert!(!t.is_post(100) && !t.is_post(101), "a swapchain image an eye pass writes is no post target");
+        t.forget_image(12);
+        assert_eq!(t.eyes(12), None);
     }
 }

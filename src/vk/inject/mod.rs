@@ -485,6 +485,11 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
         None if d.track.traced.is_post(image) => Eyes::Post,
         None => Eyes::Unknown,
     };
+    // What the walk saw last wins over what transfers alone say (a 1:1 copy of a post target
+    // does not make it an eye pass's).
+    if d.track.traced.is_post(image) {
+        return Eyes::Post;
+    }
     match d.track.intermediate_eyes(shared(), image) {
         None => traced(),
         Some(learned) => {
