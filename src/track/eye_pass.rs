@@ -40,6 +40,9 @@ pub enum Eyes {
     Traced(Vec<EyeSource>),
     /// Only post-process passes (draws that never test depth) were seen writing it.
     Post,
+    /// Unknown, while the data-flow walk has traced the frame's eyes elsewhere: not an eye
+    /// target (a bloom mip, a shadow or reflection target).
+    NotEye,
     /// Neither (yet).
     Unknown,
 }
@@ -193,8 +196,9 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
         let is_depth = att.image_view.as_ref().is_some_and(|v| {
             v.range.aspect_mask.intersects(vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL)
         });
-        has_color |= !is_depth;
-        match (facts.eyes)(att) {
+        let eyes = (facts.eyes)(att);
+        has_color |= !is_depth && eyes != Eyes::NotEye;
+        match eyes {
             Eyes::Swapchain(s) if s.is_empty() => unknown_swapchain = true,
             Eyes::Swapchain(s) => {
                 found = Some((att, s, Via::Swapchain));

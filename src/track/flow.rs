@@ -63,8 +63,8 @@ pub struct PassRecord {
     pub render_area: PixelRect,
     /// Any draw tested depth (an untracked pipeline counts as testing: scenery does).
     pub depth_tested: bool,
-    /// The union of the depth-tested draws' viewports.
-    pub tested_viewport: Option<PixelRect>,
+    /// The depth-tested draws' distinct viewports (at most `MAX_DRAWS`; more widen the last).
+    pub tested_viewports: Vec<PixelRect>,
     /// The other draws (post-process candidates), merged; at most `MAX_DRAWS`.
     pub draws: Vec<DrawRecord>,
     /// More distinct draws than were kept.
@@ -82,10 +82,13 @@ impl PassRecord {
         if tested != Some(false) {
             self.depth_tested = true;
             let vp = draw.viewport.unwrap_or(self.render_area);
-            self.tested_viewport = Some(match self.tested_viewport {
-                Some(u) => union(&u, &vp),
-                None => vp,
-            });
+            if !self.tested_viewports.contains(&vp) {
+                if self.tested_viewports.len() < MAX_DRAWS {
+                    self.tested_viewports.push(vp);
+                } else if let Some(last) = self.tested_viewports.last_mut() {
+                    *last = union(last, &vp);
+                }
+            }
             return;
         }
         if self.draws.contains(&draw) {
@@ -497,9 +500,11 @@ fn pass_writes(ops: &[&Op], view: u32, s: &State, i: usize, p: &PassRecord, ci: 
     let color = p.colors[ci];
     if p.depth_tested {
         if p.depth_cleared {
-            // The eye pass. Its own draws' viewport narrows the rect when the scene is drawn
-            // into a sub-rect of the target (dynamic resolution, DLSS-style).
-            let rect = match p.tested_viewport.map(|v| v.intersect(&s.region.rect)) {
+            // The eye pass. Its own draws' viewports inside the eye's rect narrow it when the
+            // scene is drawn into a sub-rect of the target (dynamic resolution, DLSS-style); side
+            // by side, each eye's draws lie in its own half.
+            let drawn = p.tested_viewports.iter().filter(|v| v.intersect(&s.region.rect).area() * 2 > v.area()).fold(None, |u: Option<PixelRect>, v| Some(u.map_or(*v, |u| union(&u, v))));
+            let rect = match drawn.map(|v| v.intersect(&s.region.rect)) {
                 Some(v) if v.area() > 0 && v.area() * 4 >= s.region.rect.area() => v,
                 _ => s.region.rect,
             };

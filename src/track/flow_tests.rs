@@ -167,7 +167,7 @@ fn double_wide_texture_blitted_per_layer() {
     // Both eyes in one 128×32 texture, each half blitted into a layer of a 2-layer swapchain.
     let w = FakeWorld::default().image(100, 64, 32, 2, Some(1)).image(18, 128, 32, 1, None).depth(12, 128, 32);
     let mut sbs = scene(18, 12, 128, 32);
-    sbs.tested_viewport = None;
+    sbs.tested_viewports.clear();
     sbs.draw(Some(true), DrawRecord { viewport: Some(rect(0, 0, 64, 32)), sets: vec![], pushed: vec![] });
     sbs.draw(Some(true), DrawRecord { viewport: Some(rect(64, 0, 64, 32)), sets: vec![], pushed: vec![] });
     let half = |x| TransferRegion { src_layer: 0, dst_layer: 0, layer_count: 1, src: rect(x, 0, 64, 32), dst: rect(0, 0, 64, 32) };
@@ -186,7 +186,7 @@ fn double_wide_texture_blitted_per_layer() {
 fn viewport_scale_narrows_the_eye_to_the_drawn_sub_rect() {
     let w = FakeWorld::default().image(100, 64, 32, 1, Some(1)).image(11, 64, 32, 1, None).depth(12, 64, 32).set(5, &[(11, S)]);
     let mut main = scene(11, 12, 64, 32);
-    main.tested_viewport = Some(rect(0, 0, 48, 24));
+    main.tested_viewports = vec![rect(0, 0, 48, 24)];
     let r = run(&[Op::Pass(main), Op::Pass(post(100, 64, 32, 5))], &[(0, region(100, 64, 32))], &w);
     assert_eq!(r.found[0].eye.rect, rect(0, 0, 48, 24));
 }
@@ -226,7 +226,7 @@ fn recorder_merges_draws_and_secondaries_join_the_open_pass() {
     assert!(Arc::ptr_eq(&snap, &rec.snapshot()), "an unchanged recording is shared");
     let Op::Pass(p) = &snap[0] else { panic!() };
     assert_eq!(p.draws.len(), 1, "identical draws merge");
-    assert!(p.depth_tested && p.tested_viewport == Some(rect(0, 0, 8, 8)));
+    assert!(p.depth_tested && p.tested_viewports == vec![rect(0, 0, 8, 8)]);
     for _ in 0..MAX_OPS + 10 {
         rec.blind("x");
     }
@@ -266,4 +266,16 @@ fn dead_ends_are_reasons_only_for_views_that_found_nothing() {
     let r = run(&ops, &[(0, region(100, 64, 32))], &w);
     assert_eq!(r.found.len(), 1);
     assert!(r.untraced.is_empty(), "{:?}", r.untraced);
+}
+
+#[test]
+fn side_by_side_sub_rects_narrow_each_eye_to_its_own() {
+    // Each eye drawn into the top-left 48×24 of its 64×32 half; the tonemap draws each half.
+    let w = FakeWorld::default().image(100, 128, 32, 1, Some(1)).image(11, 128, 32, 1, None).depth(12, 128, 32).set(5, &[(11, S)]);
+    let mut sbs = scene(11, 12, 128, 32);
+    sbs.tested_viewports = vec![rect(0, 0, 48, 24), rect(64, 0, 48, 24)];
+    let starts = [(0, Region { image: 100, layer: 0, rect: rect(0, 0, 64, 32) }), (1, Region { image: 100, layer: 0, rect: rect(64, 0, 64, 32) })];
+    let r = run(&[Op::Pass(sbs), Op::Pass(post(100, 128, 32, 5))], &starts, &w);
+    let got: Vec<_> = r.found.iter().map(|f| (f.eye.view, f.eye.rect)).collect();
+    assert_eq!(got, vec![(0, rect(0, 0, 48, 24)), (1, rect(64, 0, 48, 24))]);
 }

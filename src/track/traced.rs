@@ -54,6 +54,9 @@ struct Books {
     post: HashMap<u64, (u64, u64)>,
     /// Walks per swapchain.
     walks_of: HashMap<u64, u64>,
+    /// Swapchains whose images only post passes write (every image of the ring: the walk of one
+    /// speaks for all, which are written the same way), with the walk that saw it.
+    post_swapchains: HashMap<u64, u64>,
     noted: HashSet<String>,
     walks: u64,
 }
@@ -156,9 +159,16 @@ impl Traced {
         lock(&self.books).eyes.get(&image).cloned()
     }
 
-    /// Whether only post-process passes were seen writing `image`.
-    pub fn is_post(&self, image: u64) -> bool {
-        lock(&self.books).post.contains_key(&image)
+    /// Whether only post-process passes were seen writing `image` (of `swapchain`, if it is a
+    /// swapchain image: then any image of its ring).
+    pub fn is_post(&self, image: u64, swapchain: Option<u64>) -> bool {
+        let b = lock(&self.books);
+        b.post.contains_key(&image) || swapchain.is_some_and(|sc| b.post_swapchains.contains_key(&sc))
+    }
+
+    /// Whether the walk has traced eyes to any intermediate (the frame's structure is known).
+    pub fn has_eyes(&self) -> bool {
+        !lock(&self.books).eyes.is_empty()
     }
 
     pub fn forget_image(&self, image: u64) {
@@ -210,6 +220,12 @@ fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, notes
     b.post.retain(|_, (s, w)| !stale(*s, *w));
     for image in &eye_images {
         b.post.remove(image);
+    }
+    b.post_swapchains.retain(|s, w| !stale(*s, *w));
+    if eye_images.iter().any(|i| world.swapchain_of(*i) == Some(sc)) {
+        b.post_swapchains.remove(&sc);
+    } else if walked.post.iter().any(|i| world.swapchain_of(*i) == Some(sc)) {
+        b.post_swapchains.insert(sc, walk);
     }
     for (image, (mut list, chain, depth)) in eyes {
         list.sort_by_key(|s| (s.layer, s.rect.x, s.rect.y, s.view));
@@ -290,7 +306,9 @@ mod tests {
                 assert!(notes.iter().any(|n| matches!(n, Note::Traced { image: 10, .. })), "{notes:?}");
             }
         }
-        assert!(t.is_post(100) && t.is_post(101) && t.is_post(102), "every ring image keeps its mark");
+        assert!(t.is_post(100, Some(77)) && t.is_post(101, None) && t.is_post(102, None), "every ring image keeps its mark");
+        let unseen_ring_image = 103;
+        assert!(t.is_post(unseen_ring_image, Some(77)), "the swapchain's mark covers images not walked yet");
         assert_eq!(t.eyes(10).map(|e| e.eyes.len()), Some(1));
         assert_eq!(t.eyes(12).map(|e| e.eyes.len()), Some(1), "the depth image too");
         // The chain changes: the scene now renders straight into the swapchain; the old
@@ -300,7 +318,7 @@ mod tests {
             t.submitted(&world, vec![Arc::new(vec![pass(target, Some(12), true, 0)])]);
         }
         assert_eq!(t.eyes(10), None);
-        assert!(!t.is_post(100) && !t.is_post(101), "a swapchain image an eye pass writes is no post target");
+        assert!(!t.is_post(100, Some(77)) && !t.is_post(101, Some(77)), "a swapchain image an eye pass writes is no post target");
         t.forget_image(12);
         assert_eq!(t.eyes(12), None);
     }

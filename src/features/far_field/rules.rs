@@ -64,7 +64,9 @@ pub fn engine_depth(engine: &str) -> Option<EngineDepth> {
     match engine {
         // wgpu names itself "wgpu-hal"; its VR apps are Bevy + bevy_mod_openxr, whose
         // `XrProjection` defaults to near 0.1 m with an infinite, reversed-Z projection.
-        "wgpu-hal" | "wgpu" => Some(EngineDepth { near: 0.1, far: f64::INFINITY, source: "wgpu (Bevy + bevy_mod_openxr's XrProjection: near 0.1 m, infinite far)" }),
+        // Through the OpenXR runtime (xrCreateVulkanInstanceKHR) bevy_mod_openxr names the
+        // engine "Bevy".
+        "wgpu-hal" | "wgpu" | "Bevy" => Some(EngineDepth { near: 0.1, far: f64::INFINITY, source: "wgpu (Bevy + bevy_mod_openxr's XrProjection: near 0.1 m, infinite far)" }),
         _ => None,
     }
 }

@@ -474,7 +474,7 @@ fn depth_image(pass: &PassInstance) -> Option<u64> {
 pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) -> Eyes {
     let image = a.image_view.as_ref().map(|v| v.image);
     if let Some(sc) = &a.swapchain {
-        if image.is_some_and(|i| d.track.traced.is_post(i)) {
+        if image.is_some_and(|i| d.track.traced.is_post(i, Some(sc.swapchain.handle))) {
             return Eyes::Post;
         }
         return Eyes::Swapchain(sc.swapchain.uses().iter().map(EyeSource::from_use).collect());
@@ -482,12 +482,13 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
     let Some(image) = image else { return Eyes::Unknown };
     let traced = || match d.track.traced.eyes(image) {
         Some(t) => Eyes::Traced(t.eyes),
-        None if d.track.traced.is_post(image) => Eyes::Post,
+        None if d.track.traced.is_post(image, None) => Eyes::Post,
+        None if d.track.traced.has_eyes() => Eyes::NotEye,
         None => Eyes::Unknown,
     };
     // What the walk saw last wins over what transfers alone say (a 1:1 copy of a post target
     // does not make it an eye pass's).
-    if d.track.traced.is_post(image) {
+    if d.track.traced.is_post(image, None) {
         return Eyes::Post;
     }
     match d.track.intermediate_eyes(shared(), image) {
