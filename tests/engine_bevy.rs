@@ -6,8 +6,9 @@
 //! upscaling pass into the swapchain; HDR + bloom; MSAA off): the captured frames after warm-up
 //! are identical with and without the layer, the scene is deterministic (a run's first and last
 //! captured frames are identical, so that equality means something), the scene shows (many
-//! colours, sky and ground), no crash, no hang (CPU-time watchdog), 0 Vulkan validation errors
-//! with the validation layer proven loaded. What the layer applied is reported from its stats
+//! colours, sky and ground), no crash, no hang (CPU-time watchdog), no Vulkan validation error
+//! that the run without the layer lacks (validation proven loaded; Bevy's own errors under
+//! bookworm's validation layer are reported). What the layer applied is reported from its stats
 //! records and log ([`engine::layer_counts`], [`engine::not_applied_lines`]), not judged: the layer
 //! does not yet find eye passes behind post-processing (issue 20), and the report says how far
 //! it gets. The same scene on Monado in the trixie root: `monado` below.
@@ -57,6 +58,8 @@ fn same_frames(tag: &str, args: &[&str]) -> Option<LayerCounts> {
             assert_shows_scene(&o.out.name, &o.out.image(&view.file));
         }
     }
+    let added = engine::errors_added(&plain.vk_errors, &layered.vk_errors);
+    assert!(added.is_empty(), "bevy-{tag}: Vulkan validation errors the run without the layer does not have: {added:?}");
     plain.out.assert_layer_not_loaded();
     layered.out.assert_layer_loaded(common::Half::Both);
     // The scene renders the same pixels every frame: what makes the runs comparable.
@@ -85,11 +88,13 @@ fn assert_shows_scene(name: &str, img: &Image) {
 fn report(tag: &str, plain: &SceneOutput, layered: &SceneOutput, c: &LayerCounts) {
     eprintln!(
         "bevy {tag}: frames {WARM_UP}..{FRAMES} identical with and without the layer; plain {:.1} s ({:.1} s CPU), layer {:.1} s ({:.1} s CPU); \
-         validation errors 0 + 0",
+         Vulkan validation errors without the layer {:?}, with it {:?} (none added)",
         plain.out.elapsed.as_secs_f64(),
         plain.cpu.as_secs_f64(),
         layered.out.elapsed.as_secs_f64(),
-        layered.cpu.as_secs_f64()
+        layered.cpu.as_secs_f64(),
+        plain.vk_errors,
+        layered.vk_errors
     );
     eprintln!(
         "bevy {tag}: over {} frames ({} eye passes): masked {}, RDM {}, far-field views reused {}; not masked {:?}; RDM not applied {:?}; far field not applied {:?}",

@@ -97,9 +97,6 @@ near_z = 0.1
 far_z = 1e30
 ";
 
-/// Where the validation layer logs, relative to the run folder.
-const VK_VALIDATION_LOG: &str = "vk_validation.txt";
-
 /// One run of the scene on the mock runtime.
 #[derive(Clone, Debug)]
 pub struct SceneRun {
@@ -117,8 +114,8 @@ pub struct SceneOutput {
     pub out: RunOutput,
     /// The layer's `stats.file` records, one per frame; empty without the layer.
     pub stats: Vec<Value>,
-    /// `Validation Error` records of VK_LAYER_KHRONOS_validation.
-    pub vk_errors: Vec<String>,
+    /// VK_LAYER_KHRONOS_validation's errors: VUID → how many times it was reported.
+    pub vk_errors: BTreeMap<String, usize>,
     /// The loader inserted the validation layer into the instance (its own debug output says so):
     /// without it "0 validation errors" would mean nothing.
     pub validation_loaded: bool,
@@ -156,10 +153,9 @@ impl SceneRun {
         cmd.args(&self.args)
             // Validation through VK_INSTANCE_LAYERS: the scene's instance is created by the runtime
             // (XR_KHR_vulkan_enable2) from bevy_mod_openxr's create info, which names no layer.
-            // The loader puts it above stereoshim: it checks everything Bevy records.
+            // The loader puts it above stereoshim: it checks everything Bevy records. Its
+            // messages go to stdout (bookworm's 1.3.239 ignores a log file name).
             .env("VK_INSTANCE_LAYERS", "VK_LAYER_KHRONOS_validation")
-            .env("VK_KHRONOS_VALIDATION_DEBUG_ACTION", "VK_DBG_LAYER_ACTION_LOG_MSG")
-            .env("VK_KHRONOS_VALIDATION_LOG_FILENAME", dir.join(VK_VALIDATION_LOG))
             .env("VK_KHRONOS_VALIDATION_REPORT_FLAGS", "error,warn")
             // The loader names every layer it inserts: proof that validation ran.
             .env("VK_LOADER_DEBUG", "layer")
@@ -209,8 +205,7 @@ impl SceneRun {
         let stats = std::fs::read_to_string(&stats_file)
             .map(|t| t.lines().map(|l| serde_json::from_str(l).expect("stats line parses")).collect())
             .unwrap_or_default();
-        let mut vk_errors = validation_errors(&std::fs::read_to_string(dir.join(VK_VALIDATION_LOG)).unwrap_or_default());
-        vk_errors.extend(output.lines().filter(|l| l.contains("Validation Error")).map(str::to_string));
+        let vk_errors = validation_errors(&output);
         let validation_loaded = output.lines().any(|l| l.contains("Insert instance layer") && l.contains("VK_LAYER_KHRONOS_validation"));
         let out = RunOutput {
             name: self.name.clone(),
@@ -228,24 +223,29 @@ impl SceneRun {
     }
 }
 
-/// `Validation Error: [ VUID ] …` records of the validation layer's log file, each with the
-/// message line after it.
-pub fn validation_errors(text: &str) -> Vec<String> {
-    let lines: Vec<&str> = text.lines().collect();
-    lines
-        .iter()
-        .enumerate()
-        .filter(|(_, l)| l.starts_with("Validation Error:"))
-        .map(|(i, l)| match lines.get(i + 1) {
-            Some(next) if !next.starts_with("Validation") => format!("{l} | {}", next.trim()),
-            _ => l.to_string(),
-        })
-        .collect()
+/// VK_LAYER_KHRONOS_validation's errors in `text` (its `Validation Error: [ VUID ] …` messages,
+/// on stdout or in a log file): VUID → count.
+pub fn validation_errors(text: &str) -> BTreeMap<String, usize> {
+    let mut errors = BTreeMap::new();
+    for l in text.lines() {
+        if let Some((_, rest)) = l.split_once("Validation Error: [") {
+            let vuid = rest.split_once(']').map_or(rest, |(v, _)| v).trim();
+            *errors.entry(vuid.to_string()).or_default() += 1;
+        }
+    }
+    errors
+}
+
+/// The VUIDs of `layered` that `plain` (the same app without the layer) does not report: the
+/// validation errors the layer causes. The app's own errors (Bevy on bookworm's validation layer
+/// has some, docs/testing.md) are in both runs.
+pub fn errors_added(plain: &BTreeMap<String, usize>, layered: &BTreeMap<String, usize>) -> Vec<String> {
+    layered.keys().filter(|k| !plain.contains_key(*k)).cloned().collect()
 }
 
 impl SceneOutput {
     /// Exit 0 (the scene ended by itself when the runtime ended the session), no crash, validation
-    /// loaded and silent.
+    /// loaded (its errors are judged against the run without the layer: [`errors_added`]).
     pub fn assert_clean(&self) -> &Self {
         let name = &self.out.name;
         if let Some(report) = &self.out.crash {
@@ -253,7 +253,6 @@ impl SceneOutput {
         }
         assert_eq!(self.out.code, Some(0), "{name}: bevy-scene failed; output (last 60 lines):\n{}", common::crash::tail_lines(&self.out.stderr, 60));
         assert!(self.validation_loaded, "{name}: the loader never inserted VK_LAYER_KHRONOS_validation (vulkan-validationlayers installed?); output:\n{}", common::crash::tail_lines(&self.out.stderr, 60));
-        assert!(self.vk_errors.is_empty(), "{name}: {} Vulkan validation errors, first 5:\n{}", self.vk_errors.len(), self.vk_errors.iter().take(5).cloned().collect::<Vec<_>>().join("\n"));
         self
     }
 }
