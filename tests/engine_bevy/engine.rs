@@ -20,7 +20,7 @@ pub fn required() -> bool {
 }
 
 /// The scene's binary: `STEREOSHIM_BEVY_SCENE`, else what scripts/engine-bevy builds (cached by
-/// stamp; a cold build takes most of an hour on 2 cores). None (after a loud note) when it cannot
+/// stamp; a cold build takes ~25 min on 2 cores). None (after a loud note) when it cannot
 /// be had and the tests are not [`required`].
 pub fn scene_exe() -> Option<PathBuf> {
     static EXE: OnceLock<Result<PathBuf, String>> = OnceLock::new();
