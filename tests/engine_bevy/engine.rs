@@ -44,14 +44,22 @@ fn find_or_build() -> Result<PathBuf, String> {
     }
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/engine-bevy");
     let started = Instant::now();
-    let mut child = Command::new(&script)
+    let path = PathBuf::from(run_script(&script)?);
+    eprintln!("bevy-scene {} ready after {:.1} s", path.display(), started.elapsed().as_secs_f64());
+    Ok(path)
+}
+
+/// Runs a script that builds something into a cache and prints its path (scripts/engine-bevy,
+/// tests/realworld/trixie-root): its trimmed stdout, or why not. A cold build is long CPU work,
+/// never a hang: judged by CPU time (4 h) and by a stall of 20 minutes (downloads wait on the
+/// network, not the CPU); a hung one is killed.
+pub fn run_script(script: &Path) -> Result<String, String> {
+    let mut child = Command::new(script)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .map_err(|e| format!("{}: {e}", script.display()))?;
     let (out, err) = (child.stdout.take().map(drain), child.stderr.take().map(drain));
-    // A cold build is long CPU work, never a hang: judged by CPU time (4 h) and by a stall of
-    // 20 minutes (crate downloads wait on the network, not the CPU).
     let mut watchdog = common::watchdog::Watchdog::new(child.id(), Duration::from_secs(4 * 3600)).with_stall(Duration::from_secs(20 * 60));
     let status = loop {
         if let Some(s) = child.try_wait().map_err(|e| e.to_string())? {
@@ -60,18 +68,16 @@ fn find_or_build() -> Result<PathBuf, String> {
         if let Some(why) = watchdog.hung() {
             let _ = child.kill();
             let _ = child.wait();
-            return Err(format!("scripts/engine-bevy hung: {why}"));
+            return Err(format!("{} hung: {why}", script.display()));
         }
         std::thread::sleep(Duration::from_millis(200));
     };
     let stdout = out.map(|t| t.join().unwrap_or_default()).unwrap_or_default();
     let stderr = err.map(|t| t.join().unwrap_or_default()).unwrap_or_default();
     if !status.success() {
-        return Err(format!("scripts/engine-bevy failed ({status}):\n{}", common::crash::tail_lines(&stderr, 60)));
+        return Err(format!("{} failed ({status}):\n{}", script.display(), common::crash::tail_lines(&stderr, 60)));
     }
-    let path = PathBuf::from(stdout.trim());
-    eprintln!("bevy-scene {} ready after {:.1} s", path.display(), started.elapsed().as_secs_f64());
-    Ok(path)
+    Ok(stdout.trim().to_string())
 }
 
 pub fn drain(mut r: impl std::io::Read + Send + 'static) -> std::thread::JoinHandle<String> {

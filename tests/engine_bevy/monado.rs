@@ -36,11 +36,7 @@ fn root() -> Option<PathBuf> {
         if uid.ok().as_deref() != Some("0") {
             return Err("needs root (mount namespaces, chroot)".into());
         }
-        let out = Command::new(realworld_dir().join("trixie-root")).stderr(Stdio::piped()).output().map_err(|e| e.to_string())?;
-        match out.status.code() {
-            Some(0) => Ok(PathBuf::from(String::from_utf8_lossy(&out.stdout).trim())),
-            _ => Err(format!("tests/realworld/trixie-root failed ({}): {}", out.status, String::from_utf8_lossy(&out.stderr).trim())),
-        }
+        engine::run_script(&realworld_dir().join("trixie-root")).map(PathBuf::from)
     });
     match r {
         Ok(p) => Some(p.clone()),
