@@ -2,16 +2,16 @@
 //! crate registry (engines/bevy-scene, scripts/engine-bevy, cached by stamp), rendering a fixed
 //! scene on the mock runtime on lavapipe, with the layer (mask + RDM + far field) and without it.
 //!
-//! Per frame structure (Bevy's default: MSAA 4× main pass with a resolve, tonemapping in the
-//! upscaling pass into the swapchain; HDR + bloom; MSAA off): the captured frames after warm-up
-//! are identical with and without the layer, the scene is deterministic (a run's first and last
-//! captured frames are identical, so that equality means something), the scene shows (many
-//! colours, sky and ground), no crash, no hang (CPU-time watchdog), no Vulkan validation error
-//! that the run without the layer lacks (validation proven loaded; Bevy's own errors under
-//! bookworm's validation layer are reported). What the layer applied is reported from its stats
-//! records and log ([`engine::layer_counts`], [`engine::not_applied_lines`]), not judged: the layer
-//! does not yet find eye passes behind post-processing (issue 20), and the report says how far
-//! it gets. The same scene on Monado in the trixie root: `monado` below.
+//! Per frame structure (Bevy's default: MSAA 4× main pass with a resolve, tonemapped in its
+//! shaders, then the upscaling pass into the swapchain; HDR + bloom; MSAA off): the captured
+//! frames after warm-up are identical with and without the layer; the scene is deterministic (a
+//! run's first and last captured frames are identical, so that equality means something) and
+//! visible (many colours, sky and ground); no crash, no hang (CPU-time watchdog), no Vulkan
+//! validation error that the run without the layer lacks (validation proven loaded; Bevy's own
+//! errors under bookworm's validation layer are reported). What the layer applied is reported
+//! from its stats records and log ([`engine::layer_counts`], [`engine::not_applied_lines`]), not
+//! judged: the layer does not yet find eye passes behind post-processing (issue 20), and the
+//! report says how far it gets. The same scene on Monado in the trixie root: `monado` below.
 //!
 //! Without the binary (no `STEREOSHIM_BEVY_SCENE`, and scripts/engine-bevy fails) the tests skip
 //! loudly, or fail when `STEREOSHIM_REALWORLD_REQUIRED=1` (scripts/test) or `CI` is set.
@@ -112,8 +112,8 @@ fn report(tag: &str, plain: &SceneOutput, layered: &SceneOutput, c: &LayerCounts
     }
 }
 
-/// Bevy's defaults: MSAA 4× main pass resolved into `main_texture_a`, TonyMcMapface tonemapping in
-/// the upscaling pass that draws into the swapchain.
+/// Bevy's defaults: MSAA 4× main pass resolved into `main_texture_a` (TonyMcMapface tonemapping in
+/// its shaders, no HDR), then the upscaling pass that draws it into the swapchain.
 #[test]
 fn default_structure_same_frames_with_and_without_the_layer() {
     same_frames("default", &[]);

@@ -7,8 +7,8 @@
 //! without it, and a difference is the layer's doing.
 //!
 //! The frame structure is Bevy's own and chosen on the command line (`--help`); the default is
-//! what a new Bevy XR app gets: MSAA 4×, no HDR, TonyMcMapface tonemapping in the main pass's
-//! upscaling into the swapchain.
+//! what a new Bevy XR app gets: MSAA 4×, no HDR (so TonyMcMapface tonemapping runs in the main
+//! pass's shaders), then the upscaling pass into the swapchain.
 
 mod options;
 mod scene;
