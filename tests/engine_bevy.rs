@@ -64,10 +64,12 @@ fn same_frames(tag: &str, args: &[&str]) -> Option<LayerCounts> {
     layered.out.assert_layer_loaded(common::Half::Both);
     // The scene renders the same pixels every frame: what makes the runs comparable.
     common::assert_same_frame(&format!("bevy-{tag}-deterministic"), &plain.out, WARM_UP, &plain.out, FRAMES - 1);
-    common::assert_same_captures(&format!("bevy-{tag}-layer-vs-plain"), &plain.out, &layered.out);
+    // What the layer did, reported before the comparison so that a failing one shows it too.
     let counts = layer_counts(&layered.stats, WARM_UP..FRAMES);
-    assert_eq!(counts.frames, FRAMES - WARM_UP, "bevy-{tag}: the layer's stats records of the compared frames; records: {}", layered.stats.len());
     report(tag, &plain, &layered, &counts);
+    assert_eq!(counts.frames, FRAMES - WARM_UP, "bevy-{tag}: the layer's stats records of the compared frames; records: {}", layered.stats.len());
+    common::assert_same_captures(&format!("bevy-{tag}-layer-vs-plain"), &plain.out, &layered.out);
+    eprintln!("bevy {tag}: frames {WARM_UP}..{FRAMES} identical with and without the layer");
     Some(counts)
 }
 
@@ -87,7 +89,7 @@ fn assert_shows_scene(name: &str, img: &Image) {
 
 fn report(tag: &str, plain: &SceneOutput, layered: &SceneOutput, c: &LayerCounts) {
     eprintln!(
-        "bevy {tag}: frames {WARM_UP}..{FRAMES} identical with and without the layer; plain {:.1} s ({:.1} s CPU), layer {:.1} s ({:.1} s CPU); \
+        "bevy {tag}: plain {:.1} s ({:.1} s CPU), layer {:.1} s ({:.1} s CPU); \
          Vulkan validation errors without the layer {:?}, with it {:?} (none added)",
         plain.out.elapsed.as_secs_f64(),
         plain.cpu.as_secs_f64(),
@@ -109,6 +111,11 @@ fn report(tag: &str, plain: &SceneOutput, layered: &SceneOutput, c: &LayerCounts
     );
     for l in not_applied_lines(&layered.out.log) {
         eprintln!("bevy {tag}: layer log: {l}");
+    }
+    // Where the frames differ, if they do: inside the hidden area is the mask's doing, outside it
+    // RDM's, the far field's or a post chain's spreading the mask edge.
+    for d in engine::diff_by_mask(&plain.out, &layered.out).iter().filter(|d| d.inside + d.edge + d.outside > 0) {
+        eprintln!("bevy {tag}: frame {} view {}: pixels differ inside the hidden area {}, at its edge {}, outside {}", d.frame, d.view, d.inside, d.edge, d.outside);
     }
 }
 

@@ -314,3 +314,53 @@ pub fn not_applied_lines(log: &str) -> Vec<String> {
     lines.dedup();
     lines
 }
+
+/// Where the layered run's pixels differ from the plain run's, per captured frame and view,
+/// against the runtime's hidden area of that frame (frames.json `visibility_masks`, rasterized by
+/// the harness): inside it, within `EDGE_MARGIN_PX` of its outline, and outside (what the user
+/// sees).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MaskDiff {
+    pub frame: u64,
+    pub view: u32,
+    pub inside: usize,
+    pub edge: usize,
+    pub outside: usize,
+}
+
+/// Pixels this close to the mask outline may go either way (vertex snapping, rounding).
+pub const EDGE_MARGIN_PX: f64 = 1.0;
+
+/// [`MaskDiff`] of every view of every frame the two runs captured (the same frames and views:
+/// `common::pair_captures`, which panics here when they cannot be compared).
+pub fn diff_by_mask(plain: &RunOutput, layered: &RunOutput) -> Vec<MaskDiff> {
+    let frames = common::pair_captures(plain.frames(), layered.frames(), common::DepthCheck::Ignore)
+        .unwrap_or_else(|e| panic!("{} and {} cannot be compared: {e}", plain.name, layered.name));
+    let mut out = Vec::new();
+    for (f, pairs) in frames {
+        let masks = &layered.frame(f).visibility_masks;
+        for (a, b) in pairs {
+            let (w, h) = (a.image_rect.width, a.image_rect.height);
+            let mask = masks.iter().find(|m| m.view == a.view).map_or(&[][..], |m| &m.hidden_triangles[..]);
+            let hidden = common::hidden_pixels(mask, &a.fov, w, h);
+            let edge = common::mask_edge_pixels(mask, &a.fov, w, h, EDGE_MARGIN_PX);
+            let (pa, pb) = (plain.image(&a.file), layered.image(&b.file));
+            let mut d = MaskDiff { frame: f, view: a.view, ..MaskDiff::default() };
+            for y in 0..h {
+                for x in 0..w {
+                    if pa.pixel(x, y) == pb.pixel(x, y) {
+                        continue;
+                    }
+                    let i = (y * w + x) as usize;
+                    match (edge[i], hidden[i]) {
+                        (true, _) => d.edge += 1,
+                        (false, true) => d.inside += 1,
+                        (false, false) => d.outside += 1,
+                    }
+                }
+            }
+            out.push(d);
+        }
+    }
+    out
+}
