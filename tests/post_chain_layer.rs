@@ -29,12 +29,18 @@ fn eye_passes(mode: &PostMode) -> u64 {
 /// Pixels a per-pixel chain may blend across the mask edge: the resampling of a scaled target
 /// (bilinear: one source texel each side) and MSAA's partly covered edge pixels.
 fn edge_margin(mode: &PostMode) -> f64 {
-    let scale = |flag| mode.value(flag).and_then(|v| v.parse::<f64>().ok()).unwrap_or(1.0);
-    2.0 / (scale("--render-scale") * scale("--viewport-scale")) + 1.0
+    2.0 / scale(mode) + 1.0
 }
 
-/// Bloom's reach: down-samples to ⅛ with a small blur, then bilinear up-samples; a change at one
-/// pixel moves its ⅛ texel and its neighbours' (±2 texels of 8 px) plus the up-sampling's texel.
+/// The scene's scale relative to the swapchain (render scale × viewport scale).
+fn scale(mode: &PostMode) -> f64 {
+    let s = |flag| mode.value(flag).and_then(|v| v.parse::<f64>().ok()).unwrap_or(1.0);
+    s("--render-scale") * s("--viewport-scale")
+}
+
+/// Bloom's reach in the scene's pixels: down-samples to ⅛ with a small blur, then bilinear
+/// up-samples; a change at one pixel moves its ⅛ texel and its neighbours' (±2 texels of 8 px)
+/// plus the up-sampling's texel. In the swapchain it grows by 1 / the scene's scale.
 const BLOOM_RADIUS_PX: f64 = 40.0;
 
 /// What the mask did to one view of one frame.
@@ -109,7 +115,7 @@ fn every_eye_pass_behind_a_post_chain_is_masked_and_the_rest_stays_identical() {
         }
         assert!(!masked.log_lines("data-flow walk: colour target of an eye pass").is_empty() || mode.name.ends_with("-dw"), "{}: nothing traced:\n{}", mode.name, masked.log);
         let bloom = mode.value("--post") == Some("bloom");
-        let radius = if bloom { BLOOM_RADIUS_PX } else { edge_margin(&mode) };
+        let radius = if bloom { BLOOM_RADIUS_PX / scale(&mode) } else { edge_margin(&mode) };
         for f in FIRST_MASKED..FRAMES {
             for (view, d) in diff_view(&mode, &masked, &plain, f, radius) {
                 assert!(d.hidden > 0, "{}: view {view}: an empty mask", mode.name);
