@@ -3,15 +3,18 @@
 //! scene on the mock runtime on lavapipe, with the layer (mask + RDM + far field) and without it.
 //!
 //! Per frame structure (Bevy's default: MSAA 4× main pass with a resolve, tonemapped in its
-//! shaders, then the upscaling pass into the swapchain; HDR + bloom; MSAA off): the captured
-//! frames after warm-up are identical with and without the layer; the scene is deterministic (a
-//! run's first and last captured frames are identical, so that equality means something) and
-//! visible (many colours, sky and ground); no crash, no hang (CPU-time watchdog), no Vulkan
-//! validation error that the run without the layer lacks (validation proven loaded; Bevy's own
-//! errors under bookworm's validation layer are reported). What the layer applied is reported
-//! from its stats records and log ([`engine::layer_counts`], [`engine::not_applied_lines`]), not
-//! judged: the layer does not yet find eye passes behind post-processing (issue 20), and the
-//! report says how far it gets. The same scene on Monado in the trixie root: `monado` below.
+//! shaders, then the upscaling pass into the swapchain; HDR + bloom; MSAA off), with the layer's
+//! mask, RDM and far field on: the data-flow walk finds Bevy's main passes behind the upscaling
+//! (and tonemapping, bloom) passes, and every eye pass of every compared frame is masked; RDM
+//! refuses them by name (`post_chain`: a post chain reads the target before the runtime does);
+//! the far field reuses the source eye's far pixels in the other eye. What the runtime gets: the
+//! source eye identical to the run without the layer outside the hidden area (bloom: its visible
+//! pixels ≥ 35 dB, bloom carries the mask's clear colour across the image), the destination eye's
+//! visible pixels ≥ 35 dB. The scene is deterministic (a run's first and last captured frames are
+//! identical, so that equality means something) and visible (many colours, sky and ground); no
+//! crash, no hang (CPU-time watchdog), no Vulkan validation error that the run without the layer
+//! lacks (validation proven loaded; Bevy's own errors under bookworm's validation layer are
+//! reported). The same scene on Monado in the trixie root: `monado` below.
 //!
 //! Without the binary (no `STEREOSHIM_BEVY_SCENE`, and scripts/engine-bevy fails) the tests skip
 //! loudly, or fail when `STEREOSHIM_REALWORLD_REQUIRED=1` (scripts/test) or `CI` is set.
@@ -34,6 +37,8 @@ const WARM_UP: u64 = 3;
 const RESOLUTION: &str = "504x560";
 /// Eye passes Bevy records per frame: one main pass per view (each camera renders its own).
 pub const EYE_PASSES_PER_FRAME: u64 = 2;
+/// The far field's source eye (`far_field.source_view`'s default): its pixels are its own.
+const SOURCE_VIEW: u32 = 0;
 
 /// Runs `args` without and with the layer; both clean, the scene deterministic and visible, the
 /// captured frames after warm-up identical. Returns what the layer did, for the report.
@@ -68,8 +73,22 @@ fn same_frames(tag: &str, args: &[&str]) -> Option<LayerCounts> {
     let counts = layer_counts(&layered.stats, WARM_UP..FRAMES);
     report(tag, &plain, &layered, &counts);
     assert_eq!(counts.frames, FRAMES - WARM_UP, "bevy-{tag}: the layer's stats records of the compared frames; records: {}", layered.stats.len());
-    common::assert_same_captures(&format!("bevy-{tag}-layer-vs-plain"), &plain.out, &layered.out);
-    eprintln!("bevy {tag}: frames {WARM_UP}..{FRAMES} identical with and without the layer");
+    let eye_passes = counts.frames * EYE_PASSES_PER_FRAME;
+    assert_eq!(counts.passes_masked, eye_passes, "bevy-{tag}: every eye pass of the compared frames masked: {counts:?}");
+    assert_eq!(counts.rdm_passes, 0, "bevy-{tag}: RDM must leave traced eye passes alone: {counts:?}");
+    assert!(counts.rdm_not_applied.contains_key("post_chain"), "bevy-{tag}: RDM's refusal named: {counts:?}");
+    assert!(counts.far_field_views_reused > 0, "bevy-{tag}: the far field reused nothing: {counts:?}");
+    let bloom = args.contains(&"--bloom");
+    let diffs = engine::diff_by_mask(&plain.out, &layered.out);
+    assert_eq!(diffs.len() as u64, counts.frames * 2, "bevy-{tag}: both views of every compared frame");
+    for d in &diffs {
+        if d.view == SOURCE_VIEW && !bloom {
+            assert_eq!(d.outside, 0, "bevy-{tag}: frame {} source view {}: {} visible pixels differ", d.frame, d.view, d.outside);
+        } else {
+            assert!(d.visible_psnr >= 35.0, "bevy-{tag}: frame {} view {}: visible pixels at {:.1} dB ({} differ)", d.frame, d.view, d.visible_psnr, d.outside);
+        }
+    }
+    eprintln!("bevy {tag}: frames {WARM_UP}..{FRAMES}: every eye pass masked; the source eye identical outside the hidden area{}; visible pixels ≥ 35 dB", if bloom { " but for bloom" } else { "" });
     Some(counts)
 }
 

@@ -319,13 +319,15 @@ pub fn not_applied_lines(log: &str) -> Vec<String> {
 /// against the runtime's hidden area of that frame (frames.json `visibility_masks`, rasterized by
 /// the harness): inside it, within `EDGE_MARGIN_PX` of its outline, and outside (what the user
 /// sees).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct MaskDiff {
     pub frame: u64,
     pub view: u32,
     pub inside: usize,
     pub edge: usize,
     pub outside: usize,
+    /// PSNR of the pixels outside the hidden area and its edge (infinite when identical).
+    pub visible_psnr: f64,
 }
 
 /// Pixels this close to the mask outline may go either way (vertex snapping, rounding).
@@ -346,12 +348,17 @@ pub fn diff_by_mask(plain: &RunOutput, layered: &RunOutput) -> Vec<MaskDiff> {
             let edge = common::mask_edge_pixels(mask, &a.fov, w, h, EDGE_MARGIN_PX);
             let (pa, pb) = (plain.image(&a.file), layered.image(&b.file));
             let mut d = MaskDiff { frame: f, view: a.view, ..MaskDiff::default() };
+            let (mut sq, mut n) = (0.0f64, 0u64);
             for y in 0..h {
                 for x in 0..w {
+                    let i = (y * w + x) as usize;
+                    if !edge[i] && !hidden[i] {
+                        n += 1;
+                        sq += pa.pixel(x, y)[..3].iter().zip(&pb.pixel(x, y)[..3]).map(|(p, q)| (*p as f64 - *q as f64).powi(2)).sum::<f64>() / 3.0;
+                    }
                     if pa.pixel(x, y) == pb.pixel(x, y) {
                         continue;
                     }
-                    let i = (y * w + x) as usize;
                     match (edge[i], hidden[i]) {
                         (true, _) => d.edge += 1,
                         (false, true) => d.inside += 1,
@@ -359,6 +366,7 @@ pub fn diff_by_mask(plain: &RunOutput, layered: &RunOutput) -> Vec<MaskDiff> {
                     }
                 }
             }
+            d.visible_psnr = if sq == 0.0 { f64::INFINITY } else { 10.0 * (255.0f64 * 255.0 / (sq / n.max(1) as f64)).log10() };
             out.push(d);
         }
     }
