@@ -336,3 +336,25 @@ fn record_once() {
         }
     }
 }
+
+/// Behind a post chain (the data-flow walk finds the eye passes in the tonemap's input, from the
+/// third frame on): the source eye identical, the destination's near pixels identical and its
+/// far pixels ≥ 35 dB after the tonemap, in every layout; per-eye reuses this frame's source,
+/// multiview and side by side the previous frame's (which the walk had also traced).
+#[test]
+fn behind_a_post_chain() {
+    for (layout, rendering, depth) in [("per-eye", "dynamic", "standard"), ("multiview", "render-pass2", "reverse"), ("side-by-side", "render-pass", "standard")] {
+        let previous = layout != "per-eye";
+        let args = ["--post", "tonemap", "--layout", layout, "--rendering", rendering, "--depth", depth];
+        let mut case = Case::new(&format!("ff-post-{layout}-{rendering}-{depth}"), &args).frame(if previous { 4 } else { 3 });
+        if previous {
+            case = case.env("MOCK_XR_HEAD_YAW_DEG_PER_S", "20");
+        }
+        case.previous_frame = previous;
+        let (plain, far) = case.run();
+        let src_frame = if previous { case.frame - 1 } else { case.frame };
+        let out = analyse(&case.analysis(), &plain, &far, case.frame, 1, 0, src_frame);
+        judge(&case, &out, 35.0);
+        assert!(!far.log_lines("data-flow walk: colour target of an eye pass").is_empty(), "{}: not traced:\n{}", case.name, far.log);
+    }
+}
