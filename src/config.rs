@@ -61,6 +61,24 @@ const CORE_KEYS: &[KeySpec] = &[
         doc: "auto: also mask passes that render into an intermediate image the app later copies / resolves / blits 1:1 into a swapchain image; off: only passes rendering into swapchain images",
     },
     KeySpec {
+        key: "eyes.walk",
+        kind: Kind::Bool,
+        default: "true",
+        doc: "follow each frame's data flow back from the swapchain to the eye passes behind post-processing (tonemap, upscale, TAA, compute, scaled blits); false: only swapchain targets, 1:1 copies into them and eyes.fallback",
+    },
+    KeySpec {
+        key: "eyes.fallback",
+        kind: Kind::Choice(&["off", "size"]),
+        default: "off",
+        doc: "for eye passes the data-flow walk cannot trace (descriptor buffers, bindless): size = take a depth-tested pass into an image of an eye's aspect and size (0.5-2x) as an eye pass, the eye by the order such passes come in a frame; a guess, so off by default (set it per app)",
+    },
+    KeySpec {
+        key: "eyes.fallback_order",
+        kind: Kind::Choice(&["LR", "RL"]),
+        default: "LR",
+        doc: "eyes.fallback = size: the first eye-sized pass of a frame is the left eye (LR) or the right one (RL)",
+    },
+    KeySpec {
         key: "stats.file",
         kind: Kind::Text,
         default: "",

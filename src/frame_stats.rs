@@ -177,6 +177,7 @@ mod tests {
             passes_masked: 2,
             not_masked: [("no_depth_attachment", 1)].into_iter().collect(),
             pixels_masked: [(0, 1234)].into_iter().collect(),
+            by_source: [("walk", 2)].into_iter().collect(),
         };
         *stats.get_mut::<RdmFrameStats>().unwrap() = RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() };
         *stats.get_mut::<VrsFrameStats>().unwrap() = VrsFrameStats { passes: 3, ..Default::default() };

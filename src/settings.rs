@@ -31,6 +31,10 @@ pub struct Settings {
     /// `mask.intermediate` != off: eye passes include intermediate targets copied 1:1 into a
     /// swapchain image (shared by every feature's eye-pass test).
     pub intermediate: bool,
+    /// `eyes.walk`: the data-flow walk runs at submissions.
+    pub eyes_walk: bool,
+    /// `eyes.fallback = size` with its `eyes.fallback_order`; None when off.
+    pub eyes_fallback: Option<crate::track::fallback::Order>,
     pub fragment_shading_rate: FsrSetting,
     pub mask: MaskSettings,
     pub foveation: FoveationSettings,
@@ -50,6 +54,14 @@ impl Settings {
         Settings {
             enabled: c.enabled(),
             intermediate: c.choice("mask.intermediate") != "off",
+            eyes_walk: c.bool("eyes.walk"),
+            eyes_fallback: (c.choice("eyes.fallback") == "size").then(|| {
+                if c.choice("eyes.fallback_order") == "RL" {
+                    crate::track::fallback::Order::RightLeft
+                } else {
+                    crate::track::fallback::Order::LeftRight
+                }
+            }),
             fragment_shading_rate: match c.choice("vulkan.fragment_shading_rate") {
                 "on" => FsrSetting::On,
                 "off" => FsrSetting::Off,

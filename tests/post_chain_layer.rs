@@ -133,3 +133,40 @@ fn every_eye_pass_behind_a_post_chain_is_masked_and_the_rest_stays_identical() {
         eprintln!("{r}");
     }
 }
+
+/// `eyes.fallback = size` (off by default) where the walk is off: per-eye targets of the eye's
+/// size are taken as eyes in the order their passes come, LR; the same pixels as the walk's
+/// result. With RL the first pass is taken as the right eye: still masked, with the other eye's
+/// mask, which is why it is opt-in and per app.
+#[test]
+fn the_size_fallback_takes_eye_sized_targets_by_order() {
+    let mode = PostMode::new("fallback-per-eye-tonemap", &["--post", "tonemap", "--layout", "per-eye"]).frames(FRAMES);
+    for order in ["LR", "RL"] {
+        let stats = std::env::temp_dir().join(format!("stereoshim-{}-fallback-{order}.jsonl", std::process::id()));
+        let _ = std::fs::remove_file(&stats);
+        let cfg = LayerConfig::off()
+            .env("STEREOSHIM_MASK_ENABLED", "1")
+            .env("STEREOSHIM_EYES_WALK", "0")
+            .env("STEREOSHIM_EYES_FALLBACK", "size")
+            .env("STEREOSHIM_EYES_FALLBACK_ORDER", order)
+            .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap());
+        let (plain, masked) = run_post_chain_pair(&mode, &cfg);
+        let records = layer_records(&masked, &stats);
+        let _ = std::fs::remove_file(&stats);
+        assert!(masked.log_lines("data-flow walk: colour target").is_empty(), "eyes.walk = off: no walk");
+        let taken = masked.log_lines("eyes.fallback = size: an untraced pass's target taken");
+        assert_eq!(taken.len(), 2, "{order}: two targets taken:\n{}", masked.log);
+        let first_view = if order == "LR" { "view: 0" } else { "view: 1" };
+        assert!(taken.iter().any(|l| l.contains("pass 0 of the frame") && l.contains(first_view)), "{order}: {taken:?}");
+        for f in 1..FRAMES {
+            let r = records.iter().find(|r| r["frame"] == f).expect("stats of the frame");
+            assert_eq!(r["passes_masked"].as_u64(), Some(2), "{order}: frame {f}: {r}");
+            assert_eq!(r["mask_by_source"]["fallback"].as_u64(), Some(2), "{order}: frame {f}: {r}");
+        }
+        if order == "LR" {
+            for (view, d) in diff_view(&mode, &masked, &plain, FRAMES - 1, edge_margin(&mode)) {
+                assert_eq!(d.outside + d.near_edge, 0, "LR: view {view}: visible pixels changed");
+            }
+        }
+    }
+}

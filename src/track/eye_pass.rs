@@ -38,6 +38,8 @@ pub enum Eyes {
     /// An eye pass's target the data-flow walk reached from a swapchain image through
     /// post-processing (draws, compute, scaled blits): what the runtime gets is derived from it.
     Traced(Vec<EyeSource>),
+    /// Taken as an eye target by size and order (`eyes.fallback = size`).
+    Fallback(Vec<EyeSource>),
     /// Only post-process passes (draws that never test depth) were seen writing it.
     Post,
     /// Unknown, while the data-flow walk has traced the frame's eyes elsewhere: not an eye
@@ -83,9 +85,9 @@ pub struct MaskPlan {
     pub fail_depth: f32,
     pub layout: EyeLayout,
     pub intermediate: bool,
-    /// The eyes were found by the data-flow walk: a post-process chain reads the target before
-    /// the runtime does (so nothing may leave holes in it past the pass).
-    pub traced: bool,
+    /// How the target was tied to the eyes: by the data-flow walk or the size fallback, a
+    /// post-process chain may read it before the runtime does (nothing may leave holes in it).
+    pub via: Via,
     /// The image whose eyes were found (for the log).
     pub image: u64,
     /// Multiview: the pass's view mask (one draw; view `i` of the mask is gl_ViewIndex `i`).
@@ -206,6 +208,7 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
             }
             Eyes::Intermediate(s) if !s.is_empty() && found.is_none() => found = Some((att, s, Via::Transfer)),
             Eyes::Traced(s) if !s.is_empty() && found.is_none() => found = Some((att, s, Via::Walk)),
+            Eyes::Fallback(s) if !s.is_empty() && found.is_none() => found = Some((att, s, Via::Fallback)),
             Eyes::Post => post = true,
             _ => {}
         }
@@ -234,6 +237,24 @@ pub enum Via {
     Transfer,
     /// The data-flow walk reached it through post-processing.
     Walk,
+    /// The size fallback took it (`eyes.fallback = size`).
+    Fallback,
+}
+
+impl Via {
+    /// The name in logs and `stats.file` (`mask.by_source`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Via::Swapchain => "swapchain",
+            Via::Transfer => "transfer",
+            Via::Walk => "walk",
+            Via::Fallback => "fallback",
+        }
+    }
+    /// A post chain may read the target before the runtime does.
+    pub fn behind_post(self) -> bool {
+        matches!(self, Via::Walk | Via::Fallback)
+    }
 }
 
 /// The fail depth of a pass whose depth starts cleared to 0 or 1 here, else why not.
@@ -278,7 +299,7 @@ pub fn awaiting_eyes(pass: &PassInstance, facts: &Facts<'_>) -> Option<f32> {
 pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotMasked> {
     // Eyes first: a pass that shows no eye is not an eye pass, whatever its depth does.
     let (att, sources, via) = find_eyes(pass, facts)?;
-    let (intermediate, traced) = (via != Via::Swapchain, via == Via::Walk);
+    let intermediate = via != Via::Swapchain;
     if facts.secondary_contents {
         return Err(NotMasked::Secondary);
     }
@@ -291,7 +312,7 @@ pub fn classify(pass: &PassInstance, facts: &Facts<'_>) -> Result<MaskPlan, NotM
     let mut sources = sources;
     sources.sort_by_key(|s| (s.layer, s.rect.x, s.rect.y, s.view));
     sources.dedup();
-    let plan = |layout, view_mask, draws: Vec<EyeDraw>| MaskPlan { fail_depth, layout, intermediate, traced, image: att.image_view.as_ref().map_or(0, |v| v.image), view_mask, draws };
+    let plan = |layout, view_mask, draws: Vec<EyeDraw>| MaskPlan { fail_depth, layout, intermediate, via, image: att.image_view.as_ref().map_or(0, |v| v.image), view_mask, draws };
     if view_mask != 0 {
         let mut draws = Vec::new();
         for i in (0..32).filter(|i| view_mask & (1 << i) != 0) {

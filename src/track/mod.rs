@@ -7,6 +7,7 @@ pub mod cmd;
 pub mod descriptors;
 pub mod device_ext;
 pub mod eye_pass;
+pub mod fallback;
 pub mod flow;
 pub mod resources;
 pub mod traced;

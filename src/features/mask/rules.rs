@@ -141,6 +141,9 @@ pub fn masked_pixels(triangles: &[[f32; 2]], fov: &ViewFov, rect: PixelRect) -> 
 pub struct MaskFrameStats {
     /// Eye passes (render pass instances or explicit depth clears) that got a mask.
     pub passes_masked: u64,
+    /// Masked passes by how their target was tied to the eyes: swapchain, transfer (1:1 into
+    /// one), walk (the data-flow walk), fallback (size and order).
+    pub by_source: BTreeMap<&'static str, u64>,
     /// Render pass instances with a depth or swapchain attachment that got none, by reason
     /// (`NotMasked::name`).
     pub not_masked: BTreeMap<&'static str, u64>,
@@ -151,6 +154,9 @@ pub struct MaskFrameStats {
 impl MaskFrameStats {
     pub fn add(&mut self, o: &MaskFrameStats) {
         self.passes_masked += o.passes_masked;
+        for (k, v) in &o.by_source {
+            *self.by_source.entry(k).or_insert(0) += v;
+        }
         for (k, v) in &o.not_masked {
             *self.not_masked.entry(k).or_insert(0) += v;
         }
@@ -167,6 +173,9 @@ impl MaskFrameStats {
     /// `key=value` pairs for the `vulkan device stats:` line.
     pub fn summary(&self) -> String {
         let mut s = format!("masked_passes={} masked_pixels={}", self.passes_masked, self.pixels_total());
+        for (k, v) in &self.by_source {
+            s.push_str(&format!(" masked_by.{k}={v}"));
+        }
         for (k, v) in &self.not_masked {
             s.push_str(&format!(" not_masked.{k}={v}"));
         }
@@ -207,6 +216,7 @@ impl FeatureStats for MaskFrameStats {
     /// The mask's fields sit at the top level of the record (the first feature, kept as it was).
     fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
         record.insert("passes_masked".into(), self.passes_masked.into());
+        record.insert("mask_by_source".into(), json_counts(self.by_source.iter().map(|(k, v)| (*k, *v))));
         record.insert("not_masked".into(), json_counts(self.not_masked.iter().map(|(k, v)| (*k, *v))));
         record.insert("pixels_masked".into(), json_counts(self.pixels_masked.iter().map(|(k, v)| (*k, *v))));
     }

@@ -76,6 +76,8 @@ enum Target {
 struct MaskData {
     buffer: PooledBuffer,
     target: Target,
+    /// How the pass's target was tied to the eyes (`Via::name`; `stats.file` `mask_by_source`).
+    source: &'static str,
     /// What the buffer holds now.
     filled: Mutex<Filled>,
 }
@@ -245,14 +247,14 @@ impl MaskDevice {
 
     /// A recording's buffer, with room for masks up to twice the current one's size (a changed
     /// mask usually fits when refilled).
-    fn data(&self, d: &DeviceState, g: &Geometry, target: Target) -> Result<Arc<MaskData>, NotMasked> {
+    fn data(&self, d: &DeviceState, g: &Geometry, target: Target, source: &'static str) -> Result<Arc<MaskData>, NotMasked> {
         let vertices: usize = g.ndc.values().map(Vec::len).sum();
         let size = inject::DRAW_ARGS * 4 + 2 * (vertices * std::mem::size_of::<Vertex>()) as u64;
         let buffer = PooledBuffer::take(d, size, &self.memory).map_err(|e| {
             d.warn_repeated("mask buffer", &e);
             NotMasked::LayerError
         })?;
-        Ok(Arc::new(MaskData { buffer, target, filled: Mutex::default() }))
+        Ok(Arc::new(MaskData { buffer, target, source, filled: Mutex::default() }))
     }
 
     /// Records the mask draw(s) of a known eye pass; returns the pixels they cover per view.
@@ -266,7 +268,7 @@ impl MaskDevice {
         let multiview = plan.layout == EyeLayout::Multiview;
         let draws: Vec<EyeDraw> = if multiview { plan.draws.clone() } else { plan.draws.iter().filter(|dr| dr.scissor.area() > 0).copied().collect() };
         let recorded: Vec<EyeDraw> = if multiview { draws.iter().take(1).copied().collect() } else { draws.clone() };
-        let data = self.data(d, &g, Target::Eyes { draws, multiview })?;
+        let data = self.data(d, &g, Target::Eyes { draws, multiview }, plan.via.name())?;
         data.refresh(self, &g, None);
         let draws: Vec<inject::IndirectDraw> =
             recorded.iter().enumerate().map(|(i, dr)| inject::IndirectDraw { slot: i as u64, viewport: inject::fail_viewport(dr.viewport, plan.fail_depth), scissor: dr.scissor }).collect();
@@ -345,7 +347,7 @@ impl VkFeature for MaskDevice {
         // formats; multiview from the pass itself).
         let plan = inject::shape_only(at.pass, at.fail_depth);
         let Ok(p) = self.pipeline(d, at.pass, &plan, at.settings.mask.debug) else { return };
-        let Ok(data) = self.data(d, &g, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area }) else { return };
+        let Ok(data) = self.data(d, &g, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area }, "swapchain") else { return };
         data.refresh(self, &g, None);
         let draw = inject::IndirectDraw { slot: 0, viewport: inject::fail_viewport(area, at.fail_depth), scissor: area };
         // SAFETY: `at.cb` is recording inside the pass (the chassis just recorded its begin /
@@ -381,6 +383,7 @@ impl VkFeature for MaskDevice {
                     if !pixels.is_empty() {
                         self.count(|s| {
                             s.passes_masked += 1;
+                            *s.by_source.entry(data.source).or_insert(0) += 1;
                             for (view, px) in &pixels {
                                 *s.pixels_masked.entry(*view).or_insert(0) += px;
                             }

@@ -123,9 +123,18 @@ struct Books {
     vetoed: HashMap<&'static str, u64>,
     /// Command buffer → its armed open pass.
     armed: HashMap<u64, Armed>,
+    /// `eyes.fallback = size`: the eye-sized images of this frame in the order their passes
+    /// came (the eye by order), and the decisions already logged.
+    fallback_frame: Vec<u64>,
+    logged_fallback: HashSet<String>,
 }
 
 impl InjectDevice {
+    /// A frame ended (`xrEndFrame`): the size fallback's order starts again.
+    pub(crate) fn new_frame(&self) {
+        lock(&self.books).fallback_frame.clear();
+    }
+
     /// Injections vetoed so far, by reason (for the device's stats line).
     pub(crate) fn vetoed(&self) -> Vec<(&'static str, u64)> {
         let mut v: Vec<_> = lock(&self.books).vetoed.iter().map(|(k, v)| (*k, *v)).collect();
@@ -447,7 +456,7 @@ fn inject_awaiting(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Sn
 /// secondaries need before the eyes are known.
 pub(crate) fn shape_only(pass: &PassInstance, fail_depth: f32) -> MaskPlan {
     let layout = if pass.view_mask() != 0 { eye_pass::EyeLayout::Multiview } else { eye_pass::EyeLayout::PerEye };
-    MaskPlan { fail_depth, layout, intermediate: false, traced: false, image: 0, view_mask: pass.view_mask(), draws: Vec::new() }
+    MaskPlan { fail_depth, layout, intermediate: false, via: eye_pass::Via::Swapchain, image: 0, view_mask: pass.view_mask(), draws: Vec::new() }
 }
 
 fn attachments(pass: &PassInstance) -> Vec<&AttachmentUse> {
@@ -484,7 +493,7 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
         Some(t) => Eyes::Traced(t.eyes),
         None if d.track.traced.is_post(image, None) => Eyes::Post,
         None if d.track.traced.has_eyes() => Eyes::NotEye,
-        None => Eyes::Unknown,
+        None => fallback(d, a, image),
     };
     // What the walk saw last wins over what transfers alone say (a 1:1 copy of a post target
     // does not make it an eye pass's).
@@ -519,10 +528,60 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
     }
 }
 
+/// `eyes.fallback = size`: an image nothing ties to an eye, taken as one by its size and the
+/// order of such passes in the frame; every decision logged once (per image and outcome).
+fn fallback(d: &DeviceState, a: &AttachmentUse, image: u64) -> Eyes {
+    let Some(order) = d.settings().eyes_fallback else { return Eyes::Unknown };
+    let Some(view) = a.image_view.as_ref() else { return Eyes::Unknown };
+    if view.range.aspect_mask.intersects(vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL) {
+        return Eyes::Unknown;
+    }
+    let Some(img) = d.track.images.get(image) else { return Eyes::Unknown };
+    let eye = shared().swapchains.values().into_iter().flat_map(|(_, s)| s.uses()).find(|u| !u.depth).map(|u| (u.image_rect.width.max(0) as u32, u.image_rect.height.max(0) as u32));
+    let Some(eye) = eye else { return Eyes::Unknown };
+    let layers = view.range.layers_of(img.array_layers);
+    let nth = {
+        let mut b = lock(&d.inject.books);
+        match b.fallback_frame.iter().position(|i| *i == image) {
+            Some(n) => n,
+            None => {
+                b.fallback_frame.push(image);
+                b.fallback_frame.len() - 1
+            }
+        }
+    };
+    let decided = crate::track::fallback::eyes_by_size((img.extent.width, img.extent.height), layers, layers >= 2, eye, nth, order);
+    let key = match &decided {
+        Ok(e) => format!("{image:#x} {:?}", e.iter().map(|s| s.view).collect::<Vec<_>>()),
+        Err(_) => format!("{image:#x} refused"),
+    };
+    let first = {
+        let mut b = lock(&d.inject.books);
+        b.logged_fallback.len() < 256 && b.logged_fallback.insert(key)
+    };
+    match decided {
+        Ok(eyes) => {
+            if first {
+                tracing::info!(image = format_args!("{image:#x}"), "eyes.fallback = size: an untraced pass's target taken as an eye target by size and order ({order:?}, pass {nth} of the frame); eyes {eyes:?}");
+            }
+            Eyes::Fallback(eyes)
+        }
+        Err(why) => {
+            if first {
+                tracing::info!(image = format_args!("{image:#x}"), "eyes.fallback = size: not an eye target: {why}");
+            }
+            Eyes::Unknown
+        }
+    }
+}
+
 /// The app submits `cbs`: their recorded data flow joins the window, and every swapchain image
 /// they write is walked back to its eye passes (`track::traced`); what the walk learned or could
 /// not trace is logged once.
 pub(crate) fn walk_submitted(d: &DeviceState, cbs: &[u64]) {
+    if !d.settings().eyes_walk {
+        return;
+    }
     let snaps: Vec<_> = cbs.iter().filter_map(|cb| d.track.with_cb(*cb, |s| s.flow_on.then(|| s.flow.snapshot())).flatten()).collect();
     if snaps.is_empty() {
         return;

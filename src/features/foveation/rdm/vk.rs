@@ -403,7 +403,7 @@ fn reconstruction_ready(me: &RdmDevice, d: &DeviceState, cb: vk::CommandBuffer, 
 
 fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<(), NotApplied> {
     let plan = at.plan;
-    if plan.traced {
+    if plan.via.behind_post() {
         // A tonemapper, bloom or TAA would read the checkerboard before any reconstruction at
         // release: never leave holes in such a target.
         log_once(me, "post chain".into(), || {
