@@ -20,6 +20,9 @@ pub struct Second {
     pub far_field_pixels_reused: u64,
     /// `feature.reason` → passes not applied for it.
     pub not_applied: BTreeMap<String, u64>,
+    /// Masked passes by how their target was tied to an eye (`mask_by_source`: swapchain,
+    /// transfer, walk, fallback).
+    pub masked_by: BTreeMap<String, u64>,
     /// Mean layer-side GPU busy time of the timed frames (`stats.gpu_time`), ms.
     pub gpu_busy_ms: Option<f64>,
     gpu_sum: f64,
@@ -55,6 +58,19 @@ fn reasons(v: &Value) -> BTreeMap<String, u64> {
         }
     }
     out
+}
+
+/// Masked passes by source (`mask_by_source`).
+fn sources(v: &Value) -> BTreeMap<String, u64> {
+    v.get("mask_by_source").and_then(Value::as_object).map_or_else(BTreeMap::new, |m| m.iter().map(|(k, n)| (k.clone(), n.as_u64().unwrap_or(0))).collect())
+}
+
+/// `k=n` pairs joined by `sep`, or `-` when there are none.
+fn pairs(m: &BTreeMap<String, u64>, sep: &str, none: &str) -> String {
+    if m.is_empty() {
+        return none.to_string();
+    }
+    m.iter().map(|(k, n)| format!("{k}={n}")).collect::<Vec<_>>().join(sep)
 }
 
 /// Reads one line; an empty line is none, anything else unreadable is an error naming why.
@@ -94,6 +110,9 @@ impl Summary {
         for (k, n) in reasons(v) {
             *s.not_applied.entry(k).or_insert(0) += n;
         }
+        for (k, n) in sources(v) {
+            *s.masked_by.entry(k).or_insert(0) += n;
+        }
         if let Some(busy) = v.get("gpu_ms").and_then(|g| g.get("busy")).and_then(Value::as_f64) {
             s.gpu_sum += busy;
             s.gpu_n += 1;
@@ -103,13 +122,13 @@ impl Summary {
 }
 
 /// The table's header line.
-pub const TABLE_HEADER: &str = "second  frames  passes_masked  pixels_masked  rdm_passes  rdm_pixels_skipped  vrs_passes  far_field_pixels_reused  gpu_busy_ms  not_applied";
+pub const TABLE_HEADER: &str = "second  frames  passes_masked  pixels_masked  rdm_passes  rdm_pixels_skipped  vrs_passes  far_field_pixels_reused  gpu_busy_ms  masked_by  not_applied";
 
 /// One second as a table line.
 pub fn table_line(s: &Second) -> String {
     let reasons: Vec<String> = s.not_applied.iter().map(|(k, n)| format!("{k}={n}")).collect();
     format!(
-        "{:>6}  {:>6}  {:>13}  {:>13}  {:>10}  {:>18}  {:>10}  {:>23}  {:>11}  {}",
+        "{:>6}  {:>6}  {:>13}  {:>13}  {:>10}  {:>18}  {:>10}  {:>23}  {:>11}  {}  {}",
         s.second,
         s.frames,
         s.passes_masked,
@@ -119,12 +138,13 @@ pub fn table_line(s: &Second) -> String {
         s.vrs_passes,
         s.far_field_pixels_reused,
         s.gpu_busy_ms.map_or("-".to_string(), |g| format!("{g:.3}")),
+        pairs(&s.masked_by, ",", "-"),
         if reasons.is_empty() { "-".to_string() } else { reasons.join(",") }
     )
 }
 
 /// The CSV header (one row per frame).
-pub const CSV_HEADER: &str = "frame,time,mask_enabled,foveation_enabled,far_field_enabled,passes_masked,pixels_masked,rdm_passes,rdm_pixels_skipped,vrs_passes,far_field_pixels_reused,gpu_busy_ms,not_applied";
+pub const CSV_HEADER: &str = "frame,time,mask_enabled,foveation_enabled,far_field_enabled,passes_masked,pixels_masked,rdm_passes,rdm_pixels_skipped,vrs_passes,far_field_pixels_reused,gpu_busy_ms,masked_by,not_applied";
 
 /// One frame as a CSV row; the reasons in one field, `feature.reason=n` joined by `;` (no commas
 /// or quotes appear in reason names, so the field needs no quoting).
@@ -133,7 +153,7 @@ pub fn csv_row(f: &Frame) -> String {
     let b = |k: &str| v.get(k).and_then(Value::as_bool).map_or(String::new(), |b| b.to_string());
     let reasons: Vec<String> = reasons(v).into_iter().map(|(k, n)| format!("{k}={n}")).collect();
     format!(
-        "{},{:.6},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{:.6},{},{},{},{},{},{},{},{},{},{},{},{}",
         f.frame,
         f.time,
         b("mask_enabled"),
@@ -146,6 +166,7 @@ pub fn csv_row(f: &Frame) -> String {
         u(v, &["vrs", "passes"]),
         u(v, &["far_field", "pixels_reused"]),
         v.get("gpu_ms").and_then(|g| g.get("busy")).and_then(Value::as_f64).map_or(String::new(), |g| format!("{g}")),
+        pairs(&sources(v), ";", ""),
         reasons.join(";")
     )
 }
@@ -158,7 +179,7 @@ mod tests {
         let not = reason.map_or(serde_json::json!({}), |r| serde_json::json!({ r: 2 }));
         serde_json::json!({
             "frame": frame, "time": time, "mask_enabled": true, "foveation_enabled": true, "far_field_enabled": false,
-            "passes_masked": 2, "pixels_masked": {"0": masked, "1": masked}, "not_masked": not,
+            "passes_masked": 2, "pixels_masked": {"0": masked, "1": masked}, "not_masked": not, "mask_by_source": {"walk": 2},
             "rdm": {"passes": 2, "pixels_skipped": {"0": 10, "1": 10}, "not_applied": {}},
             "vrs": {"passes": 0, "not_applied": {}},
             "far_field": {"pixels_reused": 5, "not_applied": {}},
@@ -179,13 +200,14 @@ mod tests {
         assert_eq!(s.seconds[0].far_field_pixels_reused, 15);
         assert_eq!(s.seconds[0].gpu_busy_ms, Some(2.0));
         assert_eq!(s.seconds[2].not_applied, BTreeMap::from([("mask.eye_unknown".to_string(), 2)]));
-        assert!(table_line(&s.seconds[2]).ends_with("mask.eye_unknown=2"));
+        assert!(table_line(&s.seconds[2]).ends_with("walk=2  mask.eye_unknown=2"), "{}", table_line(&s.seconds[2]));
+        assert_eq!(s.seconds[0].masked_by, BTreeMap::from([("walk".to_string(), 6)]));
     }
 
     #[test]
     fn csv_rows_flatten_a_frame() {
         let f = parse_line(&line(7, 12.5, 3, Some("no_depth"))).unwrap().unwrap();
-        assert_eq!(csv_row(&f), "7,12.500000,true,true,false,2,6,2,20,0,5,2,mask.no_depth=2");
+        assert_eq!(csv_row(&f), "7,12.500000,true,true,false,2,6,2,20,0,5,2,walk=2,mask.no_depth=2");
         assert_eq!(CSV_HEADER.split(',').count(), csv_row(&f).split(',').count());
     }
 

@@ -78,6 +78,8 @@ fn same_frames(tag: &str, args: &[&str]) -> Option<LayerCounts> {
     assert_eq!(counts.rdm_passes, 0, "bevy-{tag}: RDM must leave traced eye passes alone: {counts:?}");
     assert!(counts.rdm_not_applied.contains_key("post_chain"), "bevy-{tag}: RDM's refusal named: {counts:?}");
     assert!(counts.far_field_views_reused > 0, "bevy-{tag}: the far field reused nothing: {counts:?}");
+    // Bevy submits no depth info and nothing is configured: the range is the engine's default.
+    assert!(!layered.out.log_lines("far field depth range: the engine's documented default").is_empty(), "bevy-{tag}: the depth range's source:\n{}", layered.out.log);
     let bloom = args.contains(&"--bloom");
     let diffs = engine::diff_by_mask(&plain.out, &layered.out);
     assert_eq!(diffs.len() as u64, counts.frames * 2, "bevy-{tag}: both views of every compared frame");

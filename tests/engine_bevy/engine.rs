@@ -99,8 +99,6 @@ enabled = true
 method = \"rdm\"
 [far_field]
 enabled = true
-near_z = 0.1
-far_z = 1e30
 ";
 
 /// One run of the scene on the mock runtime.
