@@ -106,7 +106,7 @@ pub fn common_hint(reason: &str) -> &'static str {
     match reason {
         "eye_unknown" => {
             "the pass renders into an image the layer cannot tie to an eye: not a swapchain image, nor reached from one by \
-             the data-flow walk (why is logged once as \"data-flow walk: …\"); the first frames are always so. If no walk \
+             the data-flow walk (why is logged once as \"data-flow walk: …\"); frame 0 is always so, and frame 1 for targets only the walk finds. If no walk \
              reason is logged, the cause is unknown: report the app and runtime"
         }
         "no_depth_attachment" => "a pass into an eye's image has no depth buffer: an app that renders its eyes without depth (the mask and RDM need one), or a post-process pass before the data-flow walk has seen a frame",

@@ -41,7 +41,8 @@ pub(crate) fn line(dev: &DeviceState) -> String {
 
 /// Logs the line of a device that is still live, saying when (`at`: "xrDestroySession", "exit").
 pub(crate) fn log_live(dev: &DeviceState, at: &str) {
-    tracing::info!(device = ?dev.handle, "vulkan device stats ({at}, device still live): {}", line(dev));
+    // Not "vulkan device stats:": that line is the device's last word, with nothing left alive.
+    tracing::info!(device = ?dev.handle, "vulkan device still live at {at}; its stats so far: {}", line(dev));
 }
 
 /// At process exit, the lines of every device the app never destroyed. Registered once, when

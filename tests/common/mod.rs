@@ -247,7 +247,7 @@ pub fn assert_nothing_tracked(out: &RunOutput) {
     assert!(!lines.is_empty(), "no device stats line:\n{}", out.log);
     for l in lines {
         let live: Vec<&str> = l.split_whitespace().filter(|w| w.starts_with("live.")).collect();
-        assert_eq!(live.len(), 7, "{l}");
+        assert_eq!(live.len(), 8, "{l}");
         assert!(live.iter().all(|w| w.ends_with("=0")), "the layer still tracks destroyed objects: {live:?}");
         // The layer's own Vulkan objects (`own.*`, src/vk/own.rs) are listed there too, and all
         // destroyed right after it.
