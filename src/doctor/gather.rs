@@ -180,6 +180,11 @@ pub fn vulkan_half(ours: &[ManifestFacts]) -> VulkanHalfFacts {
 }
 
 /// The configuration for `app` from `file` (or the default file), with the layer's own loader.
+/// The layer's log file, if there is one (for which pass got which eye).
+pub fn layer_log() -> Option<String> {
+    crate::log::default_path(&env).and_then(|p| std::fs::read_to_string(p).ok())
+}
+
 pub fn config(file: Option<&Path>, app: Option<&str>) -> ConfigFacts {
     let path = file.map(Path::to_path_buf).or_else(|| crate::config::default_path(&env));
     let names: Vec<&str> = app.into_iter().collect();

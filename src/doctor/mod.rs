@@ -47,6 +47,7 @@ pub fn run(opts: &Options) -> Report {
     findings.extend(rules::gpu(&vk, &config.config));
     findings.extend(rules::config(&config));
     findings.extend(rules::conflicts(&others, xr_layers, installed, &env));
+    findings.extend(rules::eyes(gather::layer_log().as_deref()));
     Report { findings }
 }
 

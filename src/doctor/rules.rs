@@ -534,6 +534,43 @@ pub fn config(c: &ConfigFacts) -> Vec<Finding> {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Eyes of the last session
+
+/// Which pass got which eye in the last session the layer logged (from `vulkan instance created`
+/// on): the data-flow walk's eye targets, the size fallback's guesses, and what the walk could not
+/// trace. `log`: the layer's log file, None when there is none.
+pub fn eyes(log: Option<&str>) -> Vec<Finding> {
+    const C: &str = "eyes";
+    let Some(log) = log else { return vec![ok(C, "no layer log yet: run an app once to see which pass got which eye")] };
+    let last = log.rfind("vulkan instance created").map_or(0, |i| log[..i].rfind('\n').map_or(0, |n| n + 1));
+    let after = |l: &str, marker: &str| l.find(marker).map(|i| l[i + marker.len()..].trim().to_string());
+    let mut out = Vec::new();
+    let (mut traced, mut guessed, mut untraced) = (0, 0, 0);
+    for l in log[last..].lines() {
+        if let Some(m) = after(l, "data-flow walk: ") {
+            if m.starts_with("colour target") || m.starts_with("depth image") {
+                traced += 1;
+                if traced <= 8 {
+                    out.push(ok(C, m));
+                }
+            } else {
+                untraced += 1;
+                out.push(warning(C, format!("not traced: {m}"), "set eyes.fallback = \"size\" for this app (a guess by size and order), or report the app"));
+            }
+        } else if let Some(m) = after(l, "eyes.fallback = size: ") {
+            guessed += 1;
+            out.push(warning(C, format!("by size (eyes.fallback): {m}"), "a guess: check the eyes with mask.debug = true, or set eyes.fallback_order / eyes.fallback = \"off\""));
+        }
+    }
+    if traced + guessed + untraced == 0 {
+        out.push(ok(C, "the last session logged no eye target behind post-processing: its eye passes render into swapchain images (or no pass was seen)"));
+    } else if traced > 8 {
+        out.push(ok(C, format!("… and {} more traced targets in the log", traced - 8)));
+    }
+    out
+}
+
+// ---------------------------------------------------------------------------------------------
 // Conflicts
 
 /// An implicit OpenXR layer that is not stereoshim.

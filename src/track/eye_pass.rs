@@ -24,6 +24,11 @@ impl EyeSource {
     }
 }
 
+/// Eyes as the log shows them: `view 0 layer 0 256x256+0+0, view 1 …`.
+pub fn describe(eyes: &[EyeSource]) -> String {
+    eyes.iter().map(|e| format!("view {} layer {} {}x{}+{}+{}", e.view, e.layer, e.rect.width, e.rect.height, e.rect.x, e.rect.y)).collect::<Vec<_>>().join(", ")
+}
+
 pub fn rect(r: ImageRect) -> PixelRect {
     PixelRect { x: r.x, y: r.y, width: r.width.max(0) as u32, height: r.height.max(0) as u32 }
 }

@@ -313,3 +313,22 @@ fn runtime_extensions() {
     assert!(f[0].status == Status::Error && f[0].detail.contains("Vulkan apps only"), "{f:?}");
     assert!(extensions(&probe(&[]), &RuntimeFacts::default()).is_empty());
 }
+
+#[test]
+fn eyes_of_the_last_session_come_from_the_log() {
+    assert_eq!(eyes(None)[0].status, Status::Ok);
+    let log = "\
+x INFO stereoshim::vk::chain: vulkan instance created\n\
+x INFO stereoshim::vk::inject: data-flow walk: colour target 0xa of an eye pass, reached from the swapchain through old: view 0 layer 0 8x8+0+0\n\
+x INFO stereoshim::vk::chain: vulkan instance created\n\
+x INFO stereoshim::vk::inject: data-flow walk: colour target 0xf of an eye pass, reached from the swapchain through resolve ← draw: view 0 layer 0 256x256+0+0\n\
+x INFO stereoshim::vk::inject: data-flow walk: view 1: a pass on the way (no depth-tested draw) samples no eye-sized image written in this frame (logged once)\n\
+x INFO stereoshim::vk::inject: eyes.fallback = size: an untraced pass's target 0x12 taken as an eye target by size and order (LeftRight, pass 0 of the frame): view 0 layer 0 256x256+0+0\n";
+    let f = eyes(Some(log));
+    assert_eq!(f.len(), 3, "{f:?}");
+    assert!(f[0].status == Status::Ok && f[0].detail.contains("0xf") && f[0].detail.contains("resolve ← draw"), "only the last session: {f:?}");
+    assert!(f[1].status == Status::Warning && f[1].detail.starts_with("not traced: view 1"));
+    assert!(f[2].status == Status::Warning && f[2].detail.contains("by size"));
+    let direct = eyes(Some("x vulkan instance created\nx masking per-eye pass on swapchain image 0x5\n"));
+    assert!(direct.len() == 1 && direct[0].detail.contains("swapchain images"));
+}

@@ -562,13 +562,13 @@ fn fallback(d: &DeviceState, a: &AttachmentUse, image: u64) -> Eyes {
     match decided {
         Ok(eyes) => {
             if first {
-                tracing::info!(image = format_args!("{image:#x}"), "eyes.fallback = size: an untraced pass's target taken as an eye target by size and order ({order:?}, pass {nth} of the frame); eyes {eyes:?}");
+                tracing::info!("eyes.fallback = size: an untraced pass's target {image:#x} taken as an eye target by size and order ({order:?}, pass {nth} of the frame): {}", eye_pass::describe(&eyes));
             }
             Eyes::Fallback(eyes)
         }
         Err(why) => {
             if first {
-                tracing::info!(image = format_args!("{image:#x}"), "eyes.fallback = size: not an eye target: {why}");
+                tracing::info!("eyes.fallback = size: {image:#x} is not an eye target: {why}");
             }
             Eyes::Unknown
         }
@@ -590,9 +590,9 @@ pub(crate) fn walk_submitted(d: &DeviceState, cbs: &[u64]) {
     for note in d.track.traced.submitted(&world, snaps) {
         match note {
             crate::track::traced::Note::Traced { image, eyes, chain, depth } => tracing::info!(
-                image = format_args!("{image:#x}"),
-                "data-flow walk: {} of an eye pass, reached from the swapchain through {chain}; eyes {eyes:?}",
-                if depth { "depth image" } else { "colour target" }
+                "data-flow walk: {} {image:#x} of an eye pass, reached from the swapchain through {chain}: {}",
+                if depth { "depth image" } else { "colour target" },
+                eye_pass::describe(&eyes)
             ),
             crate::track::traced::Note::Untraced(why) => tracing::info!("data-flow walk: {why} (logged once)"),
         }
