@@ -51,6 +51,18 @@ pub fn init(level: &str) -> Option<&'static Path> {
         .as_deref()
 }
 
+/// Appends one INFO line to the log file without `tracing`: for code that runs at process exit,
+/// when the subscriber's thread-locals may already be destroyed (using them there panics).
+pub fn append_at_exit(target: &str, message: &str) {
+    let Some(Some(path)) = LOG_PATH.get() else { return };
+    let since = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+    let line = format!("{}.{:06}s  INFO {target}: {message}\n", since.as_secs(), since.subsec_micros());
+    if let Some(mut f) = open(path) {
+        use std::io::Write;
+        let _ = f.write_all(line.as_bytes());
+    }
+}
+
 fn open(path: &Path) -> Option<File> {
     std::fs::create_dir_all(path.parent()?).ok()?;
     OpenOptions::new().create(true).append(true).open(path).ok()

@@ -63,10 +63,11 @@ pub(crate) fn log_at_exit() {
 }
 
 extern "C" fn at_exit() {
-    // Never unwind into libc; a poisoned or busy state is skipped, never waited on forever.
+    // Never unwind into libc. No `tracing` here: at exit the subscriber's thread-locals may be
+    // gone already (seen with Bevy on an H100), and touching them panics.
     let _ = std::panic::catch_unwind(|| {
         for (_, dev) in layer().devices.values() {
-            log_live(&dev, "exit");
+            crate::log::append_at_exit("stereoshim::vk::device_stats", &format!("vulkan device still live at exit; its stats so far: {}", line(&dev)));
         }
     });
 }
