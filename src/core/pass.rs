@@ -35,10 +35,13 @@ pub enum NotMasked {
     /// A post-process pass (its draws never test depth: tonemap, upscale, TAA resolve) writes
     /// the eye's image; the eye pass is behind it (the data-flow walk finds it).
     PostPass,
+    /// The data-flow walk saw the eye's rect in the target change from frame to frame (dynamic
+    /// resolution into a sub-rect): the learned rect is last frame's, so the pass is left alone.
+    RectChanging,
 }
 
 impl NotMasked {
-    pub const ALL: [NotMasked; 12] = [
+    pub const ALL: [NotMasked; 13] = [
         NotMasked::NotEyePass,
         NotMasked::EyeUnknown,
         NotMasked::NoDepthAttachment,
@@ -51,6 +54,7 @@ impl NotMasked {
         NotMasked::LayerError,
         NotMasked::DeviceLacks,
         NotMasked::PostPass,
+        NotMasked::RectChanging,
     ];
     pub fn name(&self) -> &'static str {
         match self {
@@ -66,6 +70,7 @@ impl NotMasked {
             NotMasked::LayerError => "layer_error",
             NotMasked::DeviceLacks => "device_lacks",
             NotMasked::PostPass => "post_pass",
+            NotMasked::RectChanging => "rect_changing",
         }
     }
 }

@@ -45,6 +45,8 @@ pub enum Eyes {
     Traced(Vec<EyeSource>),
     /// Taken as an eye target by size and order (`eyes.fallback = size`).
     Fallback(Vec<EyeSource>),
+    /// Traced, but its eye rect changed at the last walk (dynamic resolution).
+    Changing,
     /// Only post-process passes (draws that never test depth) were seen writing it.
     Post,
     /// Unknown, while the data-flow walk has traced the frame's eyes elsewhere: not an eye
@@ -199,6 +201,7 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
     let mut unknown_swapchain = false;
     let mut has_color = false;
     let mut post = false;
+    let mut changing = false;
     for att in eye_candidates(pass) {
         let is_depth = att.image_view.as_ref().is_some_and(|v| {
             v.range.aspect_mask.intersects(vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL)
@@ -215,11 +218,14 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
             Eyes::Traced(s) if !s.is_empty() && found.is_none() => found = Some((att, s, Via::Walk)),
             Eyes::Fallback(s) if !s.is_empty() && found.is_none() => found = Some((att, s, Via::Fallback)),
             Eyes::Post => post = true,
+            Eyes::Changing => changing = true,
             _ => {}
         }
     }
     let Some((att, sources, via)) = found else {
-        return Err(if post {
+        return Err(if changing {
+            NotMasked::RectChanging
+        } else if post {
             NotMasked::PostPass
         } else if unknown_swapchain || has_color {
             NotMasked::EyeUnknown

@@ -36,6 +36,9 @@ pub struct TracedEyes {
     pub chain: String,
     /// The swapchain's walk that last found it.
     pub walk: u64,
+    /// Its rects differ from the previous walk's (dynamic resolution drawing into a changing
+    /// sub-rect): what was learned describes last frame, not the one being recorded.
+    pub changing: bool,
 }
 
 /// What the layer logs once about a walk.
@@ -236,7 +239,19 @@ fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, notes
             notes.push(Note::Traced { image, eyes: list.clone(), chain: chain.clone(), depth });
         }
         b.post.remove(&image);
-        b.eyes.insert(image, TracedEyes { eyes: list, swapchain: sc, chain, walk });
+        let rects = |l: &[EyeSource]| {
+            let mut r: Vec<_> = l.iter().map(|e| (e.layer, e.rect)).collect();
+            r.sort();
+            r.dedup();
+            r
+        };
+        let changing = b.eyes.get(&image).is_some_and(|old| rects(&old.eyes) != rects(&list));
+        if changing && b.noted.insert(format!("changing {image:#x}")) {
+            notes.push(Note::Untraced(format!(
+                "the eye rect in {image:#x} changes from frame to frame (dynamic resolution into a sub-rect): its passes are left alone (rect_changing) while it does"
+            )));
+        }
+        b.eyes.insert(image, TracedEyes { eyes: list, swapchain: sc, chain, walk, changing });
     }
     for image in walked.post {
         if !eye_images.contains(&image) {
@@ -309,7 +324,7 @@ mod tests {
         assert!(t.is_post(100, Some(77)) && t.is_post(101, None) && t.is_post(102, None), "every ring image keeps its mark");
         let unseen_ring_image = 103;
         assert!(t.is_post(unseen_ring_image, Some(77)), "the swapchain's mark covers images not walked yet");
-        assert_eq!(t.eyes(10).map(|e| e.eyes.len()), Some(1));
+        assert_eq!(t.eyes(10).map(|e| (e.eyes.len(), e.changing)), Some((1, false)));
         assert_eq!(t.eyes(12).map(|e| e.eyes.len()), Some(1), "the depth image too");
         // The chain changes: the scene now renders straight into the swapchain; the old
         // intermediate is forgotten after a few walks.
@@ -321,5 +336,37 @@ mod tests {
         assert!(!t.is_post(100, Some(77)) && !t.is_post(101, Some(77)), "a swapchain image an eye pass writes is no post target");
         t.forget_image(12);
         assert_eq!(t.eyes(12), None);
+    }
+
+    #[test]
+    fn a_rect_that_changes_between_walks_is_marked_changing() {
+        let shared = Shared::default();
+        let desc = SwapchainDesc { usage_flags: 0, format: 43, sample_count: 1, width: 64, height: 32, array_size: 1 };
+        let sc = Arc::new(Swapchain::new(77, desc, vec![100]));
+        shared.add_swapchain(sc.clone());
+        sc.set_uses(vec![EyeUse { view: 0, image_rect: ImageRect { x: 0, y: 0, width: 64, height: 32 }, image_array_index: 0, depth: false }]);
+        let (descriptors, views, images) = (Descriptors::default(), HandleMap::default(), HandleMap::default());
+        for h in [100u64, 10] {
+            images.insert(h, Arc::new(image(h, 64)));
+            let range = crate::track::resources::SubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
+            views.insert(h + 1000, Arc::new(ImageView { handle: h + 1000, image: h, view_type: vk::ImageViewType::TYPE_2D, format: vk::Format::UNDEFINED, range }));
+        }
+        descriptors.add_layout(1, crate::track::descriptors::SetLayout::new(vec![crate::track::descriptors::LayoutBinding { binding: 0, ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, count: 1 }], vk::DescriptorSetLayoutCreateFlags::empty(), &[]));
+        descriptors.allocate(9, &[5], &[1]);
+        descriptors.update(&[(5, crate::track::descriptors::Write { binding: 0, element: 0, ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, views: vec![Some(1010)] })], &[]);
+        let world = TrackerWorld { descriptors: &descriptors, views: &views, images: &images, shared: &shared };
+        let t = Traced::default();
+        let frame = |w: u32| {
+            let Op::Pass(mut scene) = pass(10, Some(12), true, 0) else { unreachable!() };
+            scene.tested_viewports = vec![PixelRect { x: 0, y: 0, width: w, height: w / 2 }];
+            Arc::new(vec![Op::Pass(scene), pass(100, None, false, 5)])
+        };
+        t.submitted(&world, vec![frame(48)]);
+        assert_eq!(t.eyes(10).map(|e| e.changing), Some(false));
+        let notes = t.submitted(&world, vec![frame(56)]);
+        assert_eq!(t.eyes(10).map(|e| (e.changing, e.eyes[0].rect.width)), Some((true, 56)));
+        assert!(notes.iter().any(|n| matches!(n, Note::Untraced(w) if w.contains("changes from frame to frame"))), "{notes:?}");
+        t.submitted(&world, vec![frame(56)]);
+        assert_eq!(t.eyes(10).map(|e| e.changing), Some(false), "held still: applied again");
     }
 }

@@ -490,6 +490,7 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
     }
     let Some(image) = image else { return Eyes::Unknown };
     let traced = || match d.track.traced.eyes(image) {
+        Some(t) if t.changing => Eyes::Changing,
         Some(t) => Eyes::Traced(t.eyes),
         None if d.track.traced.is_post(image, None) => Eyes::Post,
         None if d.track.traced.has_eyes() => Eyes::NotEye,
