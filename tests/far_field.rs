@@ -339,14 +339,18 @@ fn record_once() {
 
 /// Behind a post chain (the data-flow walk finds the eye passes in the tonemap's input, from the
 /// third frame on): the source eye identical, the destination's near pixels identical and its
-/// far pixels ≥ 35 dB after the tonemap, in every layout; per-eye reuses this frame's source,
-/// multiview and side by side the previous frame's (which the walk had also traced).
+/// far pixels ≥ 35 dB after the tonemap, in every layout and behind a compute tonemap + copy;
+/// per-eye reuses this frame's source, multiview and side by side the previous frame's (which the
+/// walk had also traced).
 #[test]
 fn behind_a_post_chain() {
-    for (layout, rendering, depth) in [("per-eye", "dynamic", "standard"), ("multiview", "render-pass2", "reverse"), ("side-by-side", "render-pass", "standard")] {
+    let cases = [("per-eye", "dynamic", "standard", None), ("multiview", "render-pass2", "reverse", None), ("side-by-side", "render-pass", "standard", None), ("per-eye", "render-pass", "reverse", Some("--post-compute"))];
+    for (layout, rendering, depth, compute) in cases {
         let previous = layout != "per-eye";
-        let args = ["--post", "tonemap", "--layout", layout, "--rendering", rendering, "--depth", depth];
-        let mut case = Case::new(&format!("ff-post-{layout}-{rendering}-{depth}"), &args).frame(if previous { 4 } else { 3 });
+        let mut args = vec!["--post", "tonemap", "--layout", layout, "--rendering", rendering, "--depth", depth];
+        args.extend(compute);
+        let tag = if compute.is_some() { "-compute" } else { "" };
+        let mut case = Case::new(&format!("ff-post-{layout}-{rendering}-{depth}{tag}"), &args).frame(if previous { 4 } else { 3 });
         if previous {
             case = case.env("MOCK_XR_HEAD_YAW_DEG_PER_S", "20");
         }
