@@ -5,6 +5,7 @@
 #![forbid(unsafe_code)]
 
 use super::cmd::{AttachmentUse, PassInstance};
+use super::resources::RenderPass;
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
 use crate::shared::{EyeUse, ImageRect};
@@ -129,11 +130,8 @@ pub fn depth_attachment(pass: &PassInstance) -> Option<(&AttachmentUse, bool, vk
     let dref = sub.depth_stencil?;
     let index = dref.used()?;
     let att = pass.attachments.get(index as usize)?;
-    let used_before = rp.subpasses[..pass.subpass as usize].iter().any(|s| {
-        s.color.iter().chain(&s.resolve).chain(&s.input).chain(s.depth_stencil.iter()).any(|r| r.used() == Some(index))
-    });
     let desc = rp.attachments.get(index as usize)?;
-    let starts = !used_before && desc.load_op == vk::AttachmentLoadOp::CLEAR;
+    let starts = first_use(rp, pass.subpass, index) && desc.load_op == vk::AttachmentLoadOp::CLEAR;
     Some((att, starts, dref.layout))
 }
 
@@ -175,6 +173,14 @@ pub fn fail_depth(clear: f32) -> Option<f32> {
     }
 }
 
+/// Whether `subpass` is the first subpass of `rp` to use attachment `index`: where its load op
+/// decides its contents.
+pub fn first_use(rp: &RenderPass, subpass: u32, index: u32) -> bool {
+    !rp.subpasses[..(subpass as usize).min(rp.subpasses.len())]
+        .iter()
+        .any(|s| s.color.iter().chain(&s.resolve).chain(&s.input).chain(s.depth_stencil.iter()).any(|r| r.used() == Some(index)))
+}
+
 /// Whether the depth attachment of the pass's current subpass / rendering starts from the image's
 /// earlier contents: load op LOAD where its contents start in this pass (its first subpass, a
 /// rendering that does not resume). Only then does a `vkCmdClearDepthStencilImage` recorded before
@@ -187,10 +193,7 @@ pub fn depth_loads(pass: &PassInstance) -> bool {
     let Some(index) = rp.subpasses.get(pass.subpass as usize).and_then(|s| s.depth_stencil).and_then(|r| r.used()) else {
         return false;
     };
-    let used_before = rp.subpasses[..pass.subpass as usize].iter().any(|s| {
-        s.color.iter().chain(&s.resolve).chain(&s.input).chain(s.depth_stencil.iter()).any(|r| r.used() == Some(index))
-    });
-    !used_before && rp.attachments.get(index as usize).is_some_and(|a| a.load_op == vk::AttachmentLoadOp::LOAD)
+    first_use(rp, pass.subpass, index) && rp.attachments.get(index as usize).is_some_and(|a| a.load_op == vk::AttachmentLoadOp::LOAD)
 }
 
 /// The attachment of the open pass that shows eyes, which eyes its image holds, and whether it

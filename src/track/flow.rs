@@ -309,8 +309,8 @@ fn frame_start(ops: &[&Op], region: &Region, last: usize, world: &dyn World) -> 
     0
 }
 
-/// Every image an op writes (for frame boundaries).
-fn writes_images(op: &Op, world: &dyn World) -> Vec<u64> {
+/// Every image an op writes (frame boundaries; the swapchain images a submission writes).
+pub fn writes_images(op: &Op, world: &dyn World) -> Vec<u64> {
     match op {
         Op::Pass(p) => p.colors.iter().chain(p.resolves.iter().map(|(_, r)| r)).map(|u| u.image).collect(),
         Op::Transfer { dst, .. } => vec![*dst],

@@ -342,7 +342,11 @@ impl DeviceTracker {
 
     /// What an attachment's view shows, for the data-flow walk.
     fn image_use(&self, a: &AttachmentUse) -> Option<flow::ImageUse> {
-        let v = a.image_view.as_ref()?;
+        self.view_use(a.image_view.as_ref()?)
+    }
+
+    /// What an image view shows, its `VK_REMAINING_ARRAY_LAYERS` resolved against the image.
+    fn view_use(&self, v: &ImageView) -> Option<flow::ImageUse> {
         let layers = self.images.get(v.image).map_or(v.range.layer_count, |i| v.range.layers_of(i.array_layers));
         Some(flow::ImageUse { image: v.image, base_layer: v.range.base_array_layer, layers, mip: v.range.base_mip_level })
     }
@@ -350,11 +354,12 @@ impl DeviceTracker {
     /// The data-flow record of the pass's current subpass / rendering.
     pub fn pass_record(&self, pass: &PassInstance) -> flow::PassRecord {
         let a = pass.render_area;
+        let depth = eye_pass::depth_attachment(pass);
         let mut r = flow::PassRecord {
             view_mask: pass.view_mask(),
             render_area: crate::core::rect::PixelRect { x: a.x, y: a.y, width: a.width, height: a.height },
-            depth_cleared: eye_pass::depth_attachment(pass).is_some_and(|(_, starts, _)| starts),
-            depth: eye_pass::depth_attachment(pass).and_then(|(d, _, _)| self.image_use(d)),
+            depth_cleared: depth.is_some_and(|(_, starts, _)| starts),
+            depth: depth.and_then(|(d, _, _)| self.image_use(d)),
             ..Default::default()
         };
         if let Some(dr) = &pass.rendering {
@@ -363,9 +368,8 @@ impl DeviceTracker {
                 r.colors.push(u);
                 r.color_loads.push(c.attachment.load_op == vk::AttachmentLoadOp::LOAD || dr.resuming());
                 if c.resolve_view != 0 && c.resolve_mode != vk::ResolveModeFlags::NONE {
-                    if let Some(v) = self.views.get(c.resolve_view) {
-                        let layers = self.images.get(v.image).map_or(v.range.layer_count, |i| v.range.layers_of(i.array_layers));
-                        r.resolves.push((r.colors.len() - 1, flow::ImageUse { image: v.image, base_layer: v.range.base_array_layer, layers, mip: v.range.base_mip_level }));
+                    if let Some(u) = self.views.get(c.resolve_view).and_then(|v| self.view_use(&v)) {
+                        r.resolves.push((r.colors.len() - 1, u));
                     }
                 }
             }
@@ -373,17 +377,12 @@ impl DeviceTracker {
         }
         let Some(rp) = pass.render_pass.as_ref() else { return r };
         let Some(sub) = rp.subpasses.get(pass.subpass as usize) else { return r };
-        let first_use = |index: u32| {
-            !rp.subpasses[..pass.subpass as usize].iter().any(|s| {
-                s.color.iter().chain(&s.resolve).chain(&s.input).chain(s.depth_stencil.iter()).any(|x| x.used() == Some(index))
-            })
-        };
         for (j, c) in sub.color.iter().enumerate() {
             let Some(i) = c.used() else { continue };
             let Some(u) = pass.attachments.get(i as usize).and_then(|a| self.image_use(a)) else { continue };
             r.colors.push(u);
             let load = rp.attachments.get(i as usize).is_some_and(|d| d.load_op == vk::AttachmentLoadOp::LOAD);
-            r.color_loads.push(!first_use(i) || load);
+            r.color_loads.push(!eye_pass::first_use(rp, pass.subpass, i) || load);
             if let Some(ri) = sub.resolve.get(j).and_then(|x| x.used()) {
                 if let Some(ru) = pass.attachments.get(ri as usize).and_then(|a| self.image_use(a)) {
                     r.resolves.push((r.colors.len() - 1, ru));

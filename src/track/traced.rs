@@ -111,7 +111,7 @@ impl Traced {
         let mut starts: HashMap<u64, Vec<(u32, Region)>> = HashMap::new();
         for ops in &submitted {
             for op in ops.iter() {
-                for image in written(op) {
+                for image in flow::writes_images(op, world) {
                     let Some(sc) = world.shared.images.get(image) else { continue };
                     let entry = starts.entry(sc.swapchain.handle).or_default();
                     for u in sc.swapchain.uses() {
@@ -184,16 +184,6 @@ impl Traced {
     pub fn counts(&self) -> (u64, usize, usize) {
         let b = lock(&self.books);
         (b.walks, b.eyes.len(), b.post.len())
-    }
-}
-
-/// Images an op writes (colour, resolve, transfer destination; storage writes are resolved in
-/// the walk, which knows the descriptor sets).
-fn written(op: &Op) -> Vec<u64> {
-    match op {
-        Op::Pass(p) => p.colors.iter().chain(p.resolves.iter().map(|(_, r)| r)).map(|u| u.image).collect(),
-        Op::Transfer { dst, .. } => vec![*dst],
-        _ => Vec::new(),
     }
 }
 
@@ -287,6 +277,39 @@ mod tests {
         }
     }
 
+    /// One swapchain (handle 77, view 0 over the whole 64×32 image) with the ring `ring`, the
+    /// intermediates 10 (colour) and 12 (depth), view `h + 1000` of every image, and descriptor
+    /// set 5 sampling image 10.
+    struct Fixture {
+        shared: Shared,
+        descriptors: Descriptors,
+        views: HandleMap<u64, ImageView>,
+        images: HandleMap<u64, Image>,
+    }
+
+    impl Fixture {
+        fn new(ring: &[u64]) -> Fixture {
+            let f = Fixture { shared: Shared::default(), descriptors: Descriptors::default(), views: HandleMap::default(), images: HandleMap::default() };
+            let desc = SwapchainDesc { usage_flags: 0, format: 43, sample_count: 1, width: 64, height: 32, array_size: 1 };
+            let sc = Arc::new(Swapchain::new(77, desc, ring.to_vec()));
+            f.shared.add_swapchain(sc.clone());
+            sc.set_uses(vec![EyeUse { view: 0, image_rect: ImageRect { x: 0, y: 0, width: 64, height: 32 }, image_array_index: 0, depth: false }]);
+            for &h in ring.iter().chain(&[10, 12]) {
+                f.images.insert(h, Arc::new(image(h, 64)));
+                let range = crate::track::resources::SubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
+                f.views.insert(h + 1000, Arc::new(ImageView { handle: h + 1000, image: h, view_type: vk::ImageViewType::TYPE_2D, format: vk::Format::UNDEFINED, range }));
+            }
+            let sampled = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
+            f.descriptors.add_layout(1, crate::track::descriptors::SetLayout::new(vec![crate::track::descriptors::LayoutBinding { binding: 0, ty: sampled, count: 1 }], vk::DescriptorSetLayoutCreateFlags::empty(), &[]));
+            f.descriptors.allocate(9, &[5], &[1]);
+            f.descriptors.update(&[(5, crate::track::descriptors::Write { binding: 0, element: 0, ty: sampled, views: vec![Some(1010)] })], &[]);
+            f
+        }
+        fn world(&self) -> TrackerWorld<'_> {
+            TrackerWorld { descriptors: &self.descriptors, views: &self.views, images: &self.images, shared: &self.shared }
+        }
+    }
+
     fn pass(color: u64, depth: Option<u64>, tested: bool, set: u64) -> Op {
         let u = |image| ImageUse { image, base_layer: 0, layers: 1, mip: 0 };
         let mut p = PassRecord { colors: vec![u(color)], color_loads: vec![false], depth: depth.map(u), depth_cleared: depth.is_some(), render_area: PixelRect { x: 0, y: 0, width: 64, height: 32 }, ..Default::default() };
@@ -298,21 +321,8 @@ mod tests {
     /// frame's swapchain image sampling 10 through set 5.
     #[test]
     fn a_ring_of_swapchain_images_keeps_every_post_mark_and_the_eyes() {
-        let shared = Shared::default();
-        let desc = SwapchainDesc { usage_flags: 0, format: 43, sample_count: 1, width: 64, height: 32, array_size: 1 };
-        let sc = Arc::new(Swapchain::new(77, desc, vec![100, 101, 102]));
-        shared.add_swapchain(sc.clone());
-        sc.set_uses(vec![EyeUse { view: 0, image_rect: ImageRect { x: 0, y: 0, width: 64, height: 32 }, image_array_index: 0, depth: false }]);
-        let (descriptors, views, images) = (Descriptors::default(), HandleMap::default(), HandleMap::default());
-        for (h, w) in [(100, 64), (101, 64), (102, 64), (10, 64), (12, 64)] {
-            images.insert(h, Arc::new(image(h, w)));
-            let range = crate::track::resources::SubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
-            views.insert(h + 1000, Arc::new(ImageView { handle: h + 1000, image: h, view_type: vk::ImageViewType::TYPE_2D, format: vk::Format::UNDEFINED, range }));
-        }
-        descriptors.add_layout(1, crate::track::descriptors::SetLayout::new(vec![crate::track::descriptors::LayoutBinding { binding: 0, ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, count: 1 }], vk::DescriptorSetLayoutCreateFlags::empty(), &[]));
-        descriptors.allocate(9, &[5], &[1]);
-        descriptors.update(&[(5, crate::track::descriptors::Write { binding: 0, element: 0, ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, views: vec![Some(1010)] })], &[]);
-        let world = TrackerWorld { descriptors: &descriptors, views: &views, images: &images, shared: &shared };
+        let f = Fixture::new(&[100, 101, 102]);
+        let world = f.world();
         let t = Traced::default();
         for frame in 0..6u64 {
             let target = 100 + frame % 3;
@@ -340,21 +350,8 @@ mod tests {
 
     #[test]
     fn a_rect_that_changes_between_walks_is_marked_changing() {
-        let shared = Shared::default();
-        let desc = SwapchainDesc { usage_flags: 0, format: 43, sample_count: 1, width: 64, height: 32, array_size: 1 };
-        let sc = Arc::new(Swapchain::new(77, desc, vec![100]));
-        shared.add_swapchain(sc.clone());
-        sc.set_uses(vec![EyeUse { view: 0, image_rect: ImageRect { x: 0, y: 0, width: 64, height: 32 }, image_array_index: 0, depth: false }]);
-        let (descriptors, views, images) = (Descriptors::default(), HandleMap::default(), HandleMap::default());
-        for h in [100u64, 10] {
-            images.insert(h, Arc::new(image(h, 64)));
-            let range = crate::track::resources::SubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
-            views.insert(h + 1000, Arc::new(ImageView { handle: h + 1000, image: h, view_type: vk::ImageViewType::TYPE_2D, format: vk::Format::UNDEFINED, range }));
-        }
-        descriptors.add_layout(1, crate::track::descriptors::SetLayout::new(vec![crate::track::descriptors::LayoutBinding { binding: 0, ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, count: 1 }], vk::DescriptorSetLayoutCreateFlags::empty(), &[]));
-        descriptors.allocate(9, &[5], &[1]);
-        descriptors.update(&[(5, crate::track::descriptors::Write { binding: 0, element: 0, ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, views: vec![Some(1010)] })], &[]);
-        let world = TrackerWorld { descriptors: &descriptors, views: &views, images: &images, shared: &shared };
+        let f = Fixture::new(&[100]);
+        let world = f.world();
         let t = Traced::default();
         let frame = |w: u32| {
             let Op::Pass(mut scene) = pass(10, Some(12), true, 0) else { unreachable!() };
