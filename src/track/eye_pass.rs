@@ -53,6 +53,9 @@ pub enum Eyes {
     /// Unknown, while the data-flow walk has traced the frame's eyes elsewhere: not an eye
     /// target (a bloom mip, a shadow or reflection target).
     NotEye,
+    /// Unknown because the walk has not traced a frame yet: the submission of this very
+    /// recording may tell (`awaiting_eyes`).
+    Untraced,
     /// Neither (yet).
     Unknown,
 }
@@ -304,6 +307,35 @@ pub fn awaiting_eyes(pass: &PassInstance, facts: &Facts<'_>) -> Option<f32> {
     }
     let swapchain_unknown = eye_candidates(pass).iter().any(|a| matches!((facts.eyes)(a), Eyes::Swapchain(s) if s.is_empty()));
     if !swapchain_unknown {
+        return None;
+    }
+    cleared_depth(pass, facts).ok()
+}
+
+/// Whether a pass the walk may still tie to its eyes at submission — one recorded before any
+/// walk (`Untraced`), or into a target whose eye rect changes from frame to frame (`Changing`) —
+/// has a freshly cleared depth; its fail depth then. Features record draws for it that are filled
+/// at each submission, from what that submission's walk found (`vk::inject::plan_now`).
+pub fn awaiting_walk(pass: &PassInstance, facts: &Facts<'_>) -> Option<f32> {
+    if facts.secondary_contents || !facts.intermediate_enabled {
+        return None;
+    }
+    match find_eyes(pass, facts) {
+        Err(NotMasked::EyeUnknown) | Err(NotMasked::RectChanging) => {}
+        _ => return None,
+    }
+    // A colour target only the walk can tie to an eye (a depth image says nothing alone); a
+    // swapchain image's pass awaits the OpenXR half instead (`awaiting_eyes`).
+    let mut walkable = false;
+    for a in eye_candidates(pass) {
+        let depth = a.image_view.as_ref().is_some_and(|v| v.range.aspect_mask.intersects(vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL));
+        match (facts.eyes)(a) {
+            Eyes::Swapchain(_) => return None,
+            Eyes::Untraced | Eyes::Changing if !depth => walkable = true,
+            _ => {}
+        }
+    }
+    if !walkable {
         return None;
     }
     cleared_depth(pass, facts).ok()

@@ -143,6 +143,17 @@ impl Recorder {
     pub fn end_pass(&mut self) {
         self.open = None;
     }
+    /// The open pass's (or subpass's) record, to ask `pass_tested` about later.
+    pub fn open_index(&self) -> Option<usize> {
+        self.open
+    }
+    /// Whether pass record `index` has had a draw that tests depth; None if it is no pass.
+    pub fn pass_tested(&self, index: usize) -> Option<bool> {
+        match self.ops.get(index) {
+            Some(Op::Pass(p)) => Some(p.depth_tested),
+            _ => None,
+        }
+    }
     /// The open pass's depth was cleared by a command inside it.
     pub fn depth_cleared(&mut self) {
         if let Some(Op::Pass(p)) = self.open.and_then(|i| self.ops.get_mut(i)) {

@@ -39,6 +39,12 @@ pub struct TracedEyes {
     /// Its rects differ from the previous walk's (dynamic resolution drawing into a changing
     /// sub-rect): what was learned describes last frame, not the one being recorded.
     pub changing: bool,
+    /// Its rects changed at some walk since it was first found: they may change again at any
+    /// frame, so what was learned is applied only where the walk of the same submission
+    /// confirms it (`Traced::fresh`), never at recording.
+    pub dynamic: bool,
+    /// The submission (`Traced::submitted` call) whose walk last found it.
+    pub submission: u64,
 }
 
 /// What the layer logs once about a walk.
@@ -62,6 +68,8 @@ struct Books {
     post_swapchains: HashMap<u64, u64>,
     noted: HashSet<String>,
     walks: u64,
+    /// `submitted` calls so far: the current submission's number while its features run.
+    submissions: u64,
 }
 
 /// The walk's device-level state.
@@ -126,6 +134,7 @@ impl Traced {
             }
         }
         let mut b = lock(&self.books);
+        b.submissions += 1;
         for ops in submitted {
             b.window_ops += ops.len();
             b.window.push_back(ops);
@@ -152,7 +161,8 @@ impl Traced {
         let mut notes = Vec::new();
         for (sc, walked) in results {
             b.walks += 1;
-            learn(&mut b, sc, walked, world, &mut notes);
+            let submission = b.submissions;
+            learn(&mut b, sc, walked, world, submission, &mut notes);
         }
         notes
     }
@@ -160,6 +170,12 @@ impl Traced {
     /// The eyes the walk found `image` to show.
     pub fn eyes(&self, image: u64) -> Option<TracedEyes> {
         lock(&self.books).eyes.get(&image).cloned()
+    }
+
+    /// Whether the walk of the latest submission found `t` (what it says describes the frame
+    /// being submitted, not a previous one).
+    pub fn fresh(&self, t: &TracedEyes) -> bool {
+        t.submission == lock(&self.books).submissions
     }
 
     /// Whether only post-process passes were seen writing `image` (of `swapchain`, if it is a
@@ -187,7 +203,7 @@ impl Traced {
     }
 }
 
-fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, notes: &mut Vec<Note>) {
+fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, submission: u64, notes: &mut Vec<Note>) {
     let mut eyes: HashMap<u64, (Vec<EyeSource>, String, bool)> = HashMap::new();
     for f in &walked.found {
         // A swapchain image's eyes come from the OpenXR half; the walk adds nothing there.
@@ -235,13 +251,15 @@ fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, notes
             r.dedup();
             r
         };
-        let changing = b.eyes.get(&image).is_some_and(|old| rects(&old.eyes) != rects(&list));
+        let old = b.eyes.get(&image);
+        let changing = old.is_some_and(|old| rects(&old.eyes) != rects(&list));
+        let dynamic = changing || old.is_some_and(|old| old.dynamic);
         if changing && b.noted.insert(format!("changing {image:#x}")) {
             notes.push(Note::Untraced(format!(
-                "the eye rect in {image:#x} changes from frame to frame (dynamic resolution into a sub-rect): its passes are left alone (rect_changing) while it does"
+                "the eye rect in {image:#x} changes from frame to frame (dynamic resolution into a sub-rect): its passes get the layer's draws filled at each submission from that submission's walk, or nothing (rect_changing) where the walk cannot confirm the rect"
             )));
         }
-        b.eyes.insert(image, TracedEyes { eyes: list, swapchain: sc, chain, walk, changing });
+        b.eyes.insert(image, TracedEyes { eyes: list, swapchain: sc, chain, walk, changing, dynamic, submission });
     }
     for image in walked.post {
         if !eye_images.contains(&image) {
@@ -363,7 +381,13 @@ mod tests {
         let notes = t.submitted(&world, vec![frame(56)]);
         assert_eq!(t.eyes(10).map(|e| (e.changing, e.eyes[0].rect.width)), Some((true, 56)));
         assert!(notes.iter().any(|n| matches!(n, Note::Untraced(w) if w.contains("changes from frame to frame"))), "{notes:?}");
+        let still = t.eyes(10).unwrap();
+        assert!(t.fresh(&still), "found by the latest submission's walk");
         t.submitted(&world, vec![frame(56)]);
-        assert_eq!(t.eyes(10).map(|e| e.changing), Some(false), "held still: applied again");
+        let e = t.eyes(10).unwrap();
+        assert_eq!((e.changing, e.dynamic), (false, true), "held still, but it has changed once: it may again");
+        assert!(t.fresh(&e));
+        t.submitted(&world, vec![Arc::new(vec![pass(10, Some(12), true, 0)])]);
+        assert!(!t.fresh(&t.eyes(10).unwrap()), "a submission without the post pass: what was learned is a frame old");
     }
 }

@@ -147,6 +147,12 @@ pub(crate) trait VkFeature: Send + Sync {
     /// Records the feature's draws into `at.cb` inside the app's pass (the chassis restores the
     /// app's state afterwards). Counts its own success and failure (`at.counts`).
     fn inject(&self, _d: &DeviceState, _at: &Injection<'_>) {}
+    /// Whether the feature's draws for a pass awaiting the walk (`Awaiting` from
+    /// `eye_pass::awaiting_walk`) are counted at each submission (applied, or why not) rather than
+    /// when the pass is recorded.
+    fn fills_at_submission(&self) -> bool {
+        false
+    }
     /// Like `inject`, for a pass whose eyes are not known yet: record draws that do nothing until
     /// `before_submit` fills them for the eyes known then.
     fn inject_awaiting(&self, _d: &DeviceState, _at: &Awaiting<'_>) {}

@@ -128,7 +128,7 @@ fn mode(layout: &str, rendering: &str, depth: &str, tag: &str, extra: &[&str]) -
 /// suite runs (tests/post_chain.rs). Rendering paths an option does not support (`--post-subpass`
 /// with dynamic rendering) are skipped in the rotation.
 pub fn matrix() -> Vec<PostMode> {
-    let options: [(&str, &[&str]); 11] = [
+    let options: [(&str, &[&str]); 13] = [
         ("tonemap", &["--post", "tonemap"]),
         ("tonemap-msaa", &["--post", "tonemap", "--samples", "4"]),
         ("bloom", &["--post", "bloom"]),
@@ -140,6 +140,10 @@ pub fn matrix() -> Vec<PostMode> {
         ("viewport-scale", &["--post", "taa", "--viewport-scale", "0.75"]),
         ("both-scales-msaa", &["--post", "bloom", "--render-scale", "0.8", "--viewport-scale", "0.7", "--samples", "4"]),
         ("compute-scaled", &["--post", "tonemap", "--post-compute", "--render-scale", "0.7"]),
+        // The eye rect changes every frame (engines' dynamic resolution).
+        ("dynamic-res", &["--post", "tonemap", "--viewport-scale", "0.8", "--dynamic-resolution"]),
+        // Command buffers recorded before the walk knew their targets, resubmitted later.
+        ("record-once-msaa", &["--post", "bloom", "--samples", "4", "--record-once"]),
     ];
     let mut modes = Vec::new();
     let mut turn = 0;
@@ -165,7 +169,7 @@ pub fn matrix() -> Vec<PostMode> {
 /// samples where the command line accepts the combination (the ignored test of
 /// tests/post_chain.rs, `scripts/post-chain-matrix`).
 pub fn full_matrix() -> Vec<PostMode> {
-    let options: [(&str, &[&str]); 10] = [
+    let options: [(&str, &[&str]); 12] = [
         ("tonemap", &["--post", "tonemap"]),
         ("bloom", &["--post", "bloom"]),
         ("taa", &["--post", "taa"]),
@@ -176,6 +180,8 @@ pub fn full_matrix() -> Vec<PostMode> {
         ("viewport-scale", &["--post", "taa", "--viewport-scale", "0.6"]),
         ("dw", &["--submit-texture", "double-wide"]),
         ("dw-post", &["--submit-texture", "double-wide", "--post", "bloom", "--render-scale", "0.75"]),
+        ("dynamic-res", &["--post", "taa", "--dynamic-resolution"]),
+        ("record-once", &["--post", "taa", "--record-once"]),
     ];
     let mut modes = Vec::new();
     for layout in LAYOUTS {

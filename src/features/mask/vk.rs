@@ -15,7 +15,7 @@ use crate::features::mask::rules::{self, MaskFrameStats};
 use crate::settings::Settings;
 use crate::shared::{shared, Views};
 use crate::track::cmd::PassInstance;
-use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan};
+use crate::track::eye_pass::{EyeDraw, EyeLayout, EyeSource, MaskPlan};
 use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
 use crate::vk::inject::{self, pipeline, Awaiting, Injection};
 use crate::vk::lifetime::{self, PooledBuffer};
@@ -66,10 +66,13 @@ impl Geometry {
 enum Target {
     /// A known eye pass: one indirect draw per eye (one in all for multiview), each recorded with
     /// its eye's viewport and scissor.
-    Eyes { draws: Vec<EyeDraw>, multiview: bool },
+    /// `walked`: the target was tied to its eyes by the data-flow walk (checked at each
+    /// submission, `inject::walk_still_holds`).
+    Eyes { draws: Vec<EyeDraw>, multiview: bool, image: u64, walked: bool },
     /// A pass whose eyes were unknown when it was recorded: one indirect draw over the render
-    /// area, into which the eyes' geometry is mapped once they are known.
-    Awaiting { pass: Box<PassInstance>, fail_depth: f32, area: PixelRect },
+    /// area, into which the eyes' geometry is mapped once they are known. `walk`: it awaits the
+    /// walk (counted at each submission, applied or not).
+    Awaiting { pass: Box<PassInstance>, fail_depth: f32, area: PixelRect, walk: bool },
 }
 
 /// A recording's mask data: indirect arguments first, then the vertices.
@@ -80,6 +83,9 @@ struct MaskData {
     source: &'static str,
     /// What the buffer holds now.
     filled: Mutex<Filled>,
+    /// The pass ended without one depth-tested draw (a post pass recorded before the walk knew
+    /// it): the mask saved nothing there, so it draws nothing and counts as `post_pass`.
+    saves_nothing: AtomicBool,
 }
 
 /// The content of a recording's buffer: for which mask generation and eyes, and the pixels each
@@ -88,6 +94,8 @@ struct MaskData {
 struct Filled {
     key: Option<(u64, Vec<EyeDraw>)>,
     pixels: Vec<(u32, u64)>,
+    /// How an awaiting target was tied to its eyes at the last fill (`Via::name`).
+    source: Option<&'static str>,
 }
 
 /// Maps NDC of `from` (a viewport) into NDC of `to` (another viewport of the same framebuffer).
@@ -100,7 +108,7 @@ fn remap(p: [f32; 2], from: PixelRect, to: PixelRect) -> [f32; 2] {
 impl MaskData {
     fn draw_slots(&self) -> usize {
         match &self.target {
-            Target::Eyes { draws, multiview: false } => draws.len().max(1),
+            Target::Eyes { draws, multiview: false, .. } => draws.len().max(1),
             _ => 1,
         }
     }
@@ -112,13 +120,27 @@ impl MaskData {
         *f = Filled::default();
     }
     /// Makes the buffer hold `g`'s mask for the target's eyes (`plan`: the eyes known now, for an
-    /// awaiting target), or nothing when `g` lacks a view's mask or it does not fit (no mask is
-    /// always correct output). Only called while no submission of the recording executes.
-    fn refresh(&self, me: &MaskDevice, g: &Geometry, plan: Option<&MaskPlan>) {
+    /// awaiting target; `moved`: where this submission's walk found a walked target's eyes, when
+    /// not where they were recorded), or nothing when `g` lacks a view's mask or it does not fit
+    /// (no mask is always correct output). Only called while no submission of the recording
+    /// executes.
+    fn refresh(&self, me: &MaskDevice, g: &Geometry, plan: Option<&MaskPlan>, moved: Option<&[EyeSource]>) {
         let mut f = lock(&self.filled);
-        let (draws, multiview, area) = match (&self.target, plan) {
-            (Target::Eyes { draws, multiview }, _) => (draws.clone(), *multiview, None),
-            (Target::Awaiting { area, .. }, Some(p)) => (p.draws.clone(), p.layout == EyeLayout::Multiview, Some(*area)),
+        // Each eye's draw: where its mask belongs (`viewport`) and the viewport the draw was
+        // recorded with, into whose NDC the mask is mapped (the recorded scissor still clips).
+        let (draws, recorded, multiview, area): (Vec<EyeDraw>, Vec<PixelRect>, bool, bool) = match (&self.target, plan) {
+            (Target::Eyes { draws, multiview, .. }, _) => {
+                let recorded: Vec<PixelRect> = draws.iter().map(|dr| if *multiview { draws[0].viewport } else { dr.viewport }).collect();
+                let mut now = draws.clone();
+                if let Some(eyes) = moved {
+                    for dr in &mut now {
+                        let Some(e) = eyes.iter().find(|e| e.view == dr.view && e.layer == dr.layer) else { return self.clear(&mut f) };
+                        dr.viewport = e.rect;
+                    }
+                }
+                (now, recorded, *multiview, false)
+            }
+            (Target::Awaiting { area, .. }, Some(p)) => (p.draws.clone(), vec![*area; p.draws.len()], p.layout == EyeLayout::Multiview, true),
             (Target::Awaiting { .. }, None) => return self.clear(&mut f),
         };
         let key = (g.generation, draws.clone());
@@ -128,15 +150,16 @@ impl MaskData {
         let buf = &self.buffer;
         let mut vertices = Vec::new();
         let mut args = Vec::new();
-        for dr in &draws {
+        for (dr, to) in draws.iter().zip(&recorded) {
             let Some(t) = g.ndc.get(&dr.view) else { return self.clear(&mut f) };
             args.push(vk::DrawIndirectCommand { vertex_count: t.len() as u32, instance_count: 1, first_vertex: vertices.len() as u32, first_instance: 0 });
-            match area {
-                Some(area) => vertices.extend(t.iter().map(|&p| Vertex { pos: remap(p, dr.viewport, area), view: dr.view })),
-                None => vertices.extend(t.iter().map(|&pos| Vertex { pos, view: dr.view })),
+            if dr.viewport == *to {
+                vertices.extend(t.iter().map(|&pos| Vertex { pos, view: dr.view }));
+            } else {
+                vertices.extend(t.iter().map(|&p| Vertex { pos: remap(p, dr.viewport, *to), view: dr.view }));
             }
         }
-        if (multiview || area.is_some()) && !args.is_empty() {
+        if (multiview || area) && !args.is_empty() {
             args = vec![vk::DrawIndirectCommand { vertex_count: vertices.len() as u32, instance_count: 1, first_vertex: 0, first_instance: 0 }];
         }
         if args.is_empty() || !buf.write(self.vertex_offset(), &vertices) {
@@ -144,8 +167,10 @@ impl MaskData {
             return self.clear(&mut f);
         }
         buf.write(0, &args);
+        // What is drawn: the mask in the eye's rect, clipped by the recorded scissor (and the
+        // recorded viewport, which holds the scissor).
         let pixels = draws.iter().map(|dr| (dr.view, me.coverage(g, dr.view, dr.viewport, dr.scissor))).collect();
-        *f = Filled { key: Some(key), pixels };
+        *f = Filled { key: Some(key), pixels, source: plan.map(|p| p.via.name()) };
     }
 }
 
@@ -157,6 +182,9 @@ struct Books {
     coverage: HashMap<(u64, u32, PixelRect, PixelRect), u64>,
     logged_kinds: HashSet<(EyeLayout, bool)>,
     geometry: Option<Arc<Geometry>>,
+    /// The mask data recorded into each command buffer's open pass, with the index of its
+    /// (sub)pass's flow record (`pass_ending` judges it).
+    open: HashMap<u64, Vec<(usize, Arc<MaskData>)>>,
 }
 
 /// The mask's per-device state. Locks guard bookkeeping only, never a call down.
@@ -254,7 +282,7 @@ impl MaskDevice {
             d.warn_repeated("mask buffer", &e);
             NotMasked::LayerError
         })?;
-        Ok(Arc::new(MaskData { buffer, target, source, filled: Mutex::default() }))
+        Ok(Arc::new(MaskData { buffer, target, source, filled: Mutex::default(), saves_nothing: AtomicBool::new(false) }))
     }
 
     /// Records the mask draw(s) of a known eye pass; returns the pixels they cover per view.
@@ -268,8 +296,9 @@ impl MaskDevice {
         let multiview = plan.layout == EyeLayout::Multiview;
         let draws: Vec<EyeDraw> = if multiview { plan.draws.clone() } else { plan.draws.iter().filter(|dr| dr.scissor.area() > 0).copied().collect() };
         let recorded: Vec<EyeDraw> = if multiview { draws.iter().take(1).copied().collect() } else { draws.clone() };
-        let data = self.data(d, &g, Target::Eyes { draws, multiview }, plan.via.name())?;
-        data.refresh(self, &g, None);
+        let walked = plan.via == crate::track::eye_pass::Via::Walk;
+        let data = self.data(d, &g, Target::Eyes { draws, multiview, image: plan.image, walked }, plan.via.name())?;
+        data.refresh(self, &g, None, None);
         let draws: Vec<inject::IndirectDraw> =
             recorded.iter().enumerate().map(|(i, dr)| inject::IndirectDraw { slot: i as u64, viewport: inject::fail_viewport(dr.viewport, plan.fail_depth), scissor: dr.scissor }).collect();
         // SAFETY: `at.cb` is recording inside the pass the plan was made for (the chassis just
@@ -278,8 +307,17 @@ impl MaskDevice {
         // completed.
         unsafe { inject::record_indirect(d, at.cb, p, data.buffer.buffer, data.vertex_offset(), &draws) };
         let pixels = plan.draws.iter().map(|dr| (dr.view, self.coverage(&g, dr.view, dr.viewport, dr.scissor))).collect();
+        self.opened(d, at.owner, &data);
         lifetime::hold(d, at.owner, data);
         Ok(pixels)
+    }
+
+    /// `data` went into `owner`'s open (sub)pass: judged when the pass ends (`pass_ending`).
+    fn opened(&self, d: &DeviceState, owner: u64, data: &Arc<MaskData>) {
+        let index = d.track.with_cb(owner, |s| if s.flow_on { s.flow.open_index() } else { None }).flatten();
+        if let Some(index) = index {
+            lock(&self.books).open.entry(owner).or_default().push((index, data.clone()));
+        }
     }
 
     fn log_kind_once(&self, plan: &MaskPlan, pixels: &[(u32, u64)]) {
@@ -335,6 +373,19 @@ impl VkFeature for MaskDevice {
     fn not_injected(&self, _d: &DeviceState, _s: &Settings, why: NotMasked) {
         self.count(|s| s.count_not_masked(why));
     }
+    /// A pass the mask went into ends: without one depth-tested draw in it, the mask saved
+    /// nothing (a post pass with a depth attachment, recorded before the walk knew it).
+    fn pass_ending(&self, d: &DeviceState, cb: vk::CommandBuffer) {
+        let key = vk::Handle::as_raw(cb);
+        let Some(open) = lock(&self.books).open.remove(&key) else { return };
+        d.track.with_cb(key, |s| {
+            for (index, data) in open {
+                if s.flow.pass_tested(index) == Some(false) {
+                    data.saves_nothing.store(true, Ordering::Relaxed);
+                }
+            }
+        });
+    }
     /// A pass whose eyes are not known yet: one draw over the render area, empty until a
     /// submission finds its eyes.
     fn inject_awaiting(&self, d: &DeviceState, at: &Awaiting<'_>) {
@@ -347,13 +398,14 @@ impl VkFeature for MaskDevice {
         // formats; multiview from the pass itself).
         let plan = inject::shape_only(at.pass, at.fail_depth);
         let Ok(p) = self.pipeline(d, at.pass, &plan, at.settings.mask.debug) else { return };
-        let Ok(data) = self.data(d, &g, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area }, "swapchain") else { return };
-        data.refresh(self, &g, None);
+        let Ok(data) = self.data(d, &g, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area, walk: at.walk }, "swapchain") else { return };
+        data.refresh(self, &g, None, None);
         let draw = inject::IndirectDraw { slot: 0, viewport: inject::fail_viewport(area, at.fail_depth), scissor: area };
         // SAFETY: `at.cb` is recording inside the pass (the chassis just recorded its begin /
         // clear); the pipeline is compatible with it; the buffer (empty draw arguments until
         // filled) is held by the app's command buffer (below).
         unsafe { inject::record_indirect(d, at.cb, p, data.buffer.buffer, data.vertex_offset(), &[draw]) };
+        self.opened(d, at.owner, &data);
         lifetime::hold(d, at.owner, data);
     }
     /// Refreshes idle recordings for the live mask and settings, then counts what each submitted
@@ -367,31 +419,67 @@ impl VkFeature for MaskDevice {
             lifetime::with_holds(d, cb, |holds| {
                 for h in holds {
                     let Some(data) = h.downcast_ref::<MaskData>() else { continue };
+                    // Why a recording awaiting the walk draws nothing this submission.
+                    let mut not_now = None;
                     if idle {
                         if !on {
                             data.clear(&mut lock(&data.filled));
                         } else {
                             let g = g.get_or_insert_with(|| self.geometry());
                             let plan = match &data.target {
-                                Target::Awaiting { pass, fail_depth, .. } => inject::plan_now(d, pass, *fail_depth, settings.intermediate).ok(),
+                                Target::Awaiting { pass, fail_depth, walk, .. } => {
+                                    let plan = inject::plan_now(d, pass, *fail_depth, settings.intermediate);
+                                    if *walk {
+                                        not_now = plan.as_ref().err().copied();
+                                    }
+                                    plan.ok()
+                                }
                                 Target::Eyes { .. } => None,
                             };
-                            data.refresh(self, g, plan.as_ref());
+                            let moved = match &data.target {
+                                Target::Eyes { draws, image, walked: true, .. } => inject::walk_moved(d, *image, draws),
+                                _ => Ok(None),
+                            };
+                            match moved {
+                                Ok(moved) => data.refresh(self, g, plan.as_ref(), moved.as_deref()),
+                                Err(()) => {
+                                    // The eye rect changes from frame to frame and this
+                                    // submission's walk did not confirm it: no mask beats one
+                                    // beside the eye.
+                                    data.clear(&mut lock(&data.filled));
+                                    not_now = Some(NotMasked::RectChanging);
+                                }
+                            }
                         }
                     }
-                    let pixels = lock(&data.filled).pixels.clone();
+                    if data.saves_nothing.load(Ordering::Relaxed) {
+                        if idle {
+                            data.clear(&mut lock(&data.filled));
+                        }
+                        self.count(|s| s.count_not_masked(NotMasked::PostPass));
+                        continue;
+                    }
+                    let (pixels, source) = {
+                        let f = lock(&data.filled);
+                        (f.pixels.clone(), f.source.unwrap_or(data.source))
+                    };
                     if !pixels.is_empty() {
                         self.count(|s| {
                             s.passes_masked += 1;
-                            *s.by_source.entry(data.source).or_insert(0) += 1;
+                            *s.by_source.entry(source).or_insert(0) += 1;
                             for (view, px) in &pixels {
                                 *s.pixels_masked.entry(*view).or_insert(0) += px;
                             }
                         });
+                    } else if let Some(why) = not_now {
+                        self.count(|s| s.count_not_masked(why));
                     }
                 }
             });
         }
+    }
+    fn fills_at_submission(&self) -> bool {
+        true
     }
 }
 

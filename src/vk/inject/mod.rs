@@ -21,7 +21,7 @@ use crate::core::rect::PixelRect;
 use crate::settings::Settings;
 use crate::shared::shared;
 use crate::track::cmd::{AttachmentUse, PassInstance, StateCmd};
-use crate::track::eye_pass::{self, EyeSource, Eyes, Learned, MaskPlan};
+use crate::track::eye_pass::{self, EyeDraw, EyeSource, Eyes, Learned, MaskPlan};
 use ash::vk::{self, Handle};
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -64,15 +64,36 @@ pub(crate) struct Awaiting<'a> {
     pub settings: &'a Settings,
     /// Set by a feature that bound descriptor sets: the app's are rebound afterwards.
     pub bound_sets: std::cell::Cell<bool>,
+    /// It awaits the walk (`eye_pass::awaiting_walk`), not the OpenXR half's eye uses: features
+    /// that fill at submission count it there (`VkFeature::fills_at_submission`).
+    pub walk: bool,
 }
 
-/// The plan for a pass recorded earlier, with the eyes known now.
+/// The plan for a pass recorded earlier, with the eyes known now (at a submission of its
+/// recording: after that submission's walk).
 pub(crate) fn plan_now(d: &DeviceState, pass: &PassInstance, fail_depth: f32, intermediate: bool) -> Result<MaskPlan, NotMasked> {
-    let eyes = |a: &AttachmentUse| eyes_of(d, a, intermediate);
+    let eyes = |a: &AttachmentUse| eyes_at(d, a, intermediate, When::Submission);
     // The clear that makes `fail_depth` fail.
     let clear = 1.0 - fail_depth;
     let facts = eye_pass::Facts { secondary_contents: false, intermediate_enabled: intermediate, eyes: &eyes, explicit_clear: Some(clear) };
     eye_pass::classify(pass, &facts)
+}
+
+/// Where the eyes a recording's draws for `image` were planned with (from what the walk had
+/// learned when it was recorded) are at this submission:
+/// - `Ok(None)`: where they were — the walk of this submission found the same rects, or did not
+///   reach the image and its rects are not known to change;
+/// - `Ok(Some(eyes))`: this submission's walk found them elsewhere (dynamic resolution moved the
+///   rect since the recording): these rects are this frame's;
+/// - `Err(())`: unknown now (the rects change from frame to frame and this submission's walk did
+///   not confirm them): the draws must do nothing, or they could land beside the eye.
+pub(crate) fn walk_moved(d: &DeviceState, image: u64, draws: &[EyeDraw]) -> Result<Option<Vec<EyeSource>>, ()> {
+    let Some(t) = d.track.traced.eyes(image) else { return Ok(None) };
+    if !d.track.traced.fresh(&t) {
+        return if t.dynamic { Err(()) } else { Ok(None) };
+    }
+    let same = draws.iter().all(|dr| t.eyes.iter().any(|e| e.view == dr.view && e.layer == dr.layer && e.rect == dr.viewport));
+    Ok((!same).then_some(t.eyes))
 }
 
 /// The render area of a pass as a rect.
@@ -86,8 +107,9 @@ struct Pending {
     snap: Snapshot,
     plan: MaskPlan,
     counts: bool,
-    /// The pass awaits its eyes (`Awaiting`); `plan` only carries its shape.
-    awaiting: bool,
+    /// The pass awaits its eyes (`Awaiting`, from the walk when `Some(true)`); `plan` only
+    /// carries its shape.
+    awaiting: Option<bool>,
 }
 
 /// Per-device injection state. The lock guards bookkeeping only, never a call down.
@@ -105,8 +127,9 @@ struct Armed {
     pass: PassInstance,
     plan: MaskPlan,
     counts: bool,
-    /// The pass awaits its eyes (`Awaiting`, with this fail depth); `plan` only has its shape.
-    awaiting: Option<f32>,
+    /// The pass awaits its eyes (`Awaiting`, with this fail depth, from the walk when true);
+    /// `plan` only has its shape.
+    awaiting: Option<(f32, bool)>,
 }
 
 #[derive(Default)]
@@ -212,21 +235,40 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
     let mut plan = match plan {
         Ok(p) => p,
         Err(why) => {
-            count_not_injected(d, &settings, decision.counts, why, &snap.pass);
             // A clear of part of the attachment may leave an eye uncleared: only whole clears.
             let whole = match &trigger {
                 Trigger::Clear { rects, .. } => rects.iter().any(|r| r.contains(&render_area(&snap.pass))),
                 Trigger::End => false,
                 _ => true,
             };
+            let walk_await = (whole && snap.veto.is_none()).then(|| eye_pass::awaiting_walk(&snap.pass, &facts)).flatten();
+            if let Some(fail_depth) = walk_await {
+                // Features that fill their draws at submission count the pass there (applied, or
+                // why not); the others count it now.
+                if decision.counts {
+                    for f in d.features.all() {
+                        if f.injects(&settings) && !f.fills_at_submission() {
+                            f.not_injected(d, &settings, why);
+                        }
+                    }
+                }
+                if trigger.secondary_contents() && !snap.secondary_level {
+                    let plan = shape_only(&snap.pass, fail_depth);
+                    lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: false, awaiting: Some(true) });
+                    return;
+                }
+                inject_awaiting(d, cb, key, &snap, (fail_depth, true), &settings, true);
+                return;
+            }
+            count_not_injected(d, &settings, decision.counts, why, &snap.pass);
             if why == NotMasked::EyeUnknown && whole && snap.veto.is_none() {
                 if let Some(fail_depth) = eye_pass::awaiting_eyes(&snap.pass, &facts) {
                     if trigger.secondary_contents() && !snap.secondary_level {
                         let plan = shape_only(&snap.pass, fail_depth);
-                        lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: false, awaiting: true });
+                        lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: false, awaiting: Some(false) });
                         return;
                     }
-                    inject_awaiting(d, cb, key, &snap, fail_depth, &settings, true);
+                    inject_awaiting(d, cb, key, &snap, (fail_depth, false), &settings, true);
                 }
             }
             return;
@@ -251,7 +293,7 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
         return;
     }
     if trigger.secondary_contents() && !snap.secondary_level {
-        lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: decision.counts, awaiting: false });
+        lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: decision.counts, awaiting: None });
         return;
     }
     inject(d, cb, key, &snap, &plan, &settings, decision.counts, true);
@@ -279,8 +321,8 @@ pub(crate) fn on_execute_commands(d: &DeviceState, cb: vk::CommandBuffer) -> Opt
         }
     };
     let recorded = super::secondary::record(d, cb.as_raw(), &inherit, |ours| {
-        if awaiting {
-            inject_awaiting(d, ours, cb.as_raw(), &snap, plan.fail_depth, &settings, false)
+        if let Some(walk) = awaiting {
+            inject_awaiting(d, ours, cb.as_raw(), &snap, (plan.fail_depth, walk), &settings, false)
         } else {
             inject(d, ours, cb.as_raw(), &snap, &plan, &settings, counts, false)
         }
@@ -413,8 +455,8 @@ pub(crate) fn before_draw(d: &DeviceState, cb: vk::CommandBuffer) {
     let Some(armed) = lock(&d.inject.books).armed.remove(&key) else { return };
     d.inject.armed_count.fetch_sub(1, Ordering::AcqRel);
     let settings = d.settings();
-    if let Some(fail_depth) = armed.awaiting {
-        let at = Awaiting { cb, owner: key, pass: &armed.pass, fail_depth, settings: &settings, bound_sets: Default::default() };
+    if let Some((fail_depth, walk)) = armed.awaiting {
+        let at = Awaiting { cb, owner: key, pass: &armed.pass, fail_depth, settings: &settings, bound_sets: Default::default(), walk };
         let _restore = restore::Restore::new(d, cb, &restore, &sets, &at.bound_sets);
         for f in d.features.all() {
             if f.injects(&settings) && f.injects_before_depth_test() {
@@ -435,8 +477,8 @@ pub(crate) fn before_draw(d: &DeviceState, cb: vk::CommandBuffer) {
 /// Records every injecting feature's draws for a pass awaiting its eyes (`Awaiting`), then the
 /// app's state when `cb` is the app's own.
 #[allow(clippy::too_many_arguments)]
-fn inject_awaiting(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, fail_depth: f32, settings: &Settings, restore: bool) {
-    let at = Awaiting { cb, owner, pass: &snap.pass, fail_depth, settings, bound_sets: Default::default() };
+fn inject_awaiting(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, (fail_depth, walk): (f32, bool), settings: &Settings, restore: bool) {
+    let at = Awaiting { cb, owner, pass: &snap.pass, fail_depth, settings, bound_sets: Default::default(), walk };
     {
         let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore, &snap.sets, &at.bound_sets));
         for f in d.features.all() {
@@ -448,7 +490,7 @@ fn inject_awaiting(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Sn
     let waiting = d.features.all().into_iter().any(|f| f.injects(settings) && f.injects_before_depth_test());
     // Only the app's own command buffer can wait for a draw (see `inject`).
     if waiting && restore {
-        arm(d, owner, Armed { pass: snap.pass.clone(), plan: shape_only(&snap.pass, fail_depth), counts: false, awaiting: Some(fail_depth) });
+        arm(d, owner, Armed { pass: snap.pass.clone(), plan: shape_only(&snap.pass, fail_depth), counts: false, awaiting: Some((fail_depth, walk)) });
     }
 }
 
@@ -481,6 +523,21 @@ fn depth_image(pass: &PassInstance) -> Option<u64> {
 /// Which eyes an attachment shows: a swapchain image's published uses, or an intermediate
 /// target's learned ones (logged once per image).
 pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) -> Eyes {
+    eyes_at(d, a, intermediate, When::Recording)
+}
+
+/// When a pass's eyes are asked for.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(crate) enum When {
+    /// While the app records the pass: what the walk learned describes earlier frames.
+    Recording,
+    /// At a submission of its recording, after that submission's walk: what the walk found in it
+    /// describes this very frame.
+    Submission,
+}
+
+/// The eyes an attachment shows (`eyes_of`), asked at recording or at submission.
+pub(crate) fn eyes_at(d: &DeviceState, a: &AttachmentUse, intermediate: bool, when: When) -> Eyes {
     let image = a.image_view.as_ref().map(|v| v.image);
     if let Some(sc) = &a.swapchain {
         if image.is_some_and(|i| d.track.traced.is_post(i, Some(sc.swapchain.handle))) {
@@ -490,11 +547,18 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
     }
     let Some(image) = image else { return Eyes::Unknown };
     let traced = || match d.track.traced.eyes(image) {
-        Some(t) if t.changing => Eyes::Changing,
+        // Confirmed by the walk of the submission being made: right for this frame, whatever
+        // the rect did before.
+        Some(t) if when == When::Submission && d.track.traced.fresh(&t) => Eyes::Traced(t.eyes),
+        // A rect that has changed may change again at any frame: never applied from memory.
+        Some(t) if t.dynamic => Eyes::Changing,
         Some(t) => Eyes::Traced(t.eyes),
         None if d.track.traced.is_post(image, None) => Eyes::Post,
         None if d.track.traced.has_eyes() => Eyes::NotEye,
-        None => fallback(d, a, image),
+        None => match fallback(d, a, image) {
+            Eyes::Unknown if d.settings().eyes_walk => Eyes::Untraced,
+            e => e,
+        },
     };
     // What the walk saw last wins over what transfers alone say (a 1:1 copy of a post target
     // does not make it an eye pass's).
@@ -519,7 +583,7 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
                 }
                 Learned::Rejected(why) => {
                     let t = traced();
-                    if first && t == Eyes::Unknown {
+                    if first && matches!(t, Eyes::Unknown | Eyes::Untraced) {
                         tracing::info!(image = format_args!("{image:#x}"), "not an intermediate eye target: {why}");
                     }
                     t

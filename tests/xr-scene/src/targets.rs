@@ -156,6 +156,13 @@ pub struct ViewRect {
     pub extent: vk::Extent2D,
 }
 
+impl ViewRect {
+    /// The same rect, its extent scaled by `f` from its top left (`--dynamic-resolution`).
+    pub fn scaled(self, f: f32) -> ViewRect {
+        ViewRect { extent: crate::post::scale_extent(self.extent, f), ..self }
+    }
+}
+
 impl Slot {
     /// The image the frame's last pass (or copy) writes before any blit, with its view, size and
     /// layers: the double-wide texture, else the acquired swapchain image.

@@ -35,11 +35,11 @@ impl FillObjects {
 
 /// A layer image of a swapchain image's shape (the fill's copy target, then sampled).
 pub(super) struct Temp {
-    image: vk::Image,
-    memory: vk::DeviceMemory,
-    view: vk::ImageView,
+    pub(super) image: vk::Image,
+    pub(super) memory: vk::DeviceMemory,
+    pub(super) view: vk::ImageView,
     /// (format, width, height, layers).
-    key: (vk::Format, u32, u32, u32),
+    pub(super) key: (vk::Format, u32, u32, u32),
 }
 
 /// # Safety
@@ -139,11 +139,30 @@ pub(super) fn make_temp(d: &DeviceState, format: vk::Format, usage: vk::ImageUsa
 /// Push constants of shaders/rdm_fill.frag.
 #[repr(C)]
 #[derive(Clone, Copy)]
-struct FillParams {
+pub(super) struct FillParams {
     rect: [i32; 4],
     tan: [f32; 4],
     fovea: [f32; 4],
     layer: i32,
+}
+
+impl FillParams {
+    /// The fill's parameters for one eye.
+    pub(super) fn of(p: &Pending) -> FillParams {
+        let r = p.params.rect;
+        FillParams {
+            rect: [r.x, r.y, r.width as i32, r.height as i32],
+            tan: [p.params.tan_left, p.params.tan_up, p.params.step_x, p.params.step_y],
+            fovea: [p.params.center[0], p.params.center[1], p.params.k_inner, p.params.k_middle],
+            layer: p.layer as i32,
+        }
+    }
+    /// As push-constant bytes.
+    pub(super) fn bytes(&self) -> &[u8] {
+        // SAFETY: a `repr(C)` struct of 4-byte scalars, without padding, read as its own bytes
+        // for its lifetime.
+        unsafe { std::slice::from_raw_parts(self as *const FillParams as *const u8, std::mem::size_of::<FillParams>()) }
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -296,14 +315,8 @@ pub(super) fn record_and_submit(
                 let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
                 d.fns.cmd_set_viewport(cb, 0, &[vp]);
                 d.fns.cmd_set_scissor(cb, 0, &[rect2d(r.intersect(&whole))]);
-                let pc = FillParams {
-                    rect: [r.x, r.y, r.width as i32, r.height as i32],
-                    tan: [p.params.tan_left, p.params.tan_up, p.params.step_x, p.params.step_y],
-                    fovea: [p.params.center[0], p.params.center[1], p.params.k_inner, p.params.k_middle],
-                    layer: p.layer as i32,
-                };
-                let bytes = std::slice::from_raw_parts(&pc as *const FillParams as *const u8, std::mem::size_of::<FillParams>());
-                d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, bytes);
+                let pc = FillParams::of(p);
+                d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, pc.bytes());
                 d.fns.cmd_draw(cb, 3, 1, 0, 0);
             }
             d.fns.cmd_end_render_pass(cb);

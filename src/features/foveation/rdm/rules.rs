@@ -220,6 +220,8 @@ pub enum FillFallback {
     LayerError,
     /// `foveation.rdm_reconstruction = fill`.
     Configured,
+    /// Behind a post chain: reconstructed when the eye pass ended, in the app's command buffer.
+    PassEnd,
 }
 
 impl FillFallback {
@@ -229,6 +231,7 @@ impl FillFallback {
             FillFallback::TransferDst => "transfer_dst",
             FillFallback::LayerError => "layer_error",
             FillFallback::Configured => "configured",
+            FillFallback::PassEnd => "pass_end",
         }
     }
 }
@@ -285,8 +288,19 @@ pub enum NotApplied {
     /// `multiview`): the layer never creates an object the device cannot legally have.
     DeviceLacks,
     /// The eye pass's target is read by a post-process chain (found by the data-flow walk)
-    /// before the runtime sees it; the reconstruction runs at the image's release, too late.
+    /// before the runtime sees it, and it was tied to its eyes only at submission (recorded
+    /// before the walk knew it, or its eye rect changes from frame to frame): the reconstruction
+    /// at the pass's end (`pass_end`) is recorded with the pass, so such passes are left whole.
     PostChain,
+    /// Behind a post chain, the eye pass is followed by a subpass of its own render pass (or its
+    /// rendering is suspended): no reconstruction can run between them.
+    SubpassChain,
+    /// Behind a post chain, the multisampled eye is resolved after its pass (a transfer), not by
+    /// the pass itself: nothing single-sampled to reconstruct when it ends.
+    MsaaUnresolved,
+    /// Behind a post chain, the target the pass leaves the eye in cannot be copied from or drawn
+    /// into (usage, layout), or the reconstruction's objects could not be made for it.
+    TargetUsage,
 }
 
 impl NotApplied {
@@ -298,6 +312,9 @@ impl NotApplied {
             NotApplied::SwapchainUsage => "swapchain_usage",
             NotApplied::DeviceLacks => "device_lacks",
             NotApplied::PostChain => "post_chain",
+            NotApplied::SubpassChain => "subpass_chain",
+            NotApplied::MsaaUnresolved => "msaa_unresolved",
+            NotApplied::TargetUsage => "target_usage",
         }
     }
 }
@@ -394,7 +411,10 @@ impl FeatureStats for RdmFrameStats {
     fn hint(&self, reason: &str) -> &'static str {
         match reason {
             "no_fovea" => "no fovea yet for the view (the first frame): nothing to do unless it persists",
-            "post_chain" => "the eye pass renders into a target a post-process chain (tonemap, bloom, TAA, upscale) reads before the runtime: RDM's reconstruction runs at the swapchain image's release, too late, so such passes are left whole; use foveation.method = \"vrs\" where the GPU has it",
+            "post_chain" => "the eye pass renders into a target a post-process chain reads, and it was tied to its eyes only at submission (the first frames, or an eye rect that changes every frame): RDM's reconstruction at the pass's end is recorded with the pass, so such passes are left whole",
+            "subpass_chain" => "behind a post chain, the eye pass is followed by another subpass of its render pass (a tonemap reading an input attachment) or its rendering is suspended: no reconstruction can run in between, so it is left whole; use foveation.method = \"vrs\" where the GPU has it",
+            "msaa_unresolved" => "behind a post chain, the multisampled eye is resolved after its pass by a transfer: RDM reconstructs only single-sampled targets when the pass ends; use foveation.method = \"vrs\" where the GPU has it",
+            "target_usage" => "behind a post chain, the eye's target cannot be copied from or drawn into by the reconstruction (usage or layout), or its objects could not be made: the pass is left whole",
             "not_one_to_one" => "the app copies the eye image to the swapchain scaled or offset: RDM cannot reconstruct it; use foveation.method = \"vrs\" where the GPU has it",
             "swapchain_usage" => "the swapchain image lacks the usage RDM's reconstruction needs",
             _ => crate::core::stats::common_hint(reason),

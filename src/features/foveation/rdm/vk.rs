@@ -64,6 +64,8 @@ pub(super) struct Books {
     pub(super) pending: HashMap<u64, Vec<Pending>>,
     counts: HashMap<(u64, u64, u32, PixelRect, PixelRect), SkipCount>,
     pub(super) logged: HashSet<String>,
+    /// Command buffer → reconstructions waiting for its open pass's end (`pass_end_vk`).
+    jobs: HashMap<u64, Vec<super::pass_end_vk::Job>>,
 }
 
 /// Per-device RDM state. Locks guard bookkeeping only, never a call down.
@@ -77,6 +79,7 @@ pub(crate) struct RdmDevice {
     memory: vk::PhysicalDeviceMemoryProperties,
     pub(super) books: Mutex<Books>,
     pub(super) reconstruct: super::reconstruct::Reconstruct,
+    pub(super) pass_end: Mutex<super::pass_end_vk::PassEndObjects>,
 }
 
 pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -95,6 +98,7 @@ impl Plugin for RdmDevice {
             memory: init.memory,
             books: Mutex::default(),
             reconstruct: super::reconstruct::Reconstruct::new(init.memory, init.set_loader_data),
+            pass_end: Mutex::default(),
         }
     }
     fn empty_stats() -> Box<dyn FeatureStats> {
@@ -141,6 +145,8 @@ struct Drawn {
     buffer: PooledBuffer,
     target: Target,
     filled: Mutex<Filled>,
+    /// Behind a post chain: the reconstruction at the pass's end this checkerboard depends on.
+    link: Option<Arc<super::pass_end_vk::Link>>,
 }
 
 /// What a recording's buffer holds: for which generations and eyes, the eyes of which image it
@@ -217,11 +223,21 @@ impl Drawn {
         let mut f = lock(&self.filled);
         let (draws, multiview, area, image) = match (&self.target, plan) {
             (Target::Eyes { draws, multiview, image }, _) => (draws.clone(), *multiview, None, *image),
+            // Reached through a post chain: no reconstruction at release would come in time.
+            (Target::Awaiting { .. }, Some(p)) if p.via.behind_post() => return self.clear(&mut f),
             (Target::Awaiting { area, .. }, Some(p)) => (p.draws.clone(), p.layout == EyeLayout::Multiview, Some(*area), p.image),
             (Target::Awaiting { .. }, None) => return self.clear(&mut f),
         };
         let Ok((generations, eyes)) = params_now(&draws) else { return };
         let key = (generations, draws);
+        if let Some(link) = &self.link {
+            // The fill at the pass's end was recorded for one fovea and these eyes: under any
+            // other, or without it, no checkerboard.
+            if !link.allows(&key) {
+                link.arm(false);
+                return self.clear(&mut f);
+            }
+        }
         if f.key.as_ref() == Some(&key) {
             return;
         }
@@ -240,6 +256,9 @@ impl Drawn {
         let skipped = eyes.iter().map(|(dr, p)| (dr.view, count(me, generations.0, generations.1, dr, p))).collect();
         let pending = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
         *f = Filled { key: Some(key), image, pending, skipped };
+        if let Some(link) = &self.link {
+            link.arm(true);
+        }
     }
 }
 
@@ -292,9 +311,21 @@ impl VkFeature for RdmDevice {
             lifetime::hold(d, ash::vk::Handle::as_raw(cb), Arc::new(Transfer { src, dst, regions: regions.to_vec() }));
         }
     }
-    fn destroyed(&self, _d: &DeviceState, what: Destroyed) {
+    fn destroyed(&self, d: &DeviceState, what: Destroyed) {
         if let Destroyed::Image(image) = what {
             lock(&self.books).pending.remove(&image);
+            super::pass_end_vk::image_destroyed(self, d, image);
+        }
+    }
+    /// The eye passes behind a post chain that ended in `cb` get their reconstruction now.
+    fn pass_ended(&self, d: &DeviceState, cb: vk::CommandBuffer) {
+        let Some(jobs) = lock(&self.books).jobs.remove(&ash::vk::Handle::as_raw(cb)) else { return };
+        for job in jobs {
+            if !super::pass_end_vk::record(d, cb, &job) {
+                // The checkerboard stays off (`Link::recorded`): the pass is left whole.
+                self.count(|s| s.count_not_applied(NotApplied::TargetUsage));
+                log_once(self, "pass end not recorded".into(), || tracing::warn!("radial density masking: the reconstruction could not follow an eye pass (the command buffer holds state the layer cannot restore): such passes are left whole"));
+            }
         }
     }
     /// Refreshes idle recordings for the live fovea and settings, then applies what each
@@ -316,6 +347,15 @@ impl VkFeature for RdmDevice {
                                 Target::Eyes { .. } => None,
                             };
                             drawn.refresh(self, plan.as_ref());
+                            if let (Some(link), Target::Eyes { draws, image, .. }) = (&drawn.link, &drawn.target) {
+                                // Behind a post chain the rect may have moved since the recording
+                                // (dynamic resolution): no checkerboard where the eye is not.
+                                if !matches!(inject::walk_moved(d, *image, draws), Ok(None)) {
+                                    link.arm(false);
+                                    drawn.clear(&mut lock(&drawn.filled));
+                                    self.count(|s| *s.not_applied.entry(crate::core::pass::NotMasked::RectChanging.name()).or_insert(0) += 1);
+                                }
+                            }
                         }
                         let f = lock(&drawn.filled);
                         if f.pending.is_empty() {
@@ -328,6 +368,16 @@ impl VkFeature for RdmDevice {
                                 *s.pixels_skipped.entry(*view).or_insert(0) += c.pixels_skipped;
                             }
                         });
+                        if drawn.link.is_some() {
+                            // Reconstructed when its pass ended, in the recording itself.
+                            self.count(|s| {
+                                for p in &f.pending {
+                                    *s.reconstructed.entry(p.view).or_insert(0) += 1;
+                                }
+                                *s.fill_fallback.entry(super::rules::FillFallback::PassEnd.name()).or_insert(0) += f.pending.len() as u64;
+                            });
+                            continue;
+                        }
                         let mut books = lock(&self.books);
                         let list = books.pending.entry(f.image).or_default();
                         for p in &f.pending {
@@ -345,6 +395,8 @@ impl VkFeature for RdmDevice {
         super::reconstruct::before_release(self, d, family, queue_index, swapchain, image_index);
     }
     fn destroy(&self, d: &DeviceState) {
+        lock(&self.books).jobs.clear();
+        super::pass_end_vk::destroy(self, d);
         self.reconstruct.destroy(d);
     }
 }
@@ -380,7 +432,7 @@ fn drawn(me: &RdmDevice, d: &DeviceState, target: Target) -> Result<Arc<Drawn>, 
         d.warn_repeated("rdm vertex buffer", &e);
         NotApplied::LayerError
     })?;
-    Ok(Arc::new(Drawn { buffer, target, filled: Mutex::default() }))
+    Ok(Arc::new(Drawn { buffer, target, filled: Mutex::default(), link: None }))
 }
 
 /// Records the checkerboard depth draw into the open pass (after the mask, before the chassis
@@ -403,19 +455,33 @@ fn reconstruction_ready(me: &RdmDevice, d: &DeviceState, cb: vk::CommandBuffer, 
 
 fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<(), NotApplied> {
     let plan = at.plan;
-    if plan.via.behind_post() {
-        // A tonemapper, bloom or TAA would read the checkerboard before any reconstruction at
-        // release: never leave holes in such a target.
-        log_once(me, "post chain".into(), || {
-            tracing::info!("radial density masking left an eye pass alone: a post-process chain reads its target {:#x} before the runtime does, and the reconstruction runs only at the swapchain image's release", plan.image)
-        });
-        return Err(NotApplied::PostChain);
-    }
-    reconstruction_ready(me, d, at.cb, at.settings)?;
     let ((fovea_generation, views_generation), eyes) = params_now(&plan.draws)?;
+    // Behind a post chain a tonemapper, bloom or TAA reads the target before any release: the
+    // holes are filled when the pass ends (`pass_end_vk`), or the pass is left whole.
+    let pass_end = if plan.via.behind_post() {
+        let pending: Vec<Pending> = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
+        let prepared = super::pass_end_vk::prepare(me, d, at.pass, plan.image, &pending).inspect_err(|why| {
+            log_once(me, format!("pass end {}", why.name()), || tracing::info!("radial density masking left an eye pass behind a post chain alone ({:#x}): {}", plan.image, why.name()))
+        })?;
+        let fill_args = PooledBuffer::take(d, inject::DRAW_ARGS * pending.len() as u64, &me.memory).map_err(|e| {
+            d.warn_repeated("rdm fill arguments", &e);
+            NotApplied::LayerError
+        })?;
+        let link = Arc::new(super::pass_end_vk::Link { fill_args, frozen: ((fovea_generation, views_generation), plan.draws.clone()), recorded: Default::default() });
+        link.arm(false);
+        Some((prepared, pending, link))
+    } else {
+        reconstruction_ready(me, d, at.cb, at.settings)?;
+        None
+    };
     let p = pipeline(me, d, at.pass, plan)?;
     let multiview = plan.layout == EyeLayout::Multiview;
-    let data = drawn(me, d, Target::Eyes { draws: plan.draws.clone(), multiview, image: plan.image })?;
+    let mut data = drawn(me, d, Target::Eyes { draws: plan.draws.clone(), multiview, image: plan.image })?;
+    if let Some((_, _, link)) = &pass_end {
+        if let Some(dr) = Arc::get_mut(&mut data) {
+            dr.link = Some(link.clone());
+        }
+    }
     data.refresh(me, None);
     let cb = at.cb;
     let vk_buffer = data.buffer.buffer;
@@ -430,6 +496,10 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     // with it; the buffer is held by the app's command buffer (below) until its recording closes
     // and its submissions complete.
     unsafe { inject::record_indirect(d, cb, p, vk_buffer, data.vertex_offset(), &draws) };
+    if let Some((prepared, pending, link)) = pass_end {
+        let job = super::pass_end_vk::Job::new(prepared, pending, link);
+        lock(&me.books).jobs.entry(at.owner).or_default().push(job);
+    }
     lifetime::hold(d, at.owner, data);
     let counts: Vec<(u32, SkipCount)> = eyes.iter().map(|(dr, p)| (dr.view, count(me, fovea_generation, views_generation, dr, p))).collect();
     log_once(me, format!("draw {:?} {}", plan.layout, plan.intermediate), || {
@@ -450,6 +520,10 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
 /// A pass whose eyes are not known yet: one draw over the render area, empty until a submission
 /// finds its eyes.
 fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result<(), NotApplied> {
+    if at.walk {
+        // Only the walk can tie it to its eyes: a post chain reads its target (`record_draw`).
+        return Err(NotApplied::PostChain);
+    }
     let area = inject::render_area(at.pass);
     let plan = inject::shape_only(at.pass, at.fail_depth);
     reconstruction_ready(me, d, at.cb, at.settings)?;

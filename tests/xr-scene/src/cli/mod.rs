@@ -215,6 +215,9 @@ pub struct Options {
     pub viewport_scale: f32,
     /// `--submit-texture double-wide`.
     pub submit_texture: Option<SubmitTexture>,
+    /// `--dynamic-resolution`: the eye passes draw into a sub-rect of their target that changes
+    /// every frame (`crate::post::dynamic_scale`), read back whole by the tonemap.
+    pub dynamic_resolution: bool,
 }
 
 /// The command line as clap sees it; `parse` turns it into checked `Options`.
@@ -380,6 +383,11 @@ struct Args {
     /// half into its layer of a 2-layer swapchain.
     #[arg(long, value_enum)]
     submit_texture: Option<SubmitTexture>,
+    /// With --post tonemap or taa: dynamic resolution, the eye passes' sub-rect of their target
+    /// changes every frame (x1, x0.75, x0.875 of it in turn, on top of --viewport-scale); the
+    /// tonemap reads each frame's sub-rect.
+    #[arg(long)]
+    dynamic_resolution: bool,
 }
 
 fn parse_samples(v: &str) -> Result<u32, String> {
@@ -493,6 +501,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         render_scale: a.render_scale,
         viewport_scale: a.viewport_scale,
         submit_texture: a.submit_texture,
+        dynamic_resolution: a.dynamic_resolution,
     })
 }
 

@@ -53,6 +53,20 @@ pub(super) fn check_post(a: &Args, samples: u32) -> Result<(), String> {
     if a.pixel_stats.is_some() && (a.render_scale != 1.0 || a.viewport_scale != 1.0) {
         return Err("--pixel-stats counts per swapchain pixel: not with --render-scale or --viewport-scale".into());
     }
+    if a.dynamic_resolution {
+        if !matches!(a.post, Some(PostEffect::Tonemap | PostEffect::Taa)) {
+            return Err("--dynamic-resolution needs --post tonemap or taa (bloom's mip chain has fixed rects)".into());
+        }
+        if a.post_subpass {
+            return Err("--dynamic-resolution scales the eye pass's sub-rect: --post-subpass reads each pixel's own value and cannot".into());
+        }
+        if a.record_once {
+            return Err("--dynamic-resolution changes the eye passes' viewport every frame: the command buffers are recorded every frame (no --record-once)".into());
+        }
+        if a.submit_depth || a.pixel_stats.is_some() {
+            return Err("--dynamic-resolution: not with --submit-depth or --pixel-stats (both need the eye at the swapchain's size)".into());
+        }
+    }
     if a.submit_texture == Some(SubmitTexture::DoubleWide) {
         if a.layout != Layout::SideBySide {
             return Err("--submit-texture double-wide renders both eyes side by side into one texture: it needs --layout side-by-side".into());
@@ -94,6 +108,12 @@ mod tests {
         let o = p(&["--layout", "side-by-side", "--submit-texture", "double-wide"]).unwrap();
         assert_eq!(o.submit_texture, Some(SubmitTexture::DoubleWide));
         assert!(p(&["--layout", "side-by-side", "--submit-texture", "quad"]).is_err());
+        assert!(p(&["--post", "tonemap", "--dynamic-resolution"]).unwrap().dynamic_resolution);
+        assert!(p(&["--post", "taa", "--post-compute", "--dynamic-resolution"]).is_err(), "compute is tonemap only");
+        assert!(p(&["--post", "tonemap", "--post-compute", "--dynamic-resolution"]).unwrap().dynamic_resolution);
+        for bad in [&["--dynamic-resolution"][..], &["--post", "bloom", "--dynamic-resolution"], &["--post", "tonemap", "--dynamic-resolution", "--record-once"], &["--post", "tonemap", "--post-subpass", "--dynamic-resolution"]] {
+            assert!(p(bad).is_err(), "{bad:?}");
+        }
     }
 
     /// Each option in every layout and way of rendering where it applies.

@@ -91,6 +91,19 @@ pub struct PostChain {
     sets: Vec<SlotSets>,
     /// TAA's history images and their layers: cleared once at start (`record_init`).
     histories: Vec<(vk::Image, u32)>,
+    /// The part of each scene eye rect drawn in the frame being recorded (`record`).
+    frame_scale: f32,
+}
+
+/// `--dynamic-resolution`: the part of its sub-rect an eye pass draws in `frame`, a different
+/// one in each of three consecutive frames (as an engine's dynamic resolution moves with load).
+pub fn dynamic_scale(frame: u64) -> f32 {
+    [1.0, 0.75, 0.875][(frame % 3) as usize]
+}
+
+/// `e` scaled by `f`, rounded, at least 1×1.
+pub fn scale_extent(e: vk::Extent2D, f: f32) -> vk::Extent2D {
+    vk::Extent2D { width: ((e.width as f32 * f).round() as u32).max(1), height: ((e.height as f32 * f).round() as u32).max(1) }
 }
 
 /// Indices into `set_layouts` / `layouts`.
@@ -132,6 +145,7 @@ impl PostChain {
             pool: vk::DescriptorPool::null(),
             sets: Vec::new(),
             histories: targets.slots.iter().filter_map(|s| s.post.as_ref()?.history.as_ref().map(|h| (h.image, s.final_layers()))).collect(),
+            frame_scale: 1.0,
         };
         // On failure `chain` drops here and destroys what was made.
         chain.create_layouts(gpu)?;

@@ -89,10 +89,13 @@ impl PostChain {
     }
 
     /// After every eye pass: each slot's chain. `--post-subpass` has done its work inside the pass.
-    pub fn record(&mut self, gpu: &Gpu, cmd: vk::CommandBuffer, targets: &Targets, acquired: &[Acquired]) -> Result<()> {
+    /// `frame_scale`: the part of each scene eye rect the eye passes drew this frame
+    /// (`--dynamic-resolution`; else 1).
+    pub fn record(&mut self, gpu: &Gpu, cmd: vk::CommandBuffer, targets: &Targets, acquired: &[Acquired], frame_scale: f32) -> Result<()> {
         if self.subpass {
             return Ok(());
         }
+        self.frame_scale = frame_scale;
         for (i, a) in acquired.iter().enumerate() {
             self.record_slot(gpu, cmd, i, &targets.slots[i], a.color)?;
         }
@@ -194,7 +197,8 @@ impl PostChain {
             PostEffect::Tonemap => (g.scene_eyes[i], g.scene_extent),
         };
         let flags = self.flags & !super::FLAG_BGRA;
-        self.draws(cmd, self.final_pipeline, self.sets[index].final_set, &g.final_eyes, |i| push(MODE_FINAL, flags, g.final_eyes[i], (g.scene_eyes[i], g.scene_extent), aux_of(i)));
+        let scene = |i: usize| (scaled_eye(g.scene_eyes[i], self.frame_scale), g.scene_extent);
+        self.draws(cmd, self.final_pipeline, self.sets[index].final_set, &g.final_eyes, |i| push(MODE_FINAL, flags, g.final_eyes[i], scene(i), aux_of(i)));
         self.final_pass.as_ref().expect("final pass").end(gpu, cmd);
         if let Some(h) = &p.history {
             let r = range(vk::ImageAspectFlags::COLOR, layers);
@@ -238,7 +242,7 @@ impl PostChain {
             d.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.compute_pipeline);
             d.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, self.layouts[COMPUTE], 0, &[self.sets[index].compute], &[]);
             for (i, dst) in g.final_eyes.iter().enumerate() {
-                let src = (g.scene_eyes[i], g.scene_extent);
+                let src = (scaled_eye(g.scene_eyes[i], self.frame_scale), g.scene_extent);
                 let pc = push(MODE_FINAL, self.flags, *dst, src, src);
                 d.cmd_push_constants(cmd, self.layouts[COMPUTE], vk::ShaderStageFlags::COMPUTE, 0, bytes(&pc));
                 d.cmd_dispatch(cmd, dst.1.width.div_ceil(8), dst.1.height.div_ceil(8), layers);
@@ -270,4 +274,9 @@ fn copy(d: &ash::Device, cmd: vk::CommandBuffer, src: vk::Image, dst: vk::Image,
     };
     // SAFETY: recording outside any pass; both images are in the layouts named, same size.
     unsafe { d.cmd_copy_image(cmd, src, L::TRANSFER_SRC_OPTIMAL, dst, L::TRANSFER_DST_OPTIMAL, &[region]) };
+}
+
+/// An eye rect's extent scaled by `f` from its top left (`--dynamic-resolution`).
+fn scaled_eye((x, e): super::images::EyeRect, f: f32) -> super::images::EyeRect {
+    (x, super::scale_extent(e, f))
 }

@@ -128,6 +128,9 @@ pub struct Renderer {
     sets_by_images: HashMap<Vec<Acquired>, usize>,
     /// `--post`: the chain after the eye passes.
     post: Option<crate::post::PostChain>,
+    /// `--dynamic-resolution`; and the scale of the frame being recorded.
+    dynamic_resolution: bool,
+    frame_scale: f32,
 }
 
 impl Renderer {
@@ -210,6 +213,8 @@ impl Renderer {
             sets: Vec::new(),
             sets_by_images: HashMap::new(),
             post: None,
+            dynamic_resolution: opts.dynamic_resolution,
+            frame_scale: 1.0,
         };
         if opts.threads {
             r.workers = Some(Workers::new(gpu, targets.slots.len())?);
@@ -530,6 +535,7 @@ impl Renderer {
         // its uniform buffer, which is host-coherent and mapped for the set's lifetime.
         unsafe { set.uniforms_mapped.write(*uniforms) };
         let rerecord = self.rerecord_every.is_some_and(|n| frame > 0 && frame.is_multiple_of(n));
+        self.frame_scale = if self.dynamic_resolution { crate::post::dynamic_scale(frame) } else { 1.0 };
         let record_us = if self.record_once && set.recorded && !rerecord {
             0.0
         } else {
@@ -614,7 +620,8 @@ impl Renderer {
             let counters = set.counters.dynamic_offset(eye, multiview);
             [counters, set.pixels.as_ref().map_or(counters, |p| p.dynamic_offset(eye, multiview))]
         });
-        let binding = SetBinding { descriptor_set: set.descriptor_set, offsets, views: targets.scene_views };
+        let views = targets.scene_views.map(|v| v.scaled(self.frame_scale));
+        let binding = SetBinding { descriptor_set: set.descriptor_set, offsets, views };
         // A command buffer recorded once is submitted many times (and so are the secondaries it
         // executes): ONE_TIME_SUBMIT only where it is re-recorded for every submission.
         let usage = if self.record_once { vk::CommandBufferUsageFlags::empty() } else { vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT };
@@ -659,7 +666,7 @@ impl Renderer {
                 self.passes.end(gpu, cmd);
             }
             if let Some(post) = &mut self.post {
-                post.record(gpu, cmd, targets, acquired)?;
+                post.record(gpu, cmd, targets, acquired, self.frame_scale)?;
             }
             if self.intermediate {
                 self.resolve_to_swapchains(cmd, targets, acquired);

@@ -1,0 +1,327 @@
+//! Radial density masking's reconstruction at the end of an eye pass whose target a post chain
+//! reads (`pass_end` says which image and layout): recorded into the app's command buffer right
+//! after the pass, so no tonemap, bloom or TAA ever samples the checkerboard. The eye rects are
+//! copied into a layer temp image, and the full-screen fill (`fill`, `shaders/rdm_fill.frag`)
+//! draws the skipped quads back from it; then the image returns to the layout the app left it in,
+//! behind a barrier every later command waits for.
+//!
+//! The checkerboard and the fill are one unit: both are indirect draws whose arguments the
+//! recording's buffers hold, written for the rule's parameters the fill was recorded with
+//! (`Link::frozen`). When the fovea or the views move on, or the fill could not be recorded,
+//! both draw nothing — a pass is foveated and reconstructed, or left whole, never holed.
+
+use super::fill::{fill_objects, make_temp, FillParams, Temp};
+use super::pass_end::{self, PassEndTarget};
+use super::rules::{NotApplied, Pending};
+use super::vk::{lock, log_once, RdmDevice};
+use crate::core::rect::PixelRect;
+use crate::track::eye_pass::EyeDraw;
+use crate::track::resources::ImageView;
+use crate::vk::inject::{self, restore};
+use crate::vk::lifetime::{Garbage, PooledBuffer};
+use crate::vk::DeviceState;
+use ash::vk::{self, Handle};
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// What ties a recording's checkerboard to its fill at the pass's end.
+pub(super) struct Link {
+    /// One `VkDrawIndirectCommand` per eye: the fill's draws.
+    pub(super) fill_args: PooledBuffer,
+    /// (foveation generation, views generation) and the eyes the fill's parameters are for.
+    pub(super) frozen: ((u64, u64), Vec<EyeDraw>),
+    /// The fill was recorded after the pass (`record`): until then, and if it never is, the
+    /// checkerboard draws nothing.
+    pub(super) recorded: AtomicBool,
+}
+
+impl Link {
+    /// The fill's draws on (`on`, one full-screen triangle per eye) or off.
+    pub(super) fn arm(&self, on: bool) {
+        let args = vk::DrawIndirectCommand { vertex_count: if on { 3 } else { 0 }, instance_count: 1, first_vertex: 0, first_instance: 0 };
+        self.fill_args.write(0, &vec![args; self.frozen.1.len()]);
+    }
+    /// Whether the checkerboard may draw under `key` now.
+    pub(super) fn allows(&self, key: &((u64, u64), Vec<EyeDraw>)) -> bool {
+        self.recorded.load(Ordering::Acquire) && *key == self.frozen
+    }
+}
+
+/// A layer temp image of one shape with the fill's descriptor set over it, shared by every
+/// recording that reconstructs an image of that shape (each recording's copy into it waits for
+/// earlier fills' reads: the first barrier of `record`). Destroyed through the device's trash
+/// when the last recording holding it is done.
+pub(super) struct SharedTemp {
+    temp: Option<Temp>,
+    pool: vk::DescriptorPool,
+    set: vk::DescriptorSet,
+    trash: Arc<Mutex<Vec<Garbage>>>,
+}
+
+impl Drop for SharedTemp {
+    fn drop(&mut self) {
+        if let Some(t) = self.temp.take() {
+            let mut trash = lock(&self.trash);
+            trash.push(Garbage::Image(t.view, t.image, t.memory));
+            trash.push(Garbage::DescriptorPool(self.pool));
+        }
+    }
+}
+
+/// The pass-end objects of a device: temps by shape, and views + framebuffers of the app's
+/// targets by (image, layer) — destroyed with the image (the app waits for its work first).
+#[derive(Default)]
+pub(super) struct PassEndObjects {
+    temps: HashMap<(vk::Format, u32, u32, u32), Arc<SharedTemp>>,
+    framebuffers: HashMap<(u64, u32), (vk::ImageView, vk::Framebuffer)>,
+}
+
+/// A reconstruction waiting for its pass's end in a command buffer.
+pub(super) struct Job {
+    target: PassEndTarget,
+    extent: (u32, u32),
+    eyes: Vec<Pending>,
+    temp: Arc<SharedTemp>,
+    framebuffers: Vec<(u32, vk::Framebuffer)>,
+    fill: (vk::PipelineLayout, vk::RenderPass, vk::Pipeline),
+    link: Arc<Link>,
+}
+
+struct Views<'a>(&'a DeviceState);
+
+impl pass_end::Objects for Views<'_> {
+    fn view(&self, view: u64) -> Option<Arc<ImageView>> {
+        self.0.track.views.get(view)
+    }
+    fn samples(&self, image: u64) -> Option<vk::SampleCountFlags> {
+        self.0.track.images.get(image).map(|i| i.samples)
+    }
+}
+
+/// Everything a pass-end reconstruction of `eyes` (in `eye_image`'s pass `pass`) needs, made now,
+/// while the pass is open: the checkerboard goes in only if this succeeds.
+pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64, eyes: &[Pending]) -> Result<(PassEndTarget, vk::Format, (u32, u32), Arc<SharedTemp>, Vec<(u32, vk::Framebuffer)>, (vk::PipelineLayout, vk::RenderPass, vk::Pipeline)), NotApplied> {
+    let target = pass_end::target(pass, eye_image, &Views(d))?;
+    let image = d.track.images.get(target.view.image).ok_or(NotApplied::TargetUsage)?;
+    if !pass_end::usage_ok(image.usage) || target.view.range.base_mip_level != 0 || image.extent.depth > 1 {
+        return Err(NotApplied::TargetUsage);
+    }
+    let (width, height, layers) = (image.extent.width, image.extent.height, image.array_layers.max(1));
+    let format = image.format;
+    let fail = |what: String| {
+        log_once(me, format!("pass end {what}"), || tracing::warn!("radial density masking: no reconstruction at the pass's end for {:#x} ({what}): such passes are left whole", image.handle));
+        NotApplied::TargetUsage
+    };
+    let (layout, set_layout, render_pass, pipeline, sampler) = fill_objects(d, format).map_err(fail)?;
+    let temp = shared_temp(me, d, format, (width, height, layers), set_layout, sampler).map_err(|(_, e)| fail(e))?;
+    let mut layer_list: Vec<u32> = eyes.iter().map(|p| p.layer).collect();
+    layer_list.sort_unstable();
+    layer_list.dedup();
+    let mut framebuffers = Vec::new();
+    for layer in layer_list {
+        if layer >= layers {
+            return Err(NotApplied::TargetUsage);
+        }
+        framebuffers.push((layer, framebuffer(me, d, image.handle, format, layer, (width, height), render_pass).map_err(fail)?));
+    }
+    Ok((target, format, (width, height), temp, framebuffers, (layout, render_pass, pipeline)))
+}
+
+impl Job {
+    #[allow(clippy::type_complexity)]
+    pub(super) fn new(
+        prepared: (PassEndTarget, vk::Format, (u32, u32), Arc<SharedTemp>, Vec<(u32, vk::Framebuffer)>, (vk::PipelineLayout, vk::RenderPass, vk::Pipeline)),
+        eyes: Vec<Pending>,
+        link: Arc<Link>,
+    ) -> Job {
+        let (target, _, extent, temp, framebuffers, fill) = prepared;
+        Job { target, extent, eyes, temp, framebuffers, fill, link }
+    }
+}
+
+fn shared_temp(me: &RdmDevice, d: &DeviceState, format: vk::Format, shape: (u32, u32, u32), set_layout: vk::DescriptorSetLayout, sampler: vk::Sampler) -> Result<Arc<SharedTemp>, (NotApplied, String)> {
+    let key = (format, shape.0, shape.1, shape.2);
+    if let Some(t) = lock(&me.pass_end).temps.get(&key) {
+        return Ok(t.clone());
+    }
+    let t = make_temp(d, format, vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::SAMPLED, shape)?;
+    let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 1 }];
+    let mut shared = SharedTemp { temp: Some(t), pool: vk::DescriptorPool::null(), set: vk::DescriptorSet::null(), trash: d.lifetime.trash.clone() };
+    // SAFETY: valid create / allocate infos on the app's device; on failure `shared` drops and
+    // hands what was made to the trash (nothing uses it yet).
+    unsafe {
+        shared.pool = d.fns.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None).map_err(super::reconstruct::layer_error("descriptor pool"))?;
+        let layouts = [set_layout];
+        shared.set = d.fns.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(shared.pool).set_layouts(&layouts)).map_err(super::reconstruct::layer_error("descriptor set"))?[0];
+        let view = shared.temp.as_ref().map_or(vk::ImageView::null(), |t| t.view);
+        let infos = [vk::DescriptorImageInfo { sampler, image_view: view, image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL }];
+        let write = vk::WriteDescriptorSet::default().dst_set(shared.set).dst_binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(&infos);
+        d.fns.update_descriptor_sets(&[write], &[]);
+    }
+    let shared = Arc::new(shared);
+    let mut o = lock(&me.pass_end);
+    // Another thread may have made one meanwhile: keep the first, ours goes to the trash.
+    Ok(o.temps.entry(key).or_insert(shared).clone())
+}
+
+fn framebuffer(me: &RdmDevice, d: &DeviceState, image: u64, format: vk::Format, layer: u32, (width, height): (u32, u32), render_pass: vk::RenderPass) -> Result<vk::Framebuffer, String> {
+    if let Some((_, fb)) = lock(&me.pass_end).framebuffers.get(&(image, layer)) {
+        return Ok(*fb);
+    }
+    let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: 1 };
+    // SAFETY: the app's live image (its pass is being recorded); our view and framebuffer,
+    // destroyed with the image (`destroyed`).
+    unsafe {
+        let view = d
+            .fns
+            .create_image_view(&vk::ImageViewCreateInfo::default().image(vk::Image::from_raw(image)).view_type(vk::ImageViewType::TYPE_2D).format(format).subresource_range(range), None)
+            .map_err(|e| format!("view: {e}"))?;
+        let views = [view];
+        let fb = match d.fns.create_framebuffer(&vk::FramebufferCreateInfo::default().render_pass(render_pass).attachments(&views).width(width).height(height).layers(1), None) {
+            Ok(f) => f,
+            Err(e) => {
+                d.fns.destroy_image_view(view, None);
+                return Err(format!("framebuffer: {e}"));
+            }
+        };
+        let mut o = lock(&me.pass_end);
+        if let Some((_, existing)) = o.framebuffers.get(&(image, layer)) {
+            let existing = *existing;
+            drop(o);
+            d.fns.destroy_framebuffer(fb, None);
+            d.fns.destroy_image_view(view, None);
+            return Ok(existing);
+        }
+        o.framebuffers.insert((image, layer), (view, fb));
+        Ok(fb)
+    }
+}
+
+/// The app destroyed `image`: its views and framebuffers of ours go (its work is complete).
+pub(super) fn image_destroyed(me: &RdmDevice, d: &DeviceState, image: u64) {
+    let gone: Vec<(vk::ImageView, vk::Framebuffer)> = {
+        let mut o = lock(&me.pass_end);
+        let keys: Vec<(u64, u32)> = o.framebuffers.keys().filter(|k| k.0 == image).copied().collect();
+        keys.into_iter().filter_map(|k| o.framebuffers.remove(&k)).collect()
+    };
+    for (view, fb) in gone {
+        // SAFETY: the app may destroy an image only once no pending work uses it, ours included.
+        unsafe {
+            d.fns.destroy_framebuffer(fb, None);
+            d.fns.destroy_image_view(view, None);
+        }
+    }
+}
+
+/// At vkDestroyDevice (idle): everything of ours.
+pub(super) fn destroy(me: &RdmDevice, d: &DeviceState) {
+    let o = std::mem::take(&mut *lock(&me.pass_end));
+    for (_, (view, fb)) in o.framebuffers {
+        // SAFETY: the device is idle.
+        unsafe {
+            d.fns.destroy_framebuffer(fb, None);
+            d.fns.destroy_image_view(view, None);
+        }
+    }
+    drop(o.temps);
+}
+
+/// Records `job` into `cb`, just after the eye pass ended: copy, fill, back to the app's layout;
+/// then the app's bound state. Returns false when the app's state could not be restored (the
+/// fill is then not recorded, and the checkerboard stays off).
+pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool {
+    let key = cb.as_raw();
+    let Some((restore_cmds, sets, veto)) = d.track.with_cb(key, |s| (s.restore_commands(), s.descriptor_set_commands(), s.veto)) else { return false };
+    if veto.is_some() {
+        return false;
+    }
+    let Some(temp) = job.temp.temp.as_ref() else { return false };
+    let image = vk::Image::from_raw(job.target.view.image);
+    let (width, height) = job.extent;
+    let whole = PixelRect { x: 0, y: 0, width, height };
+    let range = |layer: u32| vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: 1 };
+    let layers_of = |layer: u32| vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: layer, layer_count: 1 };
+    let barrier = |img: vk::Image, r: vk::ImageSubresourceRange, old: vk::ImageLayout, new: vk::ImageLayout, src: vk::AccessFlags, dst: vk::AccessFlags| {
+        vk::ImageMemoryBarrier::default()
+            .src_access_mask(src)
+            .dst_access_mask(dst)
+            .old_layout(old)
+            .new_layout(new)
+            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .image(img)
+            .subresource_range(r)
+    };
+    let temp_range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: temp.key.3 };
+    let after = job.target.layout;
+    let bound_sets = std::cell::Cell::new(true);
+    let (layout, render_pass, pipeline) = job.fill;
+    {
+        let _restore = restore::Restore::new(d, cb, &restore_cmds, &sets, &bound_sets);
+        // SAFETY: `cb` is the app's command buffer, recording outside any pass (its eye pass just
+        // ended); the target is the pass's attachment in `after`; every object of ours is held by
+        // the recording (`job.hold`, the temp's Arc, the framebuffers until the image dies).
+        unsafe {
+            // The pass's colour writes (and resolves) before the copy; earlier fills' reads of the
+            // temp before it is overwritten.
+            let mut first: Vec<vk::ImageMemoryBarrier> = job.framebuffers.iter().map(|(l, _)| barrier(image, range(*l), after, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::TRANSFER_READ)).collect();
+            first.push(barrier(temp.image, temp_range, vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::empty(), vk::AccessFlags::TRANSFER_WRITE));
+            d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::FRAGMENT_SHADER, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &first);
+            let regions: Vec<vk::ImageCopy> = job
+                .eyes
+                .iter()
+                .map(|p| {
+                    let r = p.params.rect.intersect(&whole);
+                    vk::ImageCopy {
+                        src_subresource: layers_of(p.layer),
+                        src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+                        dst_subresource: layers_of(p.layer),
+                        dst_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+                        extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
+                    }
+                })
+                .filter(|c| c.extent.width > 0 && c.extent.height > 0)
+                .collect();
+            d.fns.cmd_copy_image(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, temp.image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &regions);
+            let mut second: Vec<vk::ImageMemoryBarrier> = job
+                .framebuffers
+                .iter()
+                .map(|(l, _)| barrier(image, range(*l), vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::empty(), vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE))
+                .collect();
+            second.push(barrier(temp.image, temp_range, vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ));
+            d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &second);
+            for (layer, fb) in &job.framebuffers {
+                let here: Vec<(usize, &Pending)> = job.eyes.iter().enumerate().filter(|(_, p)| p.layer == *layer).collect();
+                let Some(area) = here.iter().map(|(_, p)| p.params.rect.intersect(&whole)).reduce(|a, b| crate::track::flow::union(&a, &b)) else { continue };
+                if area.area() == 0 {
+                    continue;
+                }
+                d.fns.cmd_begin_render_pass(cb, &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(*fb).render_area(inject::rect2d(area)), vk::SubpassContents::INLINE);
+                d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+                d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[job.temp.set], &[]);
+                for (i, p) in here {
+                    let r = p.params.rect;
+                    let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
+                    d.fns.cmd_set_viewport(cb, 0, &[vp]);
+                    d.fns.cmd_set_scissor(cb, 0, &[inject::rect2d(r.intersect(&whole))]);
+                    let pc = FillParams::of(p);
+                    d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, pc.bytes());
+                    d.fns.cmd_draw_indirect(cb, job.link.fill_args.buffer, inject::DRAW_ARGS * i as u64, 1, inject::DRAW_ARGS as u32);
+                }
+                d.fns.cmd_end_render_pass(cb);
+            }
+            // Back to the app's layout; every later command (whatever the app synchronizes with
+            // next, even only its pass's external dependency) waits for the fill.
+            let last: Vec<vk::ImageMemoryBarrier> = job
+                .framebuffers
+                .iter()
+                .map(|(l, _)| barrier(image, range(*l), vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, after, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE))
+                .collect();
+            d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &last);
+        }
+    }
+    crate::vk::lifetime::hold(d, key, job.temp.clone());
+    job.link.recorded.store(true, Ordering::Release);
+    true
+}

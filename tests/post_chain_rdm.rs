@@ -1,0 +1,114 @@
+//! Radial density masking behind post-processing chains (xr-scene's `--post` modes): the eye
+//! passes the data-flow walk finds get the checkerboard, and the reconstruction runs when each
+//! eye pass ends, in the app's command buffer, before the tonemap, bloom, TAA or compute pass
+//! reads the target (`src/features/foveation/rdm/pass_end*.rs`). What cannot be reconstructed
+//! there (a tonemap subpass of the same render pass; passes only tied to their eyes at
+//! submission) is left whole and named. Every run has validation with synchronization
+//! validation on.
+
+mod common;
+
+use common::post_chain::{matrix, run_post_chain, LayerConfig};
+use common::rdm::{self, layer_records, Expected};
+use common::Run;
+
+const FRAMES: u64 = 4;
+
+/// RDM only, fixed foveation at the projection centre.
+fn rdm_config() -> LayerConfig {
+    LayerConfig::off()
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
+        .env("STEREOSHIM_FOVEATION_EYE_TRACKING", "off")
+}
+
+/// From frame 2 on (frame 1's passes were recorded before the first walk), every eye pass of
+/// every mode gets the checkerboard and its reconstruction at the pass's end — except the modes
+/// where that cannot be, which name their reason.
+#[test]
+fn every_eye_pass_behind_a_post_chain_is_foveated_and_reconstructed_at_its_end() {
+    for mode in matrix() {
+        let mode = mode.frames(FRAMES);
+        let stats = std::env::temp_dir().join(format!("stereoshim-rdm-{}-{}.jsonl", std::process::id(), mode.name));
+        let _ = std::fs::remove_file(&stats);
+        let cfg = rdm_config().env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap());
+        let out = run_post_chain(&mode, Some(&cfg));
+        out.assert_log_lacks(common::Half::Both, "internal failure");
+        let records = layer_records(&out, &stats);
+        let _ = std::fs::remove_file(&stats);
+        let want = if mode.value("--layout") == Some("per-eye") { 2 } else { 1 };
+        // Not reconstructible at the pass's end: the tonemap is the next subpass; or the pass is
+        // tied to its eyes only at submission (its rect moves every frame; recorded once before
+        // the walk knew it).
+        let refused = if mode.has("--post-subpass") {
+            Some("subpass_chain")
+        } else if mode.has("--dynamic-resolution") {
+            // The frame whose rect first moves was recorded with the last one and is refused at
+            // submission; from then on the rect is known to move.
+            Some("rect_changing")
+        } else if mode.has("--record-once") {
+            Some("post_chain")
+        } else {
+            None
+        };
+        for f in 2..FRAMES {
+            let r = records.iter().find(|r| r["frame"] == f).unwrap_or_else(|| panic!("{}: no stats of frame {f}", mode.name));
+            let rdm = &r["rdm"];
+            match refused {
+                None => {
+                    assert_eq!(rdm["passes"].as_u64(), Some(want), "{}: frame {f}: {want} eye passes:\n{r}\n{}", mode.name, out.log);
+                    // Without a post chain (the double-wide texture alone, blitted into the
+                    // swapchain) the reconstruction runs at the release, as for any transfer.
+                    if mode.has("--post") {
+                        assert_eq!(rdm["fill_fallback"]["pass_end"].as_u64(), Some(2), "{}: frame {f}: both eyes reconstructed at their pass's end: {r}", mode.name);
+                    }
+                    let reconstructed: u64 = rdm["reconstructed"].as_object().map_or(0, |m| m.values().filter_map(|v| v.as_u64()).sum());
+                    assert_eq!(reconstructed, 2, "{}: frame {f}: both views reconstructed: {r}", mode.name);
+                    // The post passes themselves count as such; nothing else is left alone.
+                    let others = rdm["not_applied"].as_object().map_or(0, |m| m.iter().filter(|(k, _)| *k != "post_pass").count());
+                    assert_eq!(others, 0, "{}: frame {f}: {r}", mode.name);
+                }
+                Some(reason) if mode.has("--record-once") => {
+                    // Only the frame sets recorded after the first walk are foveated.
+                    let passes = rdm["passes"].as_u64().unwrap_or(0);
+                    assert!(passes == 0 || passes == want, "{}: frame {f}: {r}", mode.name);
+                    let _ = reason;
+                }
+                Some(reason) => {
+                    assert_eq!(rdm["passes"].as_u64().unwrap_or(0), 0, "{}: frame {f}: {r}", mode.name);
+                    assert!(rdm["not_applied"][reason].as_u64().unwrap_or(0) >= want, "{}: frame {f}: not applied as {reason}: {r}", mode.name);
+                }
+            }
+        }
+    }
+}
+
+/// Behind a per-pixel tonemap (single-sampled and 4× MSAA with the pass's own resolve), in each
+/// layout: the kept quads and the inner ring reach the runtime bit-identical, the scene pass's
+/// shaded fragments drop by exactly what the skipped pixels had, and the reconstructed periphery
+/// (filled in HDR, then tonemapped) keeps ≥ 30 dB.
+#[test]
+fn behind_a_tonemap_the_fovea_is_identical_and_the_fragments_drop() {
+    let (inner_deg, middle_deg) = rdm::preset("balanced");
+    let expected = Expected { center: [0.0, 0.0], inner_deg, middle_deg, with_mask: false };
+    for (layout, rendering, samples) in [("per-eye", "render-pass", "1"), ("multiview", "dynamic", "4"), ("side-by-side", "render-pass2", "1"), ("per-eye", "dynamic", "4")] {
+        let name = format!("rdm-post-{layout}-{rendering}-s{samples}");
+        let args = ["--layout", layout, "--rendering", rendering, "--post", "tonemap", "--samples", samples];
+        let base = Run::new(&name).args(args).pixel_stats().env("MOCK_XR_EYE_TRACKER", "0").env("MOCK_XR_EXIT_AFTER", "3");
+        let plain = base.clone().run();
+        plain.assert_ok();
+        let mut layered = base.with_layer();
+        for (k, v) in &rdm_config().env {
+            layered = layered.env(k, v);
+        }
+        layered.name = format!("{name}-rdm");
+        let out = layered.run();
+        out.assert_ok();
+        let results = rdm::check_frame(&name, &plain, &out, 2, &expected).unwrap_or_else(|e| panic!("{e}"));
+        for r in &results {
+            assert!(r.skipped > 0, "{name} view {}: nothing skipped", r.view);
+            assert_eq!(r.shaded_drop, r.skipped_fragments, "{name} view {}: shaded fragments dropped by {}, the skipped pixels had {}", r.view, r.shaded_drop, r.skipped_fragments);
+            assert!(r.psnr_db >= 30.0, "{name} view {}: periphery PSNR {:.2} dB < 30", r.view, r.psnr_db);
+        }
+    }
+}
