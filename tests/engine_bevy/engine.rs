@@ -97,6 +97,7 @@ enabled = true
 [foveation]
 enabled = true
 method = \"rdm\"
+eye_tracking = \"off\"
 [far_field]
 enabled = true
 ";
@@ -326,7 +327,13 @@ pub struct MaskDiff {
     pub outside: usize,
     /// PSNR of the pixels outside the hidden area and its edge (infinite when identical).
     pub visible_psnr: f64,
+    /// Differing pixels well inside RDM's inner ring (fixed fovea at the projection centre,
+    /// `FOVEA_INNER_DEG` less a degree), where RDM skips nothing.
+    pub fovea: usize,
 }
+
+/// RDM's inner ring in the layered runs (`balanced`, fixed at the projection centre).
+pub const FOVEA_INNER_DEG: f64 = 20.0;
 
 /// Pixels this close to the mask outline may go either way (vertex snapping, rounding).
 pub const EDGE_MARGIN_PX: f64 = 1.0;
@@ -356,6 +363,9 @@ pub fn diff_by_mask(plain: &RunOutput, layered: &RunOutput) -> Vec<MaskDiff> {
                     }
                     if pa.pixel(x, y) == pb.pixel(x, y) {
                         continue;
+                    }
+                    if common::rdm::angle_deg(&a.fov, w, h, x as f64 + 0.5, y as f64 + 0.5, [0.0, 0.0]) < FOVEA_INNER_DEG - 1.0 {
+                        d.fovea += 1;
                     }
                     match (edge[i], hidden[i]) {
                         (true, _) => d.edge += 1,
