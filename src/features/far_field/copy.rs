@@ -100,6 +100,8 @@ pub(super) struct CopyOp {
     pub(super) layer: u32,
     pub(super) slots: Arc<Slots>,
     pub(super) awaiting: Option<Arc<AwaitPass>>,
+    /// The walked target and the eye it copies (`PendingCopy::walked`).
+    pub(super) walked: Option<(u64, EyeDraw)>,
 }
 
 /// An attachment to copy at the pass's end.
@@ -120,6 +122,9 @@ pub(super) struct PendingCopy {
     pub(super) draws: Vec<EyeDraw>,
     pub(super) multiview: bool,
     pub(super) awaiting: Option<Arc<AwaitPass>>,
+    /// The pass's target, when the data-flow walk tied it to its eyes (checked at submission:
+    /// `inject::walk_moved`).
+    pub(super) walked: Option<u64>,
 }
 
 /// Records the copies of the source views of the pass that just ended in `cb`.
@@ -137,7 +142,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: PendingCopy, s: 
         record_transfer(d, cb, &p, &sources);
     }
     for dr in sources {
-        lifetime::hold(d, cb.as_raw(), Arc::new(CopyOp { view: dr.view, rect: dr.viewport, layer: dr.layer, slots: p.slots.clone(), awaiting: p.awaiting.clone() }));
+        lifetime::hold(d, cb.as_raw(), Arc::new(CopyOp { view: dr.view, rect: dr.viewport, layer: dr.layer, slots: p.slots.clone(), awaiting: p.awaiting.clone(), walked: p.walked.map(|i| (i, dr)) }));
     }
     Ok(())
 }

@@ -71,6 +71,9 @@ struct ReuseOp {
     awaiting: Option<Arc<AwaitPass>>,
     /// Counts the reused pixels (None where the layer could not make its queries).
     counter: Option<Arc<Counter>>,
+    /// The pass's target and eyes, when the data-flow walk tied it to them: a rect that moved
+    /// since the recording (dynamic resolution) reuses nothing (`inject::walk_moved`).
+    walked: Option<(u64, Vec<EyeDraw>)>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -413,7 +416,8 @@ impl FarFieldDevice {
                     None
                 }
             };
-            let op = Arc::new(ReuseOp { reversed, buffer, slots: slots.clone(), views: reuse, multiview, awaiting: at.awaiting.clone(), counter });
+            let walked = (at.plan.via == crate::track::eye_pass::Via::Walk && at.awaiting.is_none()).then(|| (at.plan.image, at.draws.clone()));
+            let op = Arc::new(ReuseOp { reversed, buffer, slots: slots.clone(), views: reuse, multiview, awaiting: at.awaiting.clone(), counter, walked });
             let (_, layout, _, _) = self.objects(d).map_err(|_| "layer_error")?;
             let fns = d.fns.fp_v1_0();
             let recorded = if multiview { &dests[..1] } else { &dests[..] };
@@ -447,7 +451,8 @@ impl FarFieldDevice {
             at.bound_sets.set(true);
             lifetime::hold(d, at.owner, op);
         }
-        let pending = PendingCopy { slots, color, depth, draws, multiview, awaiting: at.awaiting };
+        let walked = (at.plan.via == crate::track::eye_pass::Via::Walk && at.awaiting.is_none()).then_some(at.plan.image);
+        let pending = PendingCopy { slots, color, depth, draws, multiview, awaiting: at.awaiting, walked };
         lock(&self.books).pending.insert(at.owner, pending);
         Ok(())
     }
@@ -715,6 +720,9 @@ impl VkFeature for FarFieldDevice {
                             None => Some(c.view),
                             Some(a) => a.resolve(d, s.intermediate, c.view, c.rect, c.layer),
                         };
+                        // A walked source whose rect moved since the recording copied the wrong
+                        // pixels: no fresh source.
+                        let view = view.filter(|_| c.walked.as_ref().is_none_or(|(image, dr)| matches!(inject::walk_moved(d, *image, std::slice::from_ref(dr)), Ok(None))));
                         let stamp = view.map(|v| (Stamp { view: v, frame, rendered: !self.reused_in(frame, v) }, c.rect));
                         lock(&c.slots.copied)[c.view as usize & 1] = stamp;
                         self.count(|st| st.copies += 1);
@@ -726,7 +734,11 @@ impl VkFeature for FarFieldDevice {
                         if let Some(c) = &r.counter {
                             c.collect();
                         }
-                        if on && r.slots.initialized.load(Ordering::Acquire) {
+                        let moved = r.walked.as_ref().is_some_and(|(image, draws)| !matches!(inject::walk_moved(d, *image, draws), Ok(None)));
+                        if moved {
+                            r.buffer.write(0, &vec![vk::DrawIndirectCommand::default(); r.views.len()]);
+                            self.not_applied(crate::core::pass::NotMasked::RectChanging.name());
+                        } else if on && r.slots.initialized.load(Ordering::Acquire) {
                             self.refresh(d, r, &s, &views, inverse(r.reversed));
                         } else {
                             r.buffer.write(0, &vec![vk::DrawIndirectCommand::default(); r.views.len()]);
