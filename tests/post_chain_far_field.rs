@@ -51,17 +51,11 @@ fn the_far_field_is_reused_behind_every_post_chain() {
         let _ = std::fs::remove_file(&stats);
         // Per-eye passes reuse this frame's source; one pass for both eyes, the previous frame's.
         let first = if mode.value("--layout") == Some("per-eye") { 2 } else { 3 };
-        // xr-scene's multisampled scene passes resolve in the pass, and its subpass tonemap reads
-        // the scene as a transient input attachment: neither stores its colour and depth, so
-        // there is nothing to reuse, named (Bevy's MSAA pass stores them: tests/engine_bevy.rs).
-        let msaa = mode.value("--samples").is_some_and(|s| s != "1") || mode.has("--post-subpass");
         let refused = if mode.has("--record-once") {
             // Counted when recorded; the sets recorded before the walk stay without.
             None
         } else if mode.has("--dynamic-resolution") {
             Some("rect_changing")
-        } else if msaa {
-            Some("not_stored")
         } else {
             None
         };

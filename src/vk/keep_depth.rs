@@ -1,9 +1,12 @@
-//! Depth kept past the pass for features that read it afterwards (the far field copies the source
-//! eye's depth when its pass ends): an app that never reads its depth back usually stores it with
-//! `DONT_CARE`, which leaves the contents undefined after the pass. The chassis then creates render
-//! passes and begins renderings with `STORE` for the depth aspect of the depth attachment instead
+//! Depth and colour kept past the pass for features that read them afterwards (the far field
+//! copies the source eye's colour and depth when its pass ends): an app that never reads its depth
+//! back usually stores it with `DONT_CARE`, and one that resolves a multisampled colour in the pass
+//! (or reads it as a transient input attachment) discards the colour too, which leaves the contents
+//! undefined after the pass. The chassis then creates render passes and begins renderings with
+//! `STORE` for the depth aspect of the depth attachment, and for the colour attachments of every
+//! subpass / rendering that has a depth attachment (the only ones that can be eye passes), instead
 //! — a change the app cannot see (undefined contents become defined ones), made only while such a
-//! feature is on. Stencil store ops are left as the app chose.
+//! feature is on. Stencil store ops and resolve targets are left as the app chose.
 
 use ash::vk;
 
@@ -43,8 +46,11 @@ pub(crate) unsafe fn render_pass(ci: *const vk::RenderPassCreateInfo<'_>) -> Opt
         let ci = &*ci;
         let subpasses = super::convert::slice(ci.p_subpasses, ci.subpass_count);
         let mut attachments = super::convert::slice(ci.p_attachments, ci.attachment_count).to_vec();
-        let depth_refs = subpasses.iter().filter_map(|s| s.p_depth_stencil_attachment.as_ref().map(|r| r.attachment));
-        if !store_depth(&mut attachments, depth_refs, |a| &mut a.store_op) {
+        let kept = subpasses.iter().filter_map(|s| s.p_depth_stencil_attachment.as_ref().map(|r| (s, r.attachment))).flat_map(|(s, depth)| {
+            let colors = super::convert::slice(s.p_color_attachments, s.color_attachment_count).iter().map(|r| r.attachment);
+            std::iter::once(depth).chain(colors).collect::<Vec<_>>()
+        });
+        if !store_depth(&mut attachments, kept.filter(|&i| i != vk::ATTACHMENT_UNUSED), |a| &mut a.store_op) {
             return None;
         }
         let mut out = Box::new(RenderPassV1 { _attachments: attachments, info: std::mem::transmute::<vk::RenderPassCreateInfo<'_>, vk::RenderPassCreateInfo<'static>>(*ci) });
@@ -69,8 +75,11 @@ pub(crate) unsafe fn render_pass2(ci: *const vk::RenderPassCreateInfo2<'_>) -> O
         let subpasses = super::convert::slice(ci.p_subpasses, ci.subpass_count);
         let mut attachments: Vec<vk::AttachmentDescription2<'static>> =
             super::convert::slice(ci.p_attachments, ci.attachment_count).iter().map(|a| std::mem::transmute::<vk::AttachmentDescription2<'_>, vk::AttachmentDescription2<'static>>(*a)).collect();
-        let depth_refs = subpasses.iter().filter_map(|s| s.p_depth_stencil_attachment.as_ref().map(|r| r.attachment));
-        if !store_depth(&mut attachments, depth_refs, |a| &mut a.store_op) {
+        let kept = subpasses.iter().filter_map(|s| s.p_depth_stencil_attachment.as_ref().map(|r| (s, r.attachment))).flat_map(|(s, depth)| {
+            let colors = super::convert::slice(s.p_color_attachments, s.color_attachment_count).iter().map(|r| r.attachment);
+            std::iter::once(depth).chain(colors).collect::<Vec<_>>()
+        });
+        if !store_depth(&mut attachments, kept.filter(|&i| i != vk::ATTACHMENT_UNUSED), |a| &mut a.store_op) {
             return None;
         }
         let mut out = Box::new(RenderPassV2 { _attachments: attachments, info: std::mem::transmute::<vk::RenderPassCreateInfo2<'_>, vk::RenderPassCreateInfo2<'static>>(*ci) });
@@ -79,9 +88,10 @@ pub(crate) unsafe fn render_pass2(ci: *const vk::RenderPassCreateInfo2<'_>) -> O
     }
 }
 
-/// A `VkRenderingInfo` whose depth attachment stores.
+/// A `VkRenderingInfo` whose depth and colour attachments store.
 pub(crate) struct Rendering {
     _depth: Box<vk::RenderingAttachmentInfo<'static>>,
+    _colors: Vec<vk::RenderingAttachmentInfo<'static>>,
     pub info: vk::RenderingInfo<'static>,
 }
 
@@ -92,13 +102,26 @@ pub(crate) unsafe fn rendering(info: *const vk::RenderingInfo<'_>) -> Option<Box
     unsafe {
         let info = &*info;
         let depth = info.p_depth_attachment.as_ref()?;
-        if depth.image_view == vk::ImageView::null() || depth.store_op == vk::AttachmentStoreOp::STORE {
+        if depth.image_view == vk::ImageView::null() {
             return None;
         }
-        let mut kept = Box::new(std::mem::transmute::<vk::RenderingAttachmentInfo<'_>, vk::RenderingAttachmentInfo<'static>>(*depth));
-        kept.store_op = vk::AttachmentStoreOp::STORE;
-        let mut out = Box::new(Rendering { info: std::mem::transmute::<vk::RenderingInfo<'_>, vk::RenderingInfo<'static>>(*info), _depth: kept });
+        let colors = super::convert::slice(info.p_color_attachments, info.color_attachment_count);
+        let discards = |a: &vk::RenderingAttachmentInfo<'_>| a.image_view != vk::ImageView::null() && a.store_op != vk::AttachmentStoreOp::STORE;
+        if !discards(depth) && !colors.iter().any(discards) {
+            return None;
+        }
+        let keep = |a: &vk::RenderingAttachmentInfo<'_>| {
+            let mut k = std::mem::transmute::<vk::RenderingAttachmentInfo<'_>, vk::RenderingAttachmentInfo<'static>>(*a);
+            if k.image_view != vk::ImageView::null() {
+                k.store_op = vk::AttachmentStoreOp::STORE;
+            }
+            k
+        };
+        let mut out = Box::new(Rendering { info: std::mem::transmute::<vk::RenderingInfo<'_>, vk::RenderingInfo<'static>>(*info), _depth: Box::new(keep(depth)), _colors: colors.iter().map(keep).collect() });
         out.info.p_depth_attachment = &*out._depth;
+        if !out._colors.is_empty() {
+            out.info.p_color_attachments = out._colors.as_ptr();
+        }
         Some(out)
     }
 }

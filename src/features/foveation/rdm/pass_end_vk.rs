@@ -77,14 +77,21 @@ pub(super) struct PassEndObjects {
     framebuffers: HashMap<(u64, u32), (vk::ImageView, vk::Framebuffer)>,
 }
 
-/// A reconstruction waiting for its pass's end in a command buffer.
-pub(super) struct Job {
+/// What a pass-end reconstruction needs, made while its pass is open (`prepare`).
+pub(super) struct Prepared {
     target: PassEndTarget,
     extent: (u32, u32),
-    eyes: Vec<Pending>,
     temp: Arc<SharedTemp>,
+    /// (layer, framebuffer of the target's layer for the fill's render pass).
     framebuffers: Vec<(u32, vk::Framebuffer)>,
+    /// The fill's pipeline layout, render pass and pipeline for the target's format.
     fill: (vk::PipelineLayout, vk::RenderPass, vk::Pipeline),
+}
+
+/// A reconstruction waiting for its pass's end in a command buffer.
+pub(super) struct Job {
+    prepared: Prepared,
+    eyes: Vec<Pending>,
     link: Arc<Link>,
 }
 
@@ -101,7 +108,7 @@ impl pass_end::Objects for Views<'_> {
 
 /// Everything a pass-end reconstruction of `eyes` (in `eye_image`'s pass `pass`) needs, made now,
 /// while the pass is open: the checkerboard goes in only if this succeeds.
-pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64, eyes: &[Pending]) -> Result<(PassEndTarget, vk::Format, (u32, u32), Arc<SharedTemp>, Vec<(u32, vk::Framebuffer)>, (vk::PipelineLayout, vk::RenderPass, vk::Pipeline)), NotApplied> {
+pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64, eyes: &[Pending]) -> Result<Prepared, NotApplied> {
     let target = pass_end::target(pass, eye_image, &Views(d))?;
     let image = d.track.images.get(target.view.image).ok_or(NotApplied::TargetUsage)?;
     if !pass_end::usage_ok(image.usage) || target.view.range.base_mip_level != 0 || image.extent.depth > 1 {
@@ -125,18 +132,12 @@ pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd:
         }
         framebuffers.push((layer, framebuffer(me, d, image.handle, format, layer, (width, height), render_pass).map_err(fail)?));
     }
-    Ok((target, format, (width, height), temp, framebuffers, (layout, render_pass, pipeline)))
+    Ok(Prepared { target, extent: (width, height), temp, framebuffers, fill: (layout, render_pass, pipeline) })
 }
 
 impl Job {
-    #[allow(clippy::type_complexity)]
-    pub(super) fn new(
-        prepared: (PassEndTarget, vk::Format, (u32, u32), Arc<SharedTemp>, Vec<(u32, vk::Framebuffer)>, (vk::PipelineLayout, vk::RenderPass, vk::Pipeline)),
-        eyes: Vec<Pending>,
-        link: Arc<Link>,
-    ) -> Job {
-        let (target, _, extent, temp, framebuffers, fill) = prepared;
-        Job { target, extent, eyes, temp, framebuffers, fill, link }
+    pub(super) fn new(prepared: Prepared, eyes: Vec<Pending>, link: Arc<Link>) -> Job {
+        Job { prepared, eyes, link }
     }
 }
 
@@ -236,9 +237,10 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
     if veto.is_some() {
         return false;
     }
-    let Some(temp) = job.temp.temp.as_ref() else { return false };
-    let image = vk::Image::from_raw(job.target.view.image);
-    let (width, height) = job.extent;
+    let p = &job.prepared;
+    let Some(temp) = p.temp.temp.as_ref() else { return false };
+    let image = vk::Image::from_raw(p.target.view.image);
+    let (width, height) = p.extent;
     let whole = PixelRect { x: 0, y: 0, width, height };
     let range = |layer: u32| vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: 1 };
     let layers_of = |layer: u32| vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: layer, layer_count: 1 };
@@ -254,9 +256,9 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
             .subresource_range(r)
     };
     let temp_range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: temp.key.3 };
-    let after = job.target.layout;
+    let after = p.target.layout;
     let bound_sets = std::cell::Cell::new(true);
-    let (layout, render_pass, pipeline) = job.fill;
+    let (layout, render_pass, pipeline) = p.fill;
     {
         let _restore = restore::Restore::new(d, cb, &restore_cmds, &sets, &bound_sets);
         // SAFETY: `cb` is the app's command buffer, recording outside any pass (its eye pass just
@@ -265,7 +267,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
         unsafe {
             // The pass's colour writes (and resolves) before the copy; earlier fills' reads of the
             // temp before it is overwritten.
-            let mut first: Vec<vk::ImageMemoryBarrier> = job.framebuffers.iter().map(|(l, _)| barrier(image, range(*l), after, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::TRANSFER_READ)).collect();
+            let mut first: Vec<vk::ImageMemoryBarrier> = p.framebuffers.iter().map(|(l, _)| barrier(image, range(*l), after, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::TRANSFER_READ)).collect();
             first.push(barrier(temp.image, temp_range, vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::empty(), vk::AccessFlags::TRANSFER_WRITE));
             d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::FRAGMENT_SHADER, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &first);
             let regions: Vec<vk::ImageCopy> = job
@@ -284,14 +286,14 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
                 .filter(|c| c.extent.width > 0 && c.extent.height > 0)
                 .collect();
             d.fns.cmd_copy_image(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, temp.image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &regions);
-            let mut second: Vec<vk::ImageMemoryBarrier> = job
+            let mut second: Vec<vk::ImageMemoryBarrier> = p
                 .framebuffers
                 .iter()
                 .map(|(l, _)| barrier(image, range(*l), vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::empty(), vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE))
                 .collect();
             second.push(barrier(temp.image, temp_range, vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ));
             d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &second);
-            for (layer, fb) in &job.framebuffers {
+            for (layer, fb) in &p.framebuffers {
                 let here: Vec<(usize, &Pending)> = job.eyes.iter().enumerate().filter(|(_, p)| p.layer == *layer).collect();
                 let Some(area) = here.iter().map(|(_, p)| p.params.rect.intersect(&whole)).reduce(|a, b| crate::track::flow::union(&a, &b)) else { continue };
                 if area.area() == 0 {
@@ -299,7 +301,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
                 }
                 d.fns.cmd_begin_render_pass(cb, &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(*fb).render_area(inject::rect2d(area)), vk::SubpassContents::INLINE);
                 d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
-                d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[job.temp.set], &[]);
+                d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[p.temp.set], &[]);
                 for (i, p) in here {
                     let r = p.params.rect;
                     let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
@@ -313,7 +315,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
             }
             // Back to the app's layout; every later command (whatever the app synchronizes with
             // next, even only its pass's external dependency) waits for the fill.
-            let last: Vec<vk::ImageMemoryBarrier> = job
+            let last: Vec<vk::ImageMemoryBarrier> = p
                 .framebuffers
                 .iter()
                 .map(|(l, _)| barrier(image, range(*l), vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, after, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE))
@@ -321,7 +323,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
             d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &last);
         }
     }
-    crate::vk::lifetime::hold(d, key, job.temp.clone());
+    crate::vk::lifetime::hold(d, key, p.temp.clone());
     job.link.recorded.store(true, Ordering::Release);
     true
 }
