@@ -15,6 +15,8 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("rdm.frag", "rdm.frag.spv", &[]),
     ("rdm_fill.vert", "rdm_fill.vert.spv", &[]),
     ("rdm_fill.frag", "rdm_fill.frag.spv", &[]),
+    ("rdm_fill.vert", "rdm_fill_buffer.vert.spv", &["-DFROM_BUFFER"]),
+    ("rdm_fill.frag", "rdm_fill_buffer.frag.spv", &["-DFROM_BUFFER"]),
     ("rdm_recon.comp", "rdm_recon.comp.spv", &[]),
     ("far_field.vert", "far_field.vert.spv", &[]),
     ("far_field.vert", "far_field_mv.vert.spv", &["-DMULTIVIEW"]),

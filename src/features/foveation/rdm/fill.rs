@@ -14,6 +14,41 @@ use std::collections::HashMap;
 
 static FILL_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill.vert.spv"));
 static FILL_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill.frag.spv"));
+static FILL_BUFFER_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill_buffer.vert.spv"));
+static FILL_BUFFER_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_fill_buffer.frag.spv"));
+
+/// A vertex of the fill's buffer variant (`shaders/rdm_fill.vert` `FROM_BUFFER`): one of an eye's
+/// full-target triangle, with the eye's rule parameters, written at each submission.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct FillVertex {
+    pub(super) pos: [f32; 2],
+    pub(super) rect: [i32; 4],
+    pub(super) tan: [f32; 4],
+    pub(super) fovea: [f32; 4],
+}
+
+impl FillVertex {
+    /// The three vertices of eye `p`'s triangle over the whole target.
+    pub(super) fn triangle(p: &Pending) -> [FillVertex; 3] {
+        let r = p.params.rect;
+        let v = |pos| FillVertex {
+            pos,
+            rect: [r.x, r.y, r.width as i32, r.height as i32],
+            tan: [p.params.tan_left, p.params.tan_up, p.params.step_x, p.params.step_y],
+            fovea: [p.params.center[0], p.params.center[1], p.params.k_inner, p.params.k_middle],
+        };
+        [v([-1.0, -1.0]), v([3.0, -1.0]), v([-1.0, 3.0])]
+    }
+}
+
+/// Which fill pipeline: parameters from push constants (recorded with the draw) or from the
+/// recording's vertex buffer (filled at submission).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(super) enum FillSource {
+    PushConstants,
+    VertexBuffer,
+}
 
 pub(super) struct FillObjects {
     set_layout: vk::DescriptorSetLayout,
@@ -21,8 +56,11 @@ pub(super) struct FillObjects {
     sampler: vk::Sampler,
     vert: vk::ShaderModule,
     frag: vk::ShaderModule,
-    /// Per colour format: render pass (load, store, COLOR_ATTACHMENT_OPTIMAL) and pipeline.
-    passes: HashMap<vk::Format, (vk::RenderPass, vk::Pipeline)>,
+    vert_buffer: vk::ShaderModule,
+    frag_buffer: vk::ShaderModule,
+    /// Per colour format and source: render pass (load, store, COLOR_ATTACHMENT_OPTIMAL) and
+    /// pipeline.
+    passes: HashMap<(vk::Format, FillSource), (vk::RenderPass, vk::Pipeline)>,
 }
 
 impl FillObjects {
@@ -327,10 +365,16 @@ pub(super) fn record_and_submit(
 
 /// The fill pipeline's shared objects and the render pass + pipeline for `format`, made once.
 pub(super) fn fill_objects(d: &DeviceState, format: vk::Format) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::RenderPass, vk::Pipeline, vk::Sampler), String> {
+    fill_objects_for(d, (format, FillSource::PushConstants))
+}
+
+/// `fill_objects` for a colour format and parameter source.
+pub(super) fn fill_objects_for(d: &DeviceState, key: (vk::Format, FillSource)) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::RenderPass, vk::Pipeline, vk::Sampler), String> {
+    let format = key.0;
     // Objects are made with no lock held: the calls go down the chain, and what is below may
     // call back into the layer. A thread that loses a race to another destroys its own.
     let fill = &d.features.rdm.reconstruct.fill;
-    let have = lock(fill).as_ref().map(|f| (f.shared(), f.passes.get(&format).copied()));
+    let have = lock(fill).as_ref().map(|f| (f.shared(), f.passes.get(&key).copied()));
     let common = match have {
         Some((f, Some((rp, p)))) => return Ok((f.layout, f.set_layout, rp, p, f.sampler)),
         Some((f, None)) => f,
@@ -353,13 +397,13 @@ pub(super) fn fill_objects(d: &DeviceState, format: vk::Format) -> Result<(vk::P
             }
         }
     };
-    let (rp, p) = create_fill_pipeline(d, &common, format)?;
+    let (rp, p) = create_fill_pipeline(d, &common, format, key.1)?;
     let mut guard = lock(fill);
     let existing = match guard.as_mut() {
-        Some(f) => match f.passes.get(&format) {
+        Some(f) => match f.passes.get(&key) {
             Some(&existing) => Some(existing),
             None => {
-                f.passes.insert(format, (rp, p));
+                f.passes.insert(key, (rp, p));
                 None
             }
         },
@@ -415,11 +459,20 @@ pub(super) fn create_fill_common(d: &DeviceState) -> Result<FillObjects, String>
                 None,
             )
             .map_err(|e| e.to_string())?;
-        Ok(FillObjects { set_layout, layout, sampler, vert: module(FILL_VERT)?, frag: module(FILL_FRAG)?, passes: HashMap::new() })
+        Ok(FillObjects {
+            set_layout,
+            layout,
+            sampler,
+            vert: module(FILL_VERT)?,
+            frag: module(FILL_FRAG)?,
+            vert_buffer: module(FILL_BUFFER_VERT)?,
+            frag_buffer: module(FILL_BUFFER_FRAG)?,
+            passes: HashMap::new(),
+        })
     }
 }
 
-pub(super) fn create_fill_pipeline(d: &DeviceState, f: &FillObjects, format: vk::Format) -> Result<(vk::RenderPass, vk::Pipeline), String> {
+pub(super) fn create_fill_pipeline(d: &DeviceState, f: &FillObjects, format: vk::Format, source: FillSource) -> Result<(vk::RenderPass, vk::Pipeline), String> {
     let attachments = [vk::AttachmentDescription::default()
         .format(format)
         .samples(vk::SampleCountFlags::TYPE_1)
@@ -459,11 +512,25 @@ pub(super) fn create_fill_pipeline(d: &DeviceState, f: &FillObjects, format: vk:
             .fns
             .create_render_pass(&vk::RenderPassCreateInfo::default().attachments(&attachments).subpasses(&subpasses).dependencies(&deps), None)
             .map_err(|e| e.to_string())?;
+        let (vert, frag) = match source {
+            FillSource::PushConstants => (f.vert, f.frag),
+            FillSource::VertexBuffer => (f.vert_buffer, f.frag_buffer),
+        };
         let stages = [
-            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(f.vert).name(c"main"),
-            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(f.frag).name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vert).name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(frag).name(c"main"),
         ];
-        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        let bindings = [vk::VertexInputBindingDescription { binding: 0, stride: std::mem::size_of::<FillVertex>() as u32, input_rate: vk::VertexInputRate::VERTEX }];
+        let attributes = [
+            vk::VertexInputAttributeDescription { location: 0, binding: 0, format: vk::Format::R32G32_SFLOAT, offset: 0 },
+            vk::VertexInputAttributeDescription { location: 1, binding: 0, format: vk::Format::R32G32B32A32_SINT, offset: 8 },
+            vk::VertexInputAttributeDescription { location: 2, binding: 0, format: vk::Format::R32G32B32A32_SFLOAT, offset: 24 },
+            vk::VertexInputAttributeDescription { location: 3, binding: 0, format: vk::Format::R32G32B32A32_SFLOAT, offset: 40 },
+        ];
+        let vertex_input = match source {
+            FillSource::PushConstants => vk::PipelineVertexInputStateCreateInfo::default(),
+            FillSource::VertexBuffer => vk::PipelineVertexInputStateCreateInfo::default().vertex_binding_descriptions(&bindings).vertex_attribute_descriptions(&attributes),
+        };
         let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
         let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
         let raster = vk::PipelineRasterizationStateCreateInfo::default()
@@ -510,8 +577,9 @@ pub(super) unsafe fn destroy_fill(d: &DeviceState, f: FillObjects) {
         d.fns.destroy_pipeline_layout(f.layout, None);
         d.fns.destroy_descriptor_set_layout(f.set_layout, None);
         d.fns.destroy_sampler(f.sampler, None);
-        d.fns.destroy_shader_module(f.vert, None);
-        d.fns.destroy_shader_module(f.frag, None);
+        for m in [f.vert, f.frag, f.vert_buffer, f.frag_buffer] {
+            d.fns.destroy_shader_module(m, None);
+        }
     }
 }
 

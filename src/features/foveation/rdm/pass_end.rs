@@ -74,6 +74,17 @@ pub fn target(pass: &PassInstance, eye_image: u64, objects: &dyn Objects) -> Res
     Ok(PassEndTarget { view, layout })
 }
 
+/// The image of the pass's first colour attachment: the target a pass planned at submission
+/// reconstructs (engines' eye passes render one colour).
+pub fn first_color_image(pass: &PassInstance) -> Option<u64> {
+    let att = match (&pass.rendering, &pass.render_pass) {
+        (Some(r), _) => r.color.first().map(|c| &c.attachment),
+        (None, Some(rp)) => rp.subpasses.get(pass.subpass as usize).and_then(|s| s.color.first()).and_then(|r| r.used()).and_then(|i| pass.attachments.get(i as usize)),
+        _ => None,
+    };
+    att.and_then(|a| a.image_view.as_ref()).map(|v| v.image)
+}
+
 /// Whether an image of `usage` can be reconstructed in place: copied out (TRANSFER_SRC) and
 /// drawn into (COLOR_ATTACHMENT).
 pub fn usage_ok(usage: vk::ImageUsageFlags) -> bool {

@@ -10,7 +10,7 @@
 //! (`Link::frozen`). When the fovea or the views move on, or the fill could not be recorded,
 //! both draw nothing — a pass is foveated and reconstructed, or left whole, never holed.
 
-use super::fill::{fill_objects, make_temp, FillParams, Temp};
+use super::fill::{fill_objects_for, make_temp, FillParams, FillSource, FillVertex, Temp};
 use super::pass_end::{self, PassEndTarget};
 use super::rules::{NotApplied, Pending};
 use super::vk::{lock, log_once, RdmDevice};
@@ -27,24 +27,67 @@ use std::sync::{Arc, Mutex};
 
 /// What ties a recording's checkerboard to its fill at the pass's end.
 pub(super) struct Link {
-    /// One `VkDrawIndirectCommand` per eye: the fill's draws.
+    /// The fill's indirect draws (`slots` of them), then — for a pass planned at submission — its
+    /// vertices (`FillVertex`, three per eye).
     pub(super) fill_args: PooledBuffer,
-    /// (foveation generation, views generation) and the eyes the fill's parameters are for.
-    pub(super) frozen: ((u64, u64), Vec<EyeDraw>),
+    pub(super) slots: usize,
+    /// Recorded with the pass: (foveation generation, views generation) and the eyes the fill's
+    /// push constants are for. None: the fill reads its eyes from the buffer, filled at each
+    /// submission (`fill_submitted`).
+    pub(super) frozen: Option<((u64, u64), Vec<EyeDraw>)>,
+    /// The target's layers the fill draws into, in framebuffer order (two slots each).
+    pub(super) layers: Vec<u32>,
     /// The fill was recorded after the pass (`record`): until then, and if it never is, the
     /// checkerboard draws nothing.
     pub(super) recorded: AtomicBool,
 }
 
+/// Eyes per layer the buffer variant has slots for (side by side: two in one layer).
+const EYES_PER_LAYER: usize = 2;
+
 impl Link {
+    /// A link for eyes known at recording (`frozen`).
+    pub(super) fn recorded(fill_args: PooledBuffer, frozen: ((u64, u64), Vec<EyeDraw>)) -> Link {
+        let slots = frozen.1.len();
+        Link { fill_args, slots, frozen: Some(frozen), layers: Vec::new(), recorded: AtomicBool::new(false) }
+    }
+    /// A link for eyes known only at submission, in `layers` of the target.
+    pub(super) fn submitted(fill_args: PooledBuffer, layers: Vec<u32>) -> Link {
+        Link { fill_args, slots: layers.len() * EYES_PER_LAYER, frozen: None, layers, recorded: AtomicBool::new(false) }
+    }
+    /// The buffer size a link of `slots` draws (and, planned at submission, two eyes' vertices)
+    /// needs.
+    pub(super) fn size(slots: usize, submitted: bool) -> u64 {
+        inject::DRAW_ARGS * slots as u64 + if submitted { (EYES_PER_LAYER * 3 * std::mem::size_of::<FillVertex>()) as u64 } else { 0 }
+    }
+    fn vertex_offset(&self) -> u64 {
+        inject::DRAW_ARGS * self.slots as u64
+    }
     /// The fill's draws on (`on`, one full-screen triangle per eye) or off.
     pub(super) fn arm(&self, on: bool) {
-        let args = vk::DrawIndirectCommand { vertex_count: if on { 3 } else { 0 }, instance_count: 1, first_vertex: 0, first_instance: 0 };
-        self.fill_args.write(0, &vec![args; self.frozen.1.len()]);
+        let args = vk::DrawIndirectCommand { vertex_count: if on && self.frozen.is_some() { 3 } else { 0 }, instance_count: 1, first_vertex: 0, first_instance: 0 };
+        self.fill_args.write(0, &vec![args; self.slots]);
     }
     /// Whether the checkerboard may draw under `key` now.
     pub(super) fn allows(&self, key: &((u64, u64), Vec<EyeDraw>)) -> bool {
-        self.recorded.load(Ordering::Acquire) && *key == self.frozen
+        self.recorded.load(Ordering::Acquire) && self.frozen.as_ref().is_none_or(|f| f == key)
+    }
+    /// Planned at submission: the fill draws `eyes` (their triangles and parameters), each in its
+    /// layer's framebuffer; false (nothing drawn) when an eye has no slot.
+    pub(super) fn fill_submitted(&self, eyes: &[Pending]) -> bool {
+        let mut args = vec![vk::DrawIndirectCommand::default(); self.slots];
+        let mut vertices = Vec::new();
+        let mut used = vec![0usize; self.layers.len()];
+        for p in eyes {
+            let Some(li) = self.layers.iter().position(|&l| l == p.layer) else { return false };
+            if used[li] >= EYES_PER_LAYER || vertices.len() >= EYES_PER_LAYER * 3 {
+                return false;
+            }
+            args[li * EYES_PER_LAYER + used[li]] = vk::DrawIndirectCommand { vertex_count: 3, instance_count: 1, first_vertex: vertices.len() as u32, first_instance: 0 };
+            used[li] += 1;
+            vertices.extend(FillVertex::triangle(p));
+        }
+        self.fill_args.write(self.vertex_offset(), &vertices) && self.fill_args.write(0, &args)
     }
 }
 
@@ -91,8 +134,17 @@ pub(super) struct Prepared {
 /// A reconstruction waiting for its pass's end in a command buffer.
 pub(super) struct Job {
     prepared: Prepared,
-    eyes: Vec<Pending>,
+    eyes: Eyes,
     link: Arc<Link>,
+}
+
+/// The eyes a job reconstructs.
+pub(super) enum Eyes {
+    /// Known at recording: each eye's rect is copied, and its parameters pushed with its draw.
+    Recorded(Vec<Pending>),
+    /// Known at each submission: the render area of every layer is copied, and the fill's
+    /// draws and parameters come from the link's buffer.
+    Submitted { area: PixelRect },
 }
 
 struct Views<'a>(&'a DeviceState);
@@ -106,9 +158,19 @@ impl pass_end::Objects for Views<'_> {
     }
 }
 
-/// Everything a pass-end reconstruction of `eyes` (in `eye_image`'s pass `pass`) needs, made now,
-/// while the pass is open: the checkerboard goes in only if this succeeds.
-pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64, eyes: &[Pending]) -> Result<Prepared, NotApplied> {
+/// The layers of `eye_image`'s colour attachment in `pass` (its view's range): where a pass whose
+/// eyes are known only at submission may show them.
+pub(super) fn pass_layers(d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64) -> Vec<u32> {
+    let view = pass_end::target(pass, eye_image, &Views(d)).ok().map(|t| t.view);
+    let Some(view) = view else { return Vec::new() };
+    let total = d.track.images.get(view.image).map_or(1, |i| i.array_layers);
+    let n = view.range.layers_of(total).min(pass.view_mask().count_ones().max(1));
+    (view.range.base_array_layer..view.range.base_array_layer + n).collect()
+}
+
+/// Everything a pass-end reconstruction into `layers` (of `eye_image`'s pass `pass`) needs, made
+/// now, while the pass is open: the checkerboard goes in only if this succeeds.
+pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64, layers_wanted: &[u32], source: FillSource) -> Result<Prepared, NotApplied> {
     let target = pass_end::target(pass, eye_image, &Views(d))?;
     let image = d.track.images.get(target.view.image).ok_or(NotApplied::TargetUsage)?;
     if !pass_end::usage_ok(image.usage) || target.view.range.base_mip_level != 0 || image.extent.depth > 1 {
@@ -120,11 +182,14 @@ pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd:
         log_once(me, format!("pass end {what}"), || tracing::warn!("radial density masking: no reconstruction at the pass's end for {:#x} ({what}): such passes are left whole", image.handle));
         NotApplied::TargetUsage
     };
-    let (layout, set_layout, render_pass, pipeline, sampler) = fill_objects(d, format).map_err(fail)?;
+    let (layout, set_layout, render_pass, pipeline, sampler) = fill_objects_for(d, (format, source)).map_err(fail)?;
     let temp = shared_temp(me, d, format, (width, height, layers), set_layout, sampler).map_err(|(_, e)| fail(e))?;
-    let mut layer_list: Vec<u32> = eyes.iter().map(|p| p.layer).collect();
+    let mut layer_list: Vec<u32> = layers_wanted.to_vec();
     layer_list.sort_unstable();
     layer_list.dedup();
+    if layer_list.is_empty() {
+        return Err(NotApplied::TargetUsage);
+    }
     let mut framebuffers = Vec::new();
     for layer in layer_list {
         if layer >= layers {
@@ -136,7 +201,7 @@ pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd:
 }
 
 impl Job {
-    pub(super) fn new(prepared: Prepared, eyes: Vec<Pending>, link: Arc<Link>) -> Job {
+    pub(super) fn new(prepared: Prepared, eyes: Eyes, link: Arc<Link>) -> Job {
         Job { prepared, eyes, link }
     }
 }
@@ -270,21 +335,19 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
             let mut first: Vec<vk::ImageMemoryBarrier> = p.framebuffers.iter().map(|(l, _)| barrier(image, range(*l), after, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::TRANSFER_READ)).collect();
             first.push(barrier(temp.image, temp_range, vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::empty(), vk::AccessFlags::TRANSFER_WRITE));
             d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::FRAGMENT_SHADER, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &first);
-            let regions: Vec<vk::ImageCopy> = job
-                .eyes
-                .iter()
-                .map(|p| {
-                    let r = p.params.rect.intersect(&whole);
-                    vk::ImageCopy {
-                        src_subresource: layers_of(p.layer),
-                        src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
-                        dst_subresource: layers_of(p.layer),
-                        dst_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
-                        extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
-                    }
-                })
-                .filter(|c| c.extent.width > 0 && c.extent.height > 0)
-                .collect();
+            let copy = |layer: u32, r: PixelRect| vk::ImageCopy {
+                src_subresource: layers_of(layer),
+                src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+                dst_subresource: layers_of(layer),
+                dst_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+                extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
+            };
+            let regions: Vec<vk::ImageCopy> = match &job.eyes {
+                Eyes::Recorded(eyes) => eyes.iter().map(|e| copy(e.layer, e.params.rect.intersect(&whole))).collect(),
+                // Where the eyes are is known only at submission: the whole render area.
+                Eyes::Submitted { area } => p.framebuffers.iter().map(|(l, _)| copy(*l, area.intersect(&whole))).collect(),
+            };
+            let regions: Vec<vk::ImageCopy> = regions.into_iter().filter(|c| c.extent.width > 0 && c.extent.height > 0).collect();
             d.fns.cmd_copy_image(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, temp.image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &regions);
             let mut second: Vec<vk::ImageMemoryBarrier> = p
                 .framebuffers
@@ -293,23 +356,45 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
                 .collect();
             second.push(barrier(temp.image, temp_range, vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ));
             d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &second);
-            for (layer, fb) in &p.framebuffers {
-                let here: Vec<(usize, &Pending)> = job.eyes.iter().enumerate().filter(|(_, p)| p.layer == *layer).collect();
-                let Some(area) = here.iter().map(|(_, p)| p.params.rect.intersect(&whole)).reduce(|a, b| crate::track::flow::union(&a, &b)) else { continue };
-                if area.area() == 0 {
-                    continue;
-                }
-                d.fns.cmd_begin_render_pass(cb, &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(*fb).render_area(inject::rect2d(area)), vk::SubpassContents::INLINE);
-                d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
-                d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[p.temp.set], &[]);
-                for (i, p) in here {
-                    let r = p.params.rect;
-                    let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
-                    d.fns.cmd_set_viewport(cb, 0, &[vp]);
-                    d.fns.cmd_set_scissor(cb, 0, &[inject::rect2d(r.intersect(&whole))]);
-                    let pc = FillParams::of(p);
-                    d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, pc.bytes());
-                    d.fns.cmd_draw_indirect(cb, job.link.fill_args.buffer, inject::DRAW_ARGS * i as u64, 1, inject::DRAW_ARGS as u32);
+            for (li, (layer, fb)) in p.framebuffers.iter().enumerate() {
+                match &job.eyes {
+                    Eyes::Recorded(eyes) => {
+                        let here: Vec<(usize, &Pending)> = eyes.iter().enumerate().filter(|(_, e)| e.layer == *layer).collect();
+                        let Some(area) = here.iter().map(|(_, e)| e.params.rect.intersect(&whole)).reduce(|a, b| crate::track::flow::union(&a, &b)) else { continue };
+                        if area.area() == 0 {
+                            continue;
+                        }
+                        d.fns.cmd_begin_render_pass(cb, &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(*fb).render_area(inject::rect2d(area)), vk::SubpassContents::INLINE);
+                        d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+                        d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[p.temp.set], &[]);
+                        for (i, e) in here {
+                            let r = e.params.rect;
+                            let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
+                            d.fns.cmd_set_viewport(cb, 0, &[vp]);
+                            d.fns.cmd_set_scissor(cb, 0, &[inject::rect2d(r.intersect(&whole))]);
+                            let pc = FillParams::of(e);
+                            d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, pc.bytes());
+                            d.fns.cmd_draw_indirect(cb, job.link.fill_args.buffer, inject::DRAW_ARGS * i as u64, 1, inject::DRAW_ARGS as u32);
+                        }
+                    }
+                    Eyes::Submitted { area } => {
+                        let area = area.intersect(&whole);
+                        if area.area() == 0 {
+                            continue;
+                        }
+                        d.fns.cmd_begin_render_pass(cb, &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(*fb).render_area(inject::rect2d(area)), vk::SubpassContents::INLINE);
+                        d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+                        d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[p.temp.set], &[]);
+                        let vb = [job.link.fill_args.buffer];
+                        d.fns.cmd_bind_vertex_buffers(cb, 0, &vb, &[job.link.vertex_offset()]);
+                        let vp = vk::Viewport { x: 0.0, y: 0.0, width: width as f32, height: height as f32, min_depth: 0.0, max_depth: 1.0 };
+                        d.fns.cmd_set_viewport(cb, 0, &[vp]);
+                        d.fns.cmd_set_scissor(cb, 0, &[inject::rect2d(area)]);
+                        d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, &(*layer as i32).to_ne_bytes());
+                        for slot in 0..EYES_PER_LAYER {
+                            d.fns.cmd_draw_indirect(cb, job.link.fill_args.buffer, inject::DRAW_ARGS * (li * EYES_PER_LAYER + slot) as u64, 1, inject::DRAW_ARGS as u32);
+                        }
+                    }
                 }
                 d.fns.cmd_end_render_pass(cb);
             }

@@ -66,6 +66,9 @@ pub(super) struct Books {
     pub(super) logged: HashSet<String>,
     /// Command buffer → reconstructions waiting for its open pass's end (`pass_end_vk`).
     jobs: HashMap<u64, Vec<super::pass_end_vk::Job>>,
+    /// Command buffer → the checkerboards in its open pass, with their (sub)pass's flow record
+    /// (`pass_ending` judges them).
+    open: HashMap<u64, Vec<(usize, Arc<Drawn>)>>,
 }
 
 /// Per-device RDM state. Locks guard bookkeeping only, never a call down.
@@ -134,8 +137,9 @@ enum Target {
     /// eye's viewport and scissor; a full-viewport triangle per eye.
     Eyes { draws: Vec<EyeDraw>, multiview: bool, image: u64 },
     /// A pass whose eyes were unknown when recorded: one indirect draw over the render area, a
-    /// quad per eye (its scissor rect) once the eyes are known.
-    Awaiting { pass: Box<crate::track::cmd::PassInstance>, fail_depth: f32, area: PixelRect },
+    /// quad per eye (its scissor rect) once the eyes are known. `walk`: only the walk can tie it
+    /// to its eyes (counted at each submission).
+    Awaiting { pass: Box<crate::track::cmd::PassInstance>, fail_depth: f32, area: PixelRect, walk: bool },
 }
 
 /// One recorded checkerboard injection: its buffer (indirect arguments, then the vertices with
@@ -147,6 +151,10 @@ struct Drawn {
     filled: Mutex<Filled>,
     /// Behind a post chain: the reconstruction at the pass's end this checkerboard depends on.
     link: Option<Arc<super::pass_end_vk::Link>>,
+    /// The pass ended without one depth-tested draw (a post pass recorded before the walk knew
+    /// it): the checkerboard skipped nothing there, so it draws nothing and nothing is
+    /// reconstructed (counted `post_pass`).
+    saves_nothing: AtomicBool,
 }
 
 /// What a recording's buffer holds: for which generations and eyes, the eyes of which image it
@@ -223,8 +231,14 @@ impl Drawn {
         let mut f = lock(&self.filled);
         let (draws, multiview, area, image) = match (&self.target, plan) {
             (Target::Eyes { draws, multiview, image }, _) => (draws.clone(), *multiview, None, *image),
-            // Reached through a post chain: no reconstruction at release would come in time.
-            (Target::Awaiting { .. }, Some(p)) if p.via.behind_post() => return self.clear(&mut f),
+            // Reached through a post chain: no reconstruction at release would come in time; only
+            // the fill at the pass's end (the link's) can follow.
+            (Target::Awaiting { .. }, Some(p)) if p.via.behind_post() != self.link.is_some() => {
+                if let Some(link) = &self.link {
+                    link.arm(false);
+                }
+                return self.clear(&mut f);
+            }
             (Target::Awaiting { area, .. }, Some(p)) => (p.draws.clone(), p.layout == EyeLayout::Multiview, Some(*area), p.image),
             (Target::Awaiting { .. }, None) => return self.clear(&mut f),
         };
@@ -254,11 +268,20 @@ impl Drawn {
         }
         buf.write(0, &args);
         let skipped = eyes.iter().map(|(dr, p)| (dr.view, count(me, generations.0, generations.1, dr, p))).collect();
-        let pending = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
-        *f = Filled { key: Some(key), image, pending, skipped };
+        let pending: Vec<Pending> = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
         if let Some(link) = &self.link {
-            link.arm(true);
+            let filled = if link.frozen.is_some() {
+                link.arm(true);
+                true
+            } else {
+                link.fill_submitted(&pending)
+            };
+            if !filled {
+                link.arm(false);
+                return self.clear(&mut f);
+            }
         }
+        *f = Filled { key: Some(key), image, pending, skipped };
     }
 }
 
@@ -299,7 +322,15 @@ impl VkFeature for RdmDevice {
         super::compute::warm(d);
         if let Err(why) = record_awaiting(self, d, at) {
             tracing::debug!("radial density masking: no draw for a pass awaiting its eyes: {}", why.name());
+            // A pass awaiting the walk is counted here, once, when it gets nothing at all.
+            if at.walk {
+                self.count(|s| s.count_not_applied(why));
+            }
         }
+    }
+    /// Passes awaiting the walk are counted at each submission (`before_submit`).
+    fn fills_at_submission(&self) -> bool {
+        true
     }
     fn not_injected(&self, _d: &DeviceState, _s: &Settings, why: NotMasked) {
         if why != NotMasked::NotEyePass {
@@ -316,6 +347,18 @@ impl VkFeature for RdmDevice {
             lock(&self.books).pending.remove(&image);
             super::pass_end_vk::image_destroyed(self, d, image);
         }
+    }
+    /// A pass with checkerboards ends: without one depth-tested draw they skipped nothing.
+    fn pass_ending(&self, d: &DeviceState, cb: vk::CommandBuffer) {
+        let key = ash::vk::Handle::as_raw(cb);
+        let Some(open) = lock(&self.books).open.remove(&key) else { return };
+        d.track.with_cb(key, |s| {
+            for (index, drawn) in open {
+                if s.flow.pass_tested(index) == Some(false) {
+                    drawn.saves_nothing.store(true, Ordering::Relaxed);
+                }
+            }
+        });
     }
     /// The eye passes behind a post chain that ended in `cb` get their reconstruction now.
     fn pass_ended(&self, d: &DeviceState, cb: vk::CommandBuffer) {
@@ -339,11 +382,29 @@ impl VkFeature for RdmDevice {
             lifetime::with_holds(d, cb, |holds| {
                 for h in holds {
                     if let Some(drawn) = h.downcast_ref::<Drawn>() {
+                        if drawn.saves_nothing.load(Ordering::Relaxed) {
+                            if idle {
+                                drawn.clear(&mut lock(&drawn.filled));
+                                if let Some(link) = &drawn.link {
+                                    link.arm(false);
+                                }
+                            }
+                            self.count(|s| *s.not_applied.entry(crate::core::pass::NotMasked::PostPass.name()).or_insert(0) += 1);
+                            continue;
+                        }
+                        // Why a pass awaiting the walk is left whole this submission.
+                        let mut not_now = None;
                         if idle && !on {
                             drawn.clear(&mut lock(&drawn.filled));
                         } else if idle {
                             let plan = match &drawn.target {
-                                Target::Awaiting { pass, fail_depth, .. } => inject::plan_now(d, pass, *fail_depth, settings.intermediate).ok(),
+                                Target::Awaiting { pass, fail_depth, walk, .. } => {
+                                    let plan = inject::plan_now(d, pass, *fail_depth, settings.intermediate);
+                                    if *walk {
+                                        not_now = plan.as_ref().err().map(|why| why.name()).filter(|n| *n != crate::core::pass::NotMasked::NotEyePass.name());
+                                    }
+                                    plan.ok()
+                                }
                                 Target::Eyes { .. } => None,
                             };
                             drawn.refresh(self, plan.as_ref());
@@ -359,6 +420,9 @@ impl VkFeature for RdmDevice {
                         }
                         let f = lock(&drawn.filled);
                         if f.pending.is_empty() {
+                            if let Some(why) = not_now {
+                                self.count(|s| *s.not_applied.entry(why).or_insert(0) += 1);
+                            }
                             continue;
                         }
                         self.count(|s| {
@@ -432,7 +496,7 @@ fn drawn(me: &RdmDevice, d: &DeviceState, target: Target) -> Result<Arc<Drawn>, 
         d.warn_repeated("rdm vertex buffer", &e);
         NotApplied::LayerError
     })?;
-    Ok(Arc::new(Drawn { buffer, target, filled: Mutex::default(), link: None }))
+    Ok(Arc::new(Drawn { buffer, target, filled: Mutex::default(), link: None, saves_nothing: AtomicBool::new(false) }))
 }
 
 /// Records the checkerboard depth draw into the open pass (after the mask, before the chassis
@@ -460,14 +524,15 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     // holes are filled when the pass ends (`pass_end_vk`), or the pass is left whole.
     let pass_end = if plan.via.behind_post() {
         let pending: Vec<Pending> = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
-        let prepared = super::pass_end_vk::prepare(me, d, at.pass, plan.image, &pending).inspect_err(|why| {
+        let layers: Vec<u32> = pending.iter().map(|p| p.layer).collect();
+        let prepared = super::pass_end_vk::prepare(me, d, at.pass, plan.image, &layers, super::fill::FillSource::PushConstants).inspect_err(|why| {
             log_once(me, format!("pass end {}", why.name()), || tracing::info!("radial density masking left an eye pass behind a post chain alone ({:#x}): {}", plan.image, why.name()))
         })?;
-        let fill_args = PooledBuffer::take(d, inject::DRAW_ARGS * pending.len() as u64, &me.memory).map_err(|e| {
+        let fill_args = PooledBuffer::take(d, super::pass_end_vk::Link::size(pending.len(), false), &me.memory).map_err(|e| {
             d.warn_repeated("rdm fill arguments", &e);
             NotApplied::LayerError
         })?;
-        let link = Arc::new(super::pass_end_vk::Link { fill_args, frozen: ((fovea_generation, views_generation), plan.draws.clone()), recorded: Default::default() });
+        let link = Arc::new(super::pass_end_vk::Link::recorded(fill_args, ((fovea_generation, views_generation), plan.draws.clone())));
         link.arm(false);
         Some((prepared, pending, link))
     } else {
@@ -497,9 +562,10 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     // and its submissions complete.
     unsafe { inject::record_indirect(d, cb, p, vk_buffer, data.vertex_offset(), &draws) };
     if let Some((prepared, pending, link)) = pass_end {
-        let job = super::pass_end_vk::Job::new(prepared, pending, link);
+        let job = super::pass_end_vk::Job::new(prepared, super::pass_end_vk::Eyes::Recorded(pending), link);
         lock(&me.books).jobs.entry(at.owner).or_default().push(job);
     }
+    opened(me, d, at.owner, &data);
     lifetime::hold(d, at.owner, data);
     let counts: Vec<(u32, SkipCount)> = eyes.iter().map(|(dr, p)| (dr.view, count(me, fovea_generation, views_generation, dr, p))).collect();
     log_once(me, format!("draw {:?} {}", plan.layout, plan.intermediate), || {
@@ -520,22 +586,52 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
 /// A pass whose eyes are not known yet: one draw over the render area, empty until a submission
 /// finds its eyes.
 fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result<(), NotApplied> {
-    if at.walk {
-        // Only the walk can tie it to its eyes: a post chain reads its target (`record_draw`).
-        return Err(NotApplied::PostChain);
-    }
     let area = inject::render_area(at.pass);
     let plan = inject::shape_only(at.pass, at.fail_depth);
-    reconstruction_ready(me, d, at.cb, at.settings)?;
+    // Only the walk can tie it to its eyes, so a post chain reads its target: the fill at the
+    // pass's end reads its eyes from the recording's buffer, filled at each submission.
+    let pass_end = if at.walk {
+        let image = super::pass_end::first_color_image(at.pass).ok_or(NotApplied::PostChain)?;
+        let layers = super::pass_end_vk::pass_layers(d, at.pass, image);
+        let prepared = super::pass_end_vk::prepare(me, d, at.pass, image, &layers, super::fill::FillSource::VertexBuffer)?;
+        let fill_args = PooledBuffer::take(d, super::pass_end_vk::Link::size(layers.len() * 2, true), &me.memory).map_err(|e| {
+            d.warn_repeated("rdm fill arguments", &e);
+            NotApplied::LayerError
+        })?;
+        let link = Arc::new(super::pass_end_vk::Link::submitted(fill_args, layers));
+        link.arm(false);
+        Some((prepared, link))
+    } else {
+        reconstruction_ready(me, d, at.cb, at.settings)?;
+        None
+    };
     let p = pipeline(me, d, at.pass, &plan)?;
-    let data = drawn(me, d, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area })?;
+    let mut data = drawn(me, d, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area, walk: at.walk })?;
+    if let Some((_, link)) = &pass_end {
+        if let Some(dr) = Arc::get_mut(&mut data) {
+            dr.link = Some(link.clone());
+        }
+    }
     data.refresh(me, None);
     let draw = inject::IndirectDraw { slot: 0, viewport: inject::fail_viewport(area, at.fail_depth), scissor: area };
     // SAFETY: `at.cb` is recording inside the pass; the pipeline is compatible with it; the
     // buffer (empty draw arguments until filled) is held by the app's command buffer (below).
     unsafe { inject::record_indirect(d, at.cb, p, data.buffer.buffer, data.vertex_offset(), &[draw]) };
+    if let Some((prepared, link)) = pass_end {
+        let job = super::pass_end_vk::Job::new(prepared, super::pass_end_vk::Eyes::Submitted { area }, link);
+        lock(&me.books).jobs.entry(at.owner).or_default().push(job);
+    }
+    opened(me, d, at.owner, &data);
     lifetime::hold(d, at.owner, data);
     Ok(())
+}
+
+/// `data` went into `owner`'s open (sub)pass: judged when the pass ends (`pass_ending`).
+fn opened(me: &RdmDevice, d: &DeviceState, owner: u64, data: &Arc<Drawn>) {
+    let index = d.track.with_cb(owner, |s| if s.flow_on { s.flow.open_index() } else { None }).flatten();
+    if let Some(index) = index {
+        lock(&me.books).open.entry(owner).or_default().push((index, data.clone()));
+    }
 }
 
 fn count(me: &RdmDevice, fovea_gen: u64, views_gen: u64, dr: &EyeDraw, p: &RdmParams) -> SkipCount {
