@@ -298,6 +298,12 @@ pub(super) fn destroy(me: &RdmDevice, d: &DeviceState) {
 /// fill is then not recorded, and the checkerboard stays off).
 pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool {
     let key = cb.as_raw();
+    if d.settings().foveation.rdm_reconstruction == crate::features::foveation::Reconstruction::Off {
+        // `foveation.rdm_reconstruction = off` (a measurement setting): the holes stay, as at
+        // the release.
+        job.link.recorded.store(true, Ordering::Release);
+        return true;
+    }
     let Some((restore_cmds, sets, veto)) = d.track.with_cb(key, |s| (s.restore_commands(), s.descriptor_set_commands(), s.veto)) else { return false };
     if veto.is_some() {
         return false;
