@@ -288,9 +288,8 @@ pub enum NotApplied {
     /// `multiview`): the layer never creates an object the device cannot legally have.
     DeviceLacks,
     /// The eye pass's target is read by a post-process chain (found by the data-flow walk)
-    /// before the runtime sees it, and it was tied to its eyes only at submission (recorded
-    /// before the walk knew it, or its eye rect changes from frame to frame): the reconstruction
-    /// at the pass's end (`pass_end`) is recorded with the pass, so such passes are left whole.
+    /// before the runtime sees it, and RDM was not asked for by name: its reconstruction at the
+    /// pass's end costs more than it saves at moderate loads (`vk::pass_end_wanted`).
     PostChain,
     /// Behind a post chain, the eye pass is followed by a subpass of its own render pass (or its
     /// rendering is suspended): no reconstruction can run between them.
@@ -411,7 +410,7 @@ impl FeatureStats for RdmFrameStats {
     fn hint(&self, reason: &str) -> &'static str {
         match reason {
             "no_fovea" => "no fovea yet for the view (the first frame): nothing to do unless it persists",
-            "post_chain" => "the eye pass renders into a target a post-process chain reads, and it was tied to its eyes only at submission (the first frames, or an eye rect that changes every frame): RDM's reconstruction at the pass's end is recorded with the pass, so such passes are left whole",
+            "post_chain" => "the eye pass renders into a target a post-process chain reads: with foveation.method = auto RDM leaves it whole, since its reconstruction there (the fragment fill at the pass's end) costs more than it saves at moderate loads; foveation.method = \"rdm\" applies it",
             "subpass_chain" => "behind a post chain, the eye pass is followed by another subpass of its render pass (a tonemap reading an input attachment) or its rendering is suspended: no reconstruction can run in between, so it is left whole; use foveation.method = \"vrs\" where the GPU has it",
             "msaa_unresolved" => "behind a post chain, the multisampled eye is resolved after its pass by a transfer: RDM reconstructs only single-sampled targets when the pass ends; use foveation.method = \"vrs\" where the GPU has it",
             "target_usage" => "behind a post chain, the eye's target cannot be copied from or drawn into by the reconstruction (usage or layout), or its objects could not be made: the pass is left whole",

@@ -523,6 +523,7 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     // Behind a post chain a tonemapper, bloom or TAA reads the target before any release: the
     // holes are filled when the pass ends (`pass_end_vk`), or the pass is left whole.
     let pass_end = if plan.via.behind_post() {
+        pass_end_wanted(me, at.settings)?;
         let pending: Vec<Pending> = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
         let layers: Vec<u32> = pending.iter().map(|p| p.layer).collect();
         let prepared = super::pass_end_vk::prepare(me, d, at.pass, plan.image, &layers, super::fill::FillSource::PushConstants).inspect_err(|why| {
@@ -591,6 +592,7 @@ fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result
     // Only the walk can tie it to its eyes, so a post chain reads its target: the fill at the
     // pass's end reads its eyes from the recording's buffer, filled at each submission.
     let pass_end = if at.walk {
+        pass_end_wanted(me, at.settings)?;
         let image = super::pass_end::first_color_image(at.pass).ok_or(NotApplied::PostChain)?;
         let layers = super::pass_end_vk::pass_layers(d, at.pass, image);
         let prepared = super::pass_end_vk::prepare(me, d, at.pass, image, &layers, super::fill::FillSource::VertexBuffer)?;
@@ -624,6 +626,20 @@ fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result
     opened(me, d, at.owner, &data);
     lifetime::hold(d, at.owner, data);
     Ok(())
+}
+
+/// Whether RDM reconstructs behind a post chain: only when asked for by name. Its reconstruction
+/// there is the fragment fill, which on the GPUs measured costs more than the checkerboard saves
+/// at moderate loads (docs/benchmarks.md, "RDM behind post chains"), so `foveation.method = auto`
+/// (RDM on GPUs without attachment shading rates) leaves such passes whole.
+fn pass_end_wanted(me: &RdmDevice, s: &Settings) -> Result<(), NotApplied> {
+    if s.foveation.method == crate::features::foveation::Method::Rdm {
+        return Ok(());
+    }
+    log_once(me, "pass end auto".into(), || {
+        tracing::info!("radial density masking leaves eye passes behind a post chain whole with foveation.method = auto: its reconstruction there costs more than it saves at moderate loads; foveation.method = \"rdm\" applies it")
+    });
+    Err(NotApplied::PostChain)
 }
 
 /// `data` went into `owner`'s open (sub)pass: judged when the pass ends (`pass_ending`).
