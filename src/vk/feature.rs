@@ -133,6 +133,9 @@ pub(crate) trait VkFeature: Send + Sync {
     fn pass_ending(&self, _d: &DeviceState, _cb: vk::CommandBuffer) {}
     /// The pass ended (outside any pass again, before the app's next command).
     fn pass_ended(&self, _d: &DeviceState, _cb: vk::CommandBuffer) {}
+    /// The current recordings of `cbs` are over (begun again, reset, freed): a pass left open in
+    /// one of them never ends, so nothing kept for it may reach a later recording.
+    fn recordings_closed(&self, _d: &DeviceState, _cbs: &[u64]) {}
 
     /// Whether the feature draws at the injection point under these settings on this device.
     fn injects(&self, _s: &Settings) -> bool {

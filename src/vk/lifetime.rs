@@ -64,6 +64,10 @@ pub(crate) fn with_holds(d: &DeviceState, cb: u64, f: impl FnOnce(&[Hold])) {
 
 /// The app begins, resets or frees these command buffers: their recordings close.
 pub(crate) fn close(d: &DeviceState, cbs: &[u64]) {
+    // Whatever a feature keeps for a pass still open in those recordings is void now.
+    for f in d.features.all() {
+        f.recordings_closed(d, cbs);
+    }
     let released: Vec<Hold> = {
         let mut l = lock(&d.lifetime.lifetimes);
         cbs.iter().flat_map(|cb| l.close(*cb)).collect()

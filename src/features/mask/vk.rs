@@ -373,6 +373,12 @@ impl VkFeature for MaskDevice {
     fn not_injected(&self, _d: &DeviceState, _s: &Settings, why: NotMasked) {
         self.count(|s| s.count_not_masked(why));
     }
+    fn recordings_closed(&self, _d: &DeviceState, cbs: &[u64]) {
+        let mut b = lock(&self.books);
+        for cb in cbs {
+            b.open.remove(cb);
+        }
+    }
     /// A pass the mask went into ends: without one depth-tested draw in it, the mask saved
     /// nothing (a post pass with a depth attachment, recorded before the walk knew it).
     fn pass_ending(&self, d: &DeviceState, cb: vk::CommandBuffer) {

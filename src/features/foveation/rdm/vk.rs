@@ -348,6 +348,15 @@ impl VkFeature for RdmDevice {
             super::pass_end_vk::image_destroyed(self, d, image);
         }
     }
+    /// A recording abandoned inside an eye pass (reset while recording): its pass-end
+    /// reconstructions are never recorded, and its checkerboards never submitted.
+    fn recordings_closed(&self, _d: &DeviceState, cbs: &[u64]) {
+        let mut b = lock(&self.books);
+        for cb in cbs {
+            b.jobs.remove(cb);
+            b.open.remove(cb);
+        }
+    }
     /// A pass with checkerboards ends: without one depth-tested draw they skipped nothing.
     fn pass_ending(&self, d: &DeviceState, cb: vk::CommandBuffer) {
         let key = ash::vk::Handle::as_raw(cb);
