@@ -17,6 +17,7 @@ use crate::shared::{shared, Views};
 use crate::track::cmd::PassInstance;
 use crate::track::eye_pass::{EyeDraw, EyeLayout, EyeSource, MaskPlan};
 use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
+use crate::vk::inject::open_passes::OpenPasses;
 use crate::vk::inject::{self, pipeline, Awaiting, Injection};
 use crate::vk::lifetime::{self, PooledBuffer};
 use crate::vk::DeviceState;
@@ -182,9 +183,6 @@ struct Books {
     coverage: HashMap<(u64, u32, PixelRect, PixelRect), u64>,
     logged_kinds: HashSet<(EyeLayout, bool)>,
     geometry: Option<Arc<Geometry>>,
-    /// The mask data recorded into each command buffer's open pass, with the index of its
-    /// (sub)pass's flow record (`pass_ending` judges it).
-    open: HashMap<u64, Vec<(usize, Arc<MaskData>)>>,
 }
 
 /// The mask's per-device state. Locks guard bookkeeping only, never a call down.
@@ -194,12 +192,14 @@ pub(crate) struct MaskDevice {
     used: AtomicBool,
     memory: vk::PhysicalDeviceMemoryProperties,
     books: Mutex<Books>,
+    /// The mask data in each command buffer's open passes (judged when they end).
+    open: OpenPasses<Arc<MaskData>>,
 }
 
 impl Plugin for MaskDevice {
     const KEYS: &'static [crate::config::KeySpec] = super::KEYS;
     fn new(init: &DeviceInit<'_>) -> MaskDevice {
-        MaskDevice { layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default() }
+        MaskDevice { layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default(), open: OpenPasses::default() }
     }
     fn empty_stats() -> Box<dyn FeatureStats> {
         Box::new(MaskFrameStats::default())
@@ -307,17 +307,9 @@ impl MaskDevice {
         // completed.
         unsafe { inject::record_indirect(d, at.cb, p, data.buffer.buffer, data.vertex_offset(), &draws) };
         let pixels = plan.draws.iter().map(|dr| (dr.view, self.coverage(&g, dr.view, dr.viewport, dr.scissor))).collect();
-        self.opened(d, at.owner, &data);
+        self.open.opened(d, at.owner, data.clone());
         lifetime::hold(d, at.owner, data);
         Ok(pixels)
-    }
-
-    /// `data` went into `owner`'s open (sub)pass: judged when the pass ends (`pass_ending`).
-    fn opened(&self, d: &DeviceState, owner: u64, data: &Arc<MaskData>) {
-        let index = d.track.with_cb(owner, |s| if s.flow_on { s.flow.open_index() } else { None }).flatten();
-        if let Some(index) = index {
-            lock(&self.books).open.entry(owner).or_default().push((index, data.clone()));
-        }
     }
 
     fn log_kind_once(&self, plan: &MaskPlan, pixels: &[(u32, u64)]) {
@@ -374,23 +366,14 @@ impl VkFeature for MaskDevice {
         self.count(|s| s.count_not_masked(why));
     }
     fn recordings_closed(&self, _d: &DeviceState, cbs: &[u64]) {
-        let mut b = lock(&self.books);
-        for cb in cbs {
-            b.open.remove(cb);
-        }
+        self.open.closed(cbs);
     }
     /// A pass the mask went into ends: without one depth-tested draw in it, the mask saved
     /// nothing (a post pass with a depth attachment, recorded before the walk knew it).
     fn pass_ending(&self, d: &DeviceState, cb: vk::CommandBuffer) {
-        let key = vk::Handle::as_raw(cb);
-        let Some(open) = lock(&self.books).open.remove(&key) else { return };
-        d.track.with_cb(key, |s| {
-            for (index, data) in open {
-                if s.flow.pass_tested(index) == Some(false) {
-                    data.saves_nothing.store(true, Ordering::Relaxed);
-                }
-            }
-        });
+        for data in self.open.ending(d, vk::Handle::as_raw(cb)) {
+            data.saves_nothing.store(true, Ordering::Relaxed);
+        }
     }
     /// A pass whose eyes are not known yet: one draw over the render area, empty until a
     /// submission finds its eyes.
@@ -411,7 +394,7 @@ impl VkFeature for MaskDevice {
         // clear); the pipeline is compatible with it; the buffer (empty draw arguments until
         // filled) is held by the app's command buffer (below).
         unsafe { inject::record_indirect(d, at.cb, p, data.buffer.buffer, data.vertex_offset(), &[draw]) };
-        self.opened(d, at.owner, &data);
+        self.open.opened(d, at.owner, data.clone());
         lifetime::hold(d, at.owner, data);
     }
     /// Refreshes idle recordings for the live mask and settings, then counts what each submitted

@@ -11,6 +11,7 @@
 //! `vkCmdClearDepthStencilImage`). The pure decision (when a pass counts, deferral to a later
 //! clear, pending secondaries) is `trigger::decide`.
 
+pub(crate) mod open_passes;
 pub(crate) mod pipeline;
 pub(crate) mod restore;
 pub(crate) mod trigger;

@@ -13,6 +13,7 @@ use crate::settings::Settings;
 use crate::shared::shared;
 use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan, TransferRegion};
 use crate::vk::feature::{Destroyed, DeviceInit, Plugin, VkFeature};
+use crate::vk::inject::open_passes::OpenPasses;
 use crate::vk::inject::{self, pipeline, Awaiting, Injection};
 use crate::vk::lifetime::{self, PooledBuffer};
 use crate::vk::DeviceState;
@@ -66,9 +67,6 @@ pub(super) struct Books {
     pub(super) logged: HashSet<String>,
     /// Command buffer → reconstructions waiting for its open pass's end (`pass_end_vk`).
     jobs: HashMap<u64, Vec<super::pass_end_vk::Job>>,
-    /// Command buffer → the checkerboards in its open pass, with their (sub)pass's flow record
-    /// (`pass_ending` judges them).
-    open: HashMap<u64, Vec<(usize, Arc<Drawn>)>>,
 }
 
 /// Per-device RDM state. Locks guard bookkeeping only, never a call down.
@@ -83,6 +81,8 @@ pub(crate) struct RdmDevice {
     pub(super) books: Mutex<Books>,
     pub(super) reconstruct: super::reconstruct::Reconstruct,
     pub(super) pass_end: Mutex<super::pass_end_vk::PassEndObjects>,
+    /// The checkerboards in each command buffer's open passes (judged when they end).
+    open: OpenPasses<Arc<Drawn>>,
 }
 
 pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -102,6 +102,7 @@ impl Plugin for RdmDevice {
             books: Mutex::default(),
             reconstruct: super::reconstruct::Reconstruct::new(init.memory, init.set_loader_data),
             pass_end: Mutex::default(),
+            open: OpenPasses::default(),
         }
     }
     fn empty_stats() -> Box<dyn FeatureStats> {
@@ -354,20 +355,15 @@ impl VkFeature for RdmDevice {
         let mut b = lock(&self.books);
         for cb in cbs {
             b.jobs.remove(cb);
-            b.open.remove(cb);
         }
+        drop(b);
+        self.open.closed(cbs);
     }
     /// A pass with checkerboards ends: without one depth-tested draw they skipped nothing.
     fn pass_ending(&self, d: &DeviceState, cb: vk::CommandBuffer) {
-        let key = ash::vk::Handle::as_raw(cb);
-        let Some(open) = lock(&self.books).open.remove(&key) else { return };
-        d.track.with_cb(key, |s| {
-            for (index, drawn) in open {
-                if s.flow.pass_tested(index) == Some(false) {
-                    drawn.saves_nothing.store(true, Ordering::Relaxed);
-                }
-            }
-        });
+        for drawn in self.open.ending(d, ash::vk::Handle::as_raw(cb)) {
+            drawn.saves_nothing.store(true, Ordering::Relaxed);
+        }
     }
     /// The eye passes behind a post chain that ended in `cb` get their reconstruction now.
     fn pass_ended(&self, d: &DeviceState, cb: vk::CommandBuffer) {
@@ -575,7 +571,7 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
         let job = super::pass_end_vk::Job::new(prepared, super::pass_end_vk::Eyes::Recorded(pending), link);
         lock(&me.books).jobs.entry(at.owner).or_default().push(job);
     }
-    opened(me, d, at.owner, &data);
+    me.open.opened(d, at.owner, data.clone());
     lifetime::hold(d, at.owner, data);
     let counts: Vec<(u32, SkipCount)> = eyes.iter().map(|(dr, p)| (dr.view, count(me, fovea_generation, views_generation, dr, p))).collect();
     log_once(me, format!("draw {:?} {}", plan.layout, plan.intermediate), || {
@@ -632,7 +628,7 @@ fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result
         let job = super::pass_end_vk::Job::new(prepared, super::pass_end_vk::Eyes::Submitted { area }, link);
         lock(&me.books).jobs.entry(at.owner).or_default().push(job);
     }
-    opened(me, d, at.owner, &data);
+    me.open.opened(d, at.owner, data.clone());
     lifetime::hold(d, at.owner, data);
     Ok(())
 }
@@ -649,14 +645,6 @@ fn pass_end_wanted(me: &RdmDevice, s: &Settings) -> Result<(), NotApplied> {
         tracing::info!("radial density masking leaves eye passes behind a post chain whole with foveation.method = auto: its reconstruction there costs more than it saves at moderate loads; foveation.method = \"rdm\" applies it")
     });
     Err(NotApplied::PostChain)
-}
-
-/// `data` went into `owner`'s open (sub)pass: judged when the pass ends (`pass_ending`).
-fn opened(me: &RdmDevice, d: &DeviceState, owner: u64, data: &Arc<Drawn>) {
-    let index = d.track.with_cb(owner, |s| if s.flow_on { s.flow.open_index() } else { None }).flatten();
-    if let Some(index) = index {
-        lock(&me.books).open.entry(owner).or_default().push((index, data.clone()));
-    }
 }
 
 fn count(me: &RdmDevice, fovea_gen: u64, views_gen: u64, dr: &EyeDraw, p: &RdmParams) -> SkipCount {
