@@ -242,8 +242,11 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
                 Trigger::End => false,
                 _ => true,
             };
-            let walk_await = (whole && snap.veto.is_none()).then(|| eye_pass::awaiting_walk(&snap.pass, &facts)).flatten();
-            if let Some(fail_depth) = walk_await {
+            // A pass whose eyes a later moment may tell: the walk of its submission, or the
+            // OpenXR half's first `xrEndFrame` for a swapchain image.
+            let awaits = whole && snap.veto.is_none();
+            let walk = awaits.then(|| eye_pass::awaiting_walk(&snap.pass, &facts)).flatten().map(|f| (f, true));
+            if walk.is_some() {
                 // Features that fill their draws at submission count the pass there (applied, or
                 // why not); the others count it now.
                 if decision.counts {
@@ -253,24 +256,17 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
                         }
                     }
                 }
+            } else {
+                count_not_injected(d, &settings, decision.counts, why, &snap.pass);
+            }
+            let swapchain = || (awaits && why == NotMasked::EyeUnknown).then(|| eye_pass::awaiting_eyes(&snap.pass, &facts)).flatten().map(|f| (f, false));
+            if let Some((fail_depth, walk)) = walk.or_else(swapchain) {
                 if trigger.secondary_contents() && !snap.secondary_level {
                     let plan = shape_only(&snap.pass, fail_depth);
-                    lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: false, awaiting: Some(true) });
+                    lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: false, awaiting: Some(walk) });
                     return;
                 }
-                inject_awaiting(d, cb, key, &snap, (fail_depth, true), &settings, true);
-                return;
-            }
-            count_not_injected(d, &settings, decision.counts, why, &snap.pass);
-            if why == NotMasked::EyeUnknown && whole && snap.veto.is_none() {
-                if let Some(fail_depth) = eye_pass::awaiting_eyes(&snap.pass, &facts) {
-                    if trigger.secondary_contents() && !snap.secondary_level {
-                        let plan = shape_only(&snap.pass, fail_depth);
-                        lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: false, awaiting: Some(false) });
-                        return;
-                    }
-                    inject_awaiting(d, cb, key, &snap, (fail_depth, false), &settings, true);
-                }
+                inject_awaiting(d, cb, key, &snap, (fail_depth, walk), &settings, true);
             }
             return;
         }
