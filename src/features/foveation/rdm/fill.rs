@@ -217,13 +217,10 @@ pub(super) fn record_and_submit(
 ) -> Result<(), Failure> {
     let temp = ensure_temp(d, slot, format, shape, set_layout, sampler)?;
     let image = vk::Image::from_raw(image);
-    let (width, height, _) = shape;
-    let whole = PixelRect { x: 0, y: 0, width, height };
-    let mut layers: Vec<u32> = eyes.iter().map(|p| p.layer).collect();
-    layers.sort_unstable();
-    layers.dedup();
-    let range = |layer: u32, count: u32| vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: count };
-    let layer_of = |layer: u32| vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: layer, layer_count: 1 };
+    let (width, height, layers) = shape;
+    let mut eye_layers: Vec<u32> = eyes.iter().map(|p| p.layer).collect();
+    eye_layers.sort_unstable();
+    eye_layers.dedup();
     let cb = slot.cb;
     // SAFETY: our command buffer, reset and not in use (its fence signalled); every handle is
     // alive: the swapchain image is acquired by the app and not yet released; arrays outlive the
@@ -231,100 +228,14 @@ pub(super) fn record_and_submit(
     // queue (the app synchronizes its queue use around these calls).
     unsafe {
         d.fns.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(layer_error("begin"))?;
-        // The app's writes (rendering, or resolve / copy from an intermediate) finish before the
-        // copy reads the image; the temp image's previous readers before it is overwritten.
-        let mut first: Vec<vk::ImageMemoryBarrier> = layers
-            .iter()
-            .map(|&l| {
-                vk::ImageMemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::TRANSFER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
-                    .old_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
-                    .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
-                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                    .image(image)
-                    .subresource_range(range(l, 1))
-            })
-            .collect();
-        first.push(
-            vk::ImageMemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::empty())
-                .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .old_layout(vk::ImageLayout::UNDEFINED)
-                .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(temp)
-                .subresource_range(range(0, shape.2)),
-        );
-        d.fns.cmd_pipeline_barrier(
-            cb,
-            vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::FRAGMENT_SHADER,
-            vk::PipelineStageFlags::TRANSFER,
-            vk::DependencyFlags::empty(),
-            &[],
-            &[],
-            &first,
-        );
-        let regions: Vec<vk::ImageCopy> = eyes
-            .iter()
-            .map(|p| {
-                let r = p.params.rect.intersect(&whole);
-                vk::ImageCopy {
-                    src_subresource: layer_of(p.layer),
-                    src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
-                    dst_subresource: layer_of(p.layer),
-                    dst_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
-                    extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
-                }
-            })
-            .collect();
-        d.fns.cmd_copy_image(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, temp, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &regions);
-        let mut second: Vec<vk::ImageMemoryBarrier> = layers
-            .iter()
-            .map(|&l| {
-                vk::ImageMemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::empty())
-                    .dst_access_mask(vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE)
-                    .old_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
-                    .new_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
-                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                    .image(image)
-                    .subresource_range(range(l, 1))
-            })
-            .collect();
-        second.push(
-            vk::ImageMemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::SHADER_READ)
-                .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-                .new_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(temp)
-                .subresource_range(range(0, shape.2)),
-        );
-        d.fns.cmd_pipeline_barrier(
-            cb,
-            vk::PipelineStageFlags::TRANSFER,
-            vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT,
-            vk::DependencyFlags::empty(),
-            &[],
-            &[],
-            &second,
-        );
-        for &l in &layers {
+        let mut framebuffers = Vec::new();
+        for l in eye_layers {
             let view = d
                 .fns
-                .create_image_view(&vk::ImageViewCreateInfo::default().image(image).view_type(vk::ImageViewType::TYPE_2D).format(format).subresource_range(range(l, 1)), None)
+                .create_image_view(&vk::ImageViewCreateInfo::default().image(image).view_type(vk::ImageViewType::TYPE_2D).format(format).subresource_range(color_range(l, 1)), None)
                 .map_err(layer_error("swapchain view"))?;
             let views = [view];
-            let fb = match d.fns.create_framebuffer(
-                &vk::FramebufferCreateInfo::default().render_pass(render_pass).attachments(&views).width(width).height(height).layers(1),
-                None,
-            ) {
+            let fb = match d.fns.create_framebuffer(&vk::FramebufferCreateInfo::default().render_pass(render_pass).attachments(&views).width(width).height(height).layers(1), None) {
                 Ok(f) => f,
                 Err(e) => {
                     d.fns.destroy_image_view(view, None);
@@ -332,35 +243,139 @@ pub(super) fn record_and_submit(
                 }
             };
             slot.transient.push((view, fb));
-            let here: Vec<&Pending> = eyes.iter().filter(|p| p.layer == l).collect();
-            let area = here.iter().map(|p| p.params.rect.intersect(&whole)).reduce(|a, b| {
-                let (x0, y0) = (a.x.min(b.x), a.y.min(b.y));
-                let x1 = (a.x + a.width as i32).max(b.x + b.width as i32);
-                let y1 = (a.y + a.height as i32).max(b.y + b.height as i32);
-                PixelRect { x: x0, y: y0, width: (x1 - x0) as u32, height: (y1 - y0) as u32 }
-            });
-            let Some(area) = area else { continue };
-            let rect2d = |r: PixelRect| vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } };
-            d.fns.cmd_begin_render_pass(
-                cb,
-                &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(fb).render_area(rect2d(area)),
-                vk::SubpassContents::INLINE,
-            );
+            framebuffers.push((l, fb));
+        }
+        let target = FillTarget { image, before: vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, whole: PixelRect { x: 0, y: 0, width, height }, framebuffers: &framebuffers };
+        record_fill(d, cb, &target, (temp, layers, slot.set), (layout, render_pass, pipeline), FillDraws::Pushed { eyes, args: None });
+    }
+    submit(d, slot, family, queue_index)
+}
+
+/// The image a fill reconstructs: the layout it is in, its extent, and a framebuffer of the
+/// fill's render pass per layer drawn (in that order).
+pub(super) struct FillTarget<'a> {
+    pub(super) image: vk::Image,
+    pub(super) before: vk::ImageLayout,
+    pub(super) whole: PixelRect,
+    pub(super) framebuffers: &'a [(u32, vk::Framebuffer)],
+}
+
+/// What the fill draws.
+pub(super) enum FillDraws<'a> {
+    /// The eyes known when recorded: each eye's rect copied, its parameters pushed with its draw;
+    /// `args`: a buffer with one indirect draw per eye (in `eyes`' order), else direct draws.
+    Pushed { eyes: &'a [Pending], args: Option<vk::Buffer> },
+    /// Eyes known only at submission (`FillSource::VertexBuffer`): `area` copied and drawn in every
+    /// layer; two indirect draws per layer in `buffer`, the vertices from `vertex_offset`.
+    FromBuffer { area: PixelRect, buffer: vk::Buffer, vertex_offset: u64 },
+}
+
+/// Indirect draws per layer of `FillDraws::FromBuffer` (side by side: two eyes in one layer).
+pub(super) const EYES_PER_LAYER: usize = 2;
+
+pub(super) fn color_range(layer: u32, count: u32) -> vk::ImageSubresourceRange {
+    vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: count }
+}
+
+pub(super) fn layout_barrier(image: vk::Image, range: vk::ImageSubresourceRange, (old, new): (vk::ImageLayout, vk::ImageLayout), (src, dst): (vk::AccessFlags, vk::AccessFlags)) -> vk::ImageMemoryBarrier<'static> {
+    vk::ImageMemoryBarrier::default()
+        .src_access_mask(src)
+        .dst_access_mask(dst)
+        .old_layout(old)
+        .new_layout(new)
+        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+        .image(image)
+        .subresource_range(range)
+}
+
+/// Records the reconstruction by the fill into `cb` (outside any pass): the eyes' pixels of
+/// `target.image` copied into `temp` (image, layers, the fill's descriptor set over it), then per
+/// framebuffer the fill drawn back from it. The image is left in COLOR_ATTACHMENT_OPTIMAL, behind
+/// the fill render pass's external dependency.
+///
+/// # Safety
+/// `cb` is recording outside any pass; `target.image` is in `target.before` and every handle
+/// (the pipeline objects, `temp`, the framebuffers, the draw buffer) lives until `cb`'s
+/// submissions complete.
+pub(super) unsafe fn record_fill(
+    d: &DeviceState,
+    cb: vk::CommandBuffer,
+    target: &FillTarget<'_>,
+    (temp, temp_layers, set): (vk::Image, u32, vk::DescriptorSet),
+    (layout, render_pass, pipeline): (vk::PipelineLayout, vk::RenderPass, vk::Pipeline),
+    draws: FillDraws<'_>,
+) {
+    let (image, whole) = (target.image, target.whole);
+    let layer_of = |layer: u32| vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: layer, layer_count: 1 };
+    let copy = |layer: u32, r: PixelRect| vk::ImageCopy {
+        src_subresource: layer_of(layer),
+        src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+        dst_subresource: layer_of(layer),
+        dst_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
+        extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
+    };
+    let regions: Vec<vk::ImageCopy> = match &draws {
+        FillDraws::Pushed { eyes, .. } => eyes.iter().map(|e| copy(e.layer, e.params.rect.intersect(&whole))).collect(),
+        FillDraws::FromBuffer { area, .. } => target.framebuffers.iter().map(|(l, _)| copy(*l, area.intersect(&whole))).collect(),
+    };
+    let regions: Vec<vk::ImageCopy> = regions.into_iter().filter(|c| c.extent.width > 0 && c.extent.height > 0).collect();
+    let each_layer = |layouts, access| target.framebuffers.iter().map(move |(l, _)| layout_barrier(image, color_range(*l, 1), layouts, access));
+    // SAFETY: per the contract; arrays outlive the calls.
+    unsafe {
+        // The app's writes (rendering, a resolve, or a copy from an intermediate) finish before
+        // the copy reads the image; the temp image's previous readers before it is overwritten.
+        let mut first: Vec<vk::ImageMemoryBarrier> =
+            each_layer((target.before, vk::ImageLayout::TRANSFER_SRC_OPTIMAL), (vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::TRANSFER_READ)).collect();
+        first.push(layout_barrier(temp, color_range(0, temp_layers), (vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL), (vk::AccessFlags::empty(), vk::AccessFlags::TRANSFER_WRITE)));
+        let waits = vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::FRAGMENT_SHADER;
+        d.fns.cmd_pipeline_barrier(cb, waits, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &first);
+        d.fns.cmd_copy_image(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, temp, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &regions);
+        let mut second: Vec<vk::ImageMemoryBarrier> = each_layer(
+            (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL),
+            (vk::AccessFlags::empty(), vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE),
+        )
+        .collect();
+        second.push(layout_barrier(temp, color_range(0, temp_layers), (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL), (vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ)));
+        let fill_stages = vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT;
+        d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, fill_stages, vk::DependencyFlags::empty(), &[], &[], &second);
+        for (li, (layer, fb)) in target.framebuffers.iter().enumerate() {
+            let area = match &draws {
+                FillDraws::Pushed { eyes, .. } => eyes.iter().filter(|e| e.layer == *layer).map(|e| e.params.rect.intersect(&whole)).reduce(|a, b| crate::track::flow::union(&a, &b)),
+                FillDraws::FromBuffer { area, .. } => Some(area.intersect(&whole)),
+            };
+            let Some(area) = area.filter(|a| a.area() > 0) else { continue };
+            d.fns.cmd_begin_render_pass(cb, &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(*fb).render_area(crate::vk::inject::rect2d(area)), vk::SubpassContents::INLINE);
             d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
-            d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[slot.set], &[]);
-            for p in here {
-                let r = p.params.rect;
-                let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
-                d.fns.cmd_set_viewport(cb, 0, &[vp]);
-                d.fns.cmd_set_scissor(cb, 0, &[rect2d(r.intersect(&whole))]);
-                let pc = FillParams::of(p);
-                d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, pc.bytes());
-                d.fns.cmd_draw(cb, 3, 1, 0, 0);
+            d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[set], &[]);
+            match &draws {
+                FillDraws::Pushed { eyes, args } => {
+                    for (i, e) in eyes.iter().enumerate().filter(|(_, e)| e.layer == *layer) {
+                        let r = e.params.rect;
+                        let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
+                        d.fns.cmd_set_viewport(cb, 0, &[vp]);
+                        d.fns.cmd_set_scissor(cb, 0, &[crate::vk::inject::rect2d(r.intersect(&whole))]);
+                        d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, FillParams::of(e).bytes());
+                        match args {
+                            Some(buffer) => d.fns.cmd_draw_indirect(cb, *buffer, crate::vk::inject::DRAW_ARGS * i as u64, 1, crate::vk::inject::DRAW_ARGS as u32),
+                            None => d.fns.cmd_draw(cb, 3, 1, 0, 0),
+                        }
+                    }
+                }
+                FillDraws::FromBuffer { buffer, vertex_offset, .. } => {
+                    d.fns.cmd_bind_vertex_buffers(cb, 0, &[*buffer], &[*vertex_offset]);
+                    let vp = vk::Viewport { x: 0.0, y: 0.0, width: whole.width as f32, height: whole.height as f32, min_depth: 0.0, max_depth: 1.0 };
+                    d.fns.cmd_set_viewport(cb, 0, &[vp]);
+                    d.fns.cmd_set_scissor(cb, 0, &[crate::vk::inject::rect2d(area)]);
+                    d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, &(*layer as i32).to_ne_bytes());
+                    for slot in 0..EYES_PER_LAYER {
+                        d.fns.cmd_draw_indirect(cb, *buffer, crate::vk::inject::DRAW_ARGS * (li * EYES_PER_LAYER + slot) as u64, 1, crate::vk::inject::DRAW_ARGS as u32);
+                    }
+                }
             }
             d.fns.cmd_end_render_pass(cb);
         }
     }
-    submit(d, slot, family, queue_index)
 }
 
 /// The fill pipeline's shared objects and the render pass + pipeline for `format`, made once.

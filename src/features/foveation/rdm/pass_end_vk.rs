@@ -10,7 +10,7 @@
 //! (`Link::frozen`). When the fovea or the views move on, or the fill could not be recorded,
 //! both draw nothing — a pass is foveated and reconstructed, or left whole, never holed.
 
-use super::fill::{fill_objects_for, make_temp, FillParams, FillSource, FillVertex, Temp};
+use super::fill::{color_range, fill_objects_for, layout_barrier, make_temp, record_fill, FillDraws, FillSource, FillTarget, FillVertex, Temp, EYES_PER_LAYER};
 use super::pass_end::{self, PassEndTarget};
 use super::rules::{NotApplied, Pending};
 use super::vk::{lock, log_once, RdmDevice};
@@ -41,9 +41,6 @@ pub(super) struct Link {
     /// checkerboard draws nothing.
     pub(super) recorded: AtomicBool,
 }
-
-/// Eyes per layer the buffer variant has slots for (side by side: two in one layer).
-const EYES_PER_LAYER: usize = 2;
 
 impl Link {
     /// A link for eyes known at recording (`frozen`).
@@ -293,9 +290,9 @@ pub(super) fn destroy(me: &RdmDevice, d: &DeviceState) {
     drop(o.temps);
 }
 
-/// Records `job` into `cb`, just after the eye pass ended: copy, fill, back to the app's layout;
-/// then the app's bound state. Returns false when the app's state could not be restored (the
-/// fill is then not recorded, and the checkerboard stays off).
+/// Records `job` into `cb`, just after the eye pass ended: copy, fill (`fill::record_fill`), back
+/// to the app's layout; then the app's bound state. Returns false when the app's state could not
+/// be restored (the fill is then not recorded, and the checkerboard stays off).
 pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool {
     let key = cb.as_raw();
     if d.settings().foveation.rdm_reconstruction == crate::features::foveation::Reconstruction::Off {
@@ -310,106 +307,29 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
     }
     let p = &job.prepared;
     let Some(temp) = p.temp.temp.as_ref() else { return false };
-    let image = vk::Image::from_raw(p.target.view.image);
     let (width, height) = p.extent;
-    let whole = PixelRect { x: 0, y: 0, width, height };
-    let range = |layer: u32| vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: 1 };
-    let layers_of = |layer: u32| vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: layer, layer_count: 1 };
-    let barrier = |img: vk::Image, r: vk::ImageSubresourceRange, old: vk::ImageLayout, new: vk::ImageLayout, src: vk::AccessFlags, dst: vk::AccessFlags| {
-        vk::ImageMemoryBarrier::default()
-            .src_access_mask(src)
-            .dst_access_mask(dst)
-            .old_layout(old)
-            .new_layout(new)
-            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .image(img)
-            .subresource_range(r)
+    let target = FillTarget { image: vk::Image::from_raw(p.target.view.image), before: p.target.layout, whole: PixelRect { x: 0, y: 0, width, height }, framebuffers: &p.framebuffers };
+    let draws = match &job.eyes {
+        Eyes::Recorded(eyes) => FillDraws::Pushed { eyes, args: Some(job.link.fill_args.buffer) },
+        Eyes::Submitted { area } => FillDraws::FromBuffer { area: *area, buffer: job.link.fill_args.buffer, vertex_offset: job.link.vertex_offset() },
     };
-    let temp_range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: temp.key.3 };
-    let after = p.target.layout;
     let bound_sets = std::cell::Cell::new(true);
-    let (layout, render_pass, pipeline) = p.fill;
     {
         let _restore = restore::Restore::new(d, cb, &restore_cmds, &sets, &bound_sets);
         // SAFETY: `cb` is the app's command buffer, recording outside any pass (its eye pass just
-        // ended); the target is the pass's attachment in `after`; every object of ours is held by
-        // the recording (`job.hold`, the temp's Arc, the framebuffers until the image dies).
+        // ended); the target is the pass's attachment in `p.target.layout`; every object of ours
+        // is held by the recording (the checkerboard data with the link's buffer, the temp's Arc
+        // below) or lives until the image dies (the framebuffers).
         unsafe {
-            // The pass's colour writes (and resolves) before the copy; earlier fills' reads of the
-            // temp before it is overwritten.
-            let mut first: Vec<vk::ImageMemoryBarrier> = p.framebuffers.iter().map(|(l, _)| barrier(image, range(*l), after, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::TRANSFER_READ)).collect();
-            first.push(barrier(temp.image, temp_range, vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::AccessFlags::empty(), vk::AccessFlags::TRANSFER_WRITE));
-            d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::FRAGMENT_SHADER, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &first);
-            let copy = |layer: u32, r: PixelRect| vk::ImageCopy {
-                src_subresource: layers_of(layer),
-                src_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
-                dst_subresource: layers_of(layer),
-                dst_offset: vk::Offset3D { x: r.x, y: r.y, z: 0 },
-                extent: vk::Extent3D { width: r.width, height: r.height, depth: 1 },
-            };
-            let regions: Vec<vk::ImageCopy> = match &job.eyes {
-                Eyes::Recorded(eyes) => eyes.iter().map(|e| copy(e.layer, e.params.rect.intersect(&whole))).collect(),
-                // Where the eyes are is known only at submission: the whole render area.
-                Eyes::Submitted { area } => p.framebuffers.iter().map(|(l, _)| copy(*l, area.intersect(&whole))).collect(),
-            };
-            let regions: Vec<vk::ImageCopy> = regions.into_iter().filter(|c| c.extent.width > 0 && c.extent.height > 0).collect();
-            d.fns.cmd_copy_image(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, temp.image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &regions);
-            let mut second: Vec<vk::ImageMemoryBarrier> = p
-                .framebuffers
-                .iter()
-                .map(|(l, _)| barrier(image, range(*l), vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::empty(), vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE))
-                .collect();
-            second.push(barrier(temp.image, temp_range, vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ));
-            d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &second);
-            for (li, (layer, fb)) in p.framebuffers.iter().enumerate() {
-                match &job.eyes {
-                    Eyes::Recorded(eyes) => {
-                        let here: Vec<(usize, &Pending)> = eyes.iter().enumerate().filter(|(_, e)| e.layer == *layer).collect();
-                        let Some(area) = here.iter().map(|(_, e)| e.params.rect.intersect(&whole)).reduce(|a, b| crate::track::flow::union(&a, &b)) else { continue };
-                        if area.area() == 0 {
-                            continue;
-                        }
-                        d.fns.cmd_begin_render_pass(cb, &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(*fb).render_area(inject::rect2d(area)), vk::SubpassContents::INLINE);
-                        d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
-                        d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[p.temp.set], &[]);
-                        for (i, e) in here {
-                            let r = e.params.rect;
-                            let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
-                            d.fns.cmd_set_viewport(cb, 0, &[vp]);
-                            d.fns.cmd_set_scissor(cb, 0, &[inject::rect2d(r.intersect(&whole))]);
-                            let pc = FillParams::of(e);
-                            d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, pc.bytes());
-                            d.fns.cmd_draw_indirect(cb, job.link.fill_args.buffer, inject::DRAW_ARGS * i as u64, 1, inject::DRAW_ARGS as u32);
-                        }
-                    }
-                    Eyes::Submitted { area } => {
-                        let area = area.intersect(&whole);
-                        if area.area() == 0 {
-                            continue;
-                        }
-                        d.fns.cmd_begin_render_pass(cb, &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(*fb).render_area(inject::rect2d(area)), vk::SubpassContents::INLINE);
-                        d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
-                        d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[p.temp.set], &[]);
-                        let vb = [job.link.fill_args.buffer];
-                        d.fns.cmd_bind_vertex_buffers(cb, 0, &vb, &[job.link.vertex_offset()]);
-                        let vp = vk::Viewport { x: 0.0, y: 0.0, width: width as f32, height: height as f32, min_depth: 0.0, max_depth: 1.0 };
-                        d.fns.cmd_set_viewport(cb, 0, &[vp]);
-                        d.fns.cmd_set_scissor(cb, 0, &[inject::rect2d(area)]);
-                        d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, &(*layer as i32).to_ne_bytes());
-                        for slot in 0..EYES_PER_LAYER {
-                            d.fns.cmd_draw_indirect(cb, job.link.fill_args.buffer, inject::DRAW_ARGS * (li * EYES_PER_LAYER + slot) as u64, 1, inject::DRAW_ARGS as u32);
-                        }
-                    }
-                }
-                d.fns.cmd_end_render_pass(cb);
-            }
+            record_fill(d, cb, &target, (temp.image, temp.key.3, p.temp.set), p.fill, draws);
             // Back to the app's layout; every later command (whatever the app synchronizes with
             // next, even only its pass's external dependency) waits for the fill.
             let last: Vec<vk::ImageMemoryBarrier> = p
                 .framebuffers
                 .iter()
-                .map(|(l, _)| barrier(image, range(*l), vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, after, vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE))
+                .map(|(l, _)| {
+                    layout_barrier(target.image, color_range(*l, 1), (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, p.target.layout), (vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE))
+                })
                 .collect();
             d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &last);
         }
