@@ -18,6 +18,8 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("rdm_fill.vert", "rdm_fill_buffer.vert.spv", &["-DFROM_BUFFER"]),
     ("rdm_fill.frag", "rdm_fill_buffer.frag.spv", &["-DFROM_BUFFER"]),
     ("rdm_recon.comp", "rdm_recon.comp.spv", &[]),
+    ("rdm_recon.comp", "rdm_recon_link.comp.spv", &["-DFROM_LINK"]),
+    ("rdm_recon.comp", "rdm_recon_link_half.comp.spv", &["-DFROM_LINK", "-DHALF"]),
     ("far_field.vert", "far_field.vert.spv", &[]),
     ("far_field.vert", "far_field_mv.vert.spv", &["-DMULTIVIEW"]),
     ("far_field.frag", "far_field.frag.spv", &[]),

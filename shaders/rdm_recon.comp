@@ -10,8 +10,8 @@
 // (`reconstruction_weight`, as rdm_fill.frag).
 //
 // `px` holds the eye's pixels (its rect within the image, row by row from `clip.xy`), copied out
-// of the swapchain image just before and copied back (the tiles) just after: 4-byte RGBA8 / BGRA8
-// texels as plain words, which a software rasterizer reads far faster than an image (no format
+// of the image just before and copied back (the tiles) just after: 4-byte RGBA8 / BGRA8 texels
+// as plain words (with HALF, RGBA16F texels as two words, unpacked as half floats), which a software rasterizer reads far faster than an image (no format
 // conversion per access; the channel order does not matter to a per-channel filter). Reads touch
 // only shaded pixels and writes only skipped ones, so the pass works in place without a hazard.
 // With an sRGB swapchain the filter works on linear values, as the fill's sRGB sampler and
@@ -25,10 +25,32 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
+// HALF: RGBA16F texels, two words each (an HDR target behind a post chain); otherwise one
+// RGBA8 / BGRA8 word per texel.
 layout(std430, set = 0, binding = 0) buffer Pixels {
     uint px[];
 };
 
+#ifdef FROM_LINK
+// At an eye pass's end (src/features/foveation/rdm/pass_end_compute.rs): one dispatch over every
+// eye's tiles, the eyes' parameters and tiles from the recording's link buffer, written when the
+// recording is made or, for a pass whose eyes are known only then, at each submission. A tile
+// word is x | y << 12 | eye << 24. No push constants: the app's compute push constants stay as
+// they were.
+struct Params {
+    ivec4 rect;
+    vec4 tanp;
+    vec4 fovea;
+    ivec4 misc;
+    ivec4 clip;
+};
+layout(std430, set = 0, binding = 1) readonly buffer Link {
+    uvec4 dispatch_args;   // read by vkCmdDispatchIndirect
+    Params eyes[8];
+    uint tiles[];
+};
+Params p;
+#else
 // Tiles of this dispatch from `misc.y`: x | y << 16, in tiles of the eye rect.
 layout(std430, set = 0, binding = 1) readonly buffer Tiles {
     uint tiles[];
@@ -38,9 +60,10 @@ layout(push_constant) uniform Params {
     ivec4 rect;   // x, y, width, height of the eye rect (image pixels)
     vec4 tanp;
     vec4 fovea;
-    ivec4 misc;   // first word of the eye in `px`, first tile of the eye in `tiles`, sRGB (1), unused
-    ivec4 clip;   // the rect within the image (image pixels): what `px` holds, rows of clip.z words
+    ivec4 misc;   // first texel of the eye in `px`, first tile of the eye in `tiles`, sRGB (1), unused
+    ivec4 clip;   // the rect within the image (image pixels): what `px` holds, rows of clip.z texels
 } p;
+#endif
 
 
 // sRGB → linear: the curve's linear segment exactly, above it ((c + 0.055) / 1.055)^2.4 as x² times
@@ -75,11 +98,16 @@ uint word_index(ivec2 pix) {
 }
 
 vec4 load(ivec2 pix) {
+#ifdef HALF
+    uint i = 2u * word_index(pix);
+    return vec4(unpackHalf2x16(px[i]), unpackHalf2x16(px[i + 1u]));
+#else
     vec4 c = unpackUnorm4x8(px[word_index(pix)]);
     if (p.misc.z == 1) {
         c.rgb = to_linear(c.rgb);
     }
     return c;
+#endif
 }
 
 // Writes pixel (px, py) of the quad at rect-relative pixel q2 (image pixel base): the weighted
@@ -91,10 +119,16 @@ void store(ivec2 q2, ivec2 base, int px_, int py, vec4 sum, float wsum) {
         return;
     }
     vec4 r = sum / wsum;
+#ifdef HALF
+    uint i = 2u * word_index(pix);
+    px[i] = packHalf2x16(r.xy);
+    px[i + 1u] = packHalf2x16(r.zw);
+#else
     if (p.misc.z == 1) {
         r.rgb = to_srgb(r.rgb);
     }
     px[word_index(pix)] = packUnorm4x8(r);
+#endif
 }
 
 // Fills quad q (rect-relative quad coordinates) when the rule skipped it.
@@ -139,8 +173,14 @@ void quad(ivec2 q) {
 }
 
 void main() {
+#ifdef FROM_LINK
+    uint t = tiles[gl_WorkGroupID.x];
+    p = eyes[t >> 24];
+    ivec2 q0 = ivec2(int(t & 0xfffu), int((t >> 12) & 0xfffu)) * 16;
+#else
     uint t = tiles[uint(p.misc.y) + gl_WorkGroupID.x];
     ivec2 q0 = ivec2(int(t & 0xffffu), int(t >> 16)) * 16;
+#endif
     // Each invocation takes 2×2 quads of the 16×16-quad tile, a row of invocations every other
     // quad, so neighbouring SIMD lanes hold quads of one parity (the same skip pattern within a
     // ring); 4 quads per invocation make 4× fewer workgroups, each of which a software rasterizer

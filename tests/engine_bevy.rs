@@ -77,6 +77,9 @@ fn same_frames(tag: &str, args: &[&str]) -> Option<LayerCounts> {
     assert_eq!(counts.passes_masked, eye_passes, "bevy-{tag}: every eye pass of the compared frames masked: {counts:?}");
     assert_eq!(counts.rdm_passes, eye_passes, "bevy-{tag}: RDM in every eye pass, reconstructed when it ends: {counts:?}");
     assert!(!counts.rdm_not_applied.contains_key("post_chain"), "bevy-{tag}: {counts:?}");
+    // Reconstructed by the compute pass over periphery tiles (Bevy's main textures are 8-bit sRGB
+    // or, with HDR, 16-bit float), not the fragment fill.
+    assert_eq!(counts.rdm_compute, eye_passes, "bevy-{tag}: every eye reconstructed by the compute pass: {counts:?}");
     assert!(counts.far_field_views_reused > 0, "bevy-{tag}: the far field reused nothing: {counts:?}");
     // Bevy submits no depth info and nothing is configured: the range is the engine's default.
     assert!(!layered.out.log_lines("far field depth range: the engine's documented default").is_empty(), "bevy-{tag}: the depth range's source:\n{}", layered.out.log);

@@ -58,9 +58,12 @@ fn every_eye_pass_behind_a_post_chain_is_foveated_and_reconstructed_at_its_end()
             let reconstructed: u64 = rdm["reconstructed"].as_object().map_or(0, |m| m.values().filter_map(|v| v.as_u64()).sum());
             assert_eq!(reconstructed, 2, "{}: frame {f}: both views reconstructed: {r}", mode.name);
             // Without a post chain (the double-wide texture alone, blitted into the swapchain)
-            // the reconstruction runs at the release, as for any transfer.
+            // the reconstruction runs at the release, as for any transfer. Behind one it runs at
+            // the pass's end, as the compute pass over periphery tiles (the RGBA16F scene target
+            // has a compute storage, and the layer gave it TRANSFER_SRC | TRANSFER_DST).
             if mode.has("--post") {
-                assert_eq!(rdm["fill_fallback"]["pass_end"].as_u64(), Some(2), "{}: frame {f}: both eyes reconstructed at their pass's end: {r}", mode.name);
+                assert_eq!(rdm["compute"].as_u64(), Some(2), "{}: frame {f}: both eyes reconstructed by the compute pass at their pass's end: {r}", mode.name);
+                assert!(rdm["fill_fallback"].as_object().is_none_or(|m| m.is_empty()), "{}: frame {f}: no fill: {r}", mode.name);
             }
             // The post passes themselves count as such; nothing else is left alone.
             let others = rdm["not_applied"].as_object().map_or(0, |m| m.iter().filter(|(k, _)| !["post_pass", "eye_unknown", "no_depth_attachment"].contains(&k.as_str())).count());
@@ -72,13 +75,17 @@ fn every_eye_pass_behind_a_post_chain_is_foveated_and_reconstructed_at_its_end()
 /// Behind a per-pixel tonemap (single-sampled and 4× MSAA with the pass's own resolve), in each
 /// layout: the kept quads and the inner ring reach the runtime bit-identical, the scene pass's
 /// shaded fragments drop by exactly what the skipped pixels had, and the reconstructed periphery
-/// (filled in HDR, then tonemapped) keeps ≥ 30 dB.
+/// (filled in HDR, then tonemapped) keeps ≥ 30 dB — by the compute pass, and by the fragment fill
+/// (`foveation.rdm_reconstruction = "fill"`, the fallback for formats the compute pass cannot
+/// read), which reconstruct the same pixels.
 #[test]
 fn behind_a_tonemap_the_fovea_is_identical_and_the_fragments_drop() {
     let (inner_deg, middle_deg) = rdm::preset("balanced");
     let expected = Expected { center: [0.0, 0.0], inner_deg, middle_deg, with_mask: false };
-    for (layout, rendering, samples) in [("per-eye", "render-pass", "1"), ("multiview", "dynamic", "4"), ("side-by-side", "render-pass2", "1"), ("per-eye", "dynamic", "4")] {
-        let name = format!("rdm-post-{layout}-{rendering}-s{samples}");
+    let runs = [("per-eye", "render-pass", "1", "auto"), ("multiview", "dynamic", "4", "auto"), ("side-by-side", "render-pass2", "1", "auto"), ("per-eye", "dynamic", "4", "auto"), ("side-by-side", "dynamic", "4", "fill"), ("multiview", "render-pass", "1", "fill")];
+    let mut psnr: Vec<(String, u32, f64)> = Vec::new();
+    for (layout, rendering, samples, reconstruction) in runs {
+        let name = format!("rdm-post-{layout}-{rendering}-s{samples}-{reconstruction}");
         let args = ["--layout", layout, "--rendering", rendering, "--post", "tonemap", "--samples", samples];
         let base = Run::new(&name).args(args).pixel_stats().env("MOCK_XR_EYE_TRACKER", "0").env("MOCK_XR_EXIT_AFTER", "3");
         let plain = base.clone().run();
@@ -87,6 +94,7 @@ fn behind_a_tonemap_the_fovea_is_identical_and_the_fragments_drop() {
         for (k, v) in &rdm_config().env {
             layered = layered.env(k, v);
         }
+        layered = layered.env("STEREOSHIM_FOVEATION_RDM_RECONSTRUCTION", reconstruction);
         layered.name = format!("{name}-rdm");
         let out = layered.run();
         out.assert_ok();
@@ -95,6 +103,15 @@ fn behind_a_tonemap_the_fovea_is_identical_and_the_fragments_drop() {
             assert!(r.skipped > 0, "{name} view {}: nothing skipped", r.view);
             assert_eq!(r.shaded_drop, r.skipped_fragments, "{name} view {}: shaded fragments dropped by {}, the skipped pixels had {}", r.view, r.shaded_drop, r.skipped_fragments);
             assert!(r.psnr_db >= 30.0, "{name} view {}: periphery PSNR {:.2} dB < 30", r.view, r.psnr_db);
+            psnr.push((name.clone(), r.view, r.psnr_db));
         }
+        let want = if reconstruction == "fill" { "the fragment fill reconstructs" } else { "radial density masking" };
+        assert!(out.log.contains(want), "{name}: the log does not say {want:?}:\n{}", out.log);
+        if reconstruction == "auto" {
+            assert!(!out.log.contains("the fragment fill reconstructs"), "{name}: the compute pass should reconstruct:\n{}", out.log);
+        }
+    }
+    for (name, view, db) in &psnr {
+        eprintln!("{name} view {view}: periphery {db:.2} dB");
     }
 }

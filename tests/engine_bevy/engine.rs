@@ -273,6 +273,8 @@ pub struct LayerCounts {
     pub frames_with_vulkan_half: u64,
     pub passes_masked: u64,
     pub rdm_passes: u64,
+    /// Eyes RDM's compute pass reconstructed (at the main pass's end).
+    pub rdm_compute: u64,
     /// Views whose far field was filled from the other eye.
     pub far_field_views_reused: u64,
     pub not_masked: BTreeMap<String, u64>,
@@ -293,6 +295,7 @@ pub fn layer_counts(stats: &[Value], frames: std::ops::Range<u64>) -> LayerCount
         c.frames_with_vulkan_half += u64::from(s["vulkan_half"].as_bool() == Some(true));
         c.passes_masked += s["passes_masked"].as_u64().unwrap_or(0);
         c.rdm_passes += s["rdm"]["passes"].as_u64().unwrap_or(0);
+        c.rdm_compute += s["rdm"]["compute"].as_u64().unwrap_or(0);
         c.far_field_views_reused += s["far_field"]["views_reused"].as_object().map_or(0, |m| m.values().filter_map(Value::as_u64).sum());
         add(&mut c.not_masked, &s["not_masked"]);
         add(&mut c.rdm_not_applied, &s["rdm"]["not_applied"]);

@@ -23,11 +23,40 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 static RECON: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_recon.comp.spv"));
+static RECON_LINK: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_recon_link.comp.spv"));
+static RECON_LINK_HALF: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdm_recon_link_half.comp.spv"));
 
-/// Push constants of shaders/rdm_recon.comp.
+/// Which variant of `shaders/rdm_recon.comp`: at a swapchain image's release (8-bit texels,
+/// parameters pushed per eye; `rules::compute_path`) or at an eye pass's end (`FROM_LINK`:
+/// parameters and tiles in the recording's link buffer, one indirect dispatch, no push
+/// constants), for 8-bit or 16-bit float texels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(super) enum Shader {
+    Release,
+    Link(ComputeStorage),
+}
+
+impl Shader {
+    fn spirv(self) -> &'static [u8] {
+        match self {
+            Shader::Release => RECON,
+            Shader::Link(ComputeStorage::Rgba8 { .. }) => RECON_LINK,
+            Shader::Link(ComputeStorage::Rgba16F) => RECON_LINK_HALF,
+        }
+    }
+    /// sRGB or not is a parameter of the shader, not a variant.
+    fn key(self) -> Shader {
+        match self {
+            Shader::Link(ComputeStorage::Rgba8 { .. }) => Shader::Link(ComputeStorage::Rgba8 { srgb: false }),
+            other => other,
+        }
+    }
+}
+
+/// Push constants of shaders/rdm_recon.comp; at a pass's end, an eye of the link buffer.
 #[repr(C)]
-#[derive(Clone, Copy)]
-struct ReconParams {
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct ReconParams {
     rect: [i32; 4],
     tan: [f32; 4],
     fovea: [f32; 4],
@@ -38,12 +67,33 @@ struct ReconParams {
     clip: [i32; 4],
 }
 
-/// The compute pass's shared objects of one device, made on first use.
+impl ReconParams {
+    /// Eye `p`, whose pixels are `clip` of the image from texel `first_texel` of the pixel
+    /// buffer and whose tiles start at `first_tile` (release path; the link's tiles name their eye).
+    pub(super) fn of(p: &Pending, storage: ComputeStorage, clip: PixelRect, first_texel: u64, first_tile: i32) -> ReconParams {
+        let (r, q) = (p.params.rect, &p.params);
+        ReconParams {
+            rect: [r.x, r.y, r.width as i32, r.height as i32],
+            tan: [q.tan_left, q.tan_up, q.step_x, q.step_y],
+            fovea: [q.center[0], q.center[1], q.k_inner, q.k_middle],
+            misc: [first_texel as i32, first_tile, storage.srgb() as i32, 0],
+            clip: [clip.x, clip.y, clip.width as i32, clip.height as i32],
+        }
+    }
+    pub(super) fn bytes(&self) -> &[u8] {
+        // SAFETY: a repr(C) struct of 4-byte fields without padding, read as its bytes.
+        unsafe { std::slice::from_raw_parts(self as *const ReconParams as *const u8, std::mem::size_of::<ReconParams>()) }
+    }
+}
+
+/// The compute pass's shared objects of one device, made on first use: one set layout (pixels,
+/// tiles or link), a pipeline layout with the release's push constants and one without, and a
+/// pipeline per shader variant.
 pub(super) struct ComputeObjects {
     set_layout: vk::DescriptorSetLayout,
     layout: vk::PipelineLayout,
-    module: vk::ShaderModule,
-    pipeline: vk::Pipeline,
+    plain_layout: vk::PipelineLayout,
+    pipelines: HashMap<Shader, (vk::ShaderModule, vk::Pipeline)>,
 }
 
 /// Per device: the objects and the tile lists of recent eyes (the rule's parameters change with
@@ -80,7 +130,7 @@ fn tile_key(p: &RdmParams, clip: PixelRect) -> TileKey {
 }
 
 impl Compute {
-    fn tiles_of(&self, p: &RdmParams, clip: PixelRect) -> Arc<Vec<u32>> {
+    pub(super) fn tiles_of(&self, p: &RdmParams, clip: PixelRect) -> Arc<Vec<u32>> {
         let key = tile_key(p, clip);
         if let Some(t) = lock(&self.tiles).get(&key) {
             return t.clone();
@@ -111,9 +161,12 @@ impl Compute {
 unsafe fn destroy_objects(d: &DeviceState, o: ComputeObjects) {
     // SAFETY: per the contract.
     unsafe {
-        d.fns.destroy_pipeline(o.pipeline, None);
-        d.fns.destroy_shader_module(o.module, None);
+        for (module, pipeline) in o.pipelines.into_values() {
+            d.fns.destroy_pipeline(pipeline, None);
+            d.fns.destroy_shader_module(module, None);
+        }
         d.fns.destroy_pipeline_layout(o.layout, None);
+        d.fns.destroy_pipeline_layout(o.plain_layout, None);
         d.fns.destroy_descriptor_set_layout(o.set_layout, None);
     }
 }
@@ -146,7 +199,7 @@ impl SlotData {
 /// its compilation (over a second on a CPU implementation) falls on the session's first frame,
 /// not on a later image release in the middle of the app's frame pacing.
 pub(super) fn warm(d: &DeviceState) {
-    if let Err(e) = objects(d) {
+    if let Err(e) = objects(d, Shader::Release) {
         // A failure of the layer's own objects is never silent (issue 11: tests/faults_vk.rs
         // found this one logged only at DEBUG): WARN once, DEBUG after; the reconstruction tries
         // again when it needs the pipeline, and a failure there turns it off for that image
@@ -164,7 +217,7 @@ pub(super) fn warm(d: &DeviceState) {
 /// made ahead of the checkerboard (`reconstruct::ready`), so a failure skips RDM for the pass
 /// instead of leaving its holes unreconstructed at the image's release.
 pub(super) fn ready(d: &DeviceState, data: &mut SlotData, descriptor_pool: vk::DescriptorPool) -> Result<(), Failure> {
-    let (_, set_layout, _) = objects(d).map_err(|e| (NotApplied::LayerError, format!("compute pipeline: {e}")))?;
+    let (_, set_layout, _) = objects(d, Shader::Release).map_err(|e| (NotApplied::LayerError, format!("compute pipeline: {e}")))?;
     if data.set == vk::DescriptorSet::null() {
         let layouts = [set_layout];
         // SAFETY: the slot's pool has room for this one compute set (see `new_slot`).
@@ -174,35 +227,65 @@ pub(super) fn ready(d: &DeviceState, data: &mut SlotData, descriptor_pool: vk::D
     Ok(())
 }
 
-/// (pipeline layout, pipeline), made on first use.
-fn objects(d: &DeviceState) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::Pipeline), String> {
+/// (pipeline layout, set layout, pipeline) of `shader`, made on first use.
+pub(super) fn objects(d: &DeviceState, shader: Shader) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::Pipeline), String> {
+    let shader = shader.key();
     let objects = &d.features.rdm.reconstruct.compute.objects;
-    let made = lock(objects).as_ref().map(|o| (o.layout, o.set_layout, o.pipeline));
-    if let Some(made) = made {
-        return Ok(made);
-    }
+    let layout_of = |o: &ComputeObjects| if shader == Shader::Release { o.layout } else { o.plain_layout };
+    let made = lock(objects).as_ref().map(|o| (layout_of(o), o.set_layout, o.pipelines.get(&shader).map(|p| p.1)));
     // Made with no lock held: the calls go down the chain, and what is below may call back into
     // the layer. A thread that loses the race to another destroys its own.
-    let new = create_objects(d)?;
+    let (layout, set_layout) = match made {
+        Some((layout, set_layout, Some(pipeline))) => return Ok((layout, set_layout, pipeline)),
+        Some((layout, set_layout, None)) => (layout, set_layout),
+        None => {
+            let new = create_layouts(d)?;
+            let mut guard = lock(objects);
+            match guard.as_ref() {
+                Some(existing) => {
+                    let kept = (layout_of(existing), existing.set_layout);
+                    drop(guard);
+                    // SAFETY: ours, never used.
+                    unsafe { destroy_objects(d, new) };
+                    kept
+                }
+                None => {
+                    let kept = (layout_of(&new), new.set_layout);
+                    *guard = Some(new);
+                    kept
+                }
+            }
+        }
+    };
+    let (module, pipeline) = create_pipeline(d, shader.spirv(), layout)?;
     let mut guard = lock(objects);
-    if let Some(o) = guard.as_ref() {
-        let existing = (o.layout, o.set_layout, o.pipeline);
+    let Some(o) = guard.as_mut() else {
+        drop(guard);
+        // SAFETY: ours, never used; the device's objects went meanwhile (vkDestroyDevice).
+        unsafe {
+            d.fns.destroy_pipeline(pipeline, None);
+            d.fns.destroy_shader_module(module, None);
+        }
+        return Err("the device is being destroyed".into());
+    };
+    if let Some(&(_, existing)) = o.pipelines.get(&shader) {
         drop(guard);
         // SAFETY: ours, never used.
-        unsafe { destroy_objects(d, new) };
-        return Ok(existing);
+        unsafe {
+            d.fns.destroy_pipeline(pipeline, None);
+            d.fns.destroy_shader_module(module, None);
+        }
+        return Ok((layout, set_layout, existing));
     }
-    let made = (new.layout, new.set_layout, new.pipeline);
-    *guard = Some(new);
-    Ok(made)
+    o.pipelines.insert(shader, (module, pipeline));
+    Ok((layout, set_layout, pipeline))
 }
 
-fn create_objects(d: &DeviceState) -> Result<ComputeObjects, String> {
+/// The set layout and both pipeline layouts.
+fn create_layouts(d: &DeviceState) -> Result<ComputeObjects, String> {
     let binding = |b: u32| vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE);
     let bindings = [binding(0), binding(1)];
-    let words = ash::util::read_spv(&mut std::io::Cursor::new(RECON)).map_err(|e| e.to_string())?;
-    // SAFETY: valid create infos on our device (SPIR-V 1.0 compiled at build time, nothing beyond
-    // Vulkan 1.0 core); on failure what was made is destroyed.
+    // SAFETY: valid create infos on our device; on failure what was made is destroyed.
     unsafe {
         let set_layout = d.fns.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(|e| e.to_string())?;
         let set_layouts = [set_layout];
@@ -214,30 +297,37 @@ fn create_objects(d: &DeviceState) -> Result<ComputeObjects, String> {
                 return Err(e.to_string());
             }
         };
-        let made = d.fns.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None).map_err(|e| e.to_string()).and_then(|module| {
-            let stage = vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::COMPUTE).module(module).name(c"main");
-            let info = vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout);
-            match d.fns.create_compute_pipelines(vk::PipelineCache::null(), &[info], None) {
-                Ok(p) => Ok((module, p[0])),
-                Err((_, e)) => {
-                    d.fns.destroy_shader_module(module, None);
-                    Err(e.to_string())
-                }
-            }
-        });
-        match made {
-            Ok((module, pipeline)) => Ok(ComputeObjects { set_layout, layout, module, pipeline }),
+        match d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts), None) {
+            Ok(plain_layout) => Ok(ComputeObjects { set_layout, layout, plain_layout, pipelines: HashMap::new() }),
             Err(e) => {
                 d.fns.destroy_pipeline_layout(layout, None);
                 d.fns.destroy_descriptor_set_layout(set_layout, None);
-                Err(e)
+                Err(e.to_string())
+            }
+        }
+    }
+}
+
+fn create_pipeline(d: &DeviceState, spirv: &[u8], layout: vk::PipelineLayout) -> Result<(vk::ShaderModule, vk::Pipeline), String> {
+    let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv)).map_err(|e| e.to_string())?;
+    // SAFETY: valid create infos on our device (SPIR-V 1.0 compiled at build time, nothing beyond
+    // Vulkan 1.0 core); on failure the module is destroyed.
+    unsafe {
+        let module = d.fns.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None).map_err(|e| e.to_string())?;
+        let stage = vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::COMPUTE).module(module).name(c"main");
+        let info = vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout);
+        match d.fns.create_compute_pipelines(vk::PipelineCache::null(), &[info], None) {
+            Ok(p) => Ok((module, p[0])),
+            Err((_, e)) => {
+                d.fns.destroy_shader_module(module, None);
+                Err(e.to_string())
             }
         }
     }
 }
 
 /// A device-local buffer for `size` bytes of pixels (copy target and source, storage).
-fn pixel_buffer(d: &DeviceState, size: u64) -> Result<(vk::Buffer, vk::DeviceMemory, u64), Failure> {
+pub(super) fn pixel_buffer(d: &DeviceState, size: u64) -> Result<(vk::Buffer, vk::DeviceMemory, u64), Failure> {
     let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST;
     let info = vk::BufferCreateInfo::default().size(size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
     // SAFETY: valid create / allocate infos on our device; failures destroy what was made.
@@ -312,7 +402,12 @@ pub(super) fn record(
     (width, height): (u32, u32),
     eyes: &[Pending],
 ) -> Result<u64, Failure> {
-    let (layout, set_layout, pipeline) = objects(d).map_err(|e| (NotApplied::LayerError, e))?;
+    if storage.texel_bytes() != 4 {
+        // `rules::compute_path` sends only 8-bit swapchains here.
+        return Err((NotApplied::LayerError, format!("{storage:?} texels at the release")));
+    }
+    let (layout, set_layout, pipeline) = objects(d, Shader::Release).map_err(|e| (NotApplied::LayerError, e))?;
+    let texel = storage.texel_bytes();
     let whole = PixelRect { x: 0, y: 0, width, height };
     let me = &d.features.rdm.reconstruct.compute;
     let lists: Vec<Arc<Vec<u32>>> = eyes.iter().map(|p| me.tiles_of(&p.params, whole)).collect();
@@ -325,7 +420,7 @@ pub(super) fn record(
         words += c.area();
     }
     let total: usize = lists.iter().map(|l| l.len()).sum();
-    prepare(d, data, descriptor_pool, set_layout, words.max(1) * 4, (total.max(1) * 4) as u64)?;
+    prepare(d, data, descriptor_pool, set_layout, words.max(1) * texel, (total.max(1) * 4) as u64)?;
     let tiles_buf = data.tiles.as_ref().expect("prepared");
     let mut firsts = Vec::with_capacity(lists.len());
     let mut offset = 0u64;
@@ -359,7 +454,7 @@ pub(super) fn record(
     let region = |i: usize, r: PixelRect| {
         let c = clips[i];
         vk::BufferImageCopy {
-            buffer_offset: 4 * (bases[i] + (r.y - c.y) as u64 * c.width as u64 + (r.x - c.x) as u64),
+            buffer_offset: texel * (bases[i] + (r.y - c.y) as u64 * c.width as u64 + (r.x - c.x) as u64),
             buffer_row_length: c.width,
             buffer_image_height: 0,
             image_subresource: vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: eyes[i].layer, layer_count: 1 },
@@ -390,21 +485,12 @@ pub(super) fn record(
         fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::COMPUTE_SHADER, vk::DependencyFlags::empty(), &[], &[buffer_barrier(vk::AccessFlags::TRANSFER_WRITE, rw)], &[]);
         fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, pipeline);
         fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &[data.set], &[]);
-        let ComputeStorage::Rgba8 { srgb } = storage;
         for (i, (p, l)) in eyes.iter().zip(&lists).enumerate() {
             if l.is_empty() || clips[i].area() == 0 {
                 continue;
             }
-            let (r, c) = (p.params.rect, clips[i]);
-            let pc = ReconParams {
-                rect: [r.x, r.y, r.width as i32, r.height as i32],
-                tan: [p.params.tan_left, p.params.tan_up, p.params.step_x, p.params.step_y],
-                fovea: [p.params.center[0], p.params.center[1], p.params.k_inner, p.params.k_middle],
-                misc: [bases[i] as i32, firsts[i], srgb as i32, 0],
-                clip: [c.x, c.y, c.width as i32, c.height as i32],
-            };
-            let bytes = std::slice::from_raw_parts(&pc as *const ReconParams as *const u8, std::mem::size_of::<ReconParams>());
-            fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, bytes);
+            let pc = ReconParams::of(p, storage, clips[i], bases[i], firsts[i]);
+            fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, pc.bytes());
             fns.cmd_dispatch(cb, l.len() as u32, 1, 1);
         }
         // The shader's writes before the copy back; the copy-in's reads of the image before the
@@ -428,7 +514,7 @@ pub(super) fn record(
 
 /// The pixel rects the tiles of one eye cover within `clip`, a run of neighbouring tiles of a
 /// row merged into one (the list is in row order).
-fn tile_spans(p: &RdmParams, tiles: &[u32], clip: PixelRect) -> Vec<PixelRect> {
+pub(super) fn tile_spans(p: &RdmParams, tiles: &[u32], clip: PixelRect) -> Vec<PixelRect> {
     let tile_px = 2 * super::rules::TILE_QUADS as i32;
     let mut out = Vec::new();
     let mut run: Option<(u32, u32, u32)> = None;

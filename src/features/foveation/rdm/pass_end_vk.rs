@@ -1,9 +1,10 @@
 //! Radial density masking's reconstruction at the end of an eye pass whose target a post chain
 //! reads (`pass_end` says which image and layout): recorded into the app's command buffer right
-//! after the pass, so no tonemap, bloom or TAA ever samples the checkerboard. The eye rects are
-//! copied into a layer temp image, and the full-screen fill (`fill`, `shaders/rdm_fill.frag`)
-//! draws the skipped quads back from it; then the image returns to the layout the app left it in,
-//! behind a barrier every later command waits for.
+//! after the pass, so no tonemap, bloom or TAA ever samples the checkerboard: by the compute pass
+//! over periphery tiles (`pass_end_compute`) where the target's format and usage allow, else the
+//! eye rects are copied into a layer temp image and the full-screen fill (`fill`,
+//! `shaders/rdm_fill.frag`) draws the skipped quads back from it. Then the image returns to the
+//! layout the app left it in, behind a barrier every later command waits for.
 //!
 //! The checkerboard and the fill are one unit: both are indirect draws whose arguments the
 //! recording's buffers hold, written for the rule's parameters the fill was recorded with
@@ -12,6 +13,7 @@
 
 use super::fill::{color_range, fill_objects_for, layout_barrier, make_temp, record_fill, FillDraws, FillSource, FillTarget, FillVertex, Temp, EYES_PER_LAYER};
 use super::pass_end::{self, PassEndTarget};
+use super::pass_end_compute::{self, EyesAt, LinkCompute};
 use super::rules::{NotApplied, Pending};
 use super::vk::{lock, log_once, RdmDevice};
 use crate::core::rect::PixelRect;
@@ -25,10 +27,11 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
-/// What ties a recording's checkerboard to its fill at the pass's end.
+/// What ties a recording's checkerboard to its reconstruction at the pass's end.
 pub(super) struct Link {
     /// The fill's indirect draws (`slots` of them), then — for a pass planned at submission — its
-    /// vertices (`FillVertex`, three per eye).
+    /// vertices (`FillVertex`, three per eye); for the compute pass, its dispatch, eyes and tiles
+    /// (`pass_end_compute`).
     pub(super) fill_args: PooledBuffer,
     pub(super) slots: usize,
     /// Recorded with the pass: (foveation generation, views generation) and the eyes the fill's
@@ -40,28 +43,58 @@ pub(super) struct Link {
     /// The fill was recorded after the pass (`record`): until then, and if it never is, the
     /// checkerboard draws nothing.
     pub(super) recorded: AtomicBool,
+    /// The compute pass's side, where it reconstructs instead of the fill.
+    compute: Option<LinkCompute>,
 }
 
 impl Link {
-    /// A link for eyes known at recording (`frozen`).
-    pub(super) fn recorded(fill_args: PooledBuffer, frozen: ((u64, u64), Vec<EyeDraw>)) -> Link {
-        let slots = frozen.1.len();
-        Link { fill_args, slots, frozen: Some(frozen), layers: Vec::new(), recorded: AtomicBool::new(false) }
+    /// The link of `prepared`'s reconstruction of `eyes`; `frozen`: the generations and eyes the
+    /// checkerboard is recorded for (eyes known at recording). Off until armed.
+    pub(super) fn new(me: &RdmDevice, d: &DeviceState, prepared: &Prepared, eyes: &Eyes, frozen: Option<((u64, u64), Vec<EyeDraw>)>) -> Result<Arc<Link>, NotApplied> {
+        let (slots, layers) = match eyes {
+            Eyes::Recorded(list) => (list.len(), Vec::new()),
+            Eyes::Submitted { layers, .. } => (layers.len() * EYES_PER_LAYER, layers.clone()),
+        };
+        let size = match &prepared.how {
+            How::Compute(c) => pass_end_compute::link_size(c),
+            How::Fill { .. } => Link::size(slots, matches!(eyes, Eyes::Submitted { .. })),
+        };
+        let fail = |what: &'static str, e: String| {
+            d.warn_repeated(what, &e);
+            NotApplied::LayerError
+        };
+        let fill_args = PooledBuffer::take(d, size, &me.memory).map_err(|e| fail("rdm pass-end arguments", e))?;
+        let compute = match &prepared.how {
+            How::Compute(c) => {
+                let recorded = match eyes {
+                    Eyes::Recorded(list) => Some(list.as_slice()),
+                    Eyes::Submitted { .. } => None,
+                };
+                Some(pass_end_compute::link(me, d, c, &fill_args, recorded).map_err(|e| fail("rdm pass-end compute link", e))?)
+            }
+            How::Fill { .. } => None,
+        };
+        let link = Link { fill_args, slots, frozen, layers, recorded: AtomicBool::new(false), compute };
+        link.arm(false);
+        Ok(Arc::new(link))
     }
-    /// A link for eyes known only at submission, in `layers` of the target.
-    pub(super) fn submitted(fill_args: PooledBuffer, layers: Vec<u32>) -> Link {
-        Link { fill_args, slots: layers.len() * EYES_PER_LAYER, frozen: None, layers, recorded: AtomicBool::new(false) }
+    /// Whether the compute pass reconstructs (else the fill).
+    pub(super) fn is_compute(&self) -> bool {
+        self.compute.is_some()
     }
     /// The buffer size a link of `slots` draws (and, planned at submission, two eyes' vertices)
     /// needs.
-    pub(super) fn size(slots: usize, submitted: bool) -> u64 {
+    fn size(slots: usize, submitted: bool) -> u64 {
         inject::DRAW_ARGS * slots as u64 + if submitted { (EYES_PER_LAYER * 3 * std::mem::size_of::<FillVertex>()) as u64 } else { 0 }
     }
     fn vertex_offset(&self) -> u64 {
         inject::DRAW_ARGS * self.slots as u64
     }
-    /// The fill's draws on (`on`, one full-screen triangle per eye) or off.
+    /// The fill's draws (one full-screen triangle per eye) or the dispatch on (`on`) or off.
     pub(super) fn arm(&self, on: bool) {
+        if let Some(c) = &self.compute {
+            return c.arm(&self.fill_args, on && self.frozen.is_some());
+        }
         let args = vk::DrawIndirectCommand { vertex_count: if on && self.frozen.is_some() { 3 } else { 0 }, instance_count: 1, first_vertex: 0, first_instance: 0 };
         self.fill_args.write(0, &vec![args; self.slots]);
     }
@@ -71,7 +104,10 @@ impl Link {
     }
     /// Planned at submission: the fill draws `eyes` (their triangles and parameters), each in its
     /// layer's framebuffer; false (nothing drawn) when an eye has no slot.
-    pub(super) fn fill_submitted(&self, eyes: &[Pending]) -> bool {
+    pub(super) fn fill_submitted(&self, me: &RdmDevice, eyes: &[Pending]) -> bool {
+        if let Some(c) = &self.compute {
+            return c.fill_submitted(me, &self.fill_args, eyes);
+        }
         let mut args = vec![vk::DrawIndirectCommand::default(); self.slots];
         let mut vertices = Vec::new();
         let mut used = vec![0usize; self.layers.len()];
@@ -109,10 +145,12 @@ impl Drop for SharedTemp {
     }
 }
 
-/// The pass-end objects of a device: temps by shape, and views + framebuffers of the app's
-/// targets by (image, layer) — destroyed with the image (the app waits for its work first).
+/// The pass-end objects of a device: the compute pass's pixel buffer, the fill's temps by shape,
+/// and views + framebuffers of the app's targets by (image, layer) — destroyed with the image
+/// (the app waits for its work first).
 #[derive(Default)]
 pub(super) struct PassEndObjects {
+    pub(super) pixels: Option<Arc<pass_end_compute::SharedPixels>>,
     temps: HashMap<(vk::Format, u32, u32, u32), Arc<SharedTemp>>,
     framebuffers: HashMap<(u64, u32), (vk::ImageView, vk::Framebuffer)>,
 }
@@ -121,11 +159,19 @@ pub(super) struct PassEndObjects {
 pub(super) struct Prepared {
     target: PassEndTarget,
     extent: (u32, u32),
-    temp: Arc<SharedTemp>,
-    /// (layer, framebuffer of the target's layer for the fill's render pass).
-    framebuffers: Vec<(u32, vk::Framebuffer)>,
-    /// The fill's pipeline layout, render pass and pipeline for the target's format.
-    fill: (vk::PipelineLayout, vk::RenderPass, vk::Pipeline),
+    how: How,
+}
+
+/// Which reconstruction, with its objects.
+enum How {
+    Compute(pass_end_compute::Prepared),
+    Fill {
+        temp: Arc<SharedTemp>,
+        /// (layer, framebuffer of the target's layer for the fill's render pass).
+        framebuffers: Vec<(u32, vk::Framebuffer)>,
+        /// The fill's pipeline layout, render pass and pipeline for the target's format.
+        fill: (vk::PipelineLayout, vk::RenderPass, vk::Pipeline),
+    },
 }
 
 /// A reconstruction waiting for its pass's end in a command buffer.
@@ -139,9 +185,9 @@ pub(super) struct Job {
 pub(super) enum Eyes {
     /// Known at recording: each eye's rect is copied, and its parameters pushed with its draw.
     Recorded(Vec<Pending>),
-    /// Known at each submission: the render area of every layer is copied, and the fill's
-    /// draws and parameters come from the link's buffer.
-    Submitted { area: PixelRect },
+    /// Known at each submission: the render area of every layer in `layers` is copied, and the
+    /// reconstruction's eyes come from the link's buffer.
+    Submitted { area: PixelRect, layers: Vec<u32> },
 }
 
 struct Views<'a>(&'a DeviceState);
@@ -165,9 +211,9 @@ pub(super) fn pass_layers(d: &DeviceState, pass: &crate::track::cmd::PassInstanc
     (view.range.base_array_layer..view.range.base_array_layer + n).collect()
 }
 
-/// Everything a pass-end reconstruction into `layers` (of `eye_image`'s pass `pass`) needs, made
-/// now, while the pass is open: the checkerboard goes in only if this succeeds.
-pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64, layers_wanted: &[u32], source: FillSource) -> Result<Prepared, NotApplied> {
+/// Everything a pass-end reconstruction of `eyes` (in `eye_image`'s pass `pass`) needs, made now,
+/// while the pass is open: the checkerboard goes in only if this succeeds.
+pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64, eyes: &Eyes) -> Result<Prepared, NotApplied> {
     let target = pass_end::target(pass, eye_image, &Views(d))?;
     let image = d.track.images.get(target.view.image).ok_or(NotApplied::TargetUsage)?;
     if !pass_end::usage_ok(image.usage) || target.view.range.base_mip_level != 0 || image.extent.depth > 1 {
@@ -175,26 +221,35 @@ pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd:
     }
     let (width, height, layers) = (image.extent.width, image.extent.height, image.array_layers.max(1));
     let format = image.format;
+    let (mut layer_list, source, at) = match eyes {
+        Eyes::Recorded(list) => (list.iter().map(|p| p.layer).collect::<Vec<u32>>(), FillSource::PushConstants, EyesAt::Recorded(list)),
+        Eyes::Submitted { area, layers } => (layers.clone(), FillSource::VertexBuffer, EyesAt::Submitted { area: *area, layers }),
+    };
+    layer_list.sort_unstable();
+    layer_list.dedup();
+    if layer_list.is_empty() || layer_list.iter().any(|&l| l >= layers) {
+        return Err(NotApplied::TargetUsage);
+    }
+    let compute = if d.settings().foveation.rdm_reconstruction == crate::features::foveation::Reconstruction::Fill {
+        Err("foveation.rdm_reconstruction = fill".to_string())
+    } else {
+        pass_end_compute::prepare(me, d, (format, image.usage, (width, height)), at)
+    };
+    match compute {
+        Ok(c) => return Ok(Prepared { target, extent: (width, height), how: How::Compute(c) }),
+        Err(why) => log_once(me, format!("pass end fill {why}"), || tracing::info!("radial density masking: the fragment fill reconstructs eye passes into {:#x} at their end, not the compute pass ({why})", image.handle)),
+    }
     let fail = |what: String| {
         log_once(me, format!("pass end {what}"), || tracing::warn!("radial density masking: no reconstruction at the pass's end for {:#x} ({what}): such passes are left whole", image.handle));
         NotApplied::TargetUsage
     };
     let (layout, set_layout, render_pass, pipeline, sampler) = fill_objects_for(d, (format, source)).map_err(fail)?;
     let temp = shared_temp(me, d, format, (width, height, layers), set_layout, sampler).map_err(|(_, e)| fail(e))?;
-    let mut layer_list: Vec<u32> = layers_wanted.to_vec();
-    layer_list.sort_unstable();
-    layer_list.dedup();
-    if layer_list.is_empty() {
-        return Err(NotApplied::TargetUsage);
-    }
     let mut framebuffers = Vec::new();
     for layer in layer_list {
-        if layer >= layers {
-            return Err(NotApplied::TargetUsage);
-        }
         framebuffers.push((layer, framebuffer(me, d, image.handle, format, layer, (width, height), render_pass).map_err(fail)?));
     }
-    Ok(Prepared { target, extent: (width, height), temp, framebuffers, fill: (layout, render_pass, pipeline) })
+    Ok(Prepared { target, extent: (width, height), how: How::Fill { temp, framebuffers, fill: (layout, render_pass, pipeline) } })
 }
 
 impl Job {
@@ -301,17 +356,29 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
         job.link.recorded.store(true, Ordering::Release);
         return true;
     }
+    let p = &job.prepared;
+    let image = vk::Image::from_raw(p.target.view.image);
+    let (temp, framebuffers, fill) = match &p.how {
+        How::Compute(c) => {
+            let Some(link) = job.link.compute.as_ref() else { return false };
+            if !pass_end_compute::record(d, cb, c, image, p.target.layout, (&job.link.fill_args, link)) {
+                return false;
+            }
+            job.link.recorded.store(true, Ordering::Release);
+            return true;
+        }
+        How::Fill { temp, framebuffers, fill } => (temp, framebuffers, *fill),
+    };
     let Some((restore_cmds, sets, veto)) = d.track.with_cb(key, |s| (s.restore_commands(), s.descriptor_set_commands(), s.veto)) else { return false };
     if veto.is_some() {
         return false;
     }
-    let p = &job.prepared;
-    let Some(temp) = p.temp.temp.as_ref() else { return false };
+    let Some(temp_image) = temp.temp.as_ref() else { return false };
     let (width, height) = p.extent;
-    let target = FillTarget { image: vk::Image::from_raw(p.target.view.image), before: p.target.layout, whole: PixelRect { x: 0, y: 0, width, height }, framebuffers: &p.framebuffers };
+    let target = FillTarget { image, before: p.target.layout, whole: PixelRect { x: 0, y: 0, width, height }, framebuffers };
     let draws = match &job.eyes {
         Eyes::Recorded(eyes) => FillDraws::Pushed { eyes, args: Some(job.link.fill_args.buffer) },
-        Eyes::Submitted { area } => FillDraws::FromBuffer { area: *area, buffer: job.link.fill_args.buffer, vertex_offset: job.link.vertex_offset() },
+        Eyes::Submitted { area, .. } => FillDraws::FromBuffer { area: *area, buffer: job.link.fill_args.buffer, vertex_offset: job.link.vertex_offset() },
     };
     let bound_sets = std::cell::Cell::new(true);
     {
@@ -321,11 +388,10 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
         // is held by the recording (the checkerboard data with the link's buffer, the temp's Arc
         // below) or lives until the image dies (the framebuffers).
         unsafe {
-            record_fill(d, cb, &target, (temp.image, temp.key.3, p.temp.set), p.fill, draws);
+            record_fill(d, cb, &target, (temp_image.image, temp_image.key.3, temp.set), fill, draws);
             // Back to the app's layout; every later command (whatever the app synchronizes with
             // next, even only its pass's external dependency) waits for the fill.
-            let last: Vec<vk::ImageMemoryBarrier> = p
-                .framebuffers
+            let last: Vec<vk::ImageMemoryBarrier> = framebuffers
                 .iter()
                 .map(|(l, _)| {
                     layout_barrier(target.image, color_range(*l, 1), (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, p.target.layout), (vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE))
@@ -334,7 +400,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
             d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &last);
         }
     }
-    crate::vk::lifetime::hold(d, key, p.temp.clone());
+    crate::vk::lifetime::hold(d, key, temp.clone());
     job.link.recorded.store(true, Ordering::Release);
     true
 }

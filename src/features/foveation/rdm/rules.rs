@@ -175,32 +175,51 @@ impl RdmParams {
     }
 }
 
-/// How the compute reconstruction reads a swapchain image's pixels: copied into a storage buffer
-/// as one 32-bit word per texel (4 × 8-bit channels; BGRA and RGBA alike, since the filter treats
+/// How the compute reconstruction reads an image's pixels, copied into a storage buffer: one
+/// 32-bit word per texel for 4 × 8-bit channels (BGRA and RGBA alike, since the filter treats
 /// every channel the same and alpha is the fourth byte in both), decoded from sRGB by the shader
-/// where the format is sRGB. Other formats (16-bit float, 10-bit, …) take the fill.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// where the format is sRGB; two words per texel for 16-bit float channels (the HDR targets
+/// engines render their eyes into behind a tonemap). Other formats (10-bit, 11-bit float, …)
+/// take the fill.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ComputeStorage {
     Rgba8 { srgb: bool },
+    Rgba16F,
 }
 
 impl ComputeStorage {
-    /// The compute path's storage for a swapchain format; None: the fill (fragment) path only.
+    /// The compute path's storage for a colour format; None: the fill (fragment) path only.
     pub fn for_format(format: ash::vk::Format) -> Option<ComputeStorage> {
         use ash::vk::Format as F;
         match format {
             F::R8G8B8A8_UNORM | F::B8G8R8A8_UNORM => Some(ComputeStorage::Rgba8 { srgb: false }),
             F::R8G8B8A8_SRGB | F::B8G8R8A8_SRGB => Some(ComputeStorage::Rgba8 { srgb: true }),
+            F::R16G16B16A16_SFLOAT => Some(ComputeStorage::Rgba16F),
             _ => None,
         }
+    }
+    /// Bytes per texel in the pixel buffer (what a buffer ↔ image copy of the format moves).
+    pub fn texel_bytes(&self) -> u64 {
+        match self {
+            ComputeStorage::Rgba8 { .. } => 4,
+            ComputeStorage::Rgba16F => 8,
+        }
+    }
+    /// Whether the shader decodes and encodes sRGB.
+    pub fn srgb(&self) -> bool {
+        matches!(self, ComputeStorage::Rgba8 { srgb: true })
     }
 }
 
 /// Which reconstruction a swapchain image of `format` gets: the compute pass over periphery
 /// tiles when its format has a storage equivalent and the image can be written back by a copy
 /// (`transfer_dst`), else why the fragment fill runs instead.
+///
+/// At the release only 8-bit swapchains: no runtime the suite runs offers 16-bit float colour
+/// swapchains, so that variant is proven only where engines use it, at an eye pass's end
+/// (`pass_end_compute`).
 pub fn compute_path(format: ash::vk::Format, transfer_dst: bool) -> Result<ComputeStorage, FillFallback> {
-    let storage = ComputeStorage::for_format(format).ok_or(FillFallback::Format)?;
+    let storage = ComputeStorage::for_format(format).filter(|s| s.texel_bytes() == 4).ok_or(FillFallback::Format)?;
     if !transfer_dst {
         return Err(FillFallback::TransferDst);
     }
@@ -694,12 +713,15 @@ mod tests {
         assert_eq!(ComputeStorage::for_format(F::R8G8B8A8_SRGB), Some(ComputeStorage::Rgba8 { srgb: true }));
         assert_eq!(ComputeStorage::for_format(F::B8G8R8A8_SRGB), Some(ComputeStorage::Rgba8 { srgb: true }));
         assert_eq!(ComputeStorage::for_format(F::B8G8R8A8_UNORM), Some(ComputeStorage::Rgba8 { srgb: false }));
-        assert_eq!(ComputeStorage::for_format(F::R16G16B16A16_SFLOAT), None);
+        assert_eq!(ComputeStorage::for_format(F::R16G16B16A16_SFLOAT), Some(ComputeStorage::Rgba16F));
+        assert_eq!(ComputeStorage::Rgba16F.texel_bytes(), 8);
+        assert!(!ComputeStorage::Rgba16F.srgb() && ComputeStorage::Rgba8 { srgb: true }.srgb());
         assert_eq!(ComputeStorage::for_format(F::A2B10G10R10_UNORM_PACK32), None);
         assert_eq!(FillFallback::TransferDst.name(), "transfer_dst");
         assert_eq!(compute_path(F::R8G8B8A8_SRGB, true), Ok(ComputeStorage::Rgba8 { srgb: true }));
         assert_eq!(compute_path(F::R8G8B8A8_SRGB, false), Err(FillFallback::TransferDst));
         assert_eq!(compute_path(F::B10G11R11_UFLOAT_PACK32, true), Err(FillFallback::Format));
+        assert_eq!(compute_path(F::R16G16B16A16_SFLOAT, true), Err(FillFallback::Format), "16-bit float only at a pass end");
     }
 
     #[test]

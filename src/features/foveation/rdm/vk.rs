@@ -77,7 +77,7 @@ pub(crate) struct RdmDevice {
     /// A CPU implementation (`foveation.method = auto` is no foveation there).
     software: bool,
     used: AtomicBool,
-    memory: vk::PhysicalDeviceMemoryProperties,
+    pub(super) memory: vk::PhysicalDeviceMemoryProperties,
     pub(super) books: Mutex<Books>,
     pub(super) reconstruct: super::reconstruct::Reconstruct,
     pub(super) pass_end: Mutex<super::pass_end_vk::PassEndObjects>,
@@ -275,7 +275,7 @@ impl Drawn {
                 link.arm(true);
                 true
             } else {
-                link.fill_submitted(&pending)
+                link.fill_submitted(me, &pending)
             };
             if !filled {
                 link.arm(false);
@@ -341,6 +341,16 @@ impl VkFeature for RdmDevice {
     fn transfer(&self, d: &DeviceState, cb: vk::CommandBuffer, src: u64, dst: u64, regions: &[TransferRegion]) {
         if self.injects(&d.settings()) {
             lifetime::hold(d, ash::vk::Handle::as_raw(cb), Arc::new(Transfer { src, dst, regions: regions.to_vec() }));
+        }
+    }
+    /// Colour attachments can be reconstructed in place at an eye pass's end by the compute pass
+    /// (`pass_end_compute`: copied out and back) whenever the layer is on (RDM can be switched on
+    /// live). Transient attachments never hold an eye a later pass reads.
+    fn image_usage(&self, _s: &Settings, usage: vk::ImageUsageFlags) -> vk::ImageUsageFlags {
+        if self.layer_enabled && usage.contains(vk::ImageUsageFlags::COLOR_ATTACHMENT) && !usage.contains(vk::ImageUsageFlags::TRANSIENT_ATTACHMENT) {
+            vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST
+        } else {
+            vk::ImageUsageFlags::empty()
         }
     }
     fn destroyed(&self, d: &DeviceState, what: Destroyed) {
@@ -437,13 +447,18 @@ impl VkFeature for RdmDevice {
                                 *s.pixels_skipped.entry(*view).or_insert(0) += c.pixels_skipped;
                             }
                         });
-                        if drawn.link.is_some() {
+                        if let Some(link) = &drawn.link {
                             // Reconstructed when its pass ended, in the recording itself.
                             self.count(|s| {
                                 for p in &f.pending {
                                     *s.reconstructed.entry(p.view).or_insert(0) += 1;
                                 }
-                                *s.fill_fallback.entry(super::rules::FillFallback::PassEnd.name()).or_insert(0) += f.pending.len() as u64;
+                                let n = f.pending.len() as u64;
+                                if link.is_compute() {
+                                    s.compute += n;
+                                } else {
+                                    *s.fill_fallback.entry(super::rules::FillFallback::PassEnd.name()).or_insert(0) += n;
+                                }
                             });
                             continue;
                         }
@@ -530,17 +545,12 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     let pass_end = if plan.via.behind_post() {
         pass_end_wanted(me, at.settings)?;
         let pending: Vec<Pending> = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
-        let layers: Vec<u32> = pending.iter().map(|p| p.layer).collect();
-        let prepared = super::pass_end_vk::prepare(me, d, at.pass, plan.image, &layers, super::fill::FillSource::PushConstants).inspect_err(|why| {
+        let eyes_at = super::pass_end_vk::Eyes::Recorded(pending);
+        let prepared = super::pass_end_vk::prepare(me, d, at.pass, plan.image, &eyes_at).inspect_err(|why| {
             log_once(me, format!("pass end {}", why.name()), || tracing::info!("radial density masking left an eye pass behind a post chain alone ({:#x}): {}", plan.image, why.name()))
         })?;
-        let fill_args = PooledBuffer::take(d, super::pass_end_vk::Link::size(pending.len(), false), &me.memory).map_err(|e| {
-            d.warn_repeated("rdm fill arguments", &e);
-            NotApplied::LayerError
-        })?;
-        let link = Arc::new(super::pass_end_vk::Link::recorded(fill_args, ((fovea_generation, views_generation), plan.draws.clone())));
-        link.arm(false);
-        Some((prepared, pending, link))
+        let link = super::pass_end_vk::Link::new(me, d, &prepared, &eyes_at, Some(((fovea_generation, views_generation), plan.draws.clone())))?;
+        Some((prepared, eyes_at, link))
     } else {
         reconstruction_ready(me, d, at.cb, at.settings)?;
         None
@@ -567,8 +577,8 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     // with it; the buffer is held by the app's command buffer (below) until its recording closes
     // and its submissions complete.
     unsafe { inject::record_indirect(d, cb, p, vk_buffer, data.vertex_offset(), &draws) };
-    if let Some((prepared, pending, link)) = pass_end {
-        let job = super::pass_end_vk::Job::new(prepared, super::pass_end_vk::Eyes::Recorded(pending), link);
+    if let Some((prepared, eyes_at, link)) = pass_end {
+        let job = super::pass_end_vk::Job::new(prepared, eyes_at, link);
         lock(&me.books).jobs.entry(at.owner).or_default().push(job);
     }
     me.open.opened(d, at.owner, data.clone());
@@ -600,21 +610,17 @@ fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result
         pass_end_wanted(me, at.settings)?;
         let image = super::pass_end::first_color_image(at.pass).ok_or(NotApplied::PostChain)?;
         let layers = super::pass_end_vk::pass_layers(d, at.pass, image);
-        let prepared = super::pass_end_vk::prepare(me, d, at.pass, image, &layers, super::fill::FillSource::VertexBuffer)?;
-        let fill_args = PooledBuffer::take(d, super::pass_end_vk::Link::size(layers.len() * 2, true), &me.memory).map_err(|e| {
-            d.warn_repeated("rdm fill arguments", &e);
-            NotApplied::LayerError
-        })?;
-        let link = Arc::new(super::pass_end_vk::Link::submitted(fill_args, layers));
-        link.arm(false);
-        Some((prepared, link))
+        let eyes_at = super::pass_end_vk::Eyes::Submitted { area, layers };
+        let prepared = super::pass_end_vk::prepare(me, d, at.pass, image, &eyes_at)?;
+        let link = super::pass_end_vk::Link::new(me, d, &prepared, &eyes_at, None)?;
+        Some((prepared, eyes_at, link))
     } else {
         reconstruction_ready(me, d, at.cb, at.settings)?;
         None
     };
     let p = pipeline(me, d, at.pass, &plan)?;
     let mut data = drawn(me, d, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area, walk: at.walk })?;
-    if let Some((_, link)) = &pass_end {
+    if let Some((_, _, link)) = &pass_end {
         if let Some(dr) = Arc::get_mut(&mut data) {
             dr.link = Some(link.clone());
         }
@@ -624,8 +630,8 @@ fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result
     // SAFETY: `at.cb` is recording inside the pass; the pipeline is compatible with it; the
     // buffer (empty draw arguments until filled) is held by the app's command buffer (below).
     unsafe { inject::record_indirect(d, at.cb, p, data.buffer.buffer, data.vertex_offset(), &[draw]) };
-    if let Some((prepared, link)) = pass_end {
-        let job = super::pass_end_vk::Job::new(prepared, super::pass_end_vk::Eyes::Submitted { area }, link);
+    if let Some((prepared, eyes_at, link)) = pass_end {
+        let job = super::pass_end_vk::Job::new(prepared, eyes_at, link);
         lock(&me.books).jobs.entry(at.owner).or_default().push(job);
     }
     me.open.opened(d, at.owner, data.clone());
