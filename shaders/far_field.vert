@@ -26,6 +26,9 @@ layout(location = 6) in uvec4 in_flags;
 layout(location = 7) in vec4 in_dst;
 // The source tiles' grid: tiles per row, rows.
 layout(location = 8) in uvec4 in_grid;
+// The draw's viewport (framebuffer pixels): the destination rect, or the render area it lies in
+// for a pass whose eyes were known only at submission.
+layout(location = 9) in vec4 in_viewport;
 
 layout(std430, set = 0, binding = 4) readonly buffer Tiles {
     vec2 tiles[];
@@ -109,7 +112,7 @@ void main() {
     vec2 p0 = in_dst.xy + vec2(tile % tiles_x, tile / tiles_x) * float(TILE);
     vec2 p1 = min(p0 + float(TILE), in_dst.xy + in_dst.zw);
     vec2 p = mix(p0, p1, vec2(c));
-    gl_Position = vec4((p - in_dst.xy) / in_dst.zw * 2.0 - 1.0, in_depth.w, 1.0);
+    gl_Position = vec4((p - in_viewport.xy) / in_viewport.zw * 2.0 - 1.0, in_depth.w, 1.0);
     bool keep = in_flags.y != 0u;
 #ifdef MULTIVIEW
     // Every instance reaches every view; each view keeps its own.

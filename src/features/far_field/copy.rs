@@ -78,18 +78,29 @@ impl Drop for Slots {
 }
 
 /// A pass recorded before its eyes were known (`inject::Awaiting`): which view a guessed draw
-/// really is gets decided at submission, from the eyes known then.
+/// really is, and its rect, get decided at submission, from the eyes known then.
 pub(super) struct AwaitPass {
     pub(super) pass: PassInstance,
     pub(super) fail_depth: f32,
+    /// Tied to its eyes by the data-flow walk (counted at each submission), not by the OpenXR
+    /// half's first frame.
+    pub(super) walk: bool,
 }
 
 impl AwaitPass {
-    /// The view the guessed eye (`view`, `rect`, `layer`) of this pass turns out to be, if any.
-    pub(super) fn resolve(&self, d: &DeviceState, intermediate: bool, view: u32, rect: PixelRect, layer: u32) -> Option<u32> {
-        let plan = inject::plan_now(d, &self.pass, self.fail_depth, intermediate).ok()?;
-        let multiview = plan.layout == EyeLayout::Multiview;
-        plan.draws.iter().find(|dr| dr.viewport == rect && dr.layer == layer && (!multiview || dr.view == view) && dr.view < 2).map(|dr| dr.view)
+    /// The view and rect the guessed eye (over `rect`, in `layer`) of this pass turns out to be
+    /// (`rules::resolve_guess`); otherwise why, to count (None: the pass is no eye pass after
+    /// all).
+    pub(super) fn resolve_or_why(&self, d: &DeviceState, intermediate: bool, (view, layer, rect): (u32, u32, PixelRect)) -> Result<(u32, PixelRect), Option<&'static str>> {
+        let plan = match inject::plan_now(d, &self.pass, self.fail_depth, intermediate) {
+            Ok(p) => p,
+            Err(crate::core::pass::NotMasked::NotEyePass) => return Err(None),
+            Err(why) => return Err(Some(why.name())),
+        };
+        let eyes: Vec<(u32, u32, PixelRect)> = plan.draws.iter().map(|dr| (dr.view, dr.layer, dr.viewport)).collect();
+        // The eyes are known, but not where the guess can reuse into (a rect away from the
+        // render area's origin, two eyes in the layer).
+        super::rules::resolve_guess(&eyes, plan.layout == EyeLayout::Multiview, (view, layer, rect)).map_err(Some)
     }
 }
 

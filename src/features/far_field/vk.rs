@@ -55,6 +55,9 @@ struct Instance {
     dst: [f32; 4],
     /// The slots' tile grid (tiles per row, rows, 0, 0).
     grid: [u32; 4],
+    /// The draw's viewport as recorded (x, y, width, height): `dst`, or, for a pass whose eyes
+    /// were known only at submission, the render area the eye's rect lies in.
+    viewport: [f32; 4],
 }
 
 const INSTANCE: u64 = std::mem::size_of::<Instance>() as u64;
@@ -347,6 +350,7 @@ impl FarFieldDevice {
                 attr(6, vk::Format::R32G32B32A32_UINT, 96),
                 attr(7, f4, 112),
                 attr(8, vk::Format::R32G32B32A32_UINT, 128),
+                attr(9, f4, 144),
             ],
             write_first_color: true,
             per_instance: true,
@@ -467,11 +471,22 @@ impl FarFieldDevice {
         for (i, guessed) in op.views.iter().enumerate() {
             // A draw recorded before the eyes were known is the eye it turns out to be, or none.
             let view = match &op.awaiting {
-                None => Some(guessed.view),
-                Some(a) => a.resolve(d, s.intermediate, guessed.view, guessed.rect, guessed.layer),
+                None => Ok((guessed.view, guessed.rect)),
+                Some(a) => a.resolve_or_why(d, s.intermediate, (guessed.view, guessed.layer, guessed.rect)),
             };
-            let Some(view) = view else { continue };
-            let v = &ReuseView { view, ..*guessed };
+            let (view, rect) = match view {
+                Ok(v) => v,
+                Err(why) => {
+                    // A pass awaiting the walk is counted at each submission (`fills_at_submission`).
+                    if let (Some(why), Some(a)) = (why, &op.awaiting) {
+                        if a.walk {
+                            self.not_applied(why);
+                        }
+                    }
+                    continue;
+                }
+            };
+            let v = &ReuseView { view, rect, ..*guessed };
             let slot = copied[v.slot as usize];
             let checked = rules::check_source(frame, v.view, f.source_view, f.alternate, slot.map(|c| c.0));
             let stamp = match checked {
@@ -518,6 +533,7 @@ impl FarFieldDevice {
                 flags: [v.slot, 1, f.debug as u32, guessed.view],
                 dst: [v.rect.x as f32, v.rect.y as f32, v.rect.width as f32, v.rect.height as f32],
                 grid: [op.slots.grid.0, op.slots.grid.1, 0, 0],
+                viewport: [guessed.rect.x as f32, guessed.rect.y as f32, guessed.rect.width as f32, guessed.rect.height as f32],
             };
             args[i] = vk::DrawIndirectCommand { vertex_count: rules::reuse_vertices(v.rect.width, v.rect.height), instance_count: 1, first_vertex: 0, first_instance: i as u32 };
             self.mark_reused(frame, v.view);
@@ -579,6 +595,11 @@ impl VkFeature for FarFieldDevice {
     fn injects_before_depth_test(&self) -> bool {
         true
     }
+    /// Passes awaiting the walk get their reuse (or their reason) at each submission
+    /// (`refresh`, `AwaitPass::resolve_or_why`).
+    fn fills_at_submission(&self) -> bool {
+        true
+    }
     /// The source eye's depth is copied when its pass ends.
     fn keeps_depth(&self, s: &Settings) -> bool {
         self.layer_enabled && s.far_field.enabled
@@ -617,7 +638,7 @@ impl VkFeature for FarFieldDevice {
             vec![EyeDraw { view: earlier as u32, layer: base, viewport: area, scissor: area }]
         };
         let plan = inject::shape_only(at.pass, at.fail_depth);
-        let awaiting = Some(Arc::new(AwaitPass { pass: at.pass.clone(), fail_depth: at.fail_depth }));
+        let awaiting = Some(Arc::new(AwaitPass { pass: at.pass.clone(), fail_depth: at.fail_depth, walk: at.walk }));
         let t = Target { cb: at.cb, owner: at.owner, pass: at.pass, plan: &plan, draws, settings: at.settings, bound_sets: &at.bound_sets, awaiting };
         if let Err(why) = self.record(d, t) {
             tracing::debug!("far field: a pass awaiting its eyes got no reuse draw: {why}");
@@ -716,14 +737,27 @@ impl VkFeature for FarFieldDevice {
                 for h in holds {
                     if let Some(c) = h.downcast_ref::<CopyOp>() {
                         // A guessed copy holds the view it turns out to be, or nothing usable.
+                        // The eye's rect may be smaller than the guess (the render area, copied
+                        // whole), at its origin (dynamic resolution): the slot holds it there.
                         let view = match &c.awaiting {
-                            None => Some(c.view),
-                            Some(a) => a.resolve(d, s.intermediate, c.view, c.rect, c.layer),
+                            None => Some((c.view, c.rect)),
+                            Some(a) => match a.resolve_or_why(d, s.intermediate, (c.view, c.layer, c.rect)) {
+                                Ok(v) => Some(v),
+                                Err(why) => {
+                                    // Two eyes side by side in a pass awaiting the walk: its one
+                                    // guessed copy stands for the pass (no reuse draw was made
+                                    // for it), so the pass is counted here.
+                                    if a.walk && on && why == Some("eyes_share_target") {
+                                        self.not_applied("eyes_share_target");
+                                    }
+                                    None
+                                }
+                            },
                         };
                         // A walked source whose rect moved since the recording copied the wrong
                         // pixels: no fresh source.
                         let view = view.filter(|_| c.walked.as_ref().is_none_or(|(image, dr)| matches!(inject::walk_moved(d, *image, std::slice::from_ref(dr)), Ok(None))));
-                        let stamp = view.map(|v| (Stamp { view: v, frame, rendered: !self.reused_in(frame, v) }, c.rect));
+                        let stamp = view.map(|(v, rect)| (Stamp { view: v, frame, rendered: !self.reused_in(frame, v) }, rect));
                         lock(&c.slots.copied)[c.view as usize & 1] = stamp;
                         self.count(|st| st.copies += 1);
                     } else if let Some(r) = h.downcast_ref::<ReuseOp>() {

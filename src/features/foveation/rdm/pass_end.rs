@@ -1,8 +1,9 @@
 //! Where radial density masking reconstructs an eye pass whose target a post-process chain reads
 //! (reached by the data-flow walk, or taken by the size fallback): right after the pass ends, in
 //! the app's own command buffer, before any later pass can read the checkerboard. Pure: which
-//! image that is (the resolve target of a multisampled eye), the layout the app left it in, and
-//! why a pass cannot be reconstructed there. `pass_end_vk` records it.
+//! image that is (the resolve target of a multisampled eye; behind a tonemap subpass that reads
+//! the eye as an input attachment, that subpass's output), the layout the app left it in, and why
+//! a pass cannot be reconstructed there. `pass_end_vk` records it.
 #![forbid(unsafe_code)]
 
 use super::rules::NotApplied;
@@ -17,6 +18,12 @@ pub struct PassEndTarget {
     pub view: Arc<ImageView>,
     /// The layout the pass leaves it in (its final layout, or the rendering's layout).
     pub layout: vk::ImageLayout,
+    /// The target's layer of an eye in layer `l` of the eye's image is `l + layer_offset` (their
+    /// views' base layers differ: a resolve or output view of another layer).
+    pub layer_offset: i64,
+    /// The target is a later subpass's output, not the eye's image: the holes are filled after
+    /// that subpass's per-pixel pass over them (a tonemap), in its colour space.
+    pub after_subpass: bool,
 }
 
 /// What the rule needs to know of the app's objects.
@@ -49,29 +56,48 @@ pub fn target(pass: &PassInstance, eye_image: u64, objects: &dyn Objects) -> Res
         if !usable(layout) || !single(view.image) {
             return Err(NotApplied::TargetUsage);
         }
-        return Ok(PassEndTarget { view, layout });
+        let eye_base = c.attachment.image_view.as_ref().map_or(0, |v| v.range.base_array_layer);
+        return Ok(PassEndTarget { layer_offset: view.range.base_array_layer as i64 - eye_base as i64, view, layout, after_subpass: false });
     }
     let rp = pass.render_pass.as_ref().ok_or(NotApplied::PostChain)?;
-    // A later subpass (a tonemap reading an input attachment) runs before the pass ends: the
-    // checkerboard would reach it.
-    if pass.subpass as usize + 1 != rp.subpasses.len() {
-        return Err(NotApplied::SubpassChain);
-    }
-    let sub = &rp.subpasses[pass.subpass as usize];
+    let eye_sub = pass.subpass as usize;
+    let sub = rp.subpasses.get(eye_sub).ok_or(NotApplied::PostChain)?;
     let shows = |i: u32| pass.attachments.get(i as usize).and_then(|a| a.image_view.as_ref()).is_some_and(|v| v.image == eye_image);
     let (k, index) = sub.color.iter().enumerate().find_map(|(k, r)| r.used().filter(|&i| shows(i)).map(|i| (k, i))).ok_or(NotApplied::PostChain)?;
     let desc = |i: u32| rp.attachments.get(i as usize);
-    let chosen = if desc(index).is_some_and(|a| a.samples == vk::SampleCountFlags::TYPE_1) {
-        index
+    // The single-sampled attachment subpass `s`'s colour `k` (attachment `i`) leaves.
+    let single_of = |s: &crate::track::resources::Subpass, k: usize, i: u32| -> Result<u32, NotApplied> {
+        if desc(i).is_some_and(|a| a.samples == vk::SampleCountFlags::TYPE_1) {
+            Ok(i)
+        } else {
+            s.resolve.get(k).and_then(|r| r.used()).ok_or(NotApplied::MsaaUnresolved)
+        }
+    };
+    let (chosen, after_subpass) = if eye_sub + 1 == rp.subpasses.len() {
+        (single_of(sub, k, index)?, false)
     } else {
-        sub.resolve.get(k).and_then(|r| r.used()).ok_or(NotApplied::MsaaUnresolved)?
+        // A later subpass runs before the pass ends, so the checkerboard reaches it. The one
+        // structure that still works: exactly one later subpass that reads the eye as an input
+        // attachment (a tonemap, as Godot's mobile renderer records it). Input attachments are
+        // read at the fragment's own pixel, so that subpass's output holds the eye at the same
+        // pixels, its holes where the eye's were: it is reconstructed when the render pass ends.
+        let last = rp.subpasses.len() - 1;
+        let out = &rp.subpasses[last];
+        let eye_single = single_of(sub, k, index).ok();
+        let reads_eye = out.input.iter().filter_map(|r| r.used()).any(|i| i == index || Some(i) == eye_single);
+        if eye_sub + 2 != rp.subpasses.len() || !reads_eye {
+            return Err(NotApplied::SubpassChain);
+        }
+        let (k2, index2) = out.color.iter().enumerate().find_map(|(k, r)| r.used().map(|i| (k, i))).ok_or(NotApplied::SubpassChain)?;
+        (single_of(out, k2, index2)?, true)
     };
     let view = pass.attachments.get(chosen as usize).and_then(|a| a.image_view.clone()).ok_or(NotApplied::PostChain)?;
     let layout = desc(chosen).map_or(vk::ImageLayout::UNDEFINED, |a| a.final_layout);
     if !usable(layout) || !single(view.image) {
         return Err(NotApplied::TargetUsage);
     }
-    Ok(PassEndTarget { view, layout })
+    let eye_base = pass.attachments.get(index as usize).and_then(|a| a.image_view.as_ref()).map_or(0, |v| v.range.base_array_layer);
+    Ok(PassEndTarget { layer_offset: view.range.base_array_layer as i64 - eye_base as i64, view, layout, after_subpass })
 }
 
 /// The image of the pass's first colour attachment: the target a pass planned at submission
@@ -178,8 +204,47 @@ mod tests {
     #[test]
     fn a_later_subpass_or_another_image_is_refused() {
         let w = world();
+        // The later subpass does not read the eye.
         assert_eq!(target(&render_pass(&w, false, false, 2), 2, &w), Err(NotApplied::SubpassChain));
         assert_eq!(target(&render_pass(&w, false, false, 1), 7, &w), Err(NotApplied::PostChain));
+    }
+
+    /// The eye (attachment 0, or its resolve 2) read as an input attachment by the one subpass
+    /// after it, which writes attachment 3 (image 4, layer 1 of its view): that output is the
+    /// target, its layer one above the eye's.
+    fn tonemap_subpass(w: &mut World, msaa: bool, subpasses: usize) -> PassInstance {
+        let range = SubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 1, layer_count: 1 };
+        w.views.insert(1004, Arc::new(ImageView { handle: 1004, image: 4, view_type: vk::ImageViewType::TYPE_2D, format: vk::Format::R8G8B8A8_SRGB, range }));
+        w.samples.insert(4, vk::SampleCountFlags::TYPE_1);
+        let mut pass = render_pass(w, msaa, msaa, 1);
+        let mut rp = (**pass.render_pass.as_ref().unwrap()).clone();
+        let mut out_desc = rp.attachments[2];
+        out_desc.final_layout = vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL;
+        rp.attachments.push(out_desc);
+        let r = |attachment| AttachmentRef { attachment, layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL };
+        let read = if msaa { 2 } else { 0 };
+        let tonemap = Subpass { color: vec![r(3)], resolve: vec![], depth_stencil: None, input: vec![r(read)], view_mask: 0 };
+        for _ in 1..subpasses {
+            rp.subpasses.push(tonemap.clone());
+        }
+        pass.render_pass = Some(Arc::new(rp));
+        pass.attachments.push(att(w, 1004, vk::ImageLayout::UNDEFINED));
+        pass
+    }
+
+    #[test]
+    fn behind_a_tonemap_subpass_its_output_is_the_target() {
+        let mut w = world();
+        for msaa in [false, true] {
+            let eye = if msaa { 1 } else { 2 };
+            let t = target(&tonemap_subpass(&mut w, msaa, 2), eye, &w).unwrap();
+            assert_eq!((t.view.image, t.layout, t.layer_offset, t.after_subpass), (4, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, 1, true), "msaa {msaa}");
+        }
+        // Two subpasses after the eye: refused.
+        assert_eq!(target(&tonemap_subpass(&mut w, false, 3), 2, &w), Err(NotApplied::SubpassChain));
+        // In the last subpass, the eye is its own target (offset 0).
+        let t = target(&render_pass(&w, false, false, 1), 2, &w).unwrap();
+        assert_eq!((t.layer_offset, t.after_subpass), (0, false));
     }
 
     #[test]

@@ -45,6 +45,8 @@ pub(super) struct Link {
     pub(super) recorded: AtomicBool,
     /// The compute pass's side, where it reconstructs instead of the fill.
     compute: Option<LinkCompute>,
+    /// The target's layer of an eye in layer `l` of the eye pass's image (`PassEndTarget`).
+    layer_offset: i64,
 }
 
 impl Link {
@@ -74,7 +76,7 @@ impl Link {
             }
             How::Fill { .. } => None,
         };
-        let link = Link { fill_args, slots, frozen, layers, recorded: AtomicBool::new(false), compute };
+        let link = Link { fill_args, slots, frozen, layers, recorded: AtomicBool::new(false), compute, layer_offset: prepared.target.layer_offset };
         link.arm(false);
         Ok(Arc::new(link))
     }
@@ -105,6 +107,13 @@ impl Link {
     /// Planned at submission: the fill draws `eyes` (their triangles and parameters), each in its
     /// layer's framebuffer; false (nothing drawn) when an eye has no slot.
     pub(super) fn fill_submitted(&self, me: &RdmDevice, eyes: &[Pending]) -> bool {
+        // In the target's layers.
+        let mut moved = Vec::with_capacity(eyes.len());
+        for p in eyes {
+            let Ok(layer) = u32::try_from(p.layer as i64 + self.layer_offset) else { return false };
+            moved.push(Pending { layer, ..*p });
+        }
+        let eyes = &moved;
         if let Some(c) = &self.compute {
             return c.fill_submitted(me, &self.fill_args, eyes);
         }
@@ -201,20 +210,39 @@ impl pass_end::Objects for Views<'_> {
     }
 }
 
-/// The layers of `eye_image`'s colour attachment in `pass` (its view's range): where a pass whose
-/// eyes are known only at submission may show them.
+/// The layers of `eye_image`'s colour attachment in `pass` whose pixels the pass-end target holds
+/// (its view's range): where a pass whose eyes are known only at submission may show them.
 pub(super) fn pass_layers(d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64) -> Vec<u32> {
-    let view = pass_end::target(pass, eye_image, &Views(d)).ok().map(|t| t.view);
-    let Some(view) = view else { return Vec::new() };
-    let total = d.track.images.get(view.image).map_or(1, |i| i.array_layers);
-    let n = view.range.layers_of(total).min(pass.view_mask().count_ones().max(1));
-    (view.range.base_array_layer..view.range.base_array_layer + n).collect()
+    let Ok(t) = pass_end::target(pass, eye_image, &Views(d)) else { return Vec::new() };
+    let total = d.track.images.get(t.view.image).map_or(1, |i| i.array_layers);
+    let n = t.view.range.layers_of(total).min(pass.view_mask().count_ones().max(1));
+    // In the eye's image (`prepare` moves them to the target's).
+    (t.view.range.base_array_layer..t.view.range.base_array_layer + n).filter_map(|l| u32::try_from(l as i64 - t.layer_offset).ok()).collect()
 }
 
 /// Everything a pass-end reconstruction of `eyes` (in `eye_image`'s pass `pass`) needs, made now,
 /// while the pass is open: the checkerboard goes in only if this succeeds.
-pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64, eyes: &Eyes) -> Result<Prepared, NotApplied> {
+/// `eyes` are moved to the target's layers (`PassEndTarget::layer_offset`).
+pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd::PassInstance, eye_image: u64, eyes: &mut Eyes) -> Result<Prepared, NotApplied> {
     let target = pass_end::target(pass, eye_image, &Views(d))?;
+    let shift = |l: u32| u32::try_from(l as i64 + target.layer_offset).map_err(|_| NotApplied::TargetUsage);
+    match eyes {
+        Eyes::Recorded(list) => {
+            for p in list.iter_mut() {
+                p.layer = shift(p.layer)?;
+            }
+        }
+        Eyes::Submitted { layers, .. } => {
+            for l in layers.iter_mut() {
+                *l = shift(*l)?;
+            }
+        }
+    }
+    if target.after_subpass {
+        log_once(me, format!("after subpass {:#x}", target.view.image), || {
+            tracing::info!("radial density masking: an eye pass into {eye_image:#x} is read by a later subpass of its render pass (a tonemap); its holes are filled in that subpass's output {:#x} when the render pass ends", target.view.image)
+        });
+    }
     let image = d.track.images.get(target.view.image).ok_or(NotApplied::TargetUsage)?;
     if !pass_end::usage_ok(image.usage) || target.view.range.base_mip_level != 0 || image.extent.depth > 1 {
         return Err(NotApplied::TargetUsage);
@@ -237,6 +265,15 @@ pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd:
     };
     match compute {
         Ok(c) => return Ok(Prepared { target, extent: (width, height), how: How::Compute(c) }),
+        // The fill at a pass's end costs more than the checkerboard saves at moderate loads on
+        // the GPUs measured (docs/benchmarks.md, "RDM behind post chains": 11.5 → 14.7 ms where
+        // the compute pass gives 8.8), so `foveation.method = auto` leaves such passes whole.
+        Err(why) if d.settings().foveation.method != crate::features::foveation::Method::Rdm => {
+            log_once(me, format!("pass end auto {why}"), || {
+                tracing::info!("radial density masking leaves eye passes into {:#x} (behind a post chain) whole with foveation.method = auto: only the fragment fill could reconstruct them ({why}), which costs more than it saves at moderate loads; foveation.method = \"rdm\" applies it", image.handle)
+            });
+            return Err(NotApplied::PostChain);
+        }
         Err(why) => log_once(me, format!("pass end fill {why}"), || tracing::info!("radial density masking: the fragment fill reconstructs eye passes into {:#x} at their end, not the compute pass ({why})", image.handle)),
     }
     let fail = |what: String| {

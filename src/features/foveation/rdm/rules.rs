@@ -430,7 +430,7 @@ impl FeatureStats for RdmFrameStats {
         match reason {
             "no_fovea" => "no fovea yet for the view (the first frame): nothing to do unless it persists",
             "post_chain" => "the eye pass renders into a target a post-process chain reads: with foveation.method = auto RDM leaves it whole, since its reconstruction there (the fragment fill at the pass's end) costs more than it saves at moderate loads; foveation.method = \"rdm\" applies it",
-            "subpass_chain" => "behind a post chain, the eye pass is followed by another subpass of its render pass (a tonemap reading an input attachment) or its rendering is suspended: no reconstruction can run in between, so it is left whole; use foveation.method = \"vrs\" where the GPU has it",
+            "subpass_chain" => "behind a post chain, the eye pass is followed by more than one subpass of its render pass, or by one that does not read the eye as an input attachment, or its rendering is suspended: no reconstruction can run in between, so it is left whole; use foveation.method = \"vrs\" where the GPU has it",
             "msaa_unresolved" => "behind a post chain, the multisampled eye is resolved after its pass by a transfer: RDM reconstructs only single-sampled targets when the pass ends; use foveation.method = \"vrs\" where the GPU has it",
             "target_usage" => "behind a post chain, the eye's target cannot be copied from or drawn into by the reconstruction (usage or layout), or its objects could not be made: the pass is left whole",
             "not_one_to_one" => "the app copies the eye image to the swapchain scaled or offset: RDM cannot reconstruct it; use foveation.method = \"vrs\" where the GPU has it",

@@ -543,10 +543,9 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     // Behind a post chain a tonemapper, bloom or TAA reads the target before any release: the
     // holes are filled when the pass ends (`pass_end_vk`), or the pass is left whole.
     let pass_end = if plan.via.behind_post() {
-        pass_end_wanted(me, at.settings)?;
         let pending: Vec<Pending> = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
-        let eyes_at = super::pass_end_vk::Eyes::Recorded(pending);
-        let prepared = super::pass_end_vk::prepare(me, d, at.pass, plan.image, &eyes_at).inspect_err(|why| {
+        let mut eyes_at = super::pass_end_vk::Eyes::Recorded(pending);
+        let prepared = super::pass_end_vk::prepare(me, d, at.pass, plan.image, &mut eyes_at).inspect_err(|why| {
             log_once(me, format!("pass end {}", why.name()), || tracing::info!("radial density masking left an eye pass behind a post chain alone ({:#x}): {}", plan.image, why.name()))
         })?;
         let link = super::pass_end_vk::Link::new(me, d, &prepared, &eyes_at, Some(((fovea_generation, views_generation), plan.draws.clone())))?;
@@ -607,11 +606,10 @@ fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result
     // Only the walk can tie it to its eyes, so a post chain reads its target: the fill at the
     // pass's end reads its eyes from the recording's buffer, filled at each submission.
     let pass_end = if at.walk {
-        pass_end_wanted(me, at.settings)?;
         let image = super::pass_end::first_color_image(at.pass).ok_or(NotApplied::PostChain)?;
         let layers = super::pass_end_vk::pass_layers(d, at.pass, image);
-        let eyes_at = super::pass_end_vk::Eyes::Submitted { area, layers };
-        let prepared = super::pass_end_vk::prepare(me, d, at.pass, image, &eyes_at)?;
+        let mut eyes_at = super::pass_end_vk::Eyes::Submitted { area, layers };
+        let prepared = super::pass_end_vk::prepare(me, d, at.pass, image, &mut eyes_at)?;
         let link = super::pass_end_vk::Link::new(me, d, &prepared, &eyes_at, None)?;
         Some((prepared, eyes_at, link))
     } else {
@@ -637,20 +635,6 @@ fn record_awaiting(me: &RdmDevice, d: &DeviceState, at: &Awaiting<'_>) -> Result
     me.open.opened(d, at.owner, data.clone());
     lifetime::hold(d, at.owner, data);
     Ok(())
-}
-
-/// Whether RDM reconstructs behind a post chain: only when asked for by name. Its reconstruction
-/// there is the fragment fill, which on the GPUs measured costs more than the checkerboard saves
-/// at moderate loads (docs/benchmarks.md, "RDM behind post chains"), so `foveation.method = auto`
-/// (RDM on GPUs without attachment shading rates) leaves such passes whole.
-fn pass_end_wanted(me: &RdmDevice, s: &Settings) -> Result<(), NotApplied> {
-    if s.foveation.method == crate::features::foveation::Method::Rdm {
-        return Ok(());
-    }
-    log_once(me, "pass end auto".into(), || {
-        tracing::info!("radial density masking leaves eye passes behind a post chain whole with foveation.method = auto: its reconstruction there costs more than it saves at moderate loads; foveation.method = \"rdm\" applies it")
-    });
-    Err(NotApplied::PostChain)
 }
 
 fn count(me: &RdmDevice, fovea_gen: u64, views_gen: u64, dr: &EyeDraw, p: &RdmParams) -> SkipCount {
