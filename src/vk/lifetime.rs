@@ -284,7 +284,7 @@ impl HostBuffer {
         let size = size.next_power_of_two().max(4096);
         // TRANSFER_DST: query results are copied into some; STORAGE: RDM's compute reads tile
         // lists from some.
-        let usage = vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER | vk::BufferUsageFlags::TRANSFER_DST | vk::BufferUsageFlags::STORAGE_BUFFER;
+        let usage = vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST | vk::BufferUsageFlags::STORAGE_BUFFER;
         let info = vk::BufferCreateInfo::default().size(size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
         // SAFETY: a valid create info.
         let buffer = unsafe { d.fns.create_buffer(&info, None) }.map_err(|e| e.to_string())?;

@@ -8,7 +8,7 @@
 use crate::core::rect::PixelRect;
 use crate::settings::Settings;
 use crate::track::cmd::{AttachmentUse, PassInstance};
-use crate::track::eye_pass::{EyeDraw, EyeLayout};
+use crate::track::eye_pass::EyeDraw;
 use crate::vk::inject;
 use crate::vk::lifetime::{self, Garbage};
 use crate::vk::DeviceState;
@@ -88,19 +88,17 @@ pub(super) struct AwaitPass {
 }
 
 impl AwaitPass {
-    /// The view and rect the guessed eye (over `rect`, in `layer`) of this pass turns out to be
-    /// (`rules::resolve_guess`); otherwise why, to count (None: the pass is no eye pass after
-    /// all).
-    pub(super) fn resolve_or_why(&self, d: &DeviceState, intermediate: bool, (view, layer, rect): (u32, u32, PixelRect)) -> Result<(u32, PixelRect), Option<&'static str>> {
+    /// The rect of the guessed view's eye (guessed over `rect`, in `layer`) of this pass
+    /// (`rules::resolve_guess`; `at_origin` for a copy); otherwise why, to count (None: the pass
+    /// is no eye pass after all, or has no eye of that view).
+    pub(super) fn resolve_or_why(&self, d: &DeviceState, intermediate: bool, (view, layer, rect): (u32, u32, PixelRect), at_origin: bool) -> Result<(u32, PixelRect), Option<&'static str>> {
         let plan = match inject::plan_now(d, &self.pass, self.fail_depth, intermediate) {
             Ok(p) => p,
             Err(crate::core::pass::NotMasked::NotEyePass) => return Err(None),
             Err(why) => return Err(Some(why.name())),
         };
         let eyes: Vec<(u32, u32, PixelRect)> = plan.draws.iter().map(|dr| (dr.view, dr.layer, dr.viewport)).collect();
-        // The eyes are known, but not where the guess can reuse into (a rect away from the
-        // render area's origin, two eyes in the layer).
-        super::rules::resolve_guess(&eyes, plan.layout == EyeLayout::Multiview, (view, layer, rect)).map_err(Some)
+        super::rules::resolve_guess(&eyes, (view, layer, rect), at_origin)
     }
 }
 

@@ -286,24 +286,20 @@ pub fn reuse_vertices(width: u32, height: u32) -> u32 {
 
 /// Which of a pass's eyes (`eyes`: view, layer, viewport, known at submission) a draw or copy
 /// recorded before they were known is: it was guessed as `guess` (view, layer, rect: the render
-/// area). Multiview: the eye of the guessed view. Otherwise the only eye of the guessed layer (a
-/// layer with two eyes side by side cannot be told apart: `eyes_share_target`). The eye's rect
-/// must lie in the guess and start at its origin, so that the copy of the guess (into a slot at
-/// the origin) holds the eye at the slot's origin and the draw over the guess covers it (dynamic
-/// resolution: a smaller viewport at the target's origin, as engines shrink it); else
-/// `rect_changing`.
-pub fn resolve_guess(eyes: &[(u32, u32, PixelRect)], multiview: bool, (view, layer, rect): (u32, u32, PixelRect)) -> Result<(u32, PixelRect), &'static str> {
-    let on_layer: Vec<&(u32, u32, PixelRect)> = eyes.iter().filter(|(v, l, _)| *l == layer && *v < 2 && (!multiview || *v == view)).collect();
-    let &&(v, _, r) = match on_layer.as_slice() {
-        [one] => one,
-        [] => return Err("rect_changing"),
-        _ => return Err("eyes_share_target"),
-    };
-    let inside = r.x == rect.x && r.y == rect.y && r.width <= rect.width && r.height <= rect.height && r.area() > 0;
-    if inside {
+/// area), one guess per view, so the eye is the guessed view's in the guessed layer. Its rect must
+/// lie in the guess: a reuse draw over the guess then covers it wherever it is (two eyes side by
+/// side included); a copy of the guess (`at_origin`: into a slot at the origin) must find it at
+/// the guess's origin, so that the slot holds it at its own origin (dynamic resolution shrinks the
+/// viewport at the target's origin). Err(None): the pass has no eye of that view (the guess is
+/// another pass's); Err(Some(why)): it has, elsewhere.
+pub fn resolve_guess(eyes: &[(u32, u32, PixelRect)], (view, layer, rect): (u32, u32, PixelRect), at_origin: bool) -> Result<(u32, PixelRect), Option<&'static str>> {
+    let &(v, _, r) = eyes.iter().find(|(v, l, _)| *l == layer && *v == view).ok_or(None)?;
+    let inside = r.x >= rect.x && r.y >= rect.y && r.x + r.width as i32 <= rect.x + rect.width as i32 && r.y + r.height as i32 <= rect.y + rect.height as i32 && r.area() > 0;
+    let placed = !at_origin || (r.x == rect.x && r.y == rect.y);
+    if inside && placed {
         Ok((v, r))
     } else {
-        Err("rect_changing")
+        Err(Some("rect_changing"))
     }
 }
 
@@ -511,19 +507,21 @@ mod tests {
     }
 
     #[test]
-    fn a_guess_resolves_to_the_eye_at_its_origin() {
+    fn a_guess_resolves_to_the_eye_of_its_view() {
         let area = PixelRect { x: 0, y: 0, width: 100, height: 80 };
-        let small = PixelRect { x: 0, y: 0, width: 75, height: 60 };
-        // Per-eye: the one eye of the layer, the whole area or a smaller rect at its origin.
-        assert_eq!(resolve_guess(&[(1, 0, area)], false, (0, 0, area)), Ok((1, area)));
-        assert_eq!(resolve_guess(&[(1, 0, small)], false, (0, 0, area)), Ok((1, small)));
-        // Not at the origin, larger, another layer: the rect; two eyes in the layer: named.
-        assert_eq!(resolve_guess(&[(1, 0, PixelRect { x: 4, ..small })], false, (0, 0, area)), Err("rect_changing"));
-        assert_eq!(resolve_guess(&[(1, 0, PixelRect { width: 101, ..area })], false, (0, 0, area)), Err("rect_changing"));
-        assert_eq!(resolve_guess(&[(1, 1, small)], false, (0, 0, area)), Err("rect_changing"));
-        assert_eq!(resolve_guess(&[(0, 0, small), (1, 0, PixelRect { x: 50, ..small })], false, (0, 0, area)), Err("eyes_share_target"));
-        // Multiview: the guessed view's eye.
-        assert_eq!(resolve_guess(&[(0, 0, small), (1, 1, small)], true, (1, 1, area)), Ok((1, small)));
-        assert_eq!(resolve_guess(&[(0, 0, small)], true, (1, 0, area)), Err("rect_changing"));
+        let small = PixelRect { x: 0, y: 0, width: 45, height: 60 };
+        let right = PixelRect { x: 50, ..small };
+        // The guessed view's eye in the guessed layer, the whole area or a smaller rect.
+        assert_eq!(resolve_guess(&[(1, 0, area)], (1, 0, area), true), Ok((1, area)));
+        assert_eq!(resolve_guess(&[(0, 0, small)], (0, 0, area), true), Ok((0, small)));
+        // Side by side: each view its own eye; a copy needs it at the guess's origin.
+        let sbs = [(0, 0, small), (1, 0, right)];
+        assert_eq!(resolve_guess(&sbs, (1, 0, area), false), Ok((1, right)));
+        assert_eq!(resolve_guess(&sbs, (1, 0, area), true), Err(Some("rect_changing")));
+        assert_eq!(resolve_guess(&sbs, (0, 0, area), true), Ok((0, small)));
+        // Outside the guess: named; no eye of that view (another pass's guess): None.
+        assert_eq!(resolve_guess(&[(1, 0, PixelRect { width: 101, ..area })], (1, 0, area), false), Err(Some("rect_changing")));
+        assert_eq!(resolve_guess(&[(0, 0, small)], (1, 0, area), false), Err(None));
+        assert_eq!(resolve_guess(&[(1, 1, small)], (1, 0, area), false), Err(None));
     }
 }

@@ -64,7 +64,6 @@ impl FeatureStats for FarFieldStats {
             "no_sampled_usage" => "the eye or depth image was created before the layer could add SAMPLED to its usage, or its format cannot be sampled",
             "vetoed" => "the command buffer bound shader objects, whose state the layer cannot restore after its compute copy",
             "not_depth_tested" => "the pass has no depth-tested draw: nothing to save",
-            "eyes_share_target" => "both eyes side by side in one target whose pass was recorded before the layer knew its eyes (the first frames, a command buffer recorded once, or dynamic resolution): the far field cannot tell them apart there",
             _ => crate::core::stats::common_hint(reason),
         }
     }

@@ -472,7 +472,7 @@ impl FarFieldDevice {
             // A draw recorded before the eyes were known is the eye it turns out to be, or none.
             let view = match &op.awaiting {
                 None => Ok((guessed.view, guessed.rect)),
-                Some(a) => a.resolve_or_why(d, s.intermediate, (guessed.view, guessed.layer, guessed.rect)),
+                Some(a) => a.resolve_or_why(d, s.intermediate, (guessed.view, guessed.layer, guessed.rect), false),
             };
             let (view, rect) = match view {
                 Ok(v) => v,
@@ -612,11 +612,11 @@ impl VkFeature for FarFieldDevice {
             }
         }
     }
-    /// A pass whose eyes are not known yet (recorded in the session's first frame): the draws and
-    /// copies are guessed — a multiview pass's views by its view mask, a per-eye pass's view by
-    /// its order among such passes of the recording, both over the render area — and each
-    /// submission checks the guess against the eyes known then (`AwaitPass::resolve`): a wrong
-    /// guess reuses nothing and leaves its slot invalid.
+    /// A pass whose eyes are not known yet (recorded before the walk or the OpenXR half knew its
+    /// target, or into one whose eye rect changes every frame): a copy and a reuse draw are
+    /// recorded for each view over the render area, and each submission ties them to the eyes
+    /// known then (`AwaitPass::resolve_or_why`): a guess that is not this pass's reuses nothing
+    /// and leaves its slot invalid.
     fn inject_awaiting(&self, d: &DeviceState, at: &inject::Awaiting<'_>) {
         let area = inject::render_area(at.pass);
         let layer = |a: &AttachmentUse| a.image_view.as_ref().map_or(0, |v| v.range.base_array_layer);
@@ -626,17 +626,11 @@ impl VkFeature for FarFieldDevice {
             _ => None,
         };
         let Some(base) = color.map(layer) else { return };
+        // One guess per view over the whole render area; each submission ties each to the eye of
+        // its view, wherever in the area it is (`rules::resolve_guess`): a multiview pass's views
+        // in their layers, a per-eye pass's one eye, two eyes side by side.
         let mask = at.pass.view_mask();
-        let draws: Vec<EyeDraw> = if mask != 0 {
-            (0..2).filter(|v| mask & (1 << v) != 0).map(|v| EyeDraw { view: v, layer: base + v, viewport: area, scissor: area }).collect()
-        } else {
-            let mut earlier = 0;
-            lifetime::with_holds(d, at.owner, |holds| earlier = holds.iter().filter_map(|h| h.downcast_ref::<CopyOp>()).filter(|c| c.awaiting.is_some()).count());
-            if earlier >= 2 {
-                return;
-            }
-            vec![EyeDraw { view: earlier as u32, layer: base, viewport: area, scissor: area }]
-        };
+        let draws: Vec<EyeDraw> = (0..2u32).filter(|v| mask == 0 || mask & (1 << v) != 0).map(|v| EyeDraw { view: v, layer: base + if mask != 0 { v } else { 0 }, viewport: area, scissor: area }).collect();
         let plan = inject::shape_only(at.pass, at.fail_depth);
         let awaiting = Some(Arc::new(AwaitPass { pass: at.pass.clone(), fail_depth: at.fail_depth, walk: at.walk }));
         let t = Target { cb: at.cb, owner: at.owner, pass: at.pass, plan: &plan, draws, settings: at.settings, bound_sets: &at.bound_sets, awaiting };
@@ -741,18 +735,8 @@ impl VkFeature for FarFieldDevice {
                         // whole), at its origin (dynamic resolution): the slot holds it there.
                         let view = match &c.awaiting {
                             None => Some((c.view, c.rect)),
-                            Some(a) => match a.resolve_or_why(d, s.intermediate, (c.view, c.layer, c.rect)) {
-                                Ok(v) => Some(v),
-                                Err(why) => {
-                                    // Two eyes side by side in a pass awaiting the walk: its one
-                                    // guessed copy stands for the pass (no reuse draw was made
-                                    // for it), so the pass is counted here.
-                                    if a.walk && on && why == Some("eyes_share_target") {
-                                        self.not_applied("eyes_share_target");
-                                    }
-                                    None
-                                }
-                            },
+                            // A copy of the render area serves the eye found at its origin.
+                            Some(a) => a.resolve_or_why(d, s.intermediate, (c.view, c.layer, c.rect), true).ok(),
                         };
                         // A walked source whose rect moved since the recording copied the wrong
                         // pixels: no fresh source.

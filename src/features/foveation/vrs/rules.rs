@@ -315,7 +315,8 @@ impl NotApplied {
     /// The eye-pass test's reasons, mapped (None: not an eye pass, nothing to count).
     pub fn from_not_masked(n: NotMasked) -> Option<NotApplied> {
         match n {
-            NotMasked::NotEyePass => None,
+            // A post pass is no candidate: VRS applies to the eye passes behind it.
+            NotMasked::NotEyePass | NotMasked::PostPass => None,
             NotMasked::IntermediateOff => Some(NotApplied::IntermediateOff),
             NotMasked::Secondary => Some(NotApplied::Secondary),
             NotMasked::LayerError => Some(NotApplied::LayerError),
@@ -537,6 +538,7 @@ mod tests {
         assert_eq!(b.passes, 4);
         assert_eq!(b.summary(), "vrs_passes=4 vrs_maps_built=0 vrs_not_applied.unsupported=2");
         assert_eq!(NotApplied::from_not_masked(NotMasked::NotEyePass), None);
+        assert_eq!(NotApplied::from_not_masked(NotMasked::PostPass), None, "post passes are no candidates");
     }
 
     #[test]

@@ -20,6 +20,8 @@
 //! generations'.
 
 use super::rules::{self as rule, DeviceRates, EyeRates, NotApplied, VrsFrameStats};
+use super::submission;
+use crate::vk::inject::When;
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
@@ -56,7 +58,7 @@ pub(super) struct MapKey {
 
 /// A rate image of the layer's with the staging buffer holding its map; destroyed (through the
 /// device's trash) when the cache and every recording that used it let go.
-pub(super) struct RateImage {
+pub(crate) struct RateImage {
     pub image: vk::Image,
     pub memory: vk::DeviceMemory,
     pub view: vk::ImageView,
@@ -101,6 +103,7 @@ struct Books {
     total: VrsFrameStats,
     logged_kinds: HashSet<(PassKind, bool)>,
     logged_reasons: HashSet<NotApplied>,
+    logged_submission: HashSet<PassKind>,
     /// Rate images (dynamic rendering) and staging buffers (render pass objects) of the current
     /// generations, by map.
     images: HashMap<MapKey, Arc<RateImage>>,
@@ -111,16 +114,20 @@ pub(crate) struct VrsDevice {
     layer_enabled: bool,
     /// The device's texel size and layering when the layer enabled `attachmentFragmentShadingRate`.
     pub(super) rates: Option<DeviceRates>,
-    memory: vk::PhysicalDeviceMemoryProperties,
+    pub(super) memory: vk::PhysicalDeviceMemoryProperties,
     used: AtomicBool,
     books: Mutex<Books>,
     /// Render pass objects: framebuffers' rate images.
     pub(super) framebuffers: Mutex<HashMap<u64, super::pass::FbRate>>,
+    /// Rate images of recordings done with them, by (texels, layers), for later recordings of
+    /// passes planned at submission (`submission`): an app that records every frame does not
+    /// make an image every frame.
+    pub(super) rate_pool: submission::RatePool,
 }
 
 /// What `foveation.*` asks of this device now.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Mode {
+pub(super) enum Mode {
     Off,
     On,
     /// `foveation.method = vrs` on a device without attachment rates.
@@ -138,6 +145,7 @@ impl Plugin for VrsDevice {
             used: AtomicBool::new(false),
             books: Mutex::default(),
             framebuffers: Mutex::default(),
+            rate_pool: Arc::default(),
         }
     }
     fn empty_stats() -> Box<dyn FeatureStats> {
@@ -156,7 +164,7 @@ impl VrsDevice {
         self.layer_enabled && self.rates.is_some()
     }
 
-    fn mode(&self, s: &Settings) -> Mode {
+    pub(super) fn mode(&self, s: &Settings) -> Mode {
         if !self.layer_enabled || !s.foveation.enabled {
             return Mode::Off;
         }
@@ -169,7 +177,7 @@ impl VrsDevice {
     }
 }
 
-fn count(d: &DeviceState, f: impl Fn(&mut VrsFrameStats)) {
+pub(super) fn count(d: &DeviceState, f: impl Fn(&mut VrsFrameStats)) {
     let me = &d.features.vrs;
     me.used.store(true, Ordering::Relaxed);
     let mut b = lock(&me.books);
@@ -177,7 +185,7 @@ fn count(d: &DeviceState, f: impl Fn(&mut VrsFrameStats)) {
     f(&mut b.total);
 }
 
-fn not_applied(d: &DeviceState, why: NotApplied, kind: PassKind) {
+pub(super) fn not_applied(d: &DeviceState, why: NotApplied, kind: PassKind) {
     count(d, |s| s.count_not_applied(why));
     if lock(&d.features.vrs.books).logged_reasons.insert(why) {
         match why {
@@ -220,13 +228,33 @@ unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info: *const vk:
         clear_values: Vec::new(),
         rendering: Some(rendering),
     };
-    let r = plan(d, mode, &pass, app.flags.contains(vk::RenderingFlags::CONTENTS_SECONDARY_COMMAND_BUFFERS), || {
+    let secondary = app.flags.contains(vk::RenderingFlags::CONTENTS_SECONDARY_COMMAND_BUFFERS);
+    let app_fsr = || {
         // SAFETY: a valid chain.
         unsafe { crate::vk::convert::find_in_chain::<vk::BaseInStructure<'_>>(app.p_next, vk::StructureType::RENDERING_FRAGMENT_SHADING_RATE_ATTACHMENT_INFO_KHR) }.is_some()
-    });
-    let (key, eyes, rates) = match r {
-        Ok(Some(p)) => p,
+    };
+    let r = plan(d, mode, &pass, secondary, app_fsr, When::Recording);
+    // The view of the rate image, and the map to log (None: filled at each submission).
+    let made = match r {
+        // A target the walk tied to its eyes: its rect may move before the recording is
+        // submitted (dynamic resolution), so its map is that submission's (`submission`).
+        Ok(Some((_, _, _, eye_pass::Via::Walk))) if !resuming => match submission_rendering(d, cb, &pass) {
+            Ok(made) => made.map(|(v, rates)| (v, rates, None)),
+            Err(why) => {
+                not_applied(d, why, PassKind::Dynamic);
+                return None;
+            }
+        },
+        Ok(Some((key, eyes, rates, _))) => image_for(d, cb, &key, &eyes, rates).map(|v| (v, rates, Some(key))),
         Ok(None) => return None,
+        // Eyes the walk of each submission gives (`submission`).
+        Err(NotApplied::EyeUnknown) if !resuming && !app_fsr() && submission::awaits_walk(d, &pass, secondary) => match submission_rendering(d, cb, &pass) {
+            Ok(made) => made.map(|(v, rates)| (v, rates, None)),
+            Err(why) => {
+                not_applied(d, why, PassKind::Dynamic);
+                return None;
+            }
+        },
         Err(why) => {
             if !resuming {
                 not_applied(d, why, PassKind::Dynamic);
@@ -234,7 +262,7 @@ unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info: *const vk:
             return None;
         }
     };
-    let view = match image_for(d, cb, &key, &eyes, rates) {
+    let (view, rates, key) = match made {
         Ok(v) => v,
         Err(e) => {
             d.warn_repeated("vrs rate image", &e);
@@ -254,11 +282,50 @@ unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info: *const vk:
     // SAFETY: lifetimes erased: the copy lives only during the app's call.
     let mut copy: vk::RenderingInfo<'static> = unsafe { std::mem::transmute(*app) };
     copy.p_next = &*fsr as *const _ as *const c_void;
-    if !resuming {
+    if let (false, Some(key)) = (resuming, key) {
         count(d, |s| s.passes += 1);
         log_kind_once(d, PassKind::Dynamic, key.layers > 1 || pass.view_mask() != 0, &key);
     }
     Some(Rendering { info: copy, _fsr: fsr })
+}
+
+/// A rendering whose eyes each submission's walk gives: a rate image and staging buffer of the
+/// recording's own (`submission::SubmissionMap`), its upload recorded into `cb` now.
+fn submission_rendering(d: &DeviceState, cb: vk::CommandBuffer, pass: &PassInstance) -> Result<Result<(vk::ImageView, DeviceRates), String>, NotApplied> {
+    let rates = d.features.vrs.rates.ok_or(NotApplied::Unsupported)?;
+    let layers = submission::layers(d, pass)?;
+    let color = pass.rendering.as_ref().and_then(|r| r.color.first()).and_then(|c| c.attachment.image_view.as_ref());
+    let image = color.and_then(|v| d.track.images.get(v.image)).map(|i| (i.extent.width, i.extent.height));
+    let a = pass.render_area;
+    let (width, height) = rule::map_extent(image, PixelRect { x: a.x, y: a.y, width: a.width, height: a.height }, rates);
+    let (fovea, views) = (shared().foveation(), shared().views());
+    let key = MapKey { width, height, layers, eyes: Vec::new(), foveation_generation: fovea.generation, views_generation: views.generation };
+    let shape = (width, height, layers);
+    let img = match submission::take_pooled(d, shape) {
+        Some(img) => img,
+        None => {
+            let mut img = RateImage::empty(d);
+            if let Err(e) = image_objects(d, &key, &mut img) {
+                return Ok(Err(e));
+            }
+            img
+        }
+    };
+    let (image, view) = (img.image, img.view);
+    let map = match submission::SubmissionMap::new(d, pass.clone(), PassKind::Dynamic, shape, Some(img)) {
+        Ok(m) => m,
+        Err(e) => return Ok(Err(e)),
+    };
+    record_rate_content(d, cb, image, layers, (width, height), Some(map.staging.buffer));
+    log_submission_once(d, PassKind::Dynamic, &key);
+    lifetime::hold(d, cb.as_raw(), Arc::new(map));
+    Ok(Ok((view, rates)))
+}
+
+fn log_submission_once(d: &DeviceState, kind: PassKind, key: &MapKey) {
+    if lock(&d.features.vrs.books).logged_submission.insert(kind) {
+        tracing::info!("vrs on {kind:?} passes whose eyes are known only at each submission (recorded before the data-flow walk knew their target, or dynamic resolution): rate attachment {}x{} texels x {} layer(s), its map written at every submission", key.width, key.height, key.layers);
+    }
 }
 
 /// `vkCmdBeginRenderPass(2)` (after it went down, the pass tracked) of a pass without the
@@ -273,21 +340,23 @@ fn on_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, secondary: bool)
         // Handled before it went down (`for_render_pass_begin`).
         return;
     }
-    match plan(d, mode, &pass, secondary, || false) {
+    match plan(d, mode, &pass, secondary, || false, When::Recording) {
         Ok(None) => {}
         Ok(Some(_)) => not_applied(d, NotApplied::RenderPass, pass.kind),
         Err(why) => not_applied(d, why, pass.kind),
     }
 }
 
-type Plan = (MapKey, Vec<EyeRates>, DeviceRates);
+/// The map, its eyes, the device's rates, and how the pass was tied to its eyes.
+type Plan = (MapKey, Vec<EyeRates>, DeviceRates, eye_pass::Via);
 
-/// The rate image an eye pass needs; Ok(None) for a pass that is no eye pass.
-fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: bool, app_fsr: impl Fn() -> bool) -> Result<Option<Plan>, NotApplied> {
+/// The rate image an eye pass needs; Ok(None) for a pass that is no eye pass. `when`: its eyes
+/// as known while it is recorded, or at a submission (`submission`).
+pub(super) fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: bool, app_fsr: impl Fn() -> bool, when: When) -> Result<Option<Plan>, NotApplied> {
     let intermediate = d.settings().intermediate;
-    let eyes_fn = |a: &crate::track::cmd::AttachmentUse| crate::vk::inject::eyes_of(d, a, intermediate);
+    let eyes_fn = |a: &crate::track::cmd::AttachmentUse| crate::vk::inject::eyes_at(d, a, intermediate, when);
     let facts = Facts { secondary_contents: false, intermediate_enabled: intermediate, eyes: &eyes_fn, explicit_clear: None };
-    let (att, sources, _) = match eye_pass::find_eyes(pass, &facts) {
+    let (att, sources, via) = match eye_pass::find_eyes(pass, &facts) {
         Ok(f) => f,
         Err(n) => return NotApplied::from_not_masked(n).map_or(Ok(None), Err),
     };
@@ -321,7 +390,7 @@ fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: bool, app_f
         foveation_generation: fovea.generation,
         views_generation: views.generation,
     };
-    Ok(Some((key, eyes, rates)))
+    Ok(Some((key, eyes, rates, via)))
 }
 
 fn log_kind_once(d: &DeviceState, kind: PassKind, multiview: bool, key: &MapKey) {
@@ -471,6 +540,7 @@ unsafe fn for_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, kind: Pa
     let begin = unsafe { crate::vk::convert::render_pass_begin(app) };
     let imageless_views = begin.attachment_views.clone();
     let mode = d.features.vrs.mode(&d.settings());
+    let mut submitted = false;
     // Every begin records the framebuffer's rate content it needs (never "already there": another
     // command buffer may run in between, or this one may be resubmitted after others).
     let map = if mode == Mode::Off {
@@ -478,9 +548,31 @@ unsafe fn for_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, kind: Pa
     } else {
         let pass = d.track.render_pass_instance(shared(), kind, begin);
         // Secondary command buffers inherit the render pass, rate attachment included.
-        match plan(d, mode, &pass, false, || false) {
+        let planned = plan(d, mode, &pass, false, || false, When::Recording);
+        let walked = matches!(planned, Ok(Some((_, _, _, eye_pass::Via::Walk))));
+        match planned {
             Ok(None) => None,
-            Ok(Some((mut key, e, _))) => {
+            // Eyes the walk of each submission gives (a target the walk tied to its eyes: its rect
+            // may move before the recording is submitted): the framebuffer's rate image is
+            // uploaded from a staging buffer of the recording's own, written then (`submission`).
+            _ if walked || matches!(planned, Err(NotApplied::EyeUnknown)) && submission::awaits_walk(d, &pass, false) => {
+                let made = submission::layers(d, &pass).map_err(|why| why.name().to_string()).and_then(|_| submission::SubmissionMap::new(d, pass.clone(), kind, (fb.width, fb.height, fb.layers), None));
+                match made {
+                    Ok(m) => {
+                        let key = MapKey { width: fb.width, height: fb.height, layers: fb.layers, eyes: Vec::new(), foveation_generation: 0, views_generation: 0 };
+                        log_submission_once(d, kind, &key);
+                        record_rate_content(d, cb, fb.image, fb.layers, (fb.width, fb.height), Some(m.staging.buffer));
+                        lifetime::hold(d, cb.as_raw(), Arc::new(m));
+                        submitted = true;
+                    }
+                    Err(e) => {
+                        d.warn_repeated("vrs rate map filled at submission", &e);
+                        not_applied(d, NotApplied::LayerError, kind);
+                    }
+                }
+                None
+            }
+            Ok(Some((mut key, e, _, _))) => {
                 key.width = fb.width;
                 key.height = fb.height;
                 key.layers = fb.layers;
@@ -506,7 +598,9 @@ unsafe fn for_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, kind: Pa
         },
         None => None,
     };
-    record_rate_content(d, cb, fb.image, fb.layers, (fb.width, fb.height), staging.as_ref().map(|m| m.staging));
+    if !submitted {
+        record_rate_content(d, cb, fb.image, fb.layers, (fb.width, fb.height), staging.as_ref().map(|m| m.staging));
+    }
     if let Some(m) = staging {
         lifetime::hold(d, cb.as_raw(), m);
     }
@@ -651,8 +745,13 @@ impl VkFeature for VrsDevice {
         on_render_pass_begin(d, cb, secondary);
     }
     fn not_injected(&self, _d: &DeviceState, _s: &Settings, _why: NotMasked) {}
+    /// Maps of passes whose eyes each submission's walk gives (`submission`).
+    fn before_submit(&self, d: &DeviceState, cbs: &[u64]) {
+        submission::before_submit(d, cbs);
+    }
     fn destroy(&self, d: &DeviceState) {
         lock(&self.books).images.clear();
+        lock(&self.rate_pool).clear();
         let fbs = std::mem::take(&mut *lock(&self.framebuffers));
         for r in fbs.values() {
             super::pass::destroy_fb_rate(d, r);
