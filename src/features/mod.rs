@@ -14,6 +14,8 @@ pub mod mask;
 /// `crate::xr::overlay`).
 pub mod overlay;
 pub mod screenshot;
+/// Not a registry plug-in yet: the upscale's filters (the swapchain side comes with the plug-in).
+pub mod upscale;
 
 use crate::config::KeySpec;
 use crate::core::stats::FrameStats;
