@@ -25,6 +25,8 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("far_field.frag", "far_field.frag.spv", &[]),
     ("far_field.frag", "far_field_msaa.frag.spv", &["-DMSAA"]),
     ("far_field_copy.comp", "far_field_copy.comp.spv", &[]),
+    ("upscale_easu.comp", "upscale_easu.comp.spv", &[]),
+    ("upscale_rcas.comp", "upscale_rcas.comp.spv", &[]),
 ];
 
 fn main() {

@@ -1,0 +1,64 @@
+//! The upscale's GPU passes (`shaders/upscale_easu.comp`, `shaders/upscale_rcas.comp`): their
+//! SPIR-V and push constants. Both read a sampled image with `texelFetch` (binding 0, combined
+//! image sampler) and write an RGBA16F storage image (binding 1), one invocation per output pixel
+//! in 8×8 workgroups; they match `filter::easu` and `filter::rcas` (tests/upscale_filters.rs
+//! holds them to it on the device).
+
+/// EASU's SPIR-V.
+pub static EASU: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_easu.comp.spv"));
+/// RCAS's SPIR-V.
+pub static RCAS: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_rcas.comp.spv"));
+
+/// The workgroup's side in pixels.
+pub const GROUP: u32 = 8;
+
+/// EASU's push constants: the source rect (texels of the sampled image) and the destination rect
+/// (texels of the storage image), each x, y, width, height.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EasuParams {
+    pub src_rect: [i32; 4],
+    pub dst_rect: [i32; 4],
+}
+
+/// RCAS's push constants: the rect (the same texels in both images) and the sharpness (x).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RcasParams {
+    pub rect: [i32; 4],
+    pub sharpness: [f32; 4],
+}
+
+impl EasuParams {
+    /// The push constants' bytes (as the shader's std430-like block lays them out).
+    pub fn bytes(&self) -> Vec<u8> {
+        self.src_rect.iter().chain(&self.dst_rect).flat_map(|v| v.to_ne_bytes()).collect()
+    }
+}
+
+impl RcasParams {
+    /// The push constants' bytes.
+    pub fn bytes(&self) -> Vec<u8> {
+        self.rect.iter().flat_map(|v| v.to_ne_bytes()).chain(self.sharpness.iter().flat_map(|v| v.to_ne_bytes())).collect()
+    }
+}
+
+/// Workgroups covering `width`×`height` pixels.
+pub fn groups(width: u32, height: u32) -> (u32, u32) {
+    (width.div_ceil(GROUP), height.div_ceil(GROUP))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spirv_and_layouts() {
+        for s in [EASU, RCAS] {
+            assert_eq!(&s[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
+        }
+        assert_eq!(EasuParams::default().bytes().len(), std::mem::size_of::<EasuParams>());
+        assert_eq!(RcasParams { sharpness: [0.5, 0.0, 0.0, 0.0], ..Default::default() }.bytes()[16..20], 0.5f32.to_ne_bytes());
+        assert_eq!(groups(17, 8), (3, 1));
+    }
+}
