@@ -4,9 +4,10 @@
 //! by RCAS on the device and on the CPU, and every texel agrees within the RGBA16F images'
 //! rounding (RCAS amplifies its input's rounding by up to 4 × 3/16 / (1 − 4 × 3/16) = 3×).
 
-use ash::vk;
+mod upscale_gpu;
+
 use stereoshim::features::upscale::filter::{self, Image, Rgb};
-use stereoshim::features::upscale::gpu;
+use upscale_gpu::Gpu;
 
 /// A native scene with hard straight, slanted and curved edges over a smooth ramp, and the same
 /// rendered at `scale` (each texel the mean of 4×4 samples of its footprint).
@@ -36,243 +37,6 @@ fn low_res_scene(size: u32, scale: f32) -> Image {
     })
 }
 
-fn f16_to_f32(h: u16) -> f32 {
-    let (s, e, m) = (((h >> 15) & 1) as u32, ((h >> 10) & 0x1f) as u32, (h & 0x3ff) as u32);
-    let bits = match (e, m) {
-        (0, 0) => s << 31,
-        (0, _) => {
-            // Subnormal: normalize.
-            let (mut e, mut m) = (127 - 15 + 1, m);
-            while m & 0x400 == 0 {
-                m <<= 1;
-                e -= 1;
-            }
-            (s << 31) | (e << 23) | ((m & 0x3ff) << 13)
-        }
-        (31, _) => (s << 31) | 0x7f80_0000 | (m << 13),
-        _ => (s << 31) | ((e + 127 - 15) << 23) | (m << 13),
-    };
-    f32::from_bits(bits)
-}
-
-/// A buffer or image with its memory.
-struct Allocation {
-    memory: vk::DeviceMemory,
-}
-
-struct Gpu {
-    _entry: ash::Entry,
-    instance: ash::Instance,
-    device: ash::Device,
-    queue: vk::Queue,
-    family: u32,
-    memory: vk::PhysicalDeviceMemoryProperties,
-}
-
-impl Gpu {
-    fn new() -> Gpu {
-        // SAFETY: the system's Vulkan loader; every create info below is valid, and the objects
-        // are destroyed in `Drop` after the device is idle.
-        unsafe {
-            let entry = ash::Entry::load().expect("a Vulkan loader");
-            let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_0);
-            let instance = entry.create_instance(&vk::InstanceCreateInfo::default().application_info(&app), None).expect("vkCreateInstance");
-            let pd = instance.enumerate_physical_devices().expect("physical devices")[0];
-            let family = instance
-                .get_physical_device_queue_family_properties(pd)
-                .iter()
-                .position(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE))
-                .expect("a compute queue") as u32;
-            let prio = [1.0];
-            let queues = [vk::DeviceQueueCreateInfo::default().queue_family_index(family).queue_priorities(&prio)];
-            let device = instance.create_device(pd, &vk::DeviceCreateInfo::default().queue_create_infos(&queues), None).expect("vkCreateDevice");
-            let queue = device.get_device_queue(family, 0);
-            let memory = instance.get_physical_device_memory_properties(pd);
-            Gpu { _entry: entry, instance, device, queue, family, memory }
-        }
-    }
-
-    fn memory_type(&self, bits: u32, flags: vk::MemoryPropertyFlags) -> u32 {
-        (0..self.memory.memory_type_count).find(|&i| bits & (1 << i) != 0 && self.memory.memory_types[i as usize].property_flags.contains(flags)).expect("a memory type")
-    }
-
-    /// A host-visible buffer of `size` bytes.
-    fn buffer(&self, size: u64, usage: vk::BufferUsageFlags) -> (vk::Buffer, Allocation) {
-        // SAFETY: valid create / allocate infos on our device.
-        unsafe {
-            let b = self.device.create_buffer(&vk::BufferCreateInfo::default().size(size).usage(usage), None).unwrap();
-            let req = self.device.get_buffer_memory_requirements(b);
-            let t = self.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT);
-            let memory = self.device.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(t), None).unwrap();
-            self.device.bind_buffer_memory(b, memory, 0).unwrap();
-            (b, Allocation { memory })
-        }
-    }
-
-    /// A 2D image and its view.
-    fn image(&self, format: vk::Format, (w, h): (u32, u32), usage: vk::ImageUsageFlags) -> (vk::Image, vk::ImageView, Allocation) {
-        // SAFETY: valid create / allocate infos on our device.
-        unsafe {
-            let info = vk::ImageCreateInfo::default()
-                .image_type(vk::ImageType::TYPE_2D)
-                .format(format)
-                .extent(vk::Extent3D { width: w, height: h, depth: 1 })
-                .mip_levels(1)
-                .array_layers(1)
-                .samples(vk::SampleCountFlags::TYPE_1)
-                .usage(usage);
-            let i = self.device.create_image(&info, None).unwrap();
-            let req = self.device.get_image_memory_requirements(i);
-            let t = self.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::empty());
-            let memory = self.device.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(t), None).unwrap();
-            self.device.bind_image_memory(i, memory, 0).unwrap();
-            let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
-            let view = self.device.create_image_view(&vk::ImageViewCreateInfo::default().image(i).view_type(vk::ImageViewType::TYPE_2D).format(format).subresource_range(range), None).unwrap();
-            (i, view, Allocation { memory })
-        }
-    }
-
-    fn pipeline(&self, spirv: &[u8], layout: vk::PipelineLayout) -> vk::Pipeline {
-        let code = ash::util::read_spv(&mut std::io::Cursor::new(spirv)).unwrap();
-        // SAFETY: valid SPIR-V compiled at build time; our layout.
-        unsafe {
-            let module = self.device.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None).unwrap();
-            let stage = vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::COMPUTE).module(module).name(c"main");
-            let p = self.device.create_compute_pipelines(vk::PipelineCache::null(), &[vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout)], None).unwrap()[0];
-            self.device.destroy_shader_module(module, None);
-            p
-        }
-    }
-
-    /// EASU of `src` to `w`×`h`, then RCAS with `sharpness`, on the device: the result's texels.
-    fn upscale(&self, src: &Image, (w, h): (u32, u32), sharpness: f32) -> Vec<[f32; 4]> {
-        let d = &self.device;
-        let fmt_in = vk::Format::R32G32B32A32_SFLOAT;
-        let fmt = vk::Format::R16G16B16A16_SFLOAT;
-        let texels: Vec<f32> = src.texels.iter().flat_map(|t| [t.0[0], t.0[1], t.0[2], 1.0]).collect();
-        let (staging, staging_mem) = self.buffer(texels.len() as u64 * 4, vk::BufferUsageFlags::TRANSFER_SRC);
-        let (readback, readback_mem) = self.buffer(w as u64 * h as u64 * 8, vk::BufferUsageFlags::TRANSFER_DST);
-        let (input, input_view, input_mem) = self.image(fmt_in, (src.width, src.height), vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST);
-        let (temp, temp_view, temp_mem) = self.image(fmt, (w, h), vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::STORAGE);
-        let (out, out_view, out_mem) = self.image(fmt, (w, h), vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC);
-        let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
-        let layers = vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: 1 };
-        let barrier = |image, (old, new), (src, dst)| {
-            vk::ImageMemoryBarrier::default()
-                .image(image)
-                .old_layout(old)
-                .new_layout(new)
-                .src_access_mask(src)
-                .dst_access_mask(dst)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .subresource_range(range)
-        };
-        // SAFETY: every object is ours and alive until the end of this function, where the
-        // device is idle before anything is destroyed; arrays outlive the calls.
-        unsafe {
-            let p = d.map_memory(staging_mem.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()).unwrap() as *mut f32;
-            std::ptr::copy_nonoverlapping(texels.as_ptr(), p, texels.len());
-            d.unmap_memory(staging_mem.memory);
-            let sampler = d
-                .create_sampler(
-                    &vk::SamplerCreateInfo::default()
-                        .mag_filter(vk::Filter::NEAREST)
-                        .min_filter(vk::Filter::NEAREST)
-                        .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-                        .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE),
-                    None,
-                )
-                .unwrap();
-            let bindings = [
-                vk::DescriptorSetLayoutBinding::default().binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE),
-                vk::DescriptorSetLayoutBinding::default().binding(1).descriptor_type(vk::DescriptorType::STORAGE_IMAGE).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE),
-            ];
-            let set_layout = d.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).unwrap();
-            let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::COMPUTE, offset: 0, size: 32 }];
-            let set_layouts = [set_layout];
-            let layout = d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges), None).unwrap();
-            let (easu, rcas) = (self.pipeline(gpu::EASU, layout), self.pipeline(gpu::RCAS, layout));
-            let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 2 }, vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_IMAGE, descriptor_count: 2 }];
-            let pool = d.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(2).pool_sizes(&sizes), None).unwrap();
-            let sets = d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&[set_layout, set_layout])).unwrap();
-            for (set, (from, to)) in sets.iter().zip([(input_view, temp_view), (temp_view, out_view)]) {
-                let sampled = [vk::DescriptorImageInfo { sampler, image_view: from, image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL }];
-                let storage = [vk::DescriptorImageInfo { sampler: vk::Sampler::null(), image_view: to, image_layout: vk::ImageLayout::GENERAL }];
-                let writes = [
-                    vk::WriteDescriptorSet::default().dst_set(*set).dst_binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(&sampled),
-                    vk::WriteDescriptorSet::default().dst_set(*set).dst_binding(1).descriptor_type(vk::DescriptorType::STORAGE_IMAGE).image_info(&storage),
-                ];
-                d.update_descriptor_sets(&writes, &[]);
-            }
-            let cmd_pool = d.create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(self.family), None).unwrap();
-            let cb = d.allocate_command_buffers(&vk::CommandBufferAllocateInfo::default().command_pool(cmd_pool).command_buffer_count(1)).unwrap()[0];
-            d.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default()).unwrap();
-            let (none, tw, tr, sw, sr) = (vk::AccessFlags::empty(), vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::TRANSFER_READ, vk::AccessFlags::SHADER_WRITE, vk::AccessFlags::SHADER_READ);
-            let (top, xfer, cs) = (vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::COMPUTE_SHADER);
-            d.cmd_pipeline_barrier(cb, top, xfer, vk::DependencyFlags::empty(), &[], &[], &[barrier(input, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL), (none, tw))]);
-            let region = vk::BufferImageCopy { buffer_offset: 0, buffer_row_length: 0, buffer_image_height: 0, image_subresource: layers, image_offset: vk::Offset3D::default(), image_extent: vk::Extent3D { width: src.width, height: src.height, depth: 1 } };
-            d.cmd_copy_buffer_to_image(cb, staging, input, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &[region]);
-            let to_run = [
-                barrier(input, (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL), (tw, sr)),
-                barrier(temp, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::GENERAL), (none, sw)),
-                barrier(out, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::GENERAL), (none, sw)),
-            ];
-            d.cmd_pipeline_barrier(cb, xfer, cs, vk::DependencyFlags::empty(), &[], &[], &to_run);
-            let (gx, gy) = gpu::groups(w, h);
-            d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, easu);
-            d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &sets[..1], &[]);
-            let ep = gpu::EasuParams { src_rect: [0, 0, src.width as i32, src.height as i32], dst_rect: [0, 0, w as i32, h as i32] };
-            d.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, &ep.bytes());
-            d.cmd_dispatch(cb, gx, gy, 1);
-            d.cmd_pipeline_barrier(cb, cs, cs, vk::DependencyFlags::empty(), &[], &[], &[barrier(temp, (vk::ImageLayout::GENERAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL), (sw, sr))]);
-            d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, rcas);
-            d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &sets[1..], &[]);
-            let rp = gpu::RcasParams { rect: [0, 0, w as i32, h as i32], sharpness: [sharpness, 0.0, 0.0, 0.0] };
-            d.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, &rp.bytes());
-            d.cmd_dispatch(cb, gx, gy, 1);
-            d.cmd_pipeline_barrier(cb, cs, xfer, vk::DependencyFlags::empty(), &[], &[], &[barrier(out, (vk::ImageLayout::GENERAL, vk::ImageLayout::TRANSFER_SRC_OPTIMAL), (sw, tr))]);
-            let back = vk::BufferImageCopy { image_extent: vk::Extent3D { width: w, height: h, depth: 1 }, ..region };
-            d.cmd_copy_image_to_buffer(cb, out, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, readback, &[back]);
-            d.end_command_buffer(cb).unwrap();
-            let cbs = [cb];
-            d.queue_submit(self.queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], vk::Fence::null()).unwrap();
-            d.device_wait_idle().unwrap();
-            let p = d.map_memory(readback_mem.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()).unwrap() as *const u16;
-            let halves = std::slice::from_raw_parts(p, (w * h * 4) as usize).to_vec();
-            d.unmap_memory(readback_mem.memory);
-            d.destroy_command_pool(cmd_pool, None);
-            d.destroy_descriptor_pool(pool, None);
-            d.destroy_pipeline(easu, None);
-            d.destroy_pipeline(rcas, None);
-            d.destroy_pipeline_layout(layout, None);
-            d.destroy_descriptor_set_layout(set_layout, None);
-            d.destroy_sampler(sampler, None);
-            for (view, image) in [(input_view, input), (temp_view, temp), (out_view, out)] {
-                d.destroy_image_view(view, None);
-                d.destroy_image(image, None);
-            }
-            for b in [staging, readback] {
-                d.destroy_buffer(b, None);
-            }
-            for m in [staging_mem, readback_mem, input_mem, temp_mem, out_mem] {
-                d.free_memory(m.memory, None);
-            }
-            halves.chunks_exact(4).map(|c| [f16_to_f32(c[0]), f16_to_f32(c[1]), f16_to_f32(c[2]), f16_to_f32(c[3])]).collect()
-        }
-    }
-}
-
-impl Drop for Gpu {
-    fn drop(&mut self) {
-        // SAFETY: every object made from the device was destroyed; nothing is pending.
-        unsafe {
-            self.device.destroy_device(None);
-            self.instance.destroy_instance(None);
-        }
-    }
-}
-
 /// The largest per-channel difference between the device's result and the CPU reference's.
 fn max_diff(gpu: &[[f32; 4]], cpu: &Image) -> f32 {
     gpu.iter().zip(&cpu.texels).flat_map(|(g, c)| (0..3).map(move |k| (g[k] - c.0[k]).abs())).fold(0.0, f32::max)
@@ -285,13 +49,17 @@ fn the_gpu_passes_match_the_cpu_reference() {
     for (w, h) in [(128, 128), (150, 131)] {
         // EASU alone (RCAS at no sharpness copies): within the RGBA16F output's rounding.
         let easu = filter::easu(&low, w, h);
-        let got = gpu.upscale(&low, (w, h), 0.0);
+        let got = gpu.upscale(&low, (w, h), 0.0).texels;
         let d = max_diff(&got, &easu);
         eprintln!("{}x{} → {w}x{h}: EASU max difference {d:.5}", low.width, low.height);
         assert!(d < 2.0e-3, "EASU on the device differs from the reference by {d}");
         // With RCAS at full sharpness: its input's rounding amplified (at most 3×).
         let full = filter::rcas(&easu, 1.0);
-        let got = gpu.upscale(&low, (w, h), 1.0);
+        let run = gpu.upscale(&low, (w, h), 1.0);
+        if let Some((e, r)) = run.times_ms {
+            eprintln!("{}x{} → {w}x{h}: device time EASU {e:.3} ms, RCAS {r:.3} ms", low.width, low.height);
+        }
+        let got = run.texels;
         let d = max_diff(&got, &full);
         eprintln!("{}x{} → {w}x{h}: EASU + RCAS max difference {d:.5}", low.width, low.height);
         assert!(d < 8.0e-3, "EASU + RCAS on the device differ from the reference by {d}");

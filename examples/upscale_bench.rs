@@ -1,0 +1,61 @@
+//! GPU time of the upscale's passes (EASU, then RCAS) at a headset's per-eye size, on the machine's
+//! Vulkan device, for the device machine (no Rust there): the input is a synthetic scene at
+//! `--scale` of the output; the passes run `--runs` times, each timed by the device's timestamps;
+//! the medians are printed, per eye and for two eyes.
+//!   target/release/examples/upscale_bench [--width 2016] [--height 2240] [--scale 0.77] [--runs 15]
+
+#[path = "../tests/upscale_gpu/mod.rs"]
+mod upscale_gpu;
+
+use clap::Parser;
+use stereoshim::features::upscale::filter::{Image, Rgb};
+
+#[derive(Parser)]
+#[command(about, long_about = None)]
+struct Args {
+    #[arg(long, default_value_t = 2016)]
+    width: u32,
+    #[arg(long, default_value_t = 2240)]
+    height: u32,
+    #[arg(long, default_value_t = 0.77)]
+    scale: f32,
+    #[arg(long, default_value_t = 15)]
+    runs: usize,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let a = Args::parse();
+    let (w, h) = (((a.width as f32) * a.scale).round() as u32, ((a.height as f32) * a.scale).round() as u32);
+    // Edges in every direction over a ramp: what the analysis branches on.
+    let low = Image::from_fn(w, h, |x, y| {
+        let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
+        let ring = (((u - 0.5).powi(2) + (v - 0.5).powi(2)).sqrt() * 40.0) as i32 % 2 == 0;
+        if ring {
+            Rgb([0.8, 0.7, 0.2])
+        } else {
+            Rgb([u, v, 0.3])
+        }
+    });
+    let gpu = upscale_gpu::Gpu::new();
+    let (mut easu, mut rcas) = (Vec::new(), Vec::new());
+    for _ in 0..a.runs.max(1) {
+        let run = gpu.upscale(&low, (a.width, a.height), 0.8);
+        if !run.texels.iter().all(|t| t.iter().all(|c| c.is_finite())) {
+            eprintln!("the upscale wrote non-finite values");
+            std::process::exit(1);
+        }
+        let Some((e, r)) = run.times_ms else {
+            eprintln!("the device's queue has no timestamps");
+            std::process::exit(1);
+        };
+        easu.push(e);
+        rcas.push(r);
+    }
+    let (e, r) = (median(easu), median(rcas));
+    println!("{w}x{h} -> {}x{} per eye, {} runs: EASU {e:.3} ms, RCAS {r:.3} ms, both {:.3} ms per eye, {:.3} ms for two eyes", a.width, a.height, a.runs, e + r, 2.0 * (e + r));
+}
