@@ -2,7 +2,7 @@
 //! Vulkan device, for the device machine (no Rust there): the input is a synthetic scene at
 //! `--scale` of the output; the passes run `--runs` times, each timed by the device's timestamps;
 //! the medians are printed, per eye and for two eyes.
-//!   target/release/examples/upscale_bench [--width 2016] [--height 2240] [--scale 0.77] [--runs 15]
+//!   target/release/examples/upscale_bench [--width 2016] [--height 2240] [--scale 0.77] [--runs 15] [--repeat 50]
 
 #[path = "../tests/upscale_gpu/mod.rs"]
 mod upscale_gpu;
@@ -21,6 +21,9 @@ struct Args {
     scale: f32,
     #[arg(long, default_value_t = 15)]
     runs: usize,
+    /// Back-to-back runs of each pass per submission (their mean is a run's time).
+    #[arg(long, default_value_t = 50)]
+    repeat: u32,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -44,7 +47,7 @@ fn main() {
     let gpu = upscale_gpu::Gpu::new();
     let (mut easu, mut rcas) = (Vec::new(), Vec::new());
     for _ in 0..a.runs.max(1) {
-        let run = gpu.upscale(&low, (a.width, a.height), 0.8);
+        let run = gpu.upscale(&low, (a.width, a.height), 0.8, a.repeat);
         if !run.texels.iter().all(|t| t.iter().all(|c| c.is_finite())) {
             eprintln!("the upscale wrote non-finite values");
             std::process::exit(1);

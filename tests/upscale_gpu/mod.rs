@@ -123,8 +123,11 @@ impl Gpu {
         }
     }
 
-    /// EASU of `src` to `w`×`h`, then RCAS with `sharpness`, on the device: the result's texels.
-    pub fn upscale(&self, src: &Image, (w, h): (u32, u32), sharpness: f32) -> Upscaled {
+    /// EASU of `src` to `w`×`h`, then RCAS with `sharpness`, on the device: the result's texels,
+    /// and each pass's GPU time, the mean of `repeat` back-to-back runs in one submission (a
+    /// single run on an idle GPU also times its clocks ramping up).
+    pub fn upscale(&self, src: &Image, (w, h): (u32, u32), sharpness: f32, repeat: u32) -> Upscaled {
+        let repeat = repeat.max(1);
         let d = &self.device;
         let fmt_in = vk::Format::R32G32B32A32_SFLOAT;
         let fmt = vk::Format::R16G16B16A16_SFLOAT;
@@ -206,14 +209,24 @@ impl Gpu {
             d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &sets[..1], &[]);
             let ep = gpu::EasuParams { src_rect: [0, 0, src.width as i32, src.height as i32], dst_rect: [0, 0, w as i32, h as i32] };
             d.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, &ep.bytes());
-            d.cmd_dispatch(cb, gx, gy, 1);
+            for k in 0..repeat {
+                if k > 0 {
+                    d.cmd_pipeline_barrier(cb, cs, cs, vk::DependencyFlags::empty(), &[], &[], &[barrier(temp, (vk::ImageLayout::GENERAL, vk::ImageLayout::GENERAL), (sw, sw))]);
+                }
+                d.cmd_dispatch(cb, gx, gy, 1);
+            }
             d.cmd_pipeline_barrier(cb, cs, cs, vk::DependencyFlags::empty(), &[], &[], &[barrier(temp, (vk::ImageLayout::GENERAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL), (sw, sr))]);
             d.cmd_write_timestamp(cb, cs, queries, 1);
             d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, rcas);
             d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &sets[1..], &[]);
             let rp = gpu::RcasParams { rect: [0, 0, w as i32, h as i32], sharpness: [sharpness, 0.0, 0.0, 0.0] };
             d.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, &rp.bytes());
-            d.cmd_dispatch(cb, gx, gy, 1);
+            for k in 0..repeat {
+                if k > 0 {
+                    d.cmd_pipeline_barrier(cb, cs, cs, vk::DependencyFlags::empty(), &[], &[], &[barrier(out, (vk::ImageLayout::GENERAL, vk::ImageLayout::GENERAL), (sw, sw))]);
+                }
+                d.cmd_dispatch(cb, gx, gy, 1);
+            }
             d.cmd_write_timestamp(cb, cs, queries, 2);
             d.cmd_pipeline_barrier(cb, cs, xfer, vk::DependencyFlags::empty(), &[], &[], &[barrier(out, (vk::ImageLayout::GENERAL, vk::ImageLayout::TRANSFER_SRC_OPTIMAL), (sw, tr))]);
             let back = vk::BufferImageCopy { image_extent: vk::Extent3D { width: w, height: h, depth: 1 }, ..region };
@@ -228,7 +241,7 @@ impl Gpu {
             let mut stamps = [0u64; 3];
             let times_ms = match self.timestamp_ns {
                 Some(ns) if d.get_query_pool_results(queries, 0, &mut stamps, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT).is_ok() => {
-                    let ms = |a: u64, b: u64| b.saturating_sub(a) as f64 * ns / 1e6;
+                    let ms = |a: u64, b: u64| b.saturating_sub(a) as f64 * ns / 1e6 / repeat as f64;
                     Some((ms(stamps[0], stamps[1]), ms(stamps[1], stamps[2])))
                 }
                 _ => None,
