@@ -3,6 +3,7 @@
 //! `--scale` of the output; the passes run `--runs` times, each timed by the device's timestamps;
 //! the medians are printed, per eye and for two eyes.
 //!   target/release/examples/upscale_bench [--width 2016] [--height 2240] [--scale 0.77] [--runs 15] [--repeat 50]
+//!     [--easu-spv F --rcas-spv F --group N]   (variants of the same interface, compared)
 
 #[path = "../tests/upscale_gpu/mod.rs"]
 mod upscale_gpu;
@@ -24,6 +25,15 @@ struct Args {
     /// Back-to-back runs of each pass per submission (their mean is a run's time).
     #[arg(long, default_value_t = 50)]
     repeat: u32,
+    /// Variants to compare with the layer's passes: SPIR-V files of the same interface, and their
+    /// workgroup's side.
+    #[arg(long)]
+    easu_spv: Option<std::path::PathBuf>,
+    #[arg(long)]
+    rcas_spv: Option<std::path::PathBuf>,
+    /// The variants' workgroup side (default: the layer's).
+    #[arg(long)]
+    group: Option<u32>,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -45,9 +55,13 @@ fn main() {
         }
     });
     let gpu = upscale_gpu::Gpu::new();
+    let read = |p: &Option<std::path::PathBuf>| p.as_ref().map(|p| std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())));
+    let (easu_v, rcas_v) = (read(&a.easu_spv), read(&a.rcas_spv));
+    let product = upscale_gpu::Shaders::product();
+    let shaders = upscale_gpu::Shaders { easu: easu_v.as_deref().unwrap_or(product.easu), rcas: rcas_v.as_deref().unwrap_or(product.rcas), group: a.group.unwrap_or(product.group) };
     let (mut easu, mut rcas) = (Vec::new(), Vec::new());
     for _ in 0..a.runs.max(1) {
-        let run = gpu.upscale(&low, (a.width, a.height), 0.8, a.repeat);
+        let run = gpu.upscale_with(shaders, &low, (a.width, a.height), 0.8, a.repeat);
         if !run.texels.iter().all(|t| t.iter().all(|c| c.is_finite())) {
             eprintln!("the upscale wrote non-finite values");
             std::process::exit(1);

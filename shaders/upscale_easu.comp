@@ -4,7 +4,7 @@
 // reference src/features/upscale/filter.rs `easu` (which documents the algorithm). One invocation
 // per output pixel of `dst_rect`; the source is `src_rect` of `src` (read with texelFetch,
 // clamped to the rect's edge), in linear values (an sRGB image decodes on fetch).
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = 16, local_size_y = 16) in;
 
 layout(set = 0, binding = 0) uniform sampler2D src;
 layout(set = 0, binding = 1, rgba16f) uniform writeonly image2D dst;

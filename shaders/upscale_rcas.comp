@@ -3,7 +3,7 @@
 // published description of FidelityFX Super Resolution 1, operation for operation as the CPU
 // reference src/features/upscale/filter.rs `rcas`. One invocation per pixel of `rect`, reading
 // the EASU output `src` (texelFetch, clamped to the rect) and writing `dst`.
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = 16, local_size_y = 16) in;
 
 layout(set = 0, binding = 0) uniform sampler2D src;
 layout(set = 0, binding = 1, rgba16f) uniform writeonly image2D dst;

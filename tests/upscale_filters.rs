@@ -7,7 +7,7 @@
 mod upscale_gpu;
 
 use stereoshim::features::upscale::filter::{self, Image, Rgb};
-use upscale_gpu::Gpu;
+use upscale_gpu::{Gpu, Shaders};
 
 /// A native scene with hard straight, slanted and curved edges over a smooth ramp, and the same
 /// rendered at `scale` (each texel the mean of 4×4 samples of its footprint).
@@ -49,13 +49,13 @@ fn the_gpu_passes_match_the_cpu_reference() {
     for (w, h) in [(128, 128), (150, 131)] {
         // EASU alone (RCAS at no sharpness copies): within the RGBA16F output's rounding.
         let easu = filter::easu(&low, w, h);
-        let got = gpu.upscale(&low, (w, h), 0.0, 1).texels;
+        let got = gpu.upscale_with(Shaders::product(), &low, (w, h), 0.0, 1).texels;
         let d = max_diff(&got, &easu);
         eprintln!("{}x{} → {w}x{h}: EASU max difference {d:.5}", low.width, low.height);
         assert!(d < 2.0e-3, "EASU on the device differs from the reference by {d}");
         // With RCAS at full sharpness: its input's rounding amplified (at most 3×).
         let full = filter::rcas(&easu, 1.0);
-        let run = gpu.upscale(&low, (w, h), 1.0, 1);
+        let run = gpu.upscale_with(Shaders::product(), &low, (w, h), 1.0, 1);
         if let Some((e, r)) = run.times_ms {
             eprintln!("{}x{} → {w}x{h}: device time EASU {e:.3} ms, RCAS {r:.3} ms", low.width, low.height);
         }

@@ -8,5 +8,5 @@ for f in ../.gl/*.deb; do dpkg -x $f /; done; ldconfig
 export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
 nvidia-smi -L
 for s in 0.77 0.7 0.5; do
-  examples/upscale_bench --width 2016 --height 2240 --scale $s --runs 21
+  examples/upscale_bench --width 2016 --height 2240 --scale $s --runs 9 --repeat 30
 done

@@ -138,6 +138,16 @@ pub(crate) fn poll(d: &DeviceState) {
     empty_trash(d);
 }
 
+/// A session on the device ended: the pool's idle buffers are destroyed, with the trash. What
+/// the layer keeps between sessions is then what the device needs, not how many buffers the last
+/// session happened to have in flight at once (a later session's frames take new ones as they
+/// need them); a buffer is in the pool only once the recordings that held it are done.
+pub(crate) fn session_ended(d: &DeviceState) {
+    let idle = std::mem::take(&mut *lock(&d.lifetime.buffers));
+    drop(idle);
+    empty_trash(d);
+}
+
 fn empty_trash(d: &DeviceState) {
     let garbage = std::mem::take(&mut *lock(&d.lifetime.trash));
     for g in garbage {

@@ -203,6 +203,14 @@ pub(crate) fn log_device_stats(device: DeviceKey, at: &str) {
     }
 }
 
+/// A session on `device` ended (`xrDestroySession` succeeded): the layer lets go of what only
+/// served that session's frames (`lifetime::session_ended`).
+pub(crate) fn session_ended(device: DeviceKey) {
+    if let Some(d) = device.state() {
+        lifetime::session_ended(&d);
+    }
+}
+
 impl DeviceKey {
     /// Reads the key of `device`, which must be a live `VkDevice` (the runtime validated it).
     pub(crate) fn of_live(device: u64) -> DeviceKey {

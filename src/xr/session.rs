@@ -177,6 +177,7 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
                 tracing::info!("session {:#x} destroyed (binding {:?})", session.into_raw(), s.binding);
                 if let Some(b) = &s.binding {
                     crate::vk::log_device_stats(b.device_key, "xrDestroySession");
+                    crate::vk::session_ended(b.device_key);
                 }
                 for w in s.summary.lock().unwrap_or_else(|e| e.into_inner()).end() {
                     tracing::warn!("{w}");

@@ -7,6 +7,22 @@ use ash::vk;
 use stereoshim::features::upscale::filter::Image;
 use stereoshim::features::upscale::gpu;
 
+/// The two passes' SPIR-V and their workgroup's side (the product's, or variants a benchmark
+/// compares with the same interface).
+#[derive(Clone, Copy)]
+pub struct Shaders<'a> {
+    pub easu: &'a [u8],
+    pub rcas: &'a [u8],
+    pub group: u32,
+}
+
+impl Shaders<'static> {
+    /// The layer's own passes.
+    pub fn product() -> Shaders<'static> {
+        Shaders { easu: gpu::EASU, rcas: gpu::RCAS, group: gpu::GROUP }
+    }
+}
+
 /// What a run gives back: the result's texels (RGBA) and the passes' GPU times in ms (EASU,
 /// RCAS), when the queue has timestamps.
 pub struct Upscaled {
@@ -102,7 +118,10 @@ impl Gpu {
                 .usage(usage);
             let i = self.device.create_image(&info, None).unwrap();
             let req = self.device.get_image_memory_requirements(i);
-            let t = self.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::empty());
+            // Device-local where there is such memory (a discrete GPU's first type may be the
+            // host's, which would time the bus, not the passes).
+            let local = (0..self.memory.memory_type_count).find(|&i| req.memory_type_bits & (1 << i) != 0 && self.memory.memory_types[i as usize].property_flags.contains(vk::MemoryPropertyFlags::DEVICE_LOCAL));
+            let t = local.unwrap_or_else(|| self.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
             let memory = self.device.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(t), None).unwrap();
             self.device.bind_image_memory(i, memory, 0).unwrap();
             let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
@@ -123,10 +142,11 @@ impl Gpu {
         }
     }
 
-    /// EASU of `src` to `w`×`h`, then RCAS with `sharpness`, on the device: the result's texels,
-    /// and each pass's GPU time, the mean of `repeat` back-to-back runs in one submission (a
-    /// single run on an idle GPU also times its clocks ramping up).
-    pub fn upscale(&self, src: &Image, (w, h): (u32, u32), sharpness: f32, repeat: u32) -> Upscaled {
+    /// EASU of `src` to `w`×`h`, then RCAS with `sharpness`, on the device (`shaders`: the
+    /// layer's passes or variants): the result's texels, and each pass's GPU time, the mean of
+    /// `repeat` back-to-back runs in one submission (a single run on an idle GPU also times its
+    /// clocks ramping up).
+    pub fn upscale_with(&self, shaders: Shaders<'_>, src: &Image, (w, h): (u32, u32), sharpness: f32, repeat: u32) -> Upscaled {
         let repeat = repeat.max(1);
         let d = &self.device;
         let fmt_in = vk::Format::R32G32B32A32_SFLOAT;
@@ -174,7 +194,7 @@ impl Gpu {
             let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::COMPUTE, offset: 0, size: 32 }];
             let set_layouts = [set_layout];
             let layout = d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges), None).unwrap();
-            let (easu, rcas) = (self.pipeline(gpu::EASU, layout), self.pipeline(gpu::RCAS, layout));
+            let (easu, rcas) = (self.pipeline(shaders.easu, layout), self.pipeline(shaders.rcas, layout));
             let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 2 }, vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_IMAGE, descriptor_count: 2 }];
             let pool = d.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(2).pool_sizes(&sizes), None).unwrap();
             let sets = d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&[set_layout, set_layout])).unwrap();
@@ -203,7 +223,7 @@ impl Gpu {
                 barrier(out, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::GENERAL), (none, sw)),
             ];
             d.cmd_pipeline_barrier(cb, xfer, cs, vk::DependencyFlags::empty(), &[], &[], &to_run);
-            let (gx, gy) = gpu::groups(w, h);
+            let (gx, gy) = (w.div_ceil(shaders.group), h.div_ceil(shaders.group));
             d.cmd_write_timestamp(cb, cs, queries, 0);
             d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, easu);
             d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &sets[..1], &[]);

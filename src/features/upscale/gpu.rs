@@ -1,7 +1,7 @@
 //! The upscale's GPU passes (`shaders/upscale_easu.comp`, `shaders/upscale_rcas.comp`): their
 //! SPIR-V and push constants. Both read a sampled image with `texelFetch` (binding 0, combined
 //! image sampler) and write an RGBA16F storage image (binding 1), one invocation per output pixel
-//! in 8×8 workgroups; they match `filter::easu` and `filter::rcas` (tests/upscale_filters.rs
+//! in 16×16 workgroups; they match `filter::easu` and `filter::rcas` (tests/upscale_filters.rs
 //! holds them to it on the device).
 
 /// EASU's SPIR-V.
@@ -9,8 +9,9 @@ pub static EASU: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_easu.
 /// RCAS's SPIR-V.
 pub static RCAS: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_rcas.comp.spv"));
 
-/// The workgroup's side in pixels.
-pub const GROUP: u32 = 8;
+/// The workgroup's side in pixels (16×16: on the H100 RCAS ran in 0.034 ms per 2016×2240 eye
+/// against 0.046 with 8×8, EASU alike; docs/benchmarks.md).
+pub const GROUP: u32 = 16;
 
 /// EASU's push constants: the source rect (texels of the sampled image) and the destination rect
 /// (texels of the storage image), each x, y, width, height.
@@ -59,6 +60,6 @@ mod tests {
         }
         assert_eq!(EasuParams::default().bytes().len(), std::mem::size_of::<EasuParams>());
         assert_eq!(RcasParams { sharpness: [0.5, 0.0, 0.0, 0.0], ..Default::default() }.bytes()[16..20], 0.5f32.to_ne_bytes());
-        assert_eq!(groups(17, 8), (3, 1));
+        assert_eq!(groups(17, 8), (2, 1));
     }
 }
