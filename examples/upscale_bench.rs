@@ -34,6 +34,9 @@ struct Args {
     /// The variants' workgroup side (default: the layer's).
     #[arg(long)]
     group: Option<u32>,
+    /// The input's format: rgba8 (what apps render) or rgba32f.
+    #[arg(long, default_value = "rgba8")]
+    input: String,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -58,7 +61,7 @@ fn main() {
     let read = |p: &Option<std::path::PathBuf>| p.as_ref().map(|p| std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())));
     let (easu_v, rcas_v) = (read(&a.easu_spv), read(&a.rcas_spv));
     let product = upscale_gpu::Shaders::product();
-    let shaders = upscale_gpu::Shaders { easu: easu_v.as_deref().unwrap_or(product.easu), rcas: rcas_v.as_deref().unwrap_or(product.rcas), group: a.group.unwrap_or(product.group) };
+    let shaders = upscale_gpu::Shaders { easu: easu_v.as_deref().unwrap_or(product.easu), rcas: rcas_v.as_deref().unwrap_or(product.rcas), group: a.group.unwrap_or(product.group), input: if a.input == "rgba32f" { ash::vk::Format::R32G32B32A32_SFLOAT } else { ash::vk::Format::R8G8B8A8_UNORM } };
     let (mut easu, mut rcas) = (Vec::new(), Vec::new());
     for _ in 0..a.runs.max(1) {
         let run = gpu.upscale_with(shaders, &low, (a.width, a.height), 0.8, a.repeat);
@@ -74,5 +77,5 @@ fn main() {
         rcas.push(r);
     }
     let (e, r) = (median(easu), median(rcas));
-    println!("{w}x{h} -> {}x{} per eye, {} runs: EASU {e:.3} ms, RCAS {r:.3} ms, both {:.3} ms per eye, {:.3} ms for two eyes", a.width, a.height, a.runs, e + r, 2.0 * (e + r));
+    println!("{} {w}x{h} -> {}x{} per eye, {} runs: EASU {e:.3} ms, RCAS {r:.3} ms, both {:.3} ms per eye, {:.3} ms for two eyes", a.input, a.width, a.height, a.runs, e + r, 2.0 * (e + r));
 }

@@ -14,12 +14,15 @@ pub struct Shaders<'a> {
     pub easu: &'a [u8],
     pub rcas: &'a [u8],
     pub group: u32,
+    /// The input image's format: R32G32B32A32_SFLOAT (exact, for the comparison with the CPU
+    /// reference) or R8G8B8A8_UNORM (what apps render).
+    pub input: vk::Format,
 }
 
 impl Shaders<'static> {
     /// The layer's own passes.
     pub fn product() -> Shaders<'static> {
-        Shaders { easu: gpu::EASU, rcas: gpu::RCAS, group: gpu::GROUP }
+        Shaders { easu: gpu::EASU, rcas: gpu::RCAS, group: gpu::GROUP, input: vk::Format::R32G32B32A32_SFLOAT }
     }
 }
 
@@ -149,10 +152,13 @@ impl Gpu {
     pub fn upscale_with(&self, shaders: Shaders<'_>, src: &Image, (w, h): (u32, u32), sharpness: f32, repeat: u32) -> Upscaled {
         let repeat = repeat.max(1);
         let d = &self.device;
-        let fmt_in = vk::Format::R32G32B32A32_SFLOAT;
+        let fmt_in = shaders.input;
         let fmt = vk::Format::R16G16B16A16_SFLOAT;
-        let texels: Vec<f32> = src.texels.iter().flat_map(|t| [t.0[0], t.0[1], t.0[2], 1.0]).collect();
-        let (staging, staging_mem) = self.buffer(texels.len() as u64 * 4, vk::BufferUsageFlags::TRANSFER_SRC);
+        let texels: Vec<u8> = match fmt_in {
+            vk::Format::R8G8B8A8_UNORM => src.texels.iter().flat_map(|t| [t.0[0], t.0[1], t.0[2], 1.0].map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)).collect(),
+            _ => src.texels.iter().flat_map(|t| [t.0[0], t.0[1], t.0[2], 1.0]).flat_map(f32::to_ne_bytes).collect(),
+        };
+        let (staging, staging_mem) = self.buffer(texels.len() as u64, vk::BufferUsageFlags::TRANSFER_SRC);
         let (readback, readback_mem) = self.buffer(w as u64 * h as u64 * 8, vk::BufferUsageFlags::TRANSFER_DST);
         let (input, input_view, input_mem) = self.image(fmt_in, (src.width, src.height), vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST);
         let (temp, temp_view, temp_mem) = self.image(fmt, (w, h), vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::STORAGE);
@@ -173,7 +179,7 @@ impl Gpu {
         // SAFETY: every object is ours and alive until the end of this function, where the
         // device is idle before anything is destroyed; arrays outlive the calls.
         unsafe {
-            let p = d.map_memory(staging_mem.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()).unwrap() as *mut f32;
+            let p = d.map_memory(staging_mem.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()).unwrap() as *mut u8;
             std::ptr::copy_nonoverlapping(texels.as_ptr(), p, texels.len());
             d.unmap_memory(staging_mem.memory);
             let sampler = d
