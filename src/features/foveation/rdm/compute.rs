@@ -80,10 +80,19 @@ impl ReconParams {
             clip: [clip.x, clip.y, clip.width as i32, clip.height as i32],
         }
     }
-    pub(super) fn bytes(&self) -> &[u8] {
-        // SAFETY: a repr(C) struct of 4-byte fields without padding, read as its bytes.
-        unsafe { std::slice::from_raw_parts(self as *const ReconParams as *const u8, std::mem::size_of::<ReconParams>()) }
+    /// The push constants' bytes, field by field (no padding between 4-byte fields).
+    pub(super) fn bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(std::mem::size_of::<ReconParams>());
+        out.extend(self.rect.iter().flat_map(|v| v.to_ne_bytes()));
+        out.extend(self.tan.iter().chain(&self.fovea).flat_map(|v| v.to_ne_bytes()));
+        out.extend(self.misc.iter().chain(&self.clip).flat_map(|v| v.to_ne_bytes()));
+        out
     }
+}
+
+/// A barrier on the whole of `buffer` between `src` and `dst` accesses.
+pub(super) fn buffer_barrier(buffer: vk::Buffer, src: vk::AccessFlags, dst: vk::AccessFlags) -> vk::BufferMemoryBarrier<'static> {
+    vk::BufferMemoryBarrier::default().src_access_mask(src).dst_access_mask(dst).src_queue_family_index(vk::QUEUE_FAMILY_IGNORED).dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED).buffer(buffer).offset(0).size(vk::WHOLE_SIZE)
 }
 
 /// The compute pass's shared objects of one device, made on first use: one set layout (pixels,
@@ -466,7 +475,7 @@ pub(super) fn record(
     // Back: only the tiles' pixels can have changed; a run of neighbouring tiles in a row is one
     // region (regions never overlap: tiles of one eye are disjoint, eyes' rects too).
     let copy_back: Vec<vk::BufferImageCopy> = eyes.iter().zip(&lists).enumerate().flat_map(|(i, (p, l))| tile_spans(&p.params, l, clips[i]).into_iter().map(move |r| (i, r))).map(|(i, r)| region(i, r)).collect();
-    let buffer_barrier = |src, dst| vk::BufferMemoryBarrier::default().src_access_mask(src).dst_access_mask(dst).src_queue_family_index(vk::QUEUE_FAMILY_IGNORED).dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED).buffer(pixels).offset(0).size(vk::WHOLE_SIZE);
+    let buffer_barrier = |src, dst| buffer_barrier(pixels, src, dst);
     let fns = &d.fns;
     // SAFETY: `cb` is the slot's, begun; every handle is alive (the swapchain image is acquired
     // and not yet released; the pixel and tile buffers are the slot's, idle since its fence
@@ -490,7 +499,7 @@ pub(super) fn record(
                 continue;
             }
             let pc = ReconParams::of(p, storage, clips[i], bases[i], firsts[i]);
-            fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, pc.bytes());
+            fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, &pc.bytes());
             fns.cmd_dispatch(cb, l.len() as u32, 1, 1);
         }
         // The shader's writes before the copy back; the copy-in's reads of the image before the
@@ -550,6 +559,10 @@ mod tests {
     fn shaders_are_spirv_and_spans_merge_rows() {
         assert_eq!(&RECON[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
         assert_eq!(std::mem::size_of::<ReconParams>(), 80);
+        let pc = ReconParams { rect: [1, 2, 3, 4], tan: [5.0; 4], fovea: [6.0; 4], misc: [7, 8, 9, 10], clip: [11, 12, 13, 14] };
+        let b = pc.bytes();
+        assert_eq!(b.len(), 80);
+        assert_eq!((&b[0..4], &b[16..20], &b[32..36], &b[48..52], &b[64..68]), (&1i32.to_ne_bytes()[..], &5f32.to_ne_bytes()[..], &6f32.to_ne_bytes()[..], &7i32.to_ne_bytes()[..], &11i32.to_ne_bytes()[..]));
         let fov = crate::shared::ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
         let fovea = crate::shared::FoveaView { view: 0, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 };
         // Tiles of 32 px: row 0 tiles 0, 1, 2 → one span, clipped to the rect's 80 px; row 1

@@ -288,7 +288,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: &Prepared, image
     let barrier = |(old, new): (vk::ImageLayout, vk::ImageLayout), (src, dst): (vk::AccessFlags, vk::AccessFlags)| -> Vec<vk::ImageMemoryBarrier> {
         p.layers.iter().map(|&l| super::fill::layout_barrier(image, super::fill::color_range(l, 1), (old, new), (src, dst))).collect()
     };
-    let pixel_barrier = |src, dst| vk::BufferMemoryBarrier::default().src_access_mask(src).dst_access_mask(dst).src_queue_family_index(vk::QUEUE_FAMILY_IGNORED).dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED).buffer(pixels).offset(0).size(vk::WHOLE_SIZE);
+    let pixel_barrier = |src, dst| compute::buffer_barrier(pixels, src, dst);
     let fns = &d.fns;
     // SAFETY: `cb` is the app's command buffer, recording outside any pass (its eye pass just
     // ended); the target is the pass's attachment in `before`; the pixel buffer is held by the

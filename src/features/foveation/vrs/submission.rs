@@ -55,8 +55,8 @@ pub(super) struct SubmissionMap {
     /// Dynamic rendering: the recording's own rate image, back to the pool with the recording.
     image: Option<RateImage>,
     pool: RatePool,
-    /// What the staging buffer holds now: the eyes' rate layers applied, or why not.
-    last: Mutex<Option<Result<(), NotApplied>>>,
+    /// What the staging buffer holds now, and what it counts as (applied, or why not).
+    last: Mutex<Last>,
 }
 
 /// Whether `pass`, which `plan` could not tie to its eyes now, awaits them from the walk of each
@@ -84,13 +84,22 @@ pub(super) fn layers(d: &DeviceState, pass: &PassInstance) -> Result<u32, NotApp
     Ok(1)
 }
 
+/// What a map's staging buffer holds: a submission whose eyes and generations are those of the
+/// last one rewrites nothing.
+#[derive(Default)]
+struct Last {
+    /// The map written (None: full rate everywhere).
+    held: Option<super::vk::MapKey>,
+    counted: Option<Result<(), NotApplied>>,
+}
+
 impl SubmissionMap {
     /// A map of `shape` (texels, layers), full rate until a submission fills it.
     pub(super) fn new(d: &DeviceState, pass: PassInstance, kind: PassKind, shape: (u32, u32, u32), image: Option<RateImage>) -> Result<SubmissionMap, String> {
         let bytes = shape.0 as u64 * shape.1 as u64 * shape.2 as u64;
         // On failure `image` drops into the device's trash.
         let staging = PooledBuffer::take(d, bytes.max(4), &d.features.vrs.memory)?;
-        let map = SubmissionMap { pass, kind, shape, staging, image, pool: d.features.vrs.rate_pool.clone(), last: Mutex::new(None) };
+        let map = SubmissionMap { pass, kind, shape, staging, image, pool: d.features.vrs.rate_pool.clone(), last: Mutex::default() };
         map.write(d, &[]);
         Ok(map)
     }
@@ -112,9 +121,12 @@ impl SubmissionMap {
                 Err(None)
             } else {
                 match plan(d, mode, &self.pass, false, || false, When::Submission) {
-                    Ok(Some((_, eyes, _, _))) => {
+                    Ok(Some((key, eyes, _, _))) => {
                         let eyes: Vec<rule::EyeRates> = eyes.into_iter().filter(|e| e.layer < self.shape.2).collect();
-                        if !eyes.is_empty() && self.write(d, &eyes) {
+                        if eyes.is_empty() {
+                            Err(Some(NotApplied::EyeUnknown))
+                        } else if last.held.as_ref() == Some(&key) || self.write(d, &eyes) {
+                            last.held = Some(key);
                             Ok(())
                         } else {
                             Err(Some(NotApplied::EyeUnknown))
@@ -124,16 +136,18 @@ impl SubmissionMap {
                     Err(why) => Err(Some(why)),
                 }
             };
-            *last = match now {
+            last.counted = match now {
                 Ok(()) => Some(Ok(())),
                 Err(why) => {
-                    self.write(d, &[]);
+                    if last.held.take().is_some() {
+                        self.write(d, &[]);
+                    }
                     why.map(Err)
                 }
             };
         }
         // Counted at every submission, with what the staging buffer holds for it.
-        match *last {
+        match last.counted {
             Some(Ok(())) => count(d, |s| s.passes += 1),
             Some(Err(why)) => not_applied(d, why, self.kind),
             None => {}
