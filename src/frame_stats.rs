@@ -43,6 +43,8 @@ pub struct FrameRecord {
     /// `stats.gpu_time`: None when the timer was off (no field), Some(None) when the frame's time
     /// could not be had (`null`), else the layer-side GPU time of the frame.
     pub gpu_ms: Option<Option<GpuFrameTime>>,
+    /// The upscale this frame (None: no swapchain of the session is interposed).
+    pub upscale: Option<crate::shared::UpscaleFrame>,
 }
 
 impl FrameRecord {
@@ -61,6 +63,10 @@ impl FrameRecord {
         record.insert("fovea_source".into(), self.fovea_source.clone().into());
         record.insert("vulkan_half".into(), self.vulkan_half.into());
         self.stats.write_json(&mut record);
+        if let Some(u) = &self.upscale {
+            record.insert("upscale_enabled".into(), true.into());
+            record.insert("upscale".into(), serde_json::json!({"passes": u.passes, "rendered_px": u.rendered_px, "display_px": u.display_px}));
+        }
         if let Some(gpu) = &self.gpu_ms {
             let value = gpu.map_or(serde_json::Value::Null, |t| {
                 serde_json::json!({"busy": t.busy_ms, "span": t.span_ms, "submissions": t.submissions, "untimed": t.untimed})
@@ -181,7 +187,7 @@ mod tests {
         };
         *stats.get_mut::<RdmFrameStats>().unwrap() = RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() };
         *stats.get_mut::<VrsFrameStats>().unwrap() = VrsFrameStats { passes: 3, ..Default::default() };
-        let r = FrameRecord { frame: 7, time: 1.5, mask_enabled: true, foveation_enabled: true, far_field_enabled: false, overlay_enabled: false, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true), gpu_ms: None };
+        let r = FrameRecord { frame: 7, time: 1.5, mask_enabled: true, foveation_enabled: true, far_field_enabled: false, overlay_enabled: false, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true), gpu_ms: None, upscale: None };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
         assert_eq!(v["frame"], 7);
         assert_eq!(v["vulkan_half"], true);

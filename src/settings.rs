@@ -42,6 +42,8 @@ pub struct Settings {
     /// `overlay.*`: the in-headset stats panel.
     pub overlay: crate::features::overlay::OverlaySettings,
     pub screenshot: ScreenshotSettings,
+    /// `upscale.*`: the app renders smaller, the layer upscales into the runtime's swapchain.
+    pub upscale: crate::features::upscale::UpscaleSettings,
     pub stats_file: String,
     /// `stats.gpu_time`: the submit hooks bracket submissions with timestamps (`vk::gpu_time`).
     pub stats_gpu_time: bool,
@@ -72,6 +74,7 @@ impl Settings {
             far_field: FarFieldSettings::from_config(c),
             overlay: crate::features::overlay::OverlaySettings::from_config(c),
             screenshot: ScreenshotSettings::from_config(c),
+            upscale: crate::features::upscale::UpscaleSettings::from_config(c),
             stats_file: c.text("stats.file").to_string(),
             stats_gpu_time: c.bool("stats.gpu_time"),
             fail_in: c.text("debug.fail_in").split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),

@@ -189,9 +189,32 @@ pub struct Shared {
     pub swapchains: HandleMap<u64, Swapchain>,
     /// `VkImage` → the swapchain image it is.
     pub images: HandleMap<u64, SwapchainImage>,
+    /// The upscale's work since the last frame end (`take_upscale`).
+    pub upscale: std::sync::Mutex<Option<UpscaleFrame>>,
+}
+
+/// What the upscale did in a frame: passes (one per view rect), pixels rendered by the app and
+/// pixels the runtime got.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct UpscaleFrame {
+    pub passes: u64,
+    pub rendered_px: u64,
+    pub display_px: u64,
 }
 
 impl Shared {
+    /// Counts an upscale submission.
+    pub fn upscale_counts(&self, passes: u64, rendered_px: u64, display_px: u64) {
+        let mut u = self.upscale.lock().unwrap_or_else(|e| e.into_inner());
+        let f = u.get_or_insert_with(UpscaleFrame::default);
+        f.passes += passes;
+        f.rendered_px += rendered_px;
+        f.display_px += display_px;
+    }
+    /// The upscale's counts since the last call.
+    pub fn take_upscale(&self) -> Option<UpscaleFrame> {
+        self.upscale.lock().unwrap_or_else(|e| e.into_inner()).take()
+    }
     pub fn config(&self) -> Option<Arc<crate::config::Config>> {
         self.config.read().unwrap_or_else(|e| e.into_inner()).clone()
     }

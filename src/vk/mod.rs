@@ -325,6 +325,7 @@ intercepts! {
     Instance "vkCreateDevice" => chain::create_device as vk::PFN_vkCreateDevice;
     Device "vkDestroyDevice" => chain::destroy_device as vk::PFN_vkDestroyDevice;
     Device "vkCreateImage" => hooks::create_image as vk::PFN_vkCreateImage;
+    Device "vkCreateSampler" => hooks::create_sampler as vk::PFN_vkCreateSampler;
     Device "vkDestroyImage" => hooks::destroy_image as vk::PFN_vkDestroyImage;
     Device "vkCreateImageView" => hooks::create_image_view as vk::PFN_vkCreateImageView;
     Device "vkDestroyImageView" => hooks::destroy_image_view as vk::PFN_vkDestroyImageView;

@@ -62,6 +62,7 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
         fovea_source,
         vulkan_half,
         gpu_ms: None,
+        upscale: shared::shared().take_upscale(),
     };
     if let Some(s) = session {
         let enabled = crate::features::enabled(&settings, &record.stats);
@@ -238,6 +239,16 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
         let amended = match (session::lookup(session), app_info) {
             (Ok(s), Some(info)) => crate::features::XR_FEATURES.iter().find_map(|f| f.amend_frame_end(&s, info)),
             _ => None,
+        };
+        // The upscale: held images upscaled and released, interposed rects in display pixels
+        // (over the features' amendment, which it keeps alive).
+        let upscaled = match (session::lookup(session), amended.as_ref().map(|a| a.info).or(app_info.copied())) {
+            (Ok(s), Some(info)) => super::upscale::frame_end(&s, &info),
+            _ => None,
+        };
+        let amended = match upscaled {
+            Some(u) => Some(super::feature::AmendedFrameEnd { info: u.info, _keep: Box::new((u._keep, amended.map(|a| a._keep))) }),
+            None => amended,
         };
         // The overlay's quad goes after the app's (or the amended) layers, in a new array: the
         // app's own is never changed.

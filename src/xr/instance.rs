@@ -220,6 +220,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             app_extensions,
             layer_extensions: added,
             watch: crate::config::Watch::new(&[app_name_for_watch.as_str(), exe.as_str()], std::time::Duration::from_millis(100)),
+            upscale: Default::default(),
         };
         state().instances.insert(handle.into_raw(), Arc::new(inst));
         Ok(r)
@@ -299,6 +300,7 @@ pub(super) unsafe extern "system" fn enumerate_view_configuration_views(
             // the app's array, which is the app's to change until the call returns.
             let written = unsafe { std::slice::from_raw_parts_mut(views, (*view_count_output).min(view_capacity_input) as usize) };
             let settings = super::settings(&inst);
+            super::upscale::views_enumerated(&inst, &settings, written);
             for f in crate::features::XR_FEATURES {
                 f.views_enumerated(&settings, written);
             }

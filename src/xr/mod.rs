@@ -10,6 +10,7 @@ mod instance;
 mod overlay;
 pub(crate) mod session;
 mod swapchain;
+pub(crate) mod upscale;
 pub mod probe;
 mod vulkan;
 
@@ -147,6 +148,8 @@ pub(crate) struct Instance {
     pub layer_extensions: Vec<String>,
     /// The config file, re-read when it changes; feature settings then apply from the next frame.
     pub watch: crate::config::Watch,
+    /// The upscale's latched sizes (`xrEnumerateViewConfigurationViews`).
+    pub upscale: upscale::InstanceUpscale,
 }
 
 pub(crate) const VISIBILITY_MASK_EXT: &str = "XR_KHR_visibility_mask";

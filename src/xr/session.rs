@@ -49,6 +49,8 @@ pub(crate) struct Session {
     pub system_id: xr::SystemId,
     /// The in-headset stats overlay's objects and text (`overlay.enabled`).
     pub overlay: super::overlay::OverlaySession,
+    /// The upscale's GPU objects (`upscale.enabled`).
+    pub upscale: super::upscale::SessionUpscale,
 }
 
 pub(crate) fn fov_tangents(fov: &xr::Fovf) -> ViewFov {
@@ -149,6 +151,7 @@ pub(super) unsafe extern "system" fn create_session(
             summary: Default::default(),
             system_id,
             overlay: Default::default(),
+            upscale: Default::default(),
         };
         state().sessions.insert(handle.into_raw(), Arc::new(s));
         Ok(r)
@@ -169,6 +172,14 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
         // while the session (and its device) are alive.
         if let Ok(s) = lookup(session) {
             super::overlay::destroy(&s);
+            // Interposed swapchains the app did not destroy: their images go while the device is
+            // sure to be alive, then the session's upscale objects.
+            for (_, sc) in state().swapchains.values() {
+                if let (true, Some(i)) = (sc.session.handle == session, sc.upscale.as_ref()) {
+                    super::upscale::destroy(&s, i);
+                }
+            }
+            super::upscale::session_destroyed(&s);
         }
         let r = down.call(plain);
         if r == xr::Result::SUCCESS && known {
@@ -192,6 +203,9 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
             }
             st.swapchains.retain(|_, s| s.session.handle != session);
             st.sessions.remove(session.into_raw());
+            if !st.sessions.values().iter().any(|(_, s)| Arc::ptr_eq(&s.instance, &inst)) {
+                inst.upscale.unlatch();
+            }
             // The app has waited for its GPU work by now (it may not destroy a session whose
             // images are in use): the last frames' GPU times are in, and every waiting
             // `stats.file` line is written.

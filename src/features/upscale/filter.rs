@@ -209,6 +209,44 @@ pub mod quality {
         }
     }
 
+    /// Mean SSIM of the luma (Wang et al. 2004: 8×8 windows stepped by 4, C1 = (0.01)², C2 =
+    /// (0.03)² for values in [0, 1]); 1 when identical. Images of different sizes are compared
+    /// over their common top-left part.
+    pub fn ssim(a: &Image, b: &Image) -> f64 {
+        const WIN: i64 = 8;
+        const STEP: usize = 4;
+        let (c1, c2) = (0.01f64 * 0.01, 0.03f64 * 0.03);
+        let (w, h) = (a.width.min(b.width) as i64, a.height.min(b.height) as i64);
+        if w < WIN || h < WIN {
+            return if psnr(a, b).is_infinite() { 1.0 } else { 0.0 };
+        }
+        let (mut sum, mut n) = (0.0f64, 0u64);
+        for y0 in (0..=h - WIN).step_by(STEP) {
+            for x0 in (0..=w - WIN).step_by(STEP) {
+                let (mut ma, mut mb, mut va, mut vb, mut cov) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+                let count = (WIN * WIN) as f64;
+                for y in y0..y0 + WIN {
+                    for x in x0..x0 + WIN {
+                        let (p, q) = (a.at(x, y).luma() as f64 * 0.5, b.at(x, y).luma() as f64 * 0.5);
+                        ma += p;
+                        mb += q;
+                        va += p * p;
+                        vb += q * q;
+                        cov += p * q;
+                    }
+                }
+                ma /= count;
+                mb /= count;
+                va = va / count - ma * ma;
+                vb = vb / count - mb * mb;
+                cov = cov / count - ma * mb;
+                sum += ((2.0 * ma * mb + c1) * (2.0 * cov + c2)) / ((ma * ma + mb * mb + c1) * (va + vb + c2));
+                n += 1;
+            }
+        }
+        sum / n as f64
+    }
+
     /// The edge-sharpness measure the upscaling is judged by: the image's gradient energy (the
     /// mean squared luma difference to the right and below neighbours) at the pixels where the
     /// native image has an edge (its own gradient above `threshold`), as a fraction of the native

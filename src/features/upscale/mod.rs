@@ -1,9 +1,140 @@
-//! Upscaling: the app renders fewer pixels and the layer upscales them into the runtime's
-//! swapchain. So far its filters: on the CPU (`filter`: EASU + RCAS and bilinear, and the quality
-//! measures the upscale is judged by) and as the GPU passes held to them (`gpu`); and its
-//! geometry (`rules`: the sizes the app is told, the runtime's rects, the LOD bias). The
-//! swapchain interposition that runs them at `xrEndFrame` comes with the plug-in.
+//! Upscaling (`upscale.*`): the app is told a smaller recommended size, renders into images the
+//! layer owns at that size, and the layer upscales them into the runtime's display-size swapchain
+//! at `xrEndFrame` (EASU + RCAS as compute, or a bilinear blit), rewriting the submitted
+//! `imageRect`s. Not a registry plug-in: it changes no app pass. Its parts: the filters on the CPU
+//! (`filter`: the reference and the quality measures), the GPU passes (`gpu`: SPIR-V and push
+//! constants), the geometry and the interposition decisions (`rules`, pure), the Vulkan work
+//! (`vk`: pipelines, per-swapchain images and descriptors, the recorded upscale) and its shell
+//! in `crate::xr::upscale` (the swapchain calls).
 
 pub mod filter;
 pub mod gpu;
 pub mod rules;
+pub(crate) mod vk;
+
+use crate::config::{Config, KeySpec, Kind};
+
+/// The upscale's config keys.
+pub const KEYS: &[KeySpec] = &[
+    KeySpec {
+        key: "upscale.enabled",
+        kind: Kind::Bool,
+        default: "false",
+        doc: "tell the app a smaller recommended size and upscale its eye images into the runtime's display-size swapchain (latched when a session starts)",
+    },
+    KeySpec {
+        key: "upscale.scale",
+        kind: Kind::Float { min: 0.5, max: 1.0 },
+        default: "0.77",
+        doc: "rendered size per axis as a fraction of the runtime's recommended size (0.77: 59 % of the pixels)",
+    },
+    KeySpec {
+        key: "upscale.method",
+        kind: Kind::Choice(&["easu_rcas", "bilinear"]),
+        default: "easu_rcas",
+        doc: "easu_rcas: edge-adaptive upsampling then robust contrast-adaptive sharpening (FSR 1's two passes) as compute; bilinear: a filtered blit",
+    },
+    KeySpec {
+        key: "upscale.sharpness",
+        kind: Kind::Float { min: 0.0, max: 1.0 },
+        default: "0.4",
+        doc: "RCAS sharpening strength, 0 (none) .. 1 (full); 0.4 keeps PSNR at bilinear's while edges keep about twice its energy (docs/upscaling.md)",
+    },
+    KeySpec {
+        key: "upscale.mip_bias",
+        kind: Kind::Text,
+        default: "auto",
+        doc: "texture LOD bias added to the app's samplers (vkCreateSampler): auto (log2 of the scale, so textures keep the detail of the display size), off, or a number of levels (-4 .. 4)",
+    },
+    KeySpec {
+        key: "upscale.fovea_only",
+        kind: Kind::Bool,
+        default: "false",
+        doc: "the costly filter only inside the foveation's inner region, bilinear outside (cheaper, softer periphery)",
+    },
+];
+
+/// How the app's pixels become the display's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    EasuRcas,
+    Bilinear,
+}
+
+/// `upscale.mip_bias`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MipBias {
+    Auto,
+    Off,
+    Levels(f32),
+}
+
+impl MipBias {
+    /// Parses `auto`, `off` or a number in [-4, 4]; None for anything else.
+    pub fn parse(text: &str) -> Option<MipBias> {
+        match text.trim() {
+            "auto" | "" => Some(MipBias::Auto),
+            "off" => Some(MipBias::Off),
+            t => t.parse::<f32>().ok().filter(|v| v.is_finite() && (-4.0..=4.0).contains(v)).map(MipBias::Levels),
+        }
+    }
+}
+
+/// The upscale's typed settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UpscaleSettings {
+    pub enabled: bool,
+    pub scale: f32,
+    pub method: Method,
+    pub sharpness: f32,
+    /// `upscale.mip_bias` as parsed; `mip_bias_valid` false when the text was not understood
+    /// (then `Auto`, and the shell logs it).
+    pub mip_bias: MipBias,
+    pub mip_bias_valid: bool,
+    pub fovea_only: bool,
+}
+
+impl UpscaleSettings {
+    pub fn from_config(c: &Config) -> UpscaleSettings {
+        let parsed = MipBias::parse(c.text("upscale.mip_bias"));
+        UpscaleSettings {
+            enabled: c.bool("upscale.enabled"),
+            scale: rules::clamp_scale(c.float("upscale.scale") as f32),
+            method: match c.choice("upscale.method") {
+                "bilinear" => Method::Bilinear,
+                _ => Method::EasuRcas,
+            },
+            sharpness: c.float("upscale.sharpness").clamp(0.0, 1.0) as f32,
+            mip_bias: parsed.unwrap_or(MipBias::Auto),
+            mip_bias_valid: parsed.is_some(),
+            fovea_only: c.bool("upscale.fovea_only"),
+        }
+    }
+
+    /// The LOD bias the app's samplers get: none when the upscale is off.
+    pub fn sampler_bias(&self) -> Option<f32> {
+        if !self.enabled || self.scale >= 1.0 {
+            return None;
+        }
+        match self.mip_bias {
+            MipBias::Off => None,
+            MipBias::Levels(v) => Some(v),
+            MipBias::Auto => Some(self.scale.log2()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mip_bias_parses() {
+        assert_eq!(MipBias::parse("auto"), Some(MipBias::Auto));
+        assert_eq!(MipBias::parse(" off "), Some(MipBias::Off));
+        assert_eq!(MipBias::parse("-0.5"), Some(MipBias::Levels(-0.5)));
+        assert_eq!(MipBias::parse("9"), None);
+        assert_eq!(MipBias::parse("NaN"), None);
+        assert_eq!(MipBias::parse("sharp"), None);
+    }
+}

@@ -69,6 +69,148 @@ pub fn auto_mip_bias(render: (u32, u32), display: (u32, u32)) -> f32 {
     (0.5 * (area(render) / area(display)).log2()) as f32
 }
 
+
+/// One view as the runtime recommends it, and the size the app is told instead.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ViewSizes {
+    /// The runtime's recommended size: what the display shows per view.
+    pub display: (u32, u32),
+    /// The runtime's maximum image rect size for the view.
+    pub max: (u32, u32),
+    /// What the app is told to render at.
+    pub render: (u32, u32),
+}
+
+/// A view as the runtime answers it: (recommended size, maximum size).
+pub type RuntimeView = ((u32, u32), (u32, u32));
+
+/// The sizes told for the runtime's `views` at `scale` per axis.
+pub fn told(views: &[RuntimeView], scale: f32) -> Vec<ViewSizes> {
+    views.iter().map(|&(display, max)| ViewSizes { display, max, render: render_size(display, (scale, scale), max) }).collect()
+}
+
+/// What `xrCreateSwapchain` asks for, as far as the interposition decision needs it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Ask {
+    pub width: u32,
+    pub height: u32,
+    pub sample_count: u32,
+    pub face_count: u32,
+    /// A depth or stencil swapchain (usage or format).
+    pub depth: bool,
+    pub protected: bool,
+}
+
+/// Why a swapchain is left to the runtime as the app asked for it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Skip {
+    /// The told size equals the display size (scale 1, or a 1-pixel view).
+    Unscaled,
+    /// Depth stays at the app's size: `XrCompositionLayerDepthInfoKHR::subImage.imageRect` maps
+    /// its own rect onto the view, so a depth map at the render size describes the same view.
+    Depth,
+    Multisampled(u32),
+    Cube(u32),
+    Protected,
+    /// Not a view's aspect (nor two views' side by side): a quad, a UI panel.
+    NotAViewSize,
+    /// No view sizes are known for the session.
+    NoViews,
+}
+
+impl Skip {
+    pub fn why(self) -> String {
+        match self {
+            Skip::Unscaled => "the told size is the display size".into(),
+            Skip::Depth => "a depth swapchain (submitted at the app's size: its imageRect maps it onto the view)".into(),
+            Skip::Multisampled(n) => format!("{n} samples per pixel"),
+            Skip::Cube(n) => format!("{n} faces"),
+            Skip::Protected => "protected content".into(),
+            Skip::NotAViewSize => "not a view's aspect (a panel, not an eye)".into(),
+            Skip::NoViews => "no view sizes known".into(),
+        }
+    }
+}
+
+/// How an app swapchain is interposed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plan {
+    /// Display pixels per app pixel, per axis (the matched view's display ÷ told size).
+    pub k: (f64, f64),
+    /// The runtime's swapchain size.
+    pub runtime: (u32, u32),
+    /// One view's size in the runtime's image (the whole image, or half of a side-by-side one):
+    /// what a projection view's rect becomes, whatever smaller rect the app rendered.
+    pub view: (u32, u32),
+}
+
+/// Whether the aspect `w / h` is `aspect` give or take 2 %.
+fn same_aspect(w: u32, h: u32, aspect: f64) -> bool {
+    h > 0 && aspect > 0.0 && ((w as f64 / h as f64) / aspect - 1.0).abs() <= 0.02
+}
+
+/// Whether and how a swapchain the app asks for is interposed: a single-sample, single-face
+/// colour swapchain with a view's aspect (or two views' side by side). Its size may be the told
+/// one or the app's own fraction of it (an engine's render scale): the runtime's image is the
+/// app's size times display ÷ told either way, so the app keeps its own scale on top.
+pub fn plan(ask: &Ask, views: &[ViewSizes]) -> Result<Plan, Skip> {
+    if ask.protected {
+        return Err(Skip::Protected);
+    }
+    if ask.depth {
+        return Err(Skip::Depth);
+    }
+    if ask.sample_count > 1 {
+        return Err(Skip::Multisampled(ask.sample_count));
+    }
+    if ask.face_count > 1 {
+        return Err(Skip::Cube(ask.face_count));
+    }
+    if views.is_empty() {
+        return Err(Skip::NoViews);
+    }
+    let aspect = |v: &ViewSizes| v.render.0 as f64 / v.render.1.max(1) as f64;
+    let v = views.iter().find_map(|v| (1..=2u32).find(|&n| same_aspect(ask.width, ask.height, n as f64 * aspect(v))).map(|n| (v, n)));
+    let Some((v, n)) = v else { return Err(Skip::NotAViewSize) };
+    if v.render == v.display {
+        return Err(Skip::Unscaled);
+    }
+    let k = factors(v.display, v.render);
+    let max = (n * v.max.0.max(v.display.0), v.max.1.max(v.display.1));
+    let runtime = runtime_extent((ask.width, ask.height), k, max);
+    if runtime == (ask.width, ask.height) {
+        return Err(Skip::Unscaled);
+    }
+    let view = runtime_extent((ask.width / n, ask.height), k, (v.max.0.max(v.display.0), max.1));
+    Ok(Plan { k, runtime, view })
+}
+
+/// The app image's rect clamped to its `extent`; None when nothing of it is inside.
+pub fn clamp_to(rect: PixelRect, extent: (u32, u32)) -> Option<PixelRect> {
+    let r = rect.intersect(&PixelRect { x: 0, y: 0, width: extent.0, height: extent.1 });
+    (r.area() > 0).then_some(r)
+}
+
+/// The runtime rect of a non-projection layer's `rect` (a quad's, a cylinder's): the same part of
+/// the image, scaled by `k`, inside `runtime`.
+pub fn scaled_rect(rect: PixelRect, k: (f64, f64), runtime: (u32, u32)) -> Option<PixelRect> {
+    let x0 = (rect.x.max(0) as f64 * k.0).round() as i64;
+    let y0 = (rect.y.max(0) as f64 * k.1).round() as i64;
+    let x1 = (((rect.x.max(0) as i64 + rect.width as i64) as f64 * k.0).round() as i64).min(runtime.0 as i64);
+    let y1 = (((rect.y.max(0) as i64 + rect.height as i64) as f64 * k.1).round() as i64).min(runtime.1 as i64);
+    (x1 > x0 && y1 > y0).then_some(PixelRect { x: x0 as i32, y: y0 as i32, width: (x1 - x0) as u32, height: (y1 - y0) as u32 })
+}
+
+/// Every device allows LOD biases of at least ±2 (`maxSamplerLodBias`).
+pub const SAFE_LOD_BIAS: f32 = 2.0;
+
+/// The app's sampler LOD bias `app` with the upscale's `bias` added, kept within what every device
+/// allows unless the app's own bias was already beyond it.
+pub fn biased(app: f32, bias: f32) -> f32 {
+    let limit = SAFE_LOD_BIAS.max(app.abs());
+    (app + bias).clamp(-limit, limit)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -102,6 +244,45 @@ mod tests {
         assert_eq!(runtime_rect(PixelRect { x: 5000, y: 0, width: 10, height: 10 }, (1.0, 1.0), (10, 10), (100, 100)), None);
         assert_eq!(runtime_rect(PixelRect { x: 0, y: 0, width: 0, height: 10 }, (1.0, 1.0), (10, 10), (100, 100)), None);
         assert_eq!(auto_mip_bias((100, 100), (100, 100)), 0.0);
+    }
+
+
+    #[test]
+    fn which_swapchains_are_interposed() {
+        let views = told(&[((2016, 2240), (4096, 4096)), ((2016, 2240), (4096, 4096))], 0.77);
+        let ask = |w, h| Ask { width: w, height: h, sample_count: 1, face_count: 1, depth: false, protected: false };
+        let p = plan(&ask(1552, 1725), &views).unwrap();
+        assert_eq!((p.runtime, p.view), ((2016, 2240), (2016, 2240)));
+        // The app's own render scale on top of the told size: scaled up by the same factors.
+        let quarter = plan(&ask(388, 431), &views).unwrap();
+        assert_eq!((quarter.runtime, quarter.view), ((504, 560), (504, 560)));
+        assert_eq!(plan(&ask(3104, 1725), &views).unwrap().runtime, (4032, 2240));
+        // Rounded by the engine to a multiple of 16.
+        assert_eq!(plan(&ask(1552, 1728), &views).unwrap().runtime.0, 2016);
+        assert_eq!(plan(&ask(512, 512), &views), Err(Skip::NotAViewSize));
+        assert_eq!(plan(&Ask { depth: true, ..ask(1552, 1725) }, &views), Err(Skip::Depth));
+        assert_eq!(plan(&Ask { sample_count: 4, ..ask(1552, 1725) }, &views), Err(Skip::Multisampled(4)));
+        assert_eq!(plan(&Ask { face_count: 6, ..ask(1552, 1725) }, &views), Err(Skip::Cube(6)));
+        assert_eq!(plan(&ask(1552, 1725), &[]), Err(Skip::NoViews));
+        let one = told(&[((1, 1), (1, 1))], 0.5);
+        assert_eq!(plan(&ask(1, 1), &one), Err(Skip::Unscaled));
+        assert_eq!(plan(&ask(2016, 2240), &told(&[((2016, 2240), (4096, 4096))], 1.0)), Err(Skip::Unscaled));
+    }
+
+    #[test]
+    fn lod_bias_adds_within_the_safe_range() {
+        assert_eq!(biased(0.0, -0.5), -0.5);
+        assert_eq!(biased(-1.8, -0.5), -2.0);
+        assert_eq!(biased(-3.0, -0.5), -3.0);
+    }
+
+    #[test]
+    fn rects_of_other_layers_scale() {
+        let k = (1.3, 1.3);
+        assert_eq!(scaled_rect(PixelRect { x: 10, y: 0, width: 100, height: 50 }, k, (1000, 1000)), Some(PixelRect { x: 13, y: 0, width: 130, height: 65 }));
+        assert_eq!(scaled_rect(PixelRect { x: 900, y: 0, width: 100, height: 50 }, k, (1000, 1000)), None);
+        assert_eq!(clamp_to(PixelRect { x: -5, y: 0, width: 20, height: 20 }, (10, 10)), Some(PixelRect { x: 0, y: 0, width: 10, height: 10 }));
+        assert_eq!(clamp_to(PixelRect { x: 20, y: 0, width: 20, height: 20 }, (10, 10)), None);
     }
 
     proptest! {

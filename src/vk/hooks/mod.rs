@@ -187,6 +187,33 @@ pub(super) unsafe extern "system" fn create_image(
         },
     )
 }
+/// `vkCreateSampler`: with the upscale on, the app's samplers get the LOD bias that keeps textures
+/// as sharp as at the display size (`upscale.mip_bias`; the app's own bias stays, added to).
+pub(super) unsafe extern "system" fn create_sampler(
+    device: vk::Device,
+    ci: *const vk::SamplerCreateInfo<'_>,
+    allocator: *const vk::AllocationCallbacks<'_>,
+    out: *mut vk::Sampler,
+) -> vk::Result {
+    hook_decided(
+        "vkCreateSampler",
+        device,
+        vk::Result::ERROR_INITIALIZATION_FAILED,
+        // SAFETY: the app's create info, valid during its call (null goes down unchanged).
+        |d| d.settings().upscale.sampler_bias().and_then(|bias| unsafe { ci.as_ref() }.map(|ci| crate::features::upscale::rules::biased(ci.mip_lod_bias, bias))),
+        |d, decided| match decided {
+            Some(Some(bias)) => {
+                // SAFETY: the app's create info with only its LOD bias changed, valid for the call.
+                let amended = unsafe { vk::SamplerCreateInfo { mip_lod_bias: *bias, ..*ci } };
+                // SAFETY: as above, with the app's allocator (the app destroys the sampler).
+                unsafe { (d.next.fp_v1_0().create_sampler)(device, &amended, allocator, out) }
+            }
+            // SAFETY: forwarding the app's arguments unchanged.
+            _ => unsafe { (d.next.fp_v1_0().create_sampler)(device, ci, allocator, out) },
+        },
+        |_, _| Ok(()),
+    )
+}
 destroy_hook!(destroy_image, "vkDestroyImage", vk::Image, fp_v1_0.destroy_image, |d, h| {
     d.track.forget_image(h);
     destroyed(d, Destroyed::Image(h))

@@ -1,0 +1,701 @@
+//! The upscale's shell (`upscale.enabled`; geometry and decisions in
+//! `features::upscale::rules`, the GPU work in `features::upscale::vk`).
+//!
+//! - `xrEnumerateViewConfigurationViews` answers the recommended sizes times `upscale.scale`,
+//!   latched from the first answer until the instance's last session ends (engines poll it, and
+//!   a size that changed under their swapchains would break them).
+//! - `xrCreateSwapchain` of a colour swapchain of a told view size (`rules::plan`) makes the
+//!   runtime's swapchain at the display size, and the app's images, at the size it asked for, on
+//!   its device (`Target`); `xrEnumerateSwapchainImages` hands out those.
+//! - Acquire and wait go down as they are (the runtime's index is the app image's index);
+//!   `xrReleaseSwapchainImage` keeps the runtime's image acquired (`pending`) until `xrEndFrame`,
+//!   which upscales each pending image for the rects the frame submits, on the session's queue,
+//!   then releases it and submits the frame with the rects in display pixels. The runtime's image
+//!   is thus written only between its own acquire and release, and the app's calls pace as before.
+//! - Anything the layer cannot make falls back to the swapchain the app asked for (logged); the
+//!   runtime's own errors go to the app.
+
+use super::session::Session;
+use super::swapchain::Swapchain;
+use crate::core::rect::PixelRect;
+use crate::features::upscale::rules::{self, Ask, Plan, ViewSizes};
+use crate::features::upscale::vk::{format_refusal, Job, Pipelines, Slots, Target, TargetDesc};
+use crate::features::upscale::{Method, UpscaleSettings};
+use crate::settings::Settings;
+use crate::vk::DeviceState;
+use ash::vk;
+use ash::vk::Handle as _;
+use openxr_sys as xr;
+use openxr_sys::Handle as _;
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// The sizes latched for an instance: what the app was told while its sessions live.
+#[derive(Clone, Debug)]
+pub(crate) struct Latch {
+    pub settings: UpscaleSettings,
+    pub views: Vec<ViewSizes>,
+}
+
+/// An instance's upscale state.
+#[derive(Default)]
+pub(crate) struct InstanceUpscale {
+    latch: Mutex<Option<Latch>>,
+}
+
+impl InstanceUpscale {
+    pub(crate) fn latched(&self) -> Option<Latch> {
+        lock(&self.latch).clone()
+    }
+    /// The instance's last session ended: the next one reads the configuration afresh.
+    pub(crate) fn unlatch(&self) {
+        *lock(&self.latch) = None;
+    }
+}
+
+/// `xrEnumerateViewConfigurationViews` answered `views`: told sizes replace the recommended ones
+/// while the upscale is on (latched on the first answer).
+pub(super) fn views_enumerated(inst: &super::Instance, settings: &Settings, views: &mut [xr::ViewConfigurationView]) {
+    let mut latch = lock(&inst.upscale.latch);
+    let l = latch.get_or_insert_with(|| {
+        if settings.upscale.enabled && !settings.upscale.mip_bias_valid {
+            tracing::warn!("upscale: upscale.mip_bias is not auto, off or a number in -4..4; auto is used");
+        }
+        Latch { settings: settings.upscale, views: Vec::new() }
+    });
+    if !l.settings.enabled {
+        return;
+    }
+    if l.settings != settings.upscale {
+        tracing::info!("upscale: its settings changed; the sizes told stay as latched until the instance's sessions end");
+    }
+    let runtime: Vec<_> = views
+        .iter()
+        .map(|v| ((v.recommended_image_rect_width, v.recommended_image_rect_height), (v.max_image_rect_width, v.max_image_rect_height)))
+        .collect();
+    // The runtime's answer is the same on every call; a second call (or one for another view
+    // configuration) re-derives the same told sizes.
+    l.views = rules::told(&runtime, l.settings.scale);
+    for (v, t) in views.iter_mut().zip(&l.views) {
+        v.recommended_image_rect_width = t.render.0;
+        v.recommended_image_rect_height = t.render.1;
+    }
+    tracing::info!("upscale: told the app {:?} for display sizes {:?} (scale {})", l.views.iter().map(|t| t.render).collect::<Vec<_>>(), l.views.iter().map(|t| t.display).collect::<Vec<_>>(), l.settings.scale);
+}
+
+/// The Vulkan functions at the app's level of the chain (the loader's entry points for the
+/// session's instance and device): how the app-visible images are made, as a runtime makes its.
+struct TopLevel {
+    _entry: ash::Entry,
+    instance: ash::Instance,
+    device: ash::Device,
+    physical: vk::PhysicalDevice,
+    family: u32,
+    queue_index: u32,
+}
+
+/// A session's GPU objects, made at its first interposed swapchain.
+struct Gpu {
+    device: Arc<DeviceState>,
+    top: TopLevel,
+    pipelines: Pipelines,
+    slots: Slots,
+}
+
+/// A session's upscale.
+#[derive(Default)]
+pub(crate) struct SessionUpscale {
+    gpu: Mutex<Option<Gpu>>,
+    /// Making the GPU objects failed: swapchains are left as the app asks (logged once).
+    off: AtomicBool,
+    /// Recording or submitting an upscale failed (logged once; counted).
+    failures_logged: AtomicBool,
+    unknown_layer_logged: AtomicBool,
+}
+
+impl std::fmt::Debug for SessionUpscale {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SessionUpscale").field("off", &self.off).finish()
+    }
+}
+
+/// One interposed swapchain.
+pub(crate) struct Interposed {
+    pub plan: Plan,
+    pub method: Method,
+    pub sharpness: f32,
+    target: Mutex<Target>,
+    /// App images' first layout is recorded (at the first acquire).
+    first_layouts: AtomicBool,
+    /// Indices the app released and the layer still holds (oldest first), and whether the oldest
+    /// acquired one was waited for.
+    pub pending: Mutex<VecDeque<u32>>,
+    pub waited: AtomicBool,
+}
+
+impl Interposed {
+    /// The app images' handles as the app names them (`xrEnumerateSwapchainImages`).
+    pub(crate) fn app_images(&self) -> Vec<u64> {
+        lock(&self.target).app.iter().map(|i| i.top.as_raw()).collect()
+    }
+    /// The app images as this layer's Vulkan half names them.
+    pub(crate) fn our_images(&self) -> Vec<u64> {
+        lock(&self.target).app.iter().map(|i| i.ours.as_raw()).collect()
+    }
+}
+
+fn xr_ok(what: &str, r: xr::Result) -> Result<(), String> {
+    if r.into_raw() < 0 {
+        Err(format!("{what}: {r:?}"))
+    } else {
+        Ok(())
+    }
+}
+
+/// # Safety
+/// The binding's handles are live (the session exists).
+unsafe fn top_level(b: &super::session::VulkanBinding) -> Result<TopLevel, String> {
+    // SAFETY: loading the system Vulkan loader, which the app's process has loaded already (its
+    // instance was created through it); the handles are the app's live instance and device.
+    unsafe {
+        let entry = ash::Entry::load().map_err(|e| format!("the Vulkan loader: {e}"))?;
+        let instance = ash::Instance::load(entry.static_fn(), vk::Instance::from_raw(b.instance));
+        let device = ash::Device::load(instance.fp_v1_0(), vk::Device::from_raw(b.device));
+        Ok(TopLevel { _entry: entry, instance, device, physical: vk::PhysicalDevice::from_raw(b.physical_device), family: b.queue_family_index, queue_index: b.queue_index })
+    }
+}
+
+fn gpu_for(s: &Session) -> Result<(), String> {
+    let mut g = lock(&s.upscale.gpu);
+    if g.is_some() {
+        return Ok(());
+    }
+    let b = s.binding.ok_or("the session has no Vulkan binding")?;
+    if !s.vulkan_half {
+        return Err("stereoshim's Vulkan layer is not in the session's device".into());
+    }
+    let device = b.device_key.state().ok_or("the session's device is not tracked")?;
+    // SAFETY: the session is live, so its binding's handles are.
+    let top = unsafe { top_level(&b) }?;
+    let pipelines = Pipelines::new(&device)?;
+    let slots = match Slots::new(&device, b.queue_family_index, b.queue_index) {
+        Ok(s) => s,
+        Err(e) => {
+            pipelines.destroy(&device);
+            return Err(e);
+        }
+    };
+    *g = Some(Gpu { device, top, pipelines, slots });
+    Ok(())
+}
+
+/// What `xrCreateSwapchain` does for an interposed swapchain.
+pub(super) enum Created {
+    /// Not interposed: create as the app asked.
+    No,
+    /// Interposed: the runtime's result, and the state (on success).
+    Yes(xr::Result, Option<Box<Interposed>>),
+}
+
+fn usage_to_vk(u: xr::SwapchainUsageFlags) -> vk::ImageUsageFlags {
+    use xr::SwapchainUsageFlags as X;
+    [
+        (X::COLOR_ATTACHMENT, vk::ImageUsageFlags::COLOR_ATTACHMENT),
+        (X::DEPTH_STENCIL_ATTACHMENT, vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT),
+        (X::UNORDERED_ACCESS, vk::ImageUsageFlags::STORAGE),
+        (X::TRANSFER_SRC, vk::ImageUsageFlags::TRANSFER_SRC),
+        (X::TRANSFER_DST, vk::ImageUsageFlags::TRANSFER_DST),
+        (X::SAMPLED, vk::ImageUsageFlags::SAMPLED),
+        (X::INPUT_ATTACHMENT, vk::ImageUsageFlags::INPUT_ATTACHMENT),
+    ]
+    .iter()
+    .filter(|(x, _)| u.contains(*x))
+    .fold(vk::ImageUsageFlags::empty(), |a, (_, v)| a | *v)
+}
+
+fn is_depth_format(f: vk::Format) -> bool {
+    matches!(
+        f,
+        vk::Format::D16_UNORM | vk::Format::X8_D24_UNORM_PACK32 | vk::Format::D32_SFLOAT | vk::Format::S8_UINT | vk::Format::D16_UNORM_S8_UINT | vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT
+    )
+}
+
+/// Decides and, when interposing, creates the runtime's swapchain at the display size
+/// (`create` calls down with a create info) and the app's images.
+pub(super) fn create_swapchain(
+    s: &Session,
+    ci: &xr::SwapchainCreateInfo,
+    create: &mut dyn FnMut(&xr::SwapchainCreateInfo) -> xr::Result,
+    handle: &dyn Fn() -> xr::Swapchain,
+) -> Created {
+    let Some(latch) = s.instance.upscale.latched() else { return Created::No };
+    if !latch.settings.enabled || s.upscale.off.load(Ordering::Relaxed) {
+        return Created::No;
+    }
+    let format = i32::try_from(ci.format).map(vk::Format::from_raw).unwrap_or(vk::Format::UNDEFINED);
+    let ask = Ask {
+        width: ci.width,
+        height: ci.height,
+        sample_count: ci.sample_count,
+        face_count: ci.face_count,
+        depth: ci.usage_flags.contains(xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT) || is_depth_format(format),
+        protected: ci.create_flags.contains(xr::SwapchainCreateFlags::PROTECTED_CONTENT),
+    };
+    let plan = match rules::plan(&ask, &latch.views) {
+        Ok(p) => p,
+        Err(skip) => {
+            tracing::info!("upscale: swapchain {}x{} format {} left as asked: {}", ci.width, ci.height, ci.format, skip.why());
+            return Created::No;
+        }
+    };
+    if let Err(e) = gpu_for(s) {
+        tracing::warn!("upscale: cannot run on this session ({e}); its swapchains are left as the app asks");
+        s.upscale.off.store(true, Ordering::Relaxed);
+        return Created::No;
+    }
+    let refusal = {
+        let g = lock(&s.upscale.gpu);
+        let g = g.as_ref().expect("made above");
+        // SAFETY: the session's live physical device, at the app's level.
+        let props = unsafe { g.top.instance.get_physical_device_format_properties(g.top.physical, format) };
+        format_refusal(props, latch.settings.method)
+    };
+    if let Some(why) = refusal {
+        tracing::warn!("upscale: swapchain format {format:?} cannot be upscaled ({why}); this swapchain is left as the app asks");
+        return Created::No;
+    }
+    let runtime_ci = xr::SwapchainCreateInfo {
+        width: plan.runtime.0,
+        height: plan.runtime.1,
+        // The app's mip chain stays its own: the runtime gets the upscaled level 0.
+        mip_count: 1,
+        usage_flags: ci.usage_flags | xr::SwapchainUsageFlags::TRANSFER_DST | xr::SwapchainUsageFlags::COLOR_ATTACHMENT,
+        ..*ci
+    };
+    let (r, created) = crate::swapchain_images::capture(|| create(&runtime_ci));
+    if r != xr::Result::SUCCESS {
+        tracing::warn!("upscale: the runtime refused its {}x{} swapchain: {r:?} (given to the app)", plan.runtime.0, plan.runtime.1);
+        return Created::Yes(r, None);
+    }
+    let swapchain = handle();
+    match make_target(s, ci, &runtime_ci, format, plan, swapchain, &created, &latch.settings) {
+        Ok(i) => {
+            let i = Box::new(i);
+            tracing::info!(
+                "upscale: swapchain {:#x}: the app renders {}x{}, the runtime shows {}x{} ({:?})",
+                swapchain.into_raw(),
+                ci.width,
+                ci.height,
+                plan.runtime.0,
+                plan.runtime.1,
+                latch.settings.method
+            );
+            Created::Yes(r, Some(i))
+        }
+        Err(e) => {
+            tracing::warn!("upscale: swapchain {}x{} cannot be interposed ({e}); it is made as the app asks", ci.width, ci.height);
+            if let Some(f) = s.instance.next.destroy_swapchain {
+                // SAFETY: our just-created swapchain, nothing acquired.
+                let _ = unsafe { f(swapchain) };
+            }
+            Created::No
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn make_target(
+    s: &Session,
+    ci: &xr::SwapchainCreateInfo,
+    runtime_ci: &xr::SwapchainCreateInfo,
+    format: vk::Format,
+    plan: Plan,
+    swapchain: xr::Swapchain,
+    created: &[crate::swapchain_images::CreatedImage],
+    settings: &UpscaleSettings,
+) -> Result<Interposed, String> {
+    let enumerate = s.instance.next.enumerate_swapchain_images.ok_or("no xrEnumerateSwapchainImages")?;
+    let mut n = 0u32;
+    // SAFETY: our live swapchain; a count query.
+    xr_ok("xrEnumerateSwapchainImages", unsafe { enumerate(swapchain, 0, &mut n, std::ptr::null_mut()) })?;
+    let blank = xr::SwapchainImageVulkanKHR { ty: xr::SwapchainImageVulkanKHR::TYPE, next: std::ptr::null_mut(), image: 0 };
+    let mut reported = vec![blank; n as usize];
+    // SAFETY: `reported` holds `n` typed Vulkan image structs.
+    xr_ok("xrEnumerateSwapchainImages", unsafe { enumerate(swapchain, n, &mut n, reported.as_mut_ptr().cast()) })?;
+    reported.truncate(n as usize);
+    let wanted = crate::swapchain_images::Wanted {
+        format: runtime_ci.format,
+        width: runtime_ci.width,
+        height: runtime_ci.height,
+        array_size: runtime_ci.array_size,
+        sample_count: runtime_ci.sample_count,
+        mip_count: runtime_ci.mip_count,
+    };
+    let runtime_images: Vec<vk::Image> = crate::swapchain_images::match_images(&wanted, created, &reported.iter().map(|r| r.image).collect::<Vec<_>>())
+        .images()
+        .iter()
+        .map(|&h| vk::Image::from_raw(h))
+        .collect();
+    let desc = TargetDesc {
+        format,
+        extent: (ci.width, ci.height),
+        layers: ci.array_size.max(1),
+        mips: ci.mip_count.max(1),
+        usage: usage_to_vk(ci.usage_flags),
+        mutable_format: ci.usage_flags.contains(xr::SwapchainUsageFlags::MUTABLE_FORMAT),
+        runtime_extent: plan.runtime,
+        runtime_images,
+    };
+    let g = lock(&s.upscale.gpu);
+    let g = g.as_ref().ok_or("no GPU objects")?;
+    let capture = |f: &mut dyn FnMut()| -> Option<vk::Image> {
+        let ((), c) = crate::swapchain_images::capture(f);
+        c.first().map(|c| vk::Image::from_raw(c.image))
+    };
+    // SAFETY: `top` is the app-level table of the session's device; the runtime images are the
+    // live images of the swapchain just made.
+    let target = unsafe { Target::new(&g.device, &g.top.device, &g.pipelines, desc, n as usize, &capture) }?;
+    Ok(Interposed {
+        plan,
+        method: settings.method,
+        sharpness: settings.sharpness,
+        target: Mutex::new(target),
+        first_layouts: AtomicBool::new(false),
+        pending: Mutex::default(),
+        waited: AtomicBool::new(false),
+    })
+}
+
+/// The app's first acquire of an interposed swapchain: its images get the layout the binding
+/// promises at acquire, on the session's queue, through the app's level (so layers above see it).
+pub(super) fn acquired(s: &Session, i: &Interposed) {
+    if i.first_layouts.swap(true, Ordering::AcqRel) {
+        return;
+    }
+    let g = lock(&s.upscale.gpu);
+    let Some(g) = g.as_ref() else { return };
+    let t = lock(&i.target);
+    let top = &g.top;
+    // SAFETY: objects made and destroyed here through the app-level table; the session's queue,
+    // which the binding lets the runtime (and so a layer) use inside xrAcquireSwapchainImage;
+    // the fence wait makes sure the buffer is done before it is freed.
+    let r: Result<(), String> = unsafe {
+        (|| {
+            let pool = top.device.create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(top.family), None).map_err(|e| format!("vkCreateCommandPool: {e}"))?;
+            let done = (|| {
+                let cb = top.device.allocate_command_buffers(&vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1)).map_err(|e| format!("vkAllocateCommandBuffers: {e}"))?[0];
+                top.device.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
+                t.record_first_layouts(&top.device, cb);
+                top.device.end_command_buffer(cb).map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
+                let fence = top.device.create_fence(&vk::FenceCreateInfo::default(), None).map_err(|e| format!("vkCreateFence: {e}"))?;
+                let queue = top.device.get_device_queue(top.family, top.queue_index);
+                let cbs = [cb];
+                let r = top.device.queue_submit(queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], fence).map_err(|e| format!("vkQueueSubmit: {e}"));
+                let r = r.and_then(|()| top.device.wait_for_fences(&[fence], true, 2_000_000_000).map_err(|e| format!("vkWaitForFences: {e}")));
+                top.device.destroy_fence(fence, None);
+                r
+            })();
+            top.device.destroy_command_pool(pool, None);
+            done
+        })()
+    };
+    if let Err(e) = r {
+        tracing::warn!("upscale: the first layout of the app's images failed ({e}); the app's first frame may show garbage");
+    }
+}
+
+/// One pending image's upscale for a frame.
+struct Work<'a> {
+    handle: u64,
+    i: &'a Interposed,
+    index: u32,
+    jobs: Vec<Job>,
+}
+
+/// The runtime rect of the app's `rect` of a projection view (`projection`) or another layer.
+fn runtime_rect(i: &Interposed, app_extent: (u32, u32), rect: PixelRect, projection: bool) -> Option<(PixelRect, PixelRect)> {
+    let src = rules::clamp_to(rect, app_extent)?;
+    let dst = if projection { rules::runtime_rect(src, i.plan.k, i.plan.view, i.plan.runtime)? } else { rules::scaled_rect(src, i.plan.k, i.plan.runtime)? };
+    Some((src, dst))
+}
+
+fn pixel_rect(r: &xr::Rect2Di) -> PixelRect {
+    PixelRect { x: r.offset.x, y: r.offset.y, width: r.extent.width.max(0) as u32, height: r.extent.height.max(0) as u32 }
+}
+
+fn xr_rect(r: PixelRect) -> xr::Rect2Di {
+    xr::Rect2Di { offset: xr::Offset2Di { x: r.x, y: r.y }, extent: xr::Extent2Di { width: r.width as i32, height: r.height as i32 } }
+}
+
+/// A layer's sub-images, whether they are projection views.
+///
+/// # Safety
+/// `layer` points to a valid composition layer of the app's frame.
+unsafe fn sub_images(layer: *const xr::CompositionLayerBaseHeader) -> Option<(bool, Vec<xr::SwapchainSubImage>)> {
+    // SAFETY: per the contract; the type tells the layout.
+    unsafe {
+        let base = layer.as_ref()?;
+        Some(match base.ty {
+            xr::StructureType::COMPOSITION_LAYER_PROJECTION => {
+                let p = &*(layer as *const xr::CompositionLayerProjection);
+                (true, crate::vk::convert::slice(p.views, p.view_count).iter().map(|v| v.sub_image).collect())
+            }
+            xr::StructureType::COMPOSITION_LAYER_QUAD => (false, vec![(*(layer as *const xr::CompositionLayerQuad)).sub_image]),
+            xr::StructureType::COMPOSITION_LAYER_CYLINDER_KHR => (false, vec![(*(layer as *const xr::CompositionLayerCylinderKHR)).sub_image]),
+            xr::StructureType::COMPOSITION_LAYER_EQUIRECT_KHR => (false, vec![(*(layer as *const xr::CompositionLayerEquirectKHR)).sub_image]),
+            xr::StructureType::COMPOSITION_LAYER_EQUIRECT2_KHR => (false, vec![(*(layer as *const xr::CompositionLayerEquirect2KHR)).sub_image]),
+            _ => return None,
+        })
+    }
+}
+
+/// The frame's interposed swapchains of session `s`.
+fn interposed_of(s: &Session) -> Vec<(u64, Arc<Swapchain>)> {
+    super::state().swapchains.values().into_iter().filter(|(_, sc)| sc.session.handle == s.handle && sc.upscale.is_some()).collect()
+}
+
+/// Jobs of a whole image (an image released without being submitted in a frame).
+fn whole_jobs(i: &Interposed, extent: (u32, u32), layers: u32) -> Vec<Job> {
+    (0..layers.max(1))
+        .filter_map(|layer| runtime_rect(i, extent, PixelRect { x: 0, y: 0, width: extent.0, height: extent.1 }, false).map(|(src, dst)| Job { layer, src, dst }))
+        .collect()
+}
+
+/// `xrReleaseSwapchainImage` of an interposed swapchain: held until the frame ends. An image
+/// still held from before goes first (upscaled whole: no frame named its rects).
+pub(super) fn release(s: &Session, handle: u64, sc: &Swapchain, i: &Interposed, index: u32) -> xr::Result {
+    let older: Vec<u32> = lock(&i.pending).drain(..).collect();
+    if !older.is_empty() {
+        let (extent, layers) = ((sc.desc.width, sc.desc.height), sc.desc.array_size);
+        let work: Vec<Work<'_>> = older.iter().map(|&index| Work { handle, i, index, jobs: whole_jobs(i, extent, layers) }).collect();
+        let r = run_and_release(s, &work);
+        if r.into_raw() < 0 {
+            return r;
+        }
+    }
+    lock(&i.pending).push_back(index);
+    i.waited.store(false, Ordering::Release);
+    xr::Result::SUCCESS
+}
+
+/// Records and submits the upscales of `work`, then releases their runtime images (oldest first):
+/// the first failing release's result.
+fn run_and_release(s: &Session, work: &[Work<'_>]) -> xr::Result {
+    if let Err(e) = submit(s, work) {
+        if !s.upscale.failures_logged.swap(true, Ordering::Relaxed) {
+            tracing::warn!("upscale: an upscale could not be submitted ({e}); the runtime's image keeps its old pixels this frame");
+        }
+    }
+    let Some(release) = s.instance.next.release_swapchain_image else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
+    let info = xr::SwapchainImageReleaseInfo { ty: xr::SwapchainImageReleaseInfo::TYPE, next: std::ptr::null() };
+    let mut first = xr::Result::SUCCESS;
+    for w in work {
+        // SAFETY: the runtime's swapchain, whose oldest acquired image is the one held.
+        let r = unsafe { release(xr::Swapchain::from_raw(w.handle), &info) };
+        if r.into_raw() < 0 && first == xr::Result::SUCCESS {
+            first = r;
+        }
+    }
+    first
+}
+
+fn submit(s: &Session, work: &[Work<'_>]) -> Result<(), String> {
+    let work: Vec<&Work<'_>> = work.iter().filter(|w| !w.jobs.is_empty()).collect();
+    if work.is_empty() {
+        return Ok(());
+    }
+    let mut g = lock(&s.upscale.gpu);
+    let g = g.as_mut().ok_or("no GPU objects")?;
+    let d = g.device.clone();
+    let (cb, fence) = g.slots.take(&d)?;
+    // SAFETY: a command buffer of the layer's, not in use (its fence signalled or it is new);
+    // the session's queue, used inside xrEndFrame / xrReleaseSwapchainImage as the binding allows.
+    let r = unsafe {
+        (|| {
+            d.fns.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
+            for w in &work {
+                let t = lock(&w.i.target);
+                t.record(&d, &g.pipelines, cb, w.index as usize, &w.jobs, (w.i.method, w.i.sharpness));
+            }
+            d.fns.end_command_buffer(cb).map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
+            let bracket = crate::vk::gpu_time::start(&d, g.slots.queue, 1, true);
+            let cbs = match &bracket {
+                Some(b) => vec![b.begin, cb, b.end],
+                None => vec![cb],
+            };
+            let r = d.fns.queue_submit(g.slots.queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], fence);
+            if let Some(b) = bracket {
+                crate::vk::gpu_time::submitted(&d, b, g.slots.queue, r.is_ok());
+            }
+            r.map_err(|e| format!("vkQueueSubmit: {e}"))
+        })()
+    };
+    if r.is_err() {
+        g.slots.abandon(&d);
+    } else {
+        let jobs: usize = work.iter().map(|w| w.jobs.len()).sum();
+        let pixels: u64 = work.iter().flat_map(|w| &w.jobs).map(|j| j.dst.area()).sum();
+        let rendered: u64 = work.iter().flat_map(|w| &w.jobs).map(|j| j.src.area()).sum();
+        crate::shared::shared().upscale_counts(jobs as u64, rendered, pixels);
+    }
+    r
+}
+
+/// `xrEndFrame` of session `s` with the (possibly amended) `info`: upscales and releases the held
+/// images, and returns the frame with every interposed sub-image's rect in display pixels (None:
+/// nothing of the frame is interposed).
+pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::feature::AmendedFrameEnd> {
+    let scs = interposed_of(s);
+    if scs.is_empty() {
+        return None;
+    }
+    // SAFETY: the frame's layer pointers, valid for this call (non-null when counted: checked).
+    let layers: Vec<*const xr::CompositionLayerBaseHeader> = if info.layer_count > 0 && info.layers.is_null() { Vec::new() } else { unsafe { crate::vk::convert::slice(info.layers, info.layer_count) }.to_vec() };
+    let find = |h: xr::Swapchain| scs.iter().find(|(handle, _)| *handle == h.into_raw()).map(|(_, sc)| sc);
+    // The jobs each interposed swapchain's latest held image gets from this frame.
+    let mut jobs: Vec<(u64, Job)> = Vec::new();
+    let mut unknown = false;
+    for &l in &layers {
+        // SAFETY: the app's layer, valid for this call.
+        match unsafe { sub_images(l) } {
+            Some((projection, subs)) => {
+                for sub in subs {
+                    let Some(sc) = find(sub.swapchain) else { continue };
+                    let handle = sub.swapchain.into_raw();
+                    let i = sc.upscale.as_ref().expect("filtered");
+                    if let Some((src, dst)) = runtime_rect(i, (sc.desc.width, sc.desc.height), pixel_rect(&sub.image_rect), projection) {
+                        let job = Job { layer: sub.image_array_index, src, dst };
+                        if !jobs.contains(&(handle, job)) {
+                            jobs.push((handle, job));
+                        }
+                    }
+                }
+            }
+            None => unknown = true,
+        }
+    }
+    if unknown && !s.upscale.unknown_layer_logged.swap(true, Ordering::Relaxed) {
+        tracing::warn!("upscale: the frame has a composition layer of a type the layer does not read; if it shows an interposed swapchain, its rect is in the app's pixels");
+    }
+    let mut work = Vec::new();
+    for (handle, sc) in &scs {
+        let handle = *handle;
+        let i = sc.upscale.as_ref().expect("filtered");
+        let held: Vec<u32> = lock(&i.pending).drain(..).collect();
+        let n = held.len();
+        for (k, index) in held.into_iter().enumerate() {
+            let mine: Vec<Job> = jobs.iter().filter(|(h, _)| *h == handle).map(|(_, j)| *j).collect();
+            // The latest held image is what the frame shows; older ones go out whole.
+            let jobs = if k + 1 == n && !mine.is_empty() { mine } else { whole_jobs(i, (sc.desc.width, sc.desc.height), sc.desc.array_size) };
+            work.push(Work { handle, i, index, jobs });
+        }
+    }
+    let r = run_and_release(s, &work);
+    if r.into_raw() < 0 {
+        tracing::warn!("upscale: the runtime refused a release ({r:?})");
+    }
+    Some(rewrite(info, &layers, &|h| find(h).map(|sc| (sc.upscale.as_ref().expect("filtered"), (sc.desc.width, sc.desc.height)))))
+}
+
+/// The frame with every interposed sub-image's rect mapped to the runtime's image.
+fn rewrite<'a>(info: &xr::FrameEndInfo, layers: &[*const xr::CompositionLayerBaseHeader], lookup: &dyn Fn(xr::Swapchain) -> Option<(&'a Interposed, (u32, u32))>) -> super::feature::AmendedFrameEnd {
+    // Boxed: the pointers handed down must not move while later layers are pushed.
+    #[allow(clippy::vec_box)]
+    struct Keep {
+        projections: Vec<Box<xr::CompositionLayerProjection>>,
+        views: Vec<Vec<xr::CompositionLayerProjectionView>>,
+        quads: Vec<Box<xr::CompositionLayerQuad>>,
+        cylinders: Vec<Box<xr::CompositionLayerCylinderKHR>>,
+        equirects: Vec<Box<xr::CompositionLayerEquirectKHR>>,
+        equirects2: Vec<Box<xr::CompositionLayerEquirect2KHR>>,
+        layers: Vec<*const xr::CompositionLayerBaseHeader>,
+    }
+    let map = |sub: &mut xr::SwapchainSubImage, projection: bool| {
+        if let Some((i, extent)) = lookup(sub.swapchain) {
+            if let Some((_, dst)) = runtime_rect(i, extent, pixel_rect(&sub.image_rect), projection) {
+                sub.image_rect = xr_rect(dst);
+            }
+        }
+    };
+    let mut keep = Keep { projections: Vec::new(), views: Vec::new(), quads: Vec::new(), cylinders: Vec::new(), equirects: Vec::new(), equirects2: Vec::new(), layers: Vec::new() };
+    for &l in layers {
+        // SAFETY: the app's layers, valid for this call; each copied by its type.
+        let out: *const xr::CompositionLayerBaseHeader = unsafe {
+            match l.as_ref().map(|b| b.ty) {
+                Some(xr::StructureType::COMPOSITION_LAYER_PROJECTION) => {
+                    let mut p = Box::new(*(l as *const xr::CompositionLayerProjection));
+                    let mut views = crate::vk::convert::slice(p.views, p.view_count).to_vec();
+                    for v in &mut views {
+                        map(&mut v.sub_image, true);
+                    }
+                    p.views = views.as_ptr();
+                    keep.views.push(views);
+                    let ptr = (&*p as *const xr::CompositionLayerProjection).cast();
+                    keep.projections.push(p);
+                    ptr
+                }
+                Some(xr::StructureType::COMPOSITION_LAYER_QUAD) => {
+                    let mut q = Box::new(*(l as *const xr::CompositionLayerQuad));
+                    map(&mut q.sub_image, false);
+                    let ptr = (&*q as *const xr::CompositionLayerQuad).cast();
+                    keep.quads.push(q);
+                    ptr
+                }
+                Some(xr::StructureType::COMPOSITION_LAYER_CYLINDER_KHR) => {
+                    let mut c = Box::new(*(l as *const xr::CompositionLayerCylinderKHR));
+                    map(&mut c.sub_image, false);
+                    let ptr = (&*c as *const xr::CompositionLayerCylinderKHR).cast();
+                    keep.cylinders.push(c);
+                    ptr
+                }
+                Some(xr::StructureType::COMPOSITION_LAYER_EQUIRECT_KHR) => {
+                    let mut e = Box::new(*(l as *const xr::CompositionLayerEquirectKHR));
+                    map(&mut e.sub_image, false);
+                    let ptr = (&*e as *const xr::CompositionLayerEquirectKHR).cast();
+                    keep.equirects.push(e);
+                    ptr
+                }
+                Some(xr::StructureType::COMPOSITION_LAYER_EQUIRECT2_KHR) => {
+                    let mut e = Box::new(*(l as *const xr::CompositionLayerEquirect2KHR));
+                    map(&mut e.sub_image, false);
+                    let ptr = (&*e as *const xr::CompositionLayerEquirect2KHR).cast();
+                    keep.equirects2.push(e);
+                    ptr
+                }
+                _ => l,
+            }
+        };
+        keep.layers.push(out);
+    }
+    let keep = Box::new(keep);
+    let info = xr::FrameEndInfo { layer_count: keep.layers.len() as u32, layers: if keep.layers.is_empty() { info.layers } else { keep.layers.as_ptr() }, ..*info };
+    super::feature::AmendedFrameEnd { info, _keep: keep }
+}
+
+/// Destroys an interposed swapchain's objects (before the runtime's swapchain goes down).
+pub(super) fn destroy(s: &Session, i: &Interposed) {
+    let g = lock(&s.upscale.gpu);
+    let Some(g) = g.as_ref() else { return };
+    if !crate::vk::device_is_live(&g.device) {
+        return;
+    }
+    g.slots.wait_all(&g.device);
+    // SAFETY: the objects are idle (waited above); `top` is the app-level table of their device.
+    unsafe { lock(&i.target).destroy(&g.device, &g.top.device) };
+}
+
+/// The session ends: the GPU objects go (its swapchains went first).
+pub(super) fn session_destroyed(s: &Session) {
+    let Some(mut g) = lock(&s.upscale.gpu).take() else { return };
+    if !crate::vk::device_is_live(&g.device) {
+        tracing::warn!("upscale: the app destroyed the session's VkDevice before the session; its Vulkan objects went with the device");
+        return;
+    }
+    g.slots.destroy(&g.device);
+    g.pipelines.destroy(&g.device);
+}
