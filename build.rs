@@ -27,6 +27,10 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("far_field_copy.comp", "far_field_copy.comp.spv", &[]),
     ("upscale_easu.comp", "upscale_easu.comp.spv", &[]),
     ("upscale_rcas.comp", "upscale_rcas.comp.spv", &[]),
+    ("upscale_rcas.comp", "upscale_rcas_rgba8.comp.spv", &["-DOUT_RGBA8"]),
+    ("upscale_rcas.frag", "upscale_rcas.frag.spv", &[]),
+    ("upscale_bilinear.frag", "upscale_bilinear.frag.spv", &[]),
+    ("upscale.vert", "upscale.vert.spv", &[]),
 ];
 
 fn main() {
@@ -46,6 +50,7 @@ fn main() {
         compile(&src_path, &out.join(dst), extra);
     }
     println!("cargo:rerun-if-changed={}", shader_dir.join("rdm_rule.glsl").display());
+    println!("cargo:rerun-if-changed={}", shader_dir.join("upscale_rcas.glsl").display());
 }
 
 /// Every shader is SPIR-V 1.0 (`--target-env vulkan1.0`): the layer's modules are created on the

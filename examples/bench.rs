@@ -87,8 +87,97 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
+/// The upscale is latched per XR instance (the told size cannot change under an app's
+/// swapchains): its A/B alternates whole instances of xr-scene (`--instances`), switching the
+/// config between them, and takes each frame's mode and end-to-end GPU time (every submission,
+/// the upscale's included) from the layer's own record, whose frame numbers restart per instance.
+fn bench_per_instance(a: &Args) {
+    let instances = a.frames.div_ceil(a.period).max(2);
+    let (app_args, extra_config) = (a.app_args(), a.config());
+    let tag: String = (app_args.concat() + &extra_config).chars().filter(|c| c.is_ascii_alphanumeric()).collect();
+    let dir = common::output_dir(&format!("bench-{}-{}-{}-{tag}", a.feature, a.hmd, a.layout));
+    let layer_stats = dir.join("layer-stats.jsonl");
+    let _ = std::fs::remove_file(&layer_stats);
+    let config = dir.join("config/stereoshim/config.toml");
+    std::fs::create_dir_all(config.parent().unwrap()).unwrap();
+    write_config(&config, &config_text(&a.feature, false, &layer_stats, &extra_config));
+    let mut child = Command::new(common::xr_scene_exe())
+        .args(["--layout", &a.layout, "--scale", &a.scale, "--shading-cost", &a.shading_cost, "--instances", &instances.to_string()])
+        .args(&app_args)
+        .env("XR_RUNTIME_JSON", common::runtime_manifest())
+        .env("XR_API_LAYER_PATH", common::layer_manifest_dir())
+        .env("XR_ENABLE_API_LAYERS", common::XR_LAYER_NAME)
+        .env("XDG_CONFIG_HOME", dir.join("config"))
+        .env("XDG_STATE_HOME", dir.join("state"))
+        .env("XDG_RUNTIME_DIR", dir.join("run"))
+        .env("MOCK_XR_HMD", &a.hmd)
+        .env("MOCK_XR_EXIT_AFTER", a.period.to_string())
+        .env_remove("STEREOSHIM_CONFIG")
+        .spawn()
+        .expect("spawn xr-scene");
+    // A new instance reads the config when it starts: switch as soon as an instance's frames are
+    // all in (its last frame number is `period - 1`).
+    let (mut on, mut seen) = (false, 0usize);
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            assert!(status.success(), "xr-scene failed: {status}");
+            break;
+        }
+        let text = std::fs::read_to_string(&layer_stats).unwrap_or_default();
+        let lines: Vec<&str> = text.lines().collect();
+        for line in &lines[seen.min(lines.len())..] {
+            if line.contains(&format!("\"frame\":{},", a.period - 1)) {
+                on = !on;
+                write_config(&config, &config_text(&a.feature, on, &layer_stats, &extra_config));
+            }
+        }
+        seen = lines.len();
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let (mut busy, mut px, mut own) = ([vec![], vec![]], [vec![], vec![]], vec![]);
+    for line in std::fs::read_to_string(&layer_stats).unwrap().lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        // Warm-up of each instance (pipelines, images and buffers are made lazily).
+        if v["frame"].as_u64().unwrap_or(0) < 10 {
+            continue;
+        }
+        let i = v["upscale_enabled"].as_bool().unwrap_or(false) as usize;
+        if let Some(b) = v["gpu_ms"]["busy"].as_f64() {
+            busy[i].push(b);
+        }
+        if let Some(ms) = v["upscale"]["gpu_ms"].as_f64() {
+            own.push(ms);
+            if own.len() == 20 {
+                println!("upscale phases (barriers in, EASU, fragment pass, barriers out), ms: {}", v["upscale"]["phases_ms"]);
+            }
+        }
+        if let Some(r) = v["upscale"]["rendered_px"].as_u64() {
+            px[1].push(r as f64);
+            px[0].push(v["upscale"]["display_px"].as_u64().unwrap_or(0) as f64);
+        }
+    }
+    let (off, on) = (median(busy[0].clone()), median(busy[1].clone()));
+    println!("| hmd | layout | feature | frames off/on | frame GPU ms off | frame GPU ms on | speed-up | rendered / display px | upscale's own GPU ms |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| {} | {} | {} | {}/{} | {off:.3} | {on:.3} | {:.2}x | {:.0} / {:.0} | {:.3} |",
+        a.hmd,
+        a.layout,
+        a.feature,
+        busy[0].len(),
+        busy[1].len(),
+        off / on,
+        median(px[1].clone()),
+        median(px[0].clone()),
+        median(own)
+    );
+}
+
 fn main() {
     let a = <Args as clap::Parser>::parse();
+    if a.feature.split(',').any(|f| f == "upscale") {
+        return bench_per_instance(&a);
+    }
     let (app_args, extra_config) = (a.app_args(), a.config());
     let tag: String = (app_args.concat() + &extra_config).chars().filter(|c| c.is_ascii_alphanumeric()).collect();
     let name = format!("bench-{}-{}-{}-{tag}", a.feature, a.hmd, a.layout);

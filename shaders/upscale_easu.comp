@@ -12,6 +12,10 @@ layout(set = 0, binding = 1, rgba16f) uniform writeonly image2D dst;
 layout(push_constant) uniform Params {
     ivec4 src_rect;  // x, y, width, height (texels of `src`)
     ivec4 dst_rect;  // x, y, width, height (texels of `dst`)
+    // The region EASU runs in (`upscale.fovea_only`): an ellipse, centre x, y and radii in texels
+    // of `dst`; bilinear outside. z = 0: EASU everywhere; z < 0: bilinear everywhere
+    // (`upscale.method = bilinear`).
+    vec4 fovea;
 } p;
 
 vec3 tap(ivec2 t) {
@@ -44,6 +48,15 @@ void main() {
     vec2 fl = floor(pos);
     vec2 t = pos - fl;
     ivec2 f = ivec2(fl);
+    if (p.fovea.z != 0.0) {
+        vec2 d = p.fovea.z > 0.0 ? (vec2(p.dst_rect.xy + o) + 0.5 - p.fovea.xy) / p.fovea.zw : vec2(2.0);
+        if (dot(d, d) > 1.0) {
+            vec3 top = mix(tap(f), tap(f + ivec2(1, 0)), t.x);
+            vec3 bottom = mix(tap(f + ivec2(0, 1)), tap(f + ivec2(1, 1)), t.x);
+            imageStore(dst, p.dst_rect.xy + o, vec4(mix(top, bottom, t.y), 1.0));
+            return;
+        }
+    }
     // The 12 taps: rows -1..2, the 4×4 block without its corners.
     vec3 b = tap(f + ivec2(0, -1)), c = tap(f + ivec2(1, -1));
     vec3 e = tap(f + ivec2(-1, 0)), ff = tap(f + ivec2(0, 0)), g = tap(f + ivec2(1, 0)), h = tap(f + ivec2(2, 0));

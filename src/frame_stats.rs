@@ -63,9 +63,10 @@ impl FrameRecord {
         record.insert("fovea_source".into(), self.fovea_source.clone().into());
         record.insert("vulkan_half".into(), self.vulkan_half.into());
         self.stats.write_json(&mut record);
+        // Whether this frame was upscaled (`examples/bench --feature upscale` switches on it).
+        record.insert("upscale_enabled".into(), self.upscale.is_some().into());
         if let Some(u) = &self.upscale {
-            record.insert("upscale_enabled".into(), true.into());
-            record.insert("upscale".into(), serde_json::json!({"passes": u.passes, "rendered_px": u.rendered_px, "display_px": u.display_px}));
+            record.insert("upscale".into(), serde_json::json!({"passes": u.passes, "rendered_px": u.rendered_px, "display_px": u.display_px, "gpu_ms": u.gpu_ms, "phases_ms": u.phases_ms}));
         }
         if let Some(gpu) = &self.gpu_ms {
             let value = gpu.map_or(serde_json::Value::Null, |t| {

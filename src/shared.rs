@@ -195,18 +195,27 @@ pub struct Shared {
 
 /// What the upscale did in a frame: passes (one per view rect), pixels rendered by the app and
 /// pixels the runtime got.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct UpscaleFrame {
     pub passes: u64,
     pub rendered_px: u64,
     pub display_px: u64,
+    /// The GPU time of the last upscale read back (an earlier frame's), ms: its own commands,
+    /// from the moment the app's work before it completed.
+    pub gpu_ms: Option<f64>,
+    /// Its phases: barriers in, EASU, the fragment pass, barriers out (ms).
+    pub phases_ms: Vec<f64>,
 }
 
 impl Shared {
     /// Counts an upscale submission.
-    pub fn upscale_counts(&self, passes: u64, rendered_px: u64, display_px: u64) {
+    pub fn upscale_counts(&self, passes: u64, rendered_px: u64, display_px: u64, gpu_ms: Option<f64>, phases_ms: &[f64]) {
         let mut u = self.upscale.lock().unwrap_or_else(|e| e.into_inner());
         let f = u.get_or_insert_with(UpscaleFrame::default);
+        f.gpu_ms = gpu_ms.or(f.gpu_ms);
+        if !phases_ms.is_empty() {
+            f.phases_ms = phases_ms.to_vec();
+        }
         f.passes += passes;
         f.rendered_px += rendered_px;
         f.display_px += display_px;

@@ -39,7 +39,9 @@ fn sessions_recreated_with_every_feature_on_keep_memory_flat() {
         .env("MOCK_XR_CAPTURE_FRAMES", "0");
     let plain = base.clone().run();
     plain.assert_ok();
-    let layered = every_feature(base, "lifecycle-sessions-layer");
+    // Upscaling too: every session's swapchains are interposed (the layer's images and objects
+    // made and destroyed each time).
+    let layered = every_feature(base, "lifecycle-sessions-layer").env("STEREOSHIM_UPSCALE_ENABLED", "1");
     let with = layered.run();
     with.assert_ok().assert_layer_loaded(Half::Both).assert_log_lacks(Half::Both, "internal failure");
     assert_nothing_tracked(&with);
@@ -54,6 +56,8 @@ fn sessions_recreated_with_every_feature_on_keep_memory_flat() {
         line.split_whitespace().find_map(|w| w.strip_prefix(key)).and_then(|v| v.parse().ok()).unwrap_or(0)
     };
     assert!(count("rdm_passes=") >= SESSIONS as u64 * (FRAMES - 1), "RDM stopped in later sessions: {line}");
+    let interposed = with.log_lines("the runtime shows").len();
+    assert!(interposed >= SESSIONS, "the upscale stopped interposing in later sessions: {interposed} swapchains over {SESSIONS} sessions");
     let (ga, gb) = (growth(&a), growth(&b));
     eprintln!("rss growth over the last two thirds: {ga} kB without the layer, {gb} kB with; sessions with: {b:?}");
     // The app alone grows by ~20-30 kB a session here (mock runtime, loader, lavapipe), and the

@@ -61,3 +61,89 @@ fn the_runtime_gets_display_size_images_close_to_native() {
         assert!(e > e_bil, "EASU+RCAS edges ({e:.3}) not sharper than bilinear's ({e_bil:.3})");
     }
 }
+
+/// Every layout × rendering, validation (with synchronization) on: the swapchains are interposed,
+/// the runtime gets display-size images at every view's full size, close to native, and the app's
+/// frame count is unchanged.
+#[test]
+fn every_layout_and_rendering() {
+    for layout in ["per-eye", "multiview", "side-by-side"] {
+        for rendering in ["render-pass", "dynamic"] {
+            let label = format!("{layout}-{rendering}");
+            let base = Run::new(&format!("upscale-native-{label}")).with_layer().args(["--layout", layout, "--rendering", rendering]);
+            let native = base.run();
+            native.assert_ok();
+            let on = upscaled(base, &format!("upscale-{label}"), "easu_rcas").run();
+            on.assert_ok();
+            assert!(!on.log_lines("the runtime shows").is_empty(), "{label}: no swapchain was interposed");
+            assert_eq!(on.frames().frames.len(), native.frames().frames.len(), "{label}: captured frames");
+            for (p, s, _) in quality_of(&label, &on, &native) {
+                assert!(p >= 30.0 && s >= 0.95, "{label}: PSNR {p:.2} dB, SSIM {s:.4}");
+            }
+        }
+    }
+}
+
+/// A recording made once and submitted every frame (record-once), and dynamic resolution (a
+/// smaller rect each frame: the upscale follows the submitted rect and fills the view).
+#[test]
+fn record_once_and_dynamic_resolution() {
+    let cases: [(&str, &[&str]); 2] = [("record-once", &["--record-once"]), ("dynamic", &["--post", "tonemap", "--viewport-scale", "0.8", "--dynamic-resolution"])];
+    for (label, args) in cases {
+        let base = Run::new(&format!("upscale-native-{label}")).with_layer().args(args.iter().copied()).env("MOCK_XR_EXIT_AFTER", "4");
+        let native = base.run();
+        native.assert_ok();
+        let on = upscaled(base, &format!("upscale-{label}"), "easu_rcas").run();
+        on.assert_ok();
+        for (va, vb) in on.views(1).iter().zip(native.views(1)) {
+            assert_eq!((va.image_rect.width, va.image_rect.height), (vb.image_rect.width, vb.image_rect.height), "{label}: the runtime's rect is not the view's display size");
+        }
+        for (p, s, _) in quality_of(label, &on, &native) {
+            assert!(p >= 28.0 && s >= 0.9, "{label}: PSNR {p:.2} dB, SSIM {s:.4}");
+        }
+    }
+}
+
+/// The feature off, with the layer loaded: the runtime gets exactly what it gets without the
+/// layer, and the app is told the runtime's own sizes.
+#[test]
+fn off_is_byte_identical() {
+    let base = Run::new("upscale-off-plain");
+    let plain = base.clone().run();
+    plain.assert_ok();
+    let mut off = base.with_layer().env("STEREOSHIM_UPSCALE_ENABLED", "0");
+    off.name = "upscale-off-layer".into();
+    let off = off.run();
+    off.assert_ok();
+    assert!(off.log_lines("upscale: told").is_empty());
+    common::assert_same_captures("upscale off", &plain, &off);
+}
+
+/// With mask, RDM and the far field on, the features work in the app's smaller images: the mask
+/// and RDM apply to every eye pass, the far field reuses, and the runtime still gets display-size
+/// images close to the native run with the same features.
+#[test]
+fn with_every_other_feature() {
+    let base = common::every_feature(Run::new("upscale-features-native"), "upscale-features-native").env("MOCK_XR_EXIT_AFTER", "4");
+    let native = base.run();
+    native.assert_ok();
+    let on = upscaled(base, "upscale-features", "easu_rcas").run();
+    on.assert_ok();
+    let line = on.log_lines("vulkan device stats").last().copied().unwrap_or_default().to_string();
+    let count = |key: &str| -> u64 { line.split_whitespace().find_map(|w| w.strip_prefix(key)).and_then(|v| v.parse().ok()).unwrap_or(0) };
+    assert!(count("masked_passes=") >= 6 && count("rdm_passes=") >= 6, "the features did not apply in the upscaled images: {line}");
+    // Lower than the plain runs' 32 dB: RDM's periphery, reconstructed in the smaller image,
+    // is magnified by the upscale (its checkerboard quads become 2.6 display pixels wide).
+    for (p, s, _) in quality_of("features", &on, &native) {
+        assert!(p >= 25.0 && s >= 0.9, "PSNR {p:.2} dB, SSIM {s:.4}");
+    }
+}
+
+/// The runtime failing its own (display-size) swapchain: the app gets the runtime's error.
+#[test]
+fn the_runtimes_swapchain_failure_reaches_the_app() {
+    let run = upscaled(Run::new("upscale-fail"), "upscale-fail", "easu_rcas").with_layer().env("MOCK_XR_FAIL", "xrCreateSwapchain=XR_ERROR_LIMIT_REACHED");
+    let out = run.run();
+    assert!(out.stderr.contains("LIMIT_REACHED"), "the app did not see the runtime's error: {}", out.stderr);
+    assert!(!out.log_lines("the runtime refused its").is_empty());
+}

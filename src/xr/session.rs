@@ -203,9 +203,6 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
             }
             st.swapchains.retain(|_, s| s.session.handle != session);
             st.sessions.remove(session.into_raw());
-            if !st.sessions.values().iter().any(|(_, s)| Arc::ptr_eq(&s.instance, &inst)) {
-                inst.upscale.unlatch();
-            }
             // The app has waited for its GPU work by now (it may not destroy a session whose
             // images are in use): the last frames' GPU times are in, and every waiting
             // `stats.file` line is written.

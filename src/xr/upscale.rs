@@ -2,8 +2,9 @@
 //! `features::upscale::rules`, the GPU work in `features::upscale::vk`).
 //!
 //! - `xrEnumerateViewConfigurationViews` answers the recommended sizes times `upscale.scale`,
-//!   latched from the first answer until the instance's last session ends (engines poll it, and
-//!   a size that changed under their swapchains would break them).
+//!   latched from the first answer for the instance's life: engines ask once per instance (or
+//!   poll), and a size that changed under their swapchains, or in a later session of the same
+//!   instance, would break them. A changed `upscale.*` applies from the next instance.
 //! - `xrCreateSwapchain` of a colour swapchain of a told view size (`rules::plan`) makes the
 //!   runtime's swapchain at the display size, and the app's images, at the size it asked for, on
 //!   its device (`Target`); `xrEnumerateSwapchainImages` hands out those.
@@ -19,8 +20,9 @@ use super::session::Session;
 use super::swapchain::Swapchain;
 use crate::core::rect::PixelRect;
 use crate::features::upscale::rules::{self, Ask, Plan, ViewSizes};
-use crate::features::upscale::vk::{format_refusal, Job, Pipelines, Slots, Target, TargetDesc};
-use crate::features::upscale::{Method, UpscaleSettings};
+use crate::features::upscale::record::{record_frame, Work};
+use crate::features::upscale::vk::{format_refusal, Job, Output, Pipelines, Slots, Target, TargetDesc};
+use crate::features::upscale::UpscaleSettings;
 use crate::settings::Settings;
 use crate::vk::DeviceState;
 use ash::vk;
@@ -52,10 +54,6 @@ impl InstanceUpscale {
     pub(crate) fn latched(&self) -> Option<Latch> {
         lock(&self.latch).clone()
     }
-    /// The instance's last session ended: the next one reads the configuration afresh.
-    pub(crate) fn unlatch(&self) {
-        *lock(&self.latch) = None;
-    }
 }
 
 /// `xrEnumerateViewConfigurationViews` answered `views`: told sizes replace the recommended ones
@@ -72,7 +70,7 @@ pub(super) fn views_enumerated(inst: &super::Instance, settings: &Settings, view
         return;
     }
     if l.settings != settings.upscale {
-        tracing::info!("upscale: its settings changed; the sizes told stay as latched until the instance's sessions end");
+        tracing::info!("upscale: its settings changed; the sizes told stay as latched until the instance ends");
     }
     let runtime: Vec<_> = views
         .iter()
@@ -127,7 +125,6 @@ impl std::fmt::Debug for SessionUpscale {
 /// One interposed swapchain.
 pub(crate) struct Interposed {
     pub plan: Plan,
-    pub method: Method,
     pub sharpness: f32,
     target: Mutex<Target>,
     /// App images' first layout is recorded (at the first acquire).
@@ -183,7 +180,11 @@ fn gpu_for(s: &Session) -> Result<(), String> {
     // SAFETY: the session is live, so its binding's handles are.
     let top = unsafe { top_level(&b) }?;
     let pipelines = Pipelines::new(&device)?;
-    let slots = match Slots::new(&device, b.queue_family_index, b.queue_index) {
+    // SAFETY: the session's live physical device, at the app's level.
+    let (props, families) = unsafe { (top.instance.get_physical_device_properties(top.physical), top.instance.get_physical_device_queue_family_properties(top.physical)) };
+    let timed = families.get(b.queue_family_index as usize).is_some_and(|f| f.timestamp_valid_bits > 0);
+    let period = if timed { props.limits.timestamp_period } else { 0.0 };
+    let slots = match Slots::new(&device, b.queue_family_index, b.queue_index, period) {
         Ok(s) => s,
         Err(e) => {
             pipelines.destroy(&device);
@@ -269,12 +270,18 @@ pub(super) fn create_swapchain(
         tracing::warn!("upscale: swapchain format {format:?} cannot be upscaled ({why}); this swapchain is left as the app asks");
         return Created::No;
     }
+    let output = Output::of(format);
+    // The upscale draws into the runtime's image as a colour attachment, or copies into it.
+    let needs = match output {
+        Output::Copy { .. } => xr::SwapchainUsageFlags::TRANSFER_DST,
+        Output::Fragment => xr::SwapchainUsageFlags::COLOR_ATTACHMENT,
+    };
     let runtime_ci = xr::SwapchainCreateInfo {
         width: plan.runtime.0,
         height: plan.runtime.1,
         // The app's mip chain stays its own: the runtime gets the upscaled level 0.
         mip_count: 1,
-        usage_flags: ci.usage_flags | xr::SwapchainUsageFlags::TRANSFER_DST | xr::SwapchainUsageFlags::COLOR_ATTACHMENT,
+        usage_flags: ci.usage_flags | needs,
         ..*ci
     };
     let (r, created) = crate::swapchain_images::capture(|| create(&runtime_ci));
@@ -283,11 +290,11 @@ pub(super) fn create_swapchain(
         return Created::Yes(r, None);
     }
     let swapchain = handle();
-    match make_target(s, ci, &runtime_ci, format, plan, swapchain, &created, &latch.settings) {
+    match make_target(s, ci, &runtime_ci, (format, output), plan, swapchain, &created, &latch.settings) {
         Ok(i) => {
             let i = Box::new(i);
             tracing::info!(
-                "upscale: swapchain {:#x}: the app renders {}x{}, the runtime shows {}x{} ({:?})",
+                "upscale: swapchain {:#x}: the app renders {}x{}, the runtime shows {}x{} ({:?}, {output:?})",
                 swapchain.into_raw(),
                 ci.width,
                 ci.height,
@@ -313,7 +320,7 @@ fn make_target(
     s: &Session,
     ci: &xr::SwapchainCreateInfo,
     runtime_ci: &xr::SwapchainCreateInfo,
-    format: vk::Format,
+    (format, output): (vk::Format, Output),
     plan: Plan,
     swapchain: xr::Swapchain,
     created: &[crate::swapchain_images::CreatedImage],
@@ -350,6 +357,8 @@ fn make_target(
         mutable_format: ci.usage_flags.contains(xr::SwapchainUsageFlags::MUTABLE_FORMAT),
         runtime_extent: plan.runtime,
         runtime_images,
+        method: settings.method,
+        output,
     };
     let g = lock(&s.upscale.gpu);
     let g = g.as_ref().ok_or("no GPU objects")?;
@@ -362,7 +371,6 @@ fn make_target(
     let target = unsafe { Target::new(&g.device, &g.top.device, &g.pipelines, desc, n as usize, &capture) }?;
     Ok(Interposed {
         plan,
-        method: settings.method,
         sharpness: settings.sharpness,
         target: Mutex::new(target),
         first_layouts: AtomicBool::new(false),
@@ -409,12 +417,13 @@ pub(super) fn acquired(s: &Session, i: &Interposed) {
     }
 }
 
-/// One pending image's upscale for a frame.
-struct Work<'a> {
+/// One held image's upscale for a frame: its jobs, and per job where EASU runs.
+struct Held<'a> {
     handle: u64,
     i: &'a Interposed,
     index: u32,
     jobs: Vec<Job>,
+    fovea: Vec<[f32; 4]>,
 }
 
 /// The runtime rect of the app's `rect` of a projection view (`projection`) or another layer.
@@ -436,22 +445,33 @@ fn xr_rect(r: PixelRect) -> xr::Rect2Di {
 ///
 /// # Safety
 /// `layer` points to a valid composition layer of the app's frame.
-unsafe fn sub_images(layer: *const xr::CompositionLayerBaseHeader) -> Option<(bool, Vec<xr::SwapchainSubImage>)> {
+unsafe fn sub_images(layer: *const xr::CompositionLayerBaseHeader) -> Option<(bool, Vec<(xr::SwapchainSubImage, Option<(u32, xr::Fovf)>)>)> {
     // SAFETY: per the contract; the type tells the layout.
     unsafe {
         let base = layer.as_ref()?;
+        let one = |s: xr::SwapchainSubImage| vec![(s, None)];
         Some(match base.ty {
             xr::StructureType::COMPOSITION_LAYER_PROJECTION => {
                 let p = &*(layer as *const xr::CompositionLayerProjection);
-                (true, crate::vk::convert::slice(p.views, p.view_count).iter().map(|v| v.sub_image).collect())
+                (true, crate::vk::convert::slice(p.views, p.view_count).iter().enumerate().map(|(i, v)| (v.sub_image, Some((i as u32, v.fov)))).collect())
             }
-            xr::StructureType::COMPOSITION_LAYER_QUAD => (false, vec![(*(layer as *const xr::CompositionLayerQuad)).sub_image]),
-            xr::StructureType::COMPOSITION_LAYER_CYLINDER_KHR => (false, vec![(*(layer as *const xr::CompositionLayerCylinderKHR)).sub_image]),
-            xr::StructureType::COMPOSITION_LAYER_EQUIRECT_KHR => (false, vec![(*(layer as *const xr::CompositionLayerEquirectKHR)).sub_image]),
-            xr::StructureType::COMPOSITION_LAYER_EQUIRECT2_KHR => (false, vec![(*(layer as *const xr::CompositionLayerEquirect2KHR)).sub_image]),
+            xr::StructureType::COMPOSITION_LAYER_QUAD => (false, one((*(layer as *const xr::CompositionLayerQuad)).sub_image)),
+            xr::StructureType::COMPOSITION_LAYER_CYLINDER_KHR => (false, one((*(layer as *const xr::CompositionLayerCylinderKHR)).sub_image)),
+            xr::StructureType::COMPOSITION_LAYER_EQUIRECT_KHR => (false, one((*(layer as *const xr::CompositionLayerEquirectKHR)).sub_image)),
+            xr::StructureType::COMPOSITION_LAYER_EQUIRECT2_KHR => (false, one((*(layer as *const xr::CompositionLayerEquirect2KHR)).sub_image)),
             _ => return None,
         })
     }
+}
+
+/// Where EASU runs for a projection view's job (`upscale.fovea_only`): the foveation's inner
+/// region of the view (its fixed centre when foveation publishes none), else everywhere.
+fn fovea_of(settings: &Settings, view: Option<(u32, xr::Fovf)>, dst: PixelRect) -> [f32; 4] {
+    let (true, Some((index, fov))) = (settings.upscale.fovea_only, view) else { return [0.0; 4] };
+    let published = crate::shared::shared().foveation();
+    let (center, inner) = published.views.iter().find(|f| f.view == index).map_or(([0.0, 0.0], settings.foveation.rings.inner_deg), |f| (f.center, f.inner_deg));
+    let tan = [fov.angle_left.tan(), fov.angle_right.tan(), fov.angle_up.tan(), fov.angle_down.tan()];
+    rules::fovea_ellipse(center, inner, tan, dst)
 }
 
 /// The frame's interposed swapchains of session `s`.
@@ -472,7 +492,7 @@ pub(super) fn release(s: &Session, handle: u64, sc: &Swapchain, i: &Interposed, 
     let older: Vec<u32> = lock(&i.pending).drain(..).collect();
     if !older.is_empty() {
         let (extent, layers) = ((sc.desc.width, sc.desc.height), sc.desc.array_size);
-        let work: Vec<Work<'_>> = older.iter().map(|&index| Work { handle, i, index, jobs: whole_jobs(i, extent, layers) }).collect();
+        let work: Vec<Held<'_>> = older.iter().map(|&index| Held { handle, i, index, jobs: whole_jobs(i, extent, layers), fovea: Vec::new() }).collect();
         let r = run_and_release(s, &work);
         if r.into_raw() < 0 {
             return r;
@@ -485,7 +505,7 @@ pub(super) fn release(s: &Session, handle: u64, sc: &Swapchain, i: &Interposed, 
 
 /// Records and submits the upscales of `work`, then releases their runtime images (oldest first):
 /// the first failing release's result.
-fn run_and_release(s: &Session, work: &[Work<'_>]) -> xr::Result {
+fn run_and_release(s: &Session, work: &[Held<'_>]) -> xr::Result {
     if let Err(e) = submit(s, work) {
         if !s.upscale.failures_logged.swap(true, Ordering::Relaxed) {
             tracing::warn!("upscale: an upscale could not be submitted ({e}); the runtime's image keeps its old pixels this frame");
@@ -504,8 +524,8 @@ fn run_and_release(s: &Session, work: &[Work<'_>]) -> xr::Result {
     first
 }
 
-fn submit(s: &Session, work: &[Work<'_>]) -> Result<(), String> {
-    let work: Vec<&Work<'_>> = work.iter().filter(|w| !w.jobs.is_empty()).collect();
+fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
+    let work: Vec<&Held<'_>> = work.iter().filter(|w| !w.jobs.is_empty()).collect();
     if work.is_empty() {
         return Ok(());
     }
@@ -518,10 +538,18 @@ fn submit(s: &Session, work: &[Work<'_>]) -> Result<(), String> {
     let r = unsafe {
         (|| {
             d.fns.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
-            for w in &work {
-                let t = lock(&w.i.target);
-                t.record(&d, &g.pipelines, cb, w.index as usize, &w.jobs, (w.i.method, w.i.sharpness));
-            }
+            g.slots.mark(&d, cb, 0);
+            // Locked in the frame's swapchain order; no other code holds two targets at once.
+            let targets: Vec<_> = work.iter().map(|w| lock(&w.i.target)).collect();
+            let frame: Vec<Work<'_>> = work
+                .iter()
+                .zip(&targets)
+                .map(|(w, t)| Work { target: t, index: w.index as usize, jobs: &w.jobs, fovea: &w.fovea, sharpness: w.i.sharpness })
+                .collect();
+            record_frame(&d, &g.pipelines, cb, &frame, &|k| g.slots.mark(&d, cb, k));
+            drop(frame);
+            drop(targets);
+            g.slots.mark(&d, cb, crate::features::upscale::vk::MARKS - 1);
             d.fns.end_command_buffer(cb).map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
             let bracket = crate::vk::gpu_time::start(&d, g.slots.queue, 1, true);
             let cbs = match &bracket {
@@ -541,7 +569,7 @@ fn submit(s: &Session, work: &[Work<'_>]) -> Result<(), String> {
         let jobs: usize = work.iter().map(|w| w.jobs.len()).sum();
         let pixels: u64 = work.iter().flat_map(|w| &w.jobs).map(|j| j.dst.area()).sum();
         let rendered: u64 = work.iter().flat_map(|w| &w.jobs).map(|j| j.src.area()).sum();
-        crate::shared::shared().upscale_counts(jobs as u64, rendered, pixels);
+        crate::shared::shared().upscale_counts(jobs as u64, rendered, pixels, g.slots.last_gpu_ms, &g.slots.last_phases_ms);
     }
     r
 }
@@ -557,21 +585,23 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
     // SAFETY: the frame's layer pointers, valid for this call (non-null when counted: checked).
     let layers: Vec<*const xr::CompositionLayerBaseHeader> = if info.layer_count > 0 && info.layers.is_null() { Vec::new() } else { unsafe { crate::vk::convert::slice(info.layers, info.layer_count) }.to_vec() };
     let find = |h: xr::Swapchain| scs.iter().find(|(handle, _)| *handle == h.into_raw()).map(|(_, sc)| sc);
-    // The jobs each interposed swapchain's latest held image gets from this frame.
-    let mut jobs: Vec<(u64, Job)> = Vec::new();
+    // The jobs each interposed swapchain's latest held image gets from this frame, with where
+    // EASU runs.
+    let settings = super::settings(&s.instance);
+    let mut jobs: Vec<(u64, Job, [f32; 4])> = Vec::new();
     let mut unknown = false;
     for &l in &layers {
         // SAFETY: the app's layer, valid for this call.
         match unsafe { sub_images(l) } {
             Some((projection, subs)) => {
-                for sub in subs {
+                for (sub, view) in subs {
                     let Some(sc) = find(sub.swapchain) else { continue };
                     let handle = sub.swapchain.into_raw();
                     let i = sc.upscale.as_ref().expect("filtered");
                     if let Some((src, dst)) = runtime_rect(i, (sc.desc.width, sc.desc.height), pixel_rect(&sub.image_rect), projection) {
                         let job = Job { layer: sub.image_array_index, src, dst };
-                        if !jobs.contains(&(handle, job)) {
-                            jobs.push((handle, job));
+                        if !jobs.iter().any(|(h, j, _)| *h == handle && *j == job) {
+                            jobs.push((handle, job, fovea_of(&settings, view, dst)));
                         }
                     }
                 }
@@ -589,10 +619,10 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
         let held: Vec<u32> = lock(&i.pending).drain(..).collect();
         let n = held.len();
         for (k, index) in held.into_iter().enumerate() {
-            let mine: Vec<Job> = jobs.iter().filter(|(h, _)| *h == handle).map(|(_, j)| *j).collect();
+            let mine: Vec<(Job, [f32; 4])> = jobs.iter().filter(|(h, _, _)| *h == handle).map(|(_, j, f)| (*j, *f)).collect();
             // The latest held image is what the frame shows; older ones go out whole.
-            let jobs = if k + 1 == n && !mine.is_empty() { mine } else { whole_jobs(i, (sc.desc.width, sc.desc.height), sc.desc.array_size) };
-            work.push(Work { handle, i, index, jobs });
+            let (jobs, fovea) = if k + 1 == n && !mine.is_empty() { mine.into_iter().unzip() } else { (whole_jobs(i, (sc.desc.width, sc.desc.height), sc.desc.array_size), Vec::new()) };
+            work.push(Held { handle, i, index, jobs, fovea });
         }
     }
     let r = run_and_release(s, &work);

@@ -197,7 +197,7 @@ impl Gpu {
                 vk::DescriptorSetLayoutBinding::default().binding(1).descriptor_type(vk::DescriptorType::STORAGE_IMAGE).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE),
             ];
             let set_layout = d.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).unwrap();
-            let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::COMPUTE, offset: 0, size: 32 }];
+            let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::COMPUTE, offset: 0, size: gpu::PUSH_BYTES }];
             let set_layouts = [set_layout];
             let layout = d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges), None).unwrap();
             let (easu, rcas) = (self.pipeline(shaders.easu, layout), self.pipeline(shaders.rcas, layout));
@@ -233,7 +233,7 @@ impl Gpu {
             d.cmd_write_timestamp(cb, cs, queries, 0);
             d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, easu);
             d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &sets[..1], &[]);
-            let ep = gpu::EasuParams { src_rect: [0, 0, src.width as i32, src.height as i32], dst_rect: [0, 0, w as i32, h as i32] };
+            let ep = gpu::EasuParams { src_rect: [0, 0, src.width as i32, src.height as i32], dst_rect: [0, 0, w as i32, h as i32], ..Default::default() };
             d.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, &ep.bytes());
             for k in 0..repeat {
                 if k > 0 {
@@ -245,7 +245,7 @@ impl Gpu {
             d.cmd_write_timestamp(cb, cs, queries, 1);
             d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, rcas);
             d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &sets[1..], &[]);
-            let rp = gpu::RcasParams { rect: [0, 0, w as i32, h as i32], sharpness: [sharpness, 0.0, 0.0, 0.0] };
+            let rp = gpu::RcasParams { rect: [0, 0, w as i32, h as i32], sharpness: [sharpness, 0.0, 0.0, 0.0], ..Default::default() };
             d.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, &rp.bytes());
             for k in 0..repeat {
                 if k > 0 {

@@ -9,6 +9,15 @@ pub static EASU: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_easu.
 /// RCAS's SPIR-V.
 pub static RCAS: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_rcas.comp.spv"));
 
+/// RCAS writing 8-bit texels in the runtime image's encoding (sRGB, BGRA), copied into it.
+pub static RCAS_RGBA8: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_rcas_rgba8.comp.spv"));
+/// RCAS as a fragment pass into the runtime's image (the same filter, `upscale_rcas.glsl`).
+pub static RCAS_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_rcas.frag.spv"));
+/// The bilinear upscale as a fragment pass.
+pub static BILINEAR_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_bilinear.frag.spv"));
+/// The fragment passes' one full-viewport triangle.
+pub static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale.vert.spv"));
+
 /// The workgroup's side in pixels (16×16: on the H100 RCAS ran in 0.034 ms per 2016×2240 eye
 /// against 0.046 with 8×8, EASU alike; docs/benchmarks.md).
 pub const GROUP: u32 = 16;
@@ -20,6 +29,9 @@ pub const GROUP: u32 = 16;
 pub struct EasuParams {
     pub src_rect: [i32; 4],
     pub dst_rect: [i32; 4],
+    /// Where EASU runs: an ellipse (centre x, y, radii) in destination texels, bilinear outside;
+    /// radius 0: everywhere, negative: nowhere (the bilinear method).
+    pub fovea: [f32; 4],
 }
 
 /// RCAS's push constants: the rect (the same texels in both images) and the sharpness (x).
@@ -27,22 +39,29 @@ pub struct EasuParams {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct RcasParams {
     pub rect: [i32; 4],
+    /// Sharpness; then, for the compute pass into 8-bit texels, sRGB-encode (1) and swap red
+    /// and blue (1).
     pub sharpness: [f32; 4],
+    /// Where RCAS sharpens (as `EasuParams::fovea`; radius 0: everywhere).
+    pub fovea: [f32; 4],
 }
 
 impl EasuParams {
     /// The push constants' bytes (as the shader's std430-like block lays them out).
     pub fn bytes(&self) -> Vec<u8> {
-        self.src_rect.iter().chain(&self.dst_rect).flat_map(|v| v.to_ne_bytes()).collect()
+        self.src_rect.iter().chain(&self.dst_rect).flat_map(|v| v.to_ne_bytes()).chain(self.fovea.iter().flat_map(|v| v.to_ne_bytes())).collect()
     }
 }
 
 impl RcasParams {
     /// The push constants' bytes.
     pub fn bytes(&self) -> Vec<u8> {
-        self.rect.iter().flat_map(|v| v.to_ne_bytes()).chain(self.sharpness.iter().flat_map(|v| v.to_ne_bytes())).collect()
+        self.rect.iter().flat_map(|v| v.to_ne_bytes()).chain(self.sharpness.iter().chain(&self.fovea).flat_map(|v| v.to_ne_bytes())).collect()
     }
 }
+
+/// The push constants' size (both passes).
+pub const PUSH_BYTES: u32 = 48;
 
 /// Workgroups covering `width`×`height` pixels.
 pub fn groups(width: u32, height: u32) -> (u32, u32) {
@@ -59,6 +78,8 @@ mod tests {
             assert_eq!(&s[..4], &0x0723_0203u32.to_le_bytes(), "SPIR-V magic");
         }
         assert_eq!(EasuParams::default().bytes().len(), std::mem::size_of::<EasuParams>());
+        assert_eq!(EasuParams::default().bytes().len(), PUSH_BYTES as usize);
+        assert_eq!(RcasParams::default().bytes().len(), PUSH_BYTES as usize);
         assert_eq!(RcasParams { sharpness: [0.5, 0.0, 0.0, 0.0], ..Default::default() }.bytes()[16..20], 0.5f32.to_ne_bytes());
         assert_eq!(groups(17, 8), (2, 1));
     }

@@ -9,6 +9,7 @@
 
 pub mod filter;
 pub mod gpu;
+pub(crate) mod record;
 pub mod rules;
 pub(crate) mod vk;
 

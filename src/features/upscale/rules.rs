@@ -201,6 +201,25 @@ pub fn scaled_rect(rect: PixelRect, k: (f64, f64), runtime: (u32, u32)) -> Optio
     (x1 > x0 && y1 > y0).then_some(PixelRect { x: x0 as i32, y: y0 as i32, width: (x1 - x0) as u32, height: (y1 - y0) as u32 })
 }
 
+/// The foveal ellipse of a view (`upscale.fovea_only`): centre and radii in the runtime image's
+/// pixels, for the fovea's direction `center` (a tangent-plane point: x right, y up), its angular
+/// radius `inner_deg`, the view's tangents `tan` (left, right, up, down) and its rect `dst`. The
+/// radius is the tangent span on the fovea's outer side (the larger one), so the ellipse holds the
+/// whole inner region. Zero radii where the view's angles are degenerate (EASU everywhere).
+pub fn fovea_ellipse(center: [f32; 2], inner_deg: f32, tan: [f32; 4], dst: PixelRect) -> [f32; 4] {
+    let [l, r, u, d] = tan;
+    if !(r > l && u > d) || !inner_deg.is_finite() || inner_deg <= 0.0 {
+        return [0.0; 4];
+    }
+    let (w, h) = (dst.width as f32, dst.height as f32);
+    let cx = dst.x as f32 + (center[0] - l) / (r - l) * w;
+    let cy = dst.y as f32 + (u - center[1]) / (u - d) * h;
+    let at = (center[0].hypot(center[1])).atan();
+    let outer = (at + inner_deg.to_radians()).min(89f32.to_radians());
+    let span = outer.tan() - at.tan();
+    [cx, cy, span * w / (r - l), span * h / (u - d)]
+}
+
 /// Every device allows LOD biases of at least ±2 (`maxSamplerLodBias`).
 pub const SAFE_LOD_BIAS: f32 = 2.0;
 
@@ -267,6 +286,17 @@ mod tests {
         let one = told(&[((1, 1), (1, 1))], 0.5);
         assert_eq!(plan(&ask(1, 1), &one), Err(Skip::Unscaled));
         assert_eq!(plan(&ask(2016, 2240), &told(&[((2016, 2240), (4096, 4096))], 1.0)), Err(Skip::Unscaled));
+    }
+
+    #[test]
+    fn the_fovea_in_pixels() {
+        let rect = PixelRect { x: 100, y: 0, width: 200, height: 100 };
+        // A symmetric 90° view: the optical axis is the rect's centre; 45° reaches its edge.
+        let e = fovea_ellipse([0.0, 0.0], 45.0, [-1.0, 1.0, 1.0, -1.0], rect);
+        assert!((e[0] - 200.0).abs() < 1e-3 && (e[1] - 50.0).abs() < 1e-3, "{e:?}");
+        assert!((e[2] - 100.0).abs() < 1e-3 && (e[3] - 50.0).abs() < 1e-3, "{e:?}");
+        assert_eq!(fovea_ellipse([0.0, 0.0], 20.0, [1.0, -1.0, 1.0, -1.0], rect), [0.0; 4]);
+        assert_eq!(fovea_ellipse([0.0, 0.0], 0.0, [-1.0, 1.0, 1.0, -1.0], rect), [0.0; 4]);
     }
 
     #[test]
