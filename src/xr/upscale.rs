@@ -441,11 +441,14 @@ fn xr_rect(r: PixelRect) -> xr::Rect2Di {
     xr::Rect2Di { offset: xr::Offset2Di { x: r.x, y: r.y }, extent: xr::Extent2Di { width: r.width as i32, height: r.height as i32 } }
 }
 
+/// A sub-image of a frame's layer, with its view index and angles when it is a projection view.
+type SubImage = (xr::SwapchainSubImage, Option<(u32, xr::Fovf)>);
+
 /// A layer's sub-images, whether they are projection views.
 ///
 /// # Safety
 /// `layer` points to a valid composition layer of the app's frame.
-unsafe fn sub_images(layer: *const xr::CompositionLayerBaseHeader) -> Option<(bool, Vec<(xr::SwapchainSubImage, Option<(u32, xr::Fovf)>)>)> {
+unsafe fn sub_images(layer: *const xr::CompositionLayerBaseHeader) -> Option<(bool, Vec<SubImage>)> {
     // SAFETY: per the contract; the type tells the layout.
     unsafe {
         let base = layer.as_ref()?;

@@ -208,7 +208,7 @@ pub fn scaled_rect(rect: PixelRect, k: (f64, f64), runtime: (u32, u32)) -> Optio
 /// whole inner region. Zero radii where the view's angles are degenerate (EASU everywhere).
 pub fn fovea_ellipse(center: [f32; 2], inner_deg: f32, tan: [f32; 4], dst: PixelRect) -> [f32; 4] {
     let [l, r, u, d] = tan;
-    if !(r > l && u > d) || !inner_deg.is_finite() || inner_deg <= 0.0 {
+    if !(r > l && u > d && inner_deg.is_finite() && inner_deg > 0.0) {
         return [0.0; 4];
     }
     let (w, h) = (dst.width as f32, dst.height as f32);
