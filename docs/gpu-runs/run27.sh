@@ -19,16 +19,20 @@ VRS='foveation.method = "vrs"; foveation.eye_tracking = "off"'
 b() { # name, cost, feature, config, app args
   echo "== $1"
   timeout -k 5 150 examples/bench --hmd index --scale 1.0 --shading-cost $2 --frames 240 --period 30 --layout per-eye --feature $3 --config "$4" --app-args "--rendering dynamic $5" > $OUT/$1.txt 2>&1; echo "exit $?" >> $OUT/$1.txt
-  tail -3 $OUT/$1.txt
+  grep -E "^\| index|phases|far field" $OUT/$1.txt | head -4
 }
 b upscale070 64 upscale 'upscale.scale = 0.7' ''
 b upscale077 64 upscale 'upscale.scale = 0.77' ''
-b upscale077_empty 64 upscale 'upscale.scale = 0.77' '--empty'
+b upscale070_fovea 64 upscale 'upscale.scale = 0.7; upscale.fovea_only = true' ''
 b upscale070_bilinear 64 upscale 'upscale.scale = 0.7; upscale.method = "bilinear"' ''
-b all64 64 mask,foveation,far_field,upscale "upscale.scale = 0.77; $VRS" ''
-b all256 256 mask,foveation,far_field,upscale "upscale.scale = 0.77; $VRS" ''
-b share_mask64 64 mask "$VRS" ''
-b share_vrs64 64 mask,foveation "$VRS" ''
-b share_ff64 64 mask,foveation,far_field "$VRS" ''
-b share_mask256 256 mask "$VRS" ''
-b share_ff256 256 mask,foveation,far_field "$VRS" ''
+b upscale099_empty 64 upscale 'upscale.scale = 0.99' '--empty'
+b upscale077_multiview 64 upscale 'upscale.scale = 0.77' '--layout multiview'
+b all64 64 mask,foveation,far_field,upscale "upscale.scale = 0.77; $VRS" '--submit-depth'
+b all256 256 mask,foveation,far_field,upscale "upscale.scale = 0.77; $VRS" '--submit-depth'
+b share_mask64 64 mask "$VRS" '--submit-depth'
+b share_vrs64 64 mask,foveation "$VRS" '--submit-depth'
+b share_ff64 64 mask,foveation,far_field "$VRS" '--submit-depth'
+b share_mask256 256 mask "$VRS" '--submit-depth'
+b share_vrs256 256 mask,foveation "$VRS" '--submit-depth'
+b share_ff256 256 mask,foveation,far_field "$VRS" '--submit-depth'
+examples/upscale_bench --width 2016 --height 2240 --scale 0.77 --runs 9 --repeat 30 --input rgba8 | tail -2
