@@ -164,3 +164,46 @@ fn hdr_bloom_same_frames_with_and_without_the_layer() {
 fn msaa_off_same_frames_with_and_without_the_layer() {
     same_frames("msaa-off", &["--msaa", "off"]);
 }
+
+/// Upscaling with every other feature (mask, RDM, far field): Bevy asks for 388×431 per eye (the
+/// Index's told size at `upscale.scale = 0.77`, at this test's quarter size), renders its frame
+/// graph into the layer's images, and the runtime gets 504×560 per eye, the size the run without
+/// the layer renders at. Every eye pass is still masked and RDM-foveated (in the smaller images),
+/// every frame is upscaled, no validation error is added, and the visible pixels stay close to the
+/// native run's (RDM's periphery and the far field's reuse, both at the lower resolution, then
+/// magnified, are what differs most).
+#[test]
+fn upscaled_with_every_feature() {
+    let Some(exe) = engine::scene_exe() else { return };
+    let run = |name: &str, resolution: &str, layer: bool| {
+        SceneRun::new(name, &["--resolution", resolution], layer)
+            .env("MOCK_XR_HMD", "index")
+            .env("MOCK_XR_EXIT_AFTER", &FRAMES.to_string())
+            .env("MOCK_XR_CAPTURE_FRAMES", &format!("{WARM_UP}-{}", FRAMES - 1))
+            .env("STEREOSHIM_UPSCALE_ENABLED", "true")
+            .run(&exe)
+    };
+    let plain = run("bevy-upscale-plain", RESOLUTION, false);
+    let layered = run("bevy-upscale-layer", "388x431", true);
+    plain.assert_clean();
+    layered.assert_clean();
+    let added = engine::errors_added(&plain.vk_errors, &layered.vk_errors);
+    assert!(added.is_empty(), "bevy-upscale: Vulkan validation errors the run without the layer does not have: {added:?}");
+    assert!(!layered.out.log_lines("the runtime shows 504x560").is_empty(), "bevy-upscale: the swapchains were not interposed at the display size:\n{}", layered.out.log);
+    let counts = layer_counts(&layered.stats, WARM_UP..FRAMES);
+    let eye_passes = counts.frames * EYE_PASSES_PER_FRAME;
+    assert_eq!(counts.frames, FRAMES - WARM_UP, "bevy-upscale: records {}", layered.stats.len());
+    assert_eq!(counts.passes_masked, eye_passes, "bevy-upscale: every eye pass masked: {counts:?}");
+    assert_eq!(counts.rdm_passes, eye_passes, "bevy-upscale: RDM in every eye pass: {counts:?}");
+    let upscaled = layered.stats.iter().filter(|s| s["frame"].as_u64().is_some_and(|f| f >= WARM_UP) && s["upscale"]["passes"].as_u64() == Some(2)).count() as u64;
+    assert_eq!(upscaled, counts.frames, "bevy-upscale: both views of every compared frame upscaled");
+    for view in layered.out.views(WARM_UP) {
+        assert_shows_scene("bevy-upscale-layer", &layered.out.image(&view.file));
+    }
+    let diffs = engine::diff_by_mask(&plain.out, &layered.out);
+    assert_eq!(diffs.len() as u64, counts.frames * 2, "bevy-upscale: both views of every compared frame");
+    for d in &diffs {
+        eprintln!("bevy-upscale: frame {} view {}: visible pixels {:.1} dB", d.frame, d.view, d.visible_psnr);
+        assert!(d.visible_psnr >= 30.0, "bevy-upscale: frame {} view {}: visible pixels at {:.1} dB", d.frame, d.view, d.visible_psnr);
+    }
+}

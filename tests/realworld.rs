@@ -755,6 +755,29 @@ fn vulkan1_mock_layer_mask_rdm_vk_instance_layers() {
     mock_layer_case("vulkan1-mock-mask-rdm-vkil", true, true);
 }
 
+// --- upscaling on Monado (issue 21) ---
+
+/// hello_xr (XR_KHR_vulkan_enable2) on Monado with `upscale.enabled`: hello_xr makes its
+/// swapchains at the told size, Monado's are made at the display size, every frame's views are
+/// upscaled into them, and nothing else changes: clean exit, no validation error, the frame rate
+/// kept.
+#[test]
+fn vulkan2_layer_upscale() {
+    let Some(root) = root() else { return };
+    let base = baseline(&root, "Vulkan2");
+    let spec = Spec { layer: Layer::Explicit, env: vec![("STEREOSHIM_UPSCALE_ENABLED".into(), "true".into())], ..Spec::new("vulkan2-upscale", "Vulkan2") };
+    let o = run(&root, &spec);
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, &o);
+    check_layer_loaded(&mut c, &o);
+    check_validation(&mut c, &o);
+    c.check(o.log.contains("the runtime shows"), || format!("{}: no swapchain was interposed", o.name));
+    let upscaled = o.stats.iter().filter(|s| s["upscale"]["passes"].as_u64().unwrap_or(0) >= 2).count();
+    c.check(o.rendered() > 0 && upscaled + 2 >= o.rendered(), || format!("{}: {upscaled} of {} rendered frames upscaled", o.name, o.rendered()));
+    check_frames_kept(&mut c, &root, base, &o, &spec);
+    c.finish(&[&o, base]);
+}
+
 // --- the implicit layer: `stereoshim install --user` inside the root ---
 
 const CONFIG: &str = "mask.enabled = true\nfoveation.enabled = true\nfoveation.method = \"rdm\"\nstats.file = \"/tmp/stats.jsonl\"\n";

@@ -147,3 +147,16 @@ fn the_runtimes_swapchain_failure_reaches_the_app() {
     assert!(out.stderr.contains("LIMIT_REACHED"), "the app did not see the runtime's error: {}", out.stderr);
     assert!(!out.log_lines("the runtime refused its").is_empty());
 }
+
+/// `upscale.mip_bias`: the app's samplers get log2(scale) added (auto), nothing with `off`.
+#[test]
+fn samplers_get_the_mip_bias() {
+    let base = Run::new("upscale-mip-bias").with_layer().args(["--post", "tonemap"]);
+    let on = upscaled(base.clone(), "upscale-mip-bias-auto", "easu_rcas").env("STEREOSHIM_UPSCALE_SCALE", "0.5").run();
+    on.assert_ok();
+    let line = on.log_lines("LOD bias").first().copied().unwrap_or_else(|| panic!("no sampler got a bias: {}", on.log)).to_string();
+    assert!(line.contains("0 -> -1"), "log2(0.5) is -1: {line}");
+    let off = upscaled(base, "upscale-mip-bias-off", "easu_rcas").env("STEREOSHIM_UPSCALE_MIP_BIAS", "off").run();
+    off.assert_ok();
+    assert!(off.log_lines("LOD bias").is_empty());
+}

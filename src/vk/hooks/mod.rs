@@ -203,8 +203,14 @@ pub(super) unsafe extern "system" fn create_sampler(
         |d| d.settings().upscale.sampler_bias().and_then(|bias| unsafe { ci.as_ref() }.map(|ci| crate::features::upscale::rules::biased(ci.mip_lod_bias, bias))),
         |d, decided| match decided {
             Some(Some(bias)) => {
-                // SAFETY: the app's create info with only its LOD bias changed, valid for the call.
-                let amended = unsafe { vk::SamplerCreateInfo { mip_lod_bias: *bias, ..*ci } };
+                // SAFETY: the app's create info (non-null: the decision read it), valid for the call.
+                let app = unsafe { *ci };
+                let amended = vk::SamplerCreateInfo { mip_lod_bias: *bias, ..app };
+                // Once per process: the log line says the bias is in effect, the rest is the same.
+                static LOGGED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+                if !LOGGED.swap(true, std::sync::atomic::Ordering::Relaxed) {
+                    tracing::info!("upscale: the app's samplers get the upscale's LOD bias (the first: {} -> {bias})", app.mip_lod_bias);
+                }
                 // SAFETY: as above, with the app's allocator (the app destroys the sampler).
                 unsafe { (d.next.fp_v1_0().create_sampler)(device, &amended, allocator, out) }
             }
