@@ -18,6 +18,25 @@ fn as_filter_image(i: &image::Image) -> filter::Image {
     })
 }
 
+/// `size`×`size` crops at `at` of `images`, each magnified `zoom`× (nearest), side by side with a
+/// 2-pixel gap.
+fn crops(images: &[&image::Image], at: (u32, u32), size: u32, zoom: u32) -> image::Image {
+    let (w, h) = (images.len() as u32 * (size * zoom + 2), size * zoom);
+    let mut data = vec![255u16; (w * h * 3) as usize];
+    for (k, img) in images.iter().enumerate() {
+        for y in 0..h {
+            for x in 0..size * zoom {
+                let p = img.pixel((at.0 + x / zoom).min(img.width - 1), (at.1 + y / zoom).min(img.height - 1));
+                let o = ((y * w + k as u32 * (size * zoom + 2) + x) * 3) as usize;
+                for c in 0..3 {
+                    data[o + c] = if img.bit_depth == 16 { p[c] >> 8 } else { p[c] };
+                }
+            }
+        }
+    }
+    image::Image { width: w, height: h, channels: 3, bit_depth: 8, data }
+}
+
 fn upscaled(run: Run, name: &str, method: &str) -> Run {
     let mut run = run.env("STEREOSHIM_UPSCALE_ENABLED", "1").env("STEREOSHIM_UPSCALE_METHOD", method);
     run.name = name.into();
@@ -55,6 +74,10 @@ fn the_runtime_gets_display_size_images_close_to_native() {
     let bil = upscaled(base, "upscale-bilinear", "bilinear").run();
     bil.assert_ok();
     let lin = quality_of("bilinear", &bil, &native);
+    // docs/upscaling.md's picture: a crop of view 0 from each run, side by side, magnified 3×
+    // (nearest), written next to the captures.
+    let (n, b, f) = (native.image(&native.views(1)[0].file), bil.image(&bil.views(1)[0].file), on.image(&on.views(1)[0].file));
+    crops(&[&n, &b, &f], (n.width / 2 - 40, n.height / 2 - 30), 64, 3).save(&common::output_dir("upscale-easu").join("crops.png"));
     for ((p, s, e), (_, _, e_bil)) in fsr.iter().zip(&lin) {
         assert!(*p >= 30.0, "PSNR {p:.2} dB under 30");
         assert!(*s >= 0.95, "SSIM {s:.4} under 0.95");

@@ -511,6 +511,17 @@ fn preview_summary(r: &serde_json::Value) -> String {
             s += &format!("view {i} far field: the source (renders everything){}\n", on("far_field"));
         }
     }
+    let u = &r["upscale"];
+    s += &format!(
+        "upscale (scale {}): the app renders {}x{} per view, {} of the display's {} px ({}){}\n",
+        u["scale"],
+        u["told"][0],
+        u["told"][1],
+        u["rendered_px"],
+        u["display_px"],
+        pct(&u["rendered_fraction"]),
+        on("upscale")
+    );
     let ff = &r["far_field"];
     let split = ff["split_m"].as_f64().map_or("none (no baseline or pixel budget)".to_string(), |m| format!("{m:.2} m"));
     s += &format!("far field split: {split} at {} px (shift {})\n", ff["split_px"], ff["shift"].as_str().unwrap_or("?"));

@@ -521,6 +521,7 @@ pub fn config(c: &ConfigFacts) -> Vec<Finding> {
     if !c.config.enabled() {
         out.push(warning(C, format!("enabled = false ({}): the layer passes everything through", c.config.source("enabled")), "set enabled = true, or remove the key"));
     }
+    out.extend(upscale(&Settings::from_config(&c.config)));
     for d in &c.diagnostics {
         out.push(if d.contains(WHOLE_FILE) {
             error(C, d.clone(), "fix the TOML syntax at the place named (the whole file is ignored until then)")
@@ -529,6 +530,24 @@ pub fn config(c: &ConfigFacts) -> Vec<Finding> {
         } else {
             warning(C, d.clone(), "use a value the key accepts (docs/configuration.md)")
         });
+    }
+    out
+}
+
+/// The upscale as configured: what the app will render, and a mip bias the layer cannot read.
+pub fn upscale(s: &Settings) -> Vec<Finding> {
+    const C: &str = "upscale";
+    let u = &s.upscale;
+    if !u.enabled {
+        return Vec::new();
+    }
+    let bias = u.sampler_bias().map_or("off".to_string(), |b| format!("{b:+.2} levels"));
+    let mut out = vec![ok(
+        C,
+        format!("on: the app renders {:.0} % of the pixels (scale {} per axis), {:?}, mip bias {bias}; new XR instances only (the size is latched per instance)", u.scale * u.scale * 100.0, u.scale, u.method),
+    )];
+    if !u.mip_bias_valid {
+        out.push(warning(C, "upscale.mip_bias is not auto, off or a number in -4..4: auto is used", "set upscale.mip_bias = \"auto\", \"off\" or a number such as -0.5"));
     }
     out
 }

@@ -341,6 +341,19 @@ pub fn report(headset: &Headset, settings: &Settings, p: &Preview, pngs: &dyn Fn
         })
         .collect();
     let rings = settings.foveation.rings;
+    // The upscale's sizes: what the app would be told, its pixels and the display's.
+    let up = &settings.upscale;
+    let told = crate::features::upscale::rules::render_size((p.width, p.height), (up.scale, up.scale), (u32::MAX, u32::MAX));
+    let (rendered, display) = (told.0 as u64 * told.1 as u64, area);
+    let upscale = json!({
+        "scale": up.scale,
+        "method": format!("{:?}", up.method),
+        "told": [told.0, told.1],
+        "rendered_px": rendered,
+        "display_px": display,
+        "rendered_fraction": if display == 0 { 0.0 } else { rendered as f64 / display as f64 },
+        "mip_bias": up.sampler_bias(),
+    });
     json!({
         "headset": headset.name,
         "width": p.width,
@@ -349,7 +362,9 @@ pub fn report(headset: &Headset, settings: &Settings, p: &Preview, pngs: &dyn Fn
             "mask": settings.mask.enabled,
             "foveation": settings.foveation.enabled,
             "far_field": settings.far_field.enabled,
+            "upscale": settings.upscale.enabled,
         },
+        "upscale": upscale,
         "foveation": { "inner_deg": rings.inner_deg, "middle_deg": rings.middle_deg, "center": "optical axis (fixed foveation)" },
         "far_field": {
             "split_px": p.split_px,
@@ -375,6 +390,23 @@ mod tests {
 
     fn simple(scale: f64) -> Headset {
         Headset::from_profile(hmd_profiles::profile::HmdProfile::by_name("simple").unwrap(), scale)
+    }
+
+    #[test]
+    fn the_upscale_counts_the_told_pixels() {
+        let h = simple(0.125);
+        let env = |k: &str| match k {
+            "STEREOSHIM_UPSCALE_ENABLED" => Some("true".to_string()),
+            "STEREOSHIM_UPSCALE_SCALE" => Some("0.7".to_string()),
+            _ => None,
+        };
+        let s = settings(&env);
+        let r = report(&h, &s, &compute(&h, &s, &Options::default()), &|_, _| String::new());
+        assert_eq!(r["enabled"]["upscale"], true);
+        assert_eq!(r["upscale"]["told"], serde_json::json!([90, 90]));
+        assert_eq!(r["upscale"]["rendered_px"], 8100);
+        assert_eq!(r["upscale"]["display_px"], 128 * 128);
+        assert!((r["upscale"]["mip_bias"].as_f64().unwrap() - 0.7f64.log2()).abs() < 1e-6);
     }
 
     #[test]

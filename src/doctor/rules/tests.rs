@@ -332,3 +332,14 @@ x INFO stereoshim::vk::inject: eyes.fallback = size: an untraced pass's target 0
     let direct = eyes(Some("x vulkan instance created\nx masking per-eye pass on swapchain image 0x5\n"));
     assert!(direct.len() == 1 && direct[0].detail.contains("swapchain images"));
 }
+
+#[test]
+fn the_upscale_as_configured() {
+    let (off, _) = cfg("");
+    assert!(upscale(&Settings::from_config(&off)).is_empty());
+    let (on, _) = cfg("upscale.enabled = true\nupscale.scale = 0.7\nupscale.mip_bias = \"sharp\"\n");
+    let f = upscale(&Settings::from_config(&on));
+    assert_eq!(f[0].status, Status::Ok);
+    assert!(f[0].detail.contains("49 %") && f[0].detail.contains("-0.51"), "{}", f[0].detail);
+    assert_eq!(f[1].status, Status::Warning);
+}
