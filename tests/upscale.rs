@@ -183,3 +183,31 @@ fn samplers_get_the_mip_bias() {
     off.assert_ok();
     assert!(off.log_lines("LOD bias").is_empty());
 }
+
+/// A quad layer from a static swapchain (acquired and released once, submitted every frame): with
+/// the upscale on, the static swapchain (a view's aspect) is interposed too, its one image
+/// upscaled at the frame end after its release, and the quad's rect rewritten; the runtime's quad
+/// shows the same pattern at the native run's size.
+#[test]
+fn quad_layers_and_static_swapchains() {
+    let base = Run::new("upscale-quad-native").with_layer().args(["--quad"]).env("MOCK_XR_EXIT_AFTER", "3");
+    let native = base.run();
+    native.assert_ok();
+    let on = upscaled(base, "upscale-quad", "easu_rcas").run();
+    on.assert_ok();
+    for frame in [1, 2] {
+        let quad = |o: &RunOutput| {
+            let f = o.frame(frame);
+            assert_eq!(f.layers.iter().map(|l| l.kind.as_str()).collect::<Vec<_>>(), ["projection", "quad"], "{}", o.name);
+            f.layers[1].quad.clone().expect("the quad's capture")
+        };
+        let (qa, qb) = (quad(&on), quad(&native));
+        let (ia, ib) = (on.image(&qa.file), native.image(&qb.file));
+        assert_eq!((ia.width, ia.height), (ib.width, ib.height), "frame {frame}: the quad is not at the native size");
+        assert_eq!((qa.image_rect.width, qa.image_rect.height), (ib.width, ib.height));
+        let p = quality::psnr(&as_filter_image(&ia), &as_filter_image(&ib));
+        eprintln!("quad frame {frame}: {}x{} PSNR {p:.2} dB", ia.width, ia.height);
+        assert!(p >= 25.0, "frame {frame}: the quad's pattern at {p:.2} dB");
+    }
+    assert_eq!(on.log_lines("the runtime shows").len(), 3, "both eyes' swapchains and the quad's interposed");
+}

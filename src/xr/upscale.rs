@@ -429,7 +429,7 @@ struct Held<'a> {
 /// The runtime rect of the app's `rect` of a projection view (`projection`) or another layer.
 fn runtime_rect(i: &Interposed, app_extent: (u32, u32), rect: PixelRect, projection: bool) -> Option<(PixelRect, PixelRect)> {
     let src = rules::clamp_to(rect, app_extent)?;
-    let dst = if projection { rules::runtime_rect(src, i.plan.k, i.plan.view, i.plan.runtime)? } else { rules::scaled_rect(src, i.plan.k, i.plan.runtime)? };
+    let dst = if projection { rules::runtime_rect(src, i.plan.k, i.plan.view, i.plan.runtime)? } else { rules::scaled_rect(src, i.plan.k, app_extent, i.plan.runtime)? };
     Some((src, dst))
 }
 

@@ -191,13 +191,15 @@ pub fn clamp_to(rect: PixelRect, extent: (u32, u32)) -> Option<PixelRect> {
     (r.area() > 0).then_some(r)
 }
 
-/// The runtime rect of a non-projection layer's `rect` (a quad's, a cylinder's): the same part of
-/// the image, scaled by `k`, inside `runtime`.
-pub fn scaled_rect(rect: PixelRect, k: (f64, f64), runtime: (u32, u32)) -> Option<PixelRect> {
+/// The runtime rect of a non-projection layer's `rect` (a quad's, a cylinder's) in an app image of
+/// `app` size: the same part of the image, scaled by `k`, inside `runtime`; an edge on the app
+/// image's edge stays on the runtime image's (whose size is rounded up).
+pub fn scaled_rect(rect: PixelRect, k: (f64, f64), app: (u32, u32), runtime: (u32, u32)) -> Option<PixelRect> {
+    let edge = |a: i64, size: u32, k: f64, runtime: u32| if a >= size as i64 { runtime as i64 } else { ((a as f64 * k).round() as i64).min(runtime as i64) };
     let x0 = (rect.x.max(0) as f64 * k.0).round() as i64;
     let y0 = (rect.y.max(0) as f64 * k.1).round() as i64;
-    let x1 = (((rect.x.max(0) as i64 + rect.width as i64) as f64 * k.0).round() as i64).min(runtime.0 as i64);
-    let y1 = (((rect.y.max(0) as i64 + rect.height as i64) as f64 * k.1).round() as i64).min(runtime.1 as i64);
+    let x1 = edge(rect.x.max(0) as i64 + rect.width as i64, app.0, k.0, runtime.0);
+    let y1 = edge(rect.y.max(0) as i64 + rect.height as i64, app.1, k.1, runtime.1);
     (x1 > x0 && y1 > y0).then_some(PixelRect { x: x0 as i32, y: y0 as i32, width: (x1 - x0) as u32, height: (y1 - y0) as u32 })
 }
 
@@ -309,8 +311,10 @@ mod tests {
     #[test]
     fn rects_of_other_layers_scale() {
         let k = (1.3, 1.3);
-        assert_eq!(scaled_rect(PixelRect { x: 10, y: 0, width: 100, height: 50 }, k, (1000, 1000)), Some(PixelRect { x: 13, y: 0, width: 130, height: 65 }));
-        assert_eq!(scaled_rect(PixelRect { x: 900, y: 0, width: 100, height: 50 }, k, (1000, 1000)), None);
+        assert_eq!(scaled_rect(PixelRect { x: 10, y: 0, width: 100, height: 50 }, k, (700, 700), (1000, 1000)), Some(PixelRect { x: 13, y: 0, width: 130, height: 65 }));
+        assert_eq!(scaled_rect(PixelRect { x: 900, y: 0, width: 100, height: 50 }, k, (1000, 1000), (1000, 1000)), None);
+        // The whole image maps to the whole runtime image (rounded up), not one pixel short.
+        assert_eq!(scaled_rect(PixelRect { x: 0, y: 0, width: 98, height: 98 }, (1.2995, 1.2995), (98, 98), (128, 128)), Some(PixelRect { x: 0, y: 0, width: 128, height: 128 }));
         assert_eq!(clamp_to(PixelRect { x: -5, y: 0, width: 20, height: 20 }, (10, 10)), Some(PixelRect { x: 0, y: 0, width: 10, height: 10 }));
         assert_eq!(clamp_to(PixelRect { x: 20, y: 0, width: 20, height: 20 }, (10, 10)), None);
     }

@@ -7,6 +7,7 @@ mod error;
 mod gpu;
 mod passes;
 mod post;
+mod quad;
 mod renderer;
 mod scene;
 mod stats;
@@ -129,6 +130,7 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
     }
     let mut targets = targets::Targets::new(opts, gpu, xri, &xs)?;
     let mut renderer = renderer::Renderer::new(opts, gpu, &targets)?;
+    let quad = if opts.quad { Some(quad::Quad::new(gpu, &xs, targets.color_format, targets.views[0].extent)?) } else { None };
     // `--threads`: xrWaitFrame on the frame-pacing thread (dropped, and so joined, before the
     // session on every path; joined explicitly below).
     let mut pacer = threads::Pacer::new(&mut xs, opts.threads)?;
@@ -155,7 +157,7 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
         calls.time("xrSyncActions", || xs.sync_input(state.predicted_display_time))?;
 
         if !state.should_render {
-            end_frame(xri, &xs, state.predicted_display_time, None)?;
+            end_frame(xri, &xs, state.predicted_display_time, None, None)?;
         } else {
             let (_, views) = calls
                 .time("xrLocateViews", || xs.session.locate_views(oxr::ViewConfigurationType::PRIMARY_STEREO, state.predicted_display_time, &xs.stage))
@@ -185,7 +187,7 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
                     calls.time("xrReleaseSwapchainImage", || d.swapchain.release_image()).ctx("xrReleaseSwapchainImage(depth)")?;
                 }
             }
-            calls.time("xrEndFrame", || end_frame(xri, &xs, state.predicted_display_time, Some((&targets, &views, reversed))))?;
+            calls.time("xrEndFrame", || end_frame(xri, &xs, state.predicted_display_time, Some((&targets, &views, reversed)), quad.as_ref()))?;
             xr_us.insert(frame, calls);
             push_stats(stats, &mut xr_us, finished)?;
         }
@@ -288,6 +290,7 @@ fn end_frame(
     xs: &xr::XrSession,
     display_time: oxr::Time,
     content: Option<(&targets::Targets, &[oxr::View], bool)>,
+    quad: Option<&quad::Quad>,
 ) -> Result<()> {
     use oxr::sys;
     let mut depth_infos = Vec::new();
@@ -344,13 +347,31 @@ fn end_frame(
         view_count: proj_views.len() as u32,
         views: proj_views.as_ptr(),
     };
-    let layers = [&layer as *const sys::CompositionLayerProjection as *const sys::CompositionLayerBaseHeader];
+    // `--quad`: 1.5 m ahead of the stage origin at eye height, 0.6 m wide, its aspect the image's.
+    let quad_layer = quad.map(|q| sys::CompositionLayerQuad {
+        ty: sys::CompositionLayerQuad::TYPE,
+        next: std::ptr::null(),
+        layer_flags: sys::CompositionLayerFlags::EMPTY,
+        space: xs.stage.as_raw(),
+        eye_visibility: sys::EyeVisibility::BOTH,
+        sub_image: sys::SwapchainSubImage {
+            swapchain: q.swapchain.as_raw(),
+            image_rect: sys::Rect2Di { offset: sys::Offset2Di { x: 0, y: 0 }, extent: sys::Extent2Di { width: q.width as i32, height: q.height as i32 } },
+            image_array_index: 0,
+        },
+        pose: sys::Posef { orientation: sys::Quaternionf { x: 0.0, y: 0.0, z: 0.0, w: 1.0 }, position: sys::Vector3f { x: 0.0, y: 1.6, z: -1.5 } },
+        size: sys::Extent2Df { width: 0.6, height: 0.6 * q.height as f32 / q.width as f32 },
+    });
+    let mut layers = vec![&layer as *const sys::CompositionLayerProjection as *const sys::CompositionLayerBaseHeader];
+    if let (Some(q), true) = (&quad_layer, content.is_some()) {
+        layers.push(q as *const sys::CompositionLayerQuad as *const sys::CompositionLayerBaseHeader);
+    }
     let info = sys::FrameEndInfo {
         ty: sys::FrameEndInfo::TYPE,
         next: std::ptr::null(),
         display_time,
         environment_blend_mode: xri.blend_mode,
-        layer_count: if content.is_some() { 1 } else { 0 },
+        layer_count: if content.is_some() { layers.len() as u32 } else { 0 },
         layers: layers.as_ptr(),
     };
     // SAFETY: every struct and array referenced by `info` lives until the call returns; the

@@ -198,6 +198,9 @@ pub struct Options {
     /// `--visibility-mask`: enable XR_KHR_visibility_mask and fetch each view's hidden-area mesh
     /// once after creating the session, as apps that draw their own mask do.
     pub visibility_mask: bool,
+    /// `--quad`: a static swapchain of half a view's size, filled once, submitted every frame as a
+    /// quad layer after the projection layer (`crate::quad`).
+    pub quad: bool,
     /// `--post`: the post-processing chain after the eye pass (none: the eye pass renders the
     /// swapchain image, or `--intermediate`'s target).
     pub post: Option<PostEffect>,
@@ -355,6 +358,9 @@ struct Args {
     /// Fetch each view's hidden-area mesh (XR_KHR_visibility_mask).
     #[arg(long)]
     visibility_mask: bool,
+    /// Submit a quad layer every frame from a static swapchain (half a view's size, filled once).
+    #[arg(long)]
+    quad: bool,
     /// Render the eye passes into an RGBA16F target, then post-process into the swapchain with
     /// full-screen draws: tonemap; bloom (down/up-sample chain, then tonemap); taa (history
     /// blended into the tonemap).
@@ -494,6 +500,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         far_movers: a.far_movers,
         submit2: a.submit2,
         visibility_mask: a.visibility_mask,
+        quad: a.quad,
         post: a.post,
         post_compute: a.post_compute,
         post_subpass: a.post_subpass,
