@@ -26,6 +26,7 @@ const SHADERS: &[(&str, &str, &[&str])] = &[
     ("far_field.frag", "far_field_msaa.frag.spv", &["-DMSAA"]),
     ("far_field_copy.comp", "far_field_copy.comp.spv", &[]),
     ("upscale_easu.comp", "upscale_easu.comp.spv", &[]),
+    ("upscale_cas.comp", "upscale_cas.comp.spv", &[]),
     ("upscale_rcas.comp", "upscale_rcas.comp.spv", &[]),
     ("upscale_rcas.comp", "upscale_rcas_rgba8.comp.spv", &["-DOUT_RGBA8"]),
     ("upscale_rcas.frag", "upscale_rcas.frag.spv", &[]),

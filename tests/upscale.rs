@@ -83,6 +83,14 @@ fn the_runtime_gets_display_size_images_close_to_native() {
         assert!(*s >= 0.95, "SSIM {s:.4} under 0.95");
         assert!(e > e_bil, "EASU+RCAS edges ({e:.3}) not sharper than bilinear's ({e_bil:.3})");
     }
+    // CAS (upscale.method = cas): close to native, and sharper than bilinear too.
+    let cas = upscaled(Run::new("upscale-native").with_layer(), "upscale-cas", "cas").run();
+    cas.assert_ok();
+    for ((p, s, e), (_, _, e_bil)) in quality_of("cas", &cas, &native).iter().zip(&lin) {
+        // Sharper than EASU + RCAS at the same sharpness, a little further from native.
+        assert!(*p >= 30.0 && *s >= 0.94, "CAS: PSNR {p:.2} dB, SSIM {s:.4}");
+        assert!(e > e_bil, "CAS edges ({e:.3}) not sharper than bilinear's ({e_bil:.3})");
+    }
 }
 
 /// Every layout × rendering, validation (with synchronization) on: the swapchains are interposed,
@@ -90,10 +98,12 @@ fn the_runtime_gets_display_size_images_close_to_native() {
 /// frame count is unchanged.
 #[test]
 fn every_layout_and_rendering() {
-    for layout in ["per-eye", "multiview", "side-by-side"] {
-        for rendering in ["render-pass", "dynamic"] {
-            let label = format!("{layout}-{rendering}");
-            let base = Run::new(&format!("upscale-native-{label}")).with_layer().args(["--layout", layout, "--rendering", rendering]);
+    let cases = ["per-eye", "multiview", "side-by-side"].into_iter().flat_map(|l| ["render-pass", "dynamic"].map(|r| (l, r, "enable2")));
+    // XR_KHR_vulkan_enable too: the app makes its Vulkan instance and device itself.
+    for (layout, rendering, vulkan) in cases.chain([("per-eye", "render-pass", "enable")]) {
+        {
+            let label = format!("{layout}-{rendering}-{vulkan}");
+            let base = Run::new(&format!("upscale-native-{label}")).with_layer().args(["--layout", layout, "--rendering", rendering, "--vulkan", vulkan]);
             let native = base.run();
             native.assert_ok();
             let on = upscaled(base, &format!("upscale-{label}"), "easu_rcas").run();

@@ -7,6 +7,7 @@
 mod upscale_gpu;
 
 use stereoshim::features::upscale::filter::{self, Image, Rgb};
+use stereoshim::features::upscale::gpu as passes;
 use upscale_gpu::{Gpu, Shaders};
 
 /// A native scene with hard straight, slanted and curved edges over a smooth ramp, and the same
@@ -63,5 +64,20 @@ fn the_gpu_passes_match_the_cpu_reference() {
         let d = max_diff(&got, &full);
         eprintln!("{}x{} → {w}x{h}: EASU + RCAS max difference {d:.5}", low.width, low.height);
         assert!(d < 8.0e-3, "EASU + RCAS on the device differ from the reference by {d}");
+    }
+}
+
+/// CAS with scaling (`upscale.method = cas`; sharpness 0 here: the harness pushes EASU's
+/// parameters with a zero third vector) against its reference, RCAS at no sharpness copying.
+#[test]
+fn cas_on_the_gpu_matches_the_cpu_reference() {
+    let gpu = Gpu::new();
+    let low = low_res_scene(128, 0.77);
+    for (w, h) in [(128, 128), (150, 131)] {
+        let cpu = filter::cas(&low, w, h, 0.0);
+        let got = gpu.upscale_with(Shaders { easu: passes::CAS, ..Shaders::product() }, &low, (w, h), 0.0, 1).texels;
+        let d = max_diff(&got, &cpu);
+        eprintln!("{}x{} → {w}x{h}: CAS max difference {d:.5}", low.width, low.height);
+        assert!(d < 2.0e-3, "CAS on the device differs from the reference by {d}");
     }
 }

@@ -6,6 +6,9 @@
 
 /// EASU's SPIR-V.
 pub static EASU: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_easu.comp.spv"));
+/// CAS with scaling (`upscale.method = cas`): EASU's interface, the third vector's x the
+/// sharpness.
+pub static CAS: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_cas.comp.spv"));
 /// RCAS's SPIR-V.
 pub static RCAS: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/upscale_rcas.comp.spv"));
 

@@ -31,9 +31,9 @@ pub const KEYS: &[KeySpec] = &[
     },
     KeySpec {
         key: "upscale.method",
-        kind: Kind::Choice(&["easu_rcas", "bilinear"]),
+        kind: Kind::Choice(&["easu_rcas", "cas", "bilinear"]),
         default: "easu_rcas",
-        doc: "easu_rcas: edge-adaptive upsampling then robust contrast-adaptive sharpening (FSR 1's two passes) as compute; bilinear: a filtered blit",
+        doc: "easu_rcas: edge-adaptive upsampling then robust contrast-adaptive sharpening (FSR 1's two passes) as compute; cas: contrast-adaptive sharpening with scaling (one pass, milder); bilinear: bilinear filtering",
     },
     KeySpec {
         key: "upscale.sharpness",
@@ -59,6 +59,8 @@ pub const KEYS: &[KeySpec] = &[
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Method {
     EasuRcas,
+    /// Contrast-adaptive sharpening with scaling (`filter::cas`).
+    Cas,
     Bilinear,
 }
 
@@ -103,6 +105,7 @@ impl UpscaleSettings {
             scale: rules::clamp_scale(c.float("upscale.scale") as f32),
             method: match c.choice("upscale.method") {
                 "bilinear" => Method::Bilinear,
+                "cas" => Method::Cas,
                 _ => Method::EasuRcas,
             },
             sharpness: c.float("upscale.sharpness").clamp(0.0, 1.0) as f32,

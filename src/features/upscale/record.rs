@@ -1,7 +1,7 @@
 //! The upscale's recording (Vulkan): a frame's upscales into one command buffer of the layer's,
 //! on the session's queue at `xrEndFrame`. Swapchains whose runtime image takes a copy
 //! (`Output::Copy`) go first, each phase batched across them (one barrier per phase, so the GPU
-//! overlaps the eyes): the app's images to a shader-read layout, EASU (or its bilinear mode) into
+//! overlaps the eyes): the app's images to a shader-read layout, EASU (or its bilinear mode, or CAS) into
 //! the RGBA16F intermediate, RCAS into texels of the runtime image's encoding, a copy into the
 //! runtime's image, layouts back. The others (`Output::Fragment`) follow, one by one: EASU, then a
 //! fragment pass drawing the runtime's image as a colour attachment. The app's images come back in
@@ -38,10 +38,31 @@ impl Work<'_> {
     fn fovea(&self, k: usize) -> [f32; 4] {
         self.fovea.get(k).copied().unwrap_or_default()
     }
-    /// EASU's parameters for job `k`: its bilinear mode everywhere for the bilinear method.
+    /// The first pass's parameters for job `k`: EASU's (its bilinear mode everywhere for the
+    /// bilinear method), or CAS's (its sharpness in the third vector).
     fn easu(&self, k: usize, j: &Job) -> EasuParams {
-        let fovea = if self.target.desc.method == Method::Bilinear { [0.0, 0.0, -1.0, -1.0] } else { self.fovea(k) };
+        let fovea = match self.target.desc.method {
+            Method::Bilinear => [0.0, 0.0, -1.0, -1.0],
+            Method::Cas => [self.sharpness, 0.0, 0.0, 0.0],
+            Method::EasuRcas => self.fovea(k),
+        };
         EasuParams { src_rect: rect4(j.src), dst_rect: rect4(j.dst), fovea }
+    }
+    /// The first pass's pipeline: CAS's for the CAS method, else EASU's.
+    fn first(&self, p: &Pipelines) -> vk::Pipeline {
+        if self.target.desc.method == Method::Cas {
+            p.cas
+        } else {
+            p.easu
+        }
+    }
+    /// RCAS's sharpness: none after CAS or bilinear (RCAS then only encodes).
+    fn rcas_sharpness(&self) -> f32 {
+        if self.target.desc.method == Method::EasuRcas {
+            self.sharpness
+        } else {
+            0.0
+        }
     }
 }
 
@@ -93,8 +114,8 @@ unsafe fn record_copies(d: &DeviceState, p: &Pipelines, cb: vk::CommandBuffer, w
             .collect();
         f.cmd_pipeline_barrier(cb, any, compute, vk::DependencyFlags::empty(), &[], &[], &pre);
         mark(1);
-        f.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, p.easu);
         for w in work {
+            f.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, w.first(p));
             for (k, j) in w.jobs.iter().enumerate() {
                 f.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, p.layout, 0, &[w.target.easu_sets[w.index][w.layer(j)]], &[]);
                 f.cmd_push_constants(cb, p.layout, PUSH_STAGES, 0, &w.easu(k, j).bytes());
@@ -108,8 +129,7 @@ unsafe fn record_copies(d: &DeviceState, p: &Pipelines, cb: vk::CommandBuffer, w
         for w in work {
             let Output::Copy { inter, srgb, swap_rb } = w.target.desc.output else { continue };
             f.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, if inter == vk::Format::R8G8B8A8_UNORM { p.rcas8 } else { p.rcas16 });
-            // The bilinear method: RCAS at sharpness 0 only encodes.
-            let sharpness = if w.target.desc.method == Method::Bilinear { 0.0 } else { w.sharpness };
+            let sharpness = w.rcas_sharpness();
             for (k, j) in w.jobs.iter().enumerate() {
                 f.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, p.layout, 0, &[w.target.rcas_sets[w.layer(j)]], &[]);
                 let params = RcasParams { rect: rect4(j.dst), sharpness: [sharpness, srgb as u32 as f32, swap_rb as u32 as f32, 0.0], fovea: w.fovea(k) };
@@ -167,7 +187,7 @@ unsafe fn record_fragment(d: &DeviceState, p: &Pipelines, cb: vk::CommandBuffer,
     let f = &d.fns;
     let (any, compute, fragment, output) =
         (vk::PipelineStageFlags::ALL_COMMANDS, vk::PipelineStageFlags::COMPUTE_SHADER, vk::PipelineStageFlags::FRAGMENT_SHADER, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT);
-    let easu = t.desc.method == Method::EasuRcas;
+    let easu = t.desc.method != Method::Bilinear;
     // SAFETY: per `record_frame`'s contract; every handle is a live object of `d`'s device.
     unsafe {
         let mut pre = vec![
@@ -181,7 +201,7 @@ unsafe fn record_fragment(d: &DeviceState, p: &Pipelines, cb: vk::CommandBuffer,
         }
         f.cmd_pipeline_barrier(cb, any, compute | fragment | output, vk::DependencyFlags::empty(), &[], &[], &pre);
         if easu {
-            f.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, p.easu);
+            f.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, w.first(p));
             for (k, j) in w.jobs.iter().enumerate() {
                 f.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, p.layout, 0, &[t.easu_sets[w.index][w.layer(j)]], &[]);
                 f.cmd_push_constants(cb, p.layout, PUSH_STAGES, 0, &w.easu(k, j).bytes());
@@ -206,7 +226,7 @@ unsafe fn record_fragment(d: &DeviceState, p: &Pipelines, cb: vk::CommandBuffer,
                 f.cmd_set_viewport(cb, 0, &[vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 }]);
                 f.cmd_set_scissor(cb, 0, &[vk::Rect2D { offset: vk::Offset2D { x: r.x, y: r.y }, extent: vk::Extent2D { width: r.width, height: r.height } }]);
                 let (set, bytes) = if easu {
-                    (t.rcas_sets[layer as usize], RcasParams { rect: rect4(j.dst), sharpness: [w.sharpness, 0.0, 0.0, 0.0], fovea: w.fovea(k) }.bytes())
+                    (t.rcas_sets[layer as usize], RcasParams { rect: rect4(j.dst), sharpness: [w.rcas_sharpness(), 0.0, 0.0, 0.0], fovea: w.fovea(k) }.bytes())
                 } else {
                     (t.easu_sets[w.index][layer as usize], w.easu(k, j).bytes())
                 };

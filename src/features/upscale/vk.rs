@@ -47,6 +47,7 @@ pub(crate) struct Pipelines {
     pub(super) set_layout: vk::DescriptorSetLayout,
     pub(super) layout: vk::PipelineLayout,
     pub(super) easu: vk::Pipeline,
+    pub(super) cas: vk::Pipeline,
     /// RCAS as compute, into RGBA16F or into 8-bit texels (`Output::Copy`).
     pub(super) rcas16: vk::Pipeline,
     pub(super) rcas8: vk::Pipeline,
@@ -91,6 +92,7 @@ impl Pipelines {
             set_layout: vk::DescriptorSetLayout::null(),
             layout: vk::PipelineLayout::null(),
             easu: vk::Pipeline::null(),
+            cas: vk::Pipeline::null(),
             rcas16: vk::Pipeline::null(),
             rcas8: vk::Pipeline::null(),
             sampler: vk::Sampler::null(),
@@ -117,6 +119,7 @@ impl Pipelines {
             let layouts = [self.set_layout];
             self.layout = d.fns.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts).push_constant_ranges(&push), None).map_err(err("vkCreatePipelineLayout"))?;
             self.easu = compute_pipeline(d, self.layout, gpu::EASU)?;
+            self.cas = compute_pipeline(d, self.layout, gpu::CAS)?;
             self.rcas16 = compute_pipeline(d, self.layout, gpu::RCAS)?;
             self.rcas8 = compute_pipeline(d, self.layout, gpu::RCAS_RGBA8)?;
             // Linear for the bilinear pass; EASU and RCAS fetch texels and ignore the filter.
@@ -136,7 +139,7 @@ impl Pipelines {
         // SAFETY: the layer's own objects, no longer used by the GPU (the caller waited); null
         // handles are skipped.
         unsafe {
-            for p in [self.easu, self.rcas16, self.rcas8] {
+            for p in [self.easu, self.cas, self.rcas16, self.rcas8] {
                 if p != vk::Pipeline::null() {
                     d.fns.destroy_pipeline(p, None);
                 }
@@ -181,7 +184,7 @@ unsafe fn compute_pipeline(d: &DeviceState, layout: vk::PipelineLayout, spirv: &
 pub(crate) fn format_refusal(props: vk::FormatProperties, method: Method) -> Option<String> {
     let have = props.optimal_tiling_features;
     let need_src = match method {
-        Method::EasuRcas => vk::FormatFeatureFlags::SAMPLED_IMAGE,
+        Method::EasuRcas | Method::Cas => vk::FormatFeatureFlags::SAMPLED_IMAGE,
         Method::Bilinear => vk::FormatFeatureFlags::SAMPLED_IMAGE | vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR,
     };
     let need = need_src | vk::FormatFeatureFlags::COLOR_ATTACHMENT;
@@ -312,7 +315,7 @@ impl Target {
             }
             let (rw, rh) = desc.runtime_extent;
             let mut inter = Vec::new();
-            if desc.method == Method::EasuRcas || desc.output != Output::Fragment {
+            if desc.method != Method::Bilinear || desc.output != Output::Fragment {
                 inter.push((0, INTERMEDIATE));
             }
             if let Output::Copy { inter: format, .. } = desc.output {
@@ -363,7 +366,7 @@ impl Target {
                 }
                 d.fns.update_descriptor_sets(&writes, &[]);
             };
-            let easu = desc.method == Method::EasuRcas || desc.output != Output::Fragment;
+            let easu = desc.method != Method::Bilinear || desc.output != Output::Fragment;
             for img in &self.app {
                 let sets = alloc(layers)?;
                 for (l, &set) in sets.iter().enumerate() {
@@ -409,7 +412,7 @@ impl Target {
         unsafe {
             self.render_pass = d.fns.create_render_pass(&vk::RenderPassCreateInfo::default().attachments(&attachment).subpasses(&subpass), None).map_err(err("vkCreateRenderPass"))?;
             let vert = module(d, gpu::VERT)?;
-            let frag = match module(d, if desc.method == Method::EasuRcas { gpu::RCAS_FRAG } else { gpu::BILINEAR_FRAG }) {
+            let frag = match module(d, if desc.method == Method::Bilinear { gpu::BILINEAR_FRAG } else { gpu::RCAS_FRAG }) {
                 Ok(m) => m,
                 Err(e) => {
                     d.fns.destroy_shader_module(vert, None);
@@ -714,5 +717,25 @@ impl Slots {
                 d.fns.destroy_query_pool(q, None);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn formats_the_upscale_refuses_and_how_it_writes_the_others() {
+        let all = vk::FormatProperties { optimal_tiling_features: vk::FormatFeatureFlags::SAMPLED_IMAGE | vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR | vk::FormatFeatureFlags::COLOR_ATTACHMENT, ..Default::default() };
+        assert_eq!(format_refusal(all, Method::EasuRcas), None);
+        assert_eq!(format_refusal(all, Method::Bilinear), None);
+        let unfiltered = vk::FormatProperties { optimal_tiling_features: vk::FormatFeatureFlags::SAMPLED_IMAGE | vk::FormatFeatureFlags::COLOR_ATTACHMENT, ..Default::default() };
+        assert_eq!(format_refusal(unfiltered, Method::EasuRcas), None);
+        assert!(format_refusal(unfiltered, Method::Bilinear).is_some_and(|w| w.contains("FILTER_LINEAR")));
+        let unsampled = vk::FormatProperties { optimal_tiling_features: vk::FormatFeatureFlags::COLOR_ATTACHMENT, ..Default::default() };
+        assert!(format_refusal(unsampled, Method::EasuRcas).is_some());
+        assert_eq!(Output::of(vk::Format::B8G8R8A8_SRGB), Output::Copy { inter: vk::Format::R8G8B8A8_UNORM, srgb: true, swap_rb: true });
+        assert_eq!(Output::of(vk::Format::R16G16B16A16_SFLOAT), Output::Copy { inter: vk::Format::R16G16B16A16_SFLOAT, srgb: false, swap_rb: false });
+        assert_eq!(Output::of(vk::Format::A2B10G10R10_UNORM_PACK32), Output::Fragment);
     }
 }
