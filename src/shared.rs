@@ -47,11 +47,18 @@ pub struct Swapchain {
     pub images: Vec<u64>,
     /// How the app submitted the swapchain in the latest frame that used it.
     uses: RwLock<Vec<EyeUse>>,
+    /// The upscale interposes it: `images` are the layer's, the runtime's are at the display size.
+    pub upscaled: bool,
 }
 
 impl Swapchain {
     pub fn new(handle: u64, desc: SwapchainDesc, images: Vec<u64>) -> Swapchain {
-        Swapchain { handle, desc, images, uses: RwLock::new(Vec::new()) }
+        Swapchain { handle, desc, images, uses: RwLock::new(Vec::new()), upscaled: false }
+    }
+    /// The same, marked as interposed by the upscale.
+    pub fn upscaled(mut self) -> Swapchain {
+        self.upscaled = true;
+        self
     }
     pub fn uses(&self) -> Vec<EyeUse> {
         self.uses.read().unwrap_or_else(|e| e.into_inner()).clone()

@@ -81,6 +81,9 @@ struct ShotView {
     file: PathBuf,
     width: u32,
     height: u32,
+    /// The upscale's display-size image (`upscale.enabled`), not the app's.
+    #[serde(default)]
+    display: bool,
 }
 
 /// `stereoshim ARGS` with the runtime folder of a run in `dir`.
@@ -346,3 +349,31 @@ fn command_help_and_errors() {
         assert!(stderr.contains("error:") && stderr.contains("--help"), "{bad:?}: {stderr}");
     }
 }
+
+/// With the upscale on, a screenshot has both images of each view: the app's, at the size it
+/// renders at, and the display-size one the upscale made (`-display.png`), which equals the
+/// runtime's capture of the same frame.
+#[test]
+fn upscaled_screenshot_has_the_app_and_the_display_images() {
+    let name = "screenshot-upscale";
+    let pics = target_dir().join("test-output/screenshot-upscale-pictures");
+    let _ = std::fs::remove_dir_all(&pics);
+    let run = run(name).env("STEREOSHIM_UPSCALE_ENABLED", "1").env("XDG_PICTURES_DIR", pics.to_str().unwrap());
+    let (out, (code, stdout, stderr)) = run_with_screenshot(&run);
+    out.assert_ok();
+    assert_eq!(code, 0, "{stdout}{stderr}\nlog:\n{}", out.log);
+    let mut shots = sidecars(&pics.join("stereoshim"));
+    assert_eq!(shots.len(), 1, "one screenshot: {:?}\nlog:\n{}", files(&pics.join("stereoshim")), out.log);
+    let shot = shots.remove(0);
+    let captured = out.views(shot.frame);
+    assert_eq!(shot.views.len(), 2 * captured.len(), "the app's and the display's image of each view: {:?}", shot.views);
+    for v in captured {
+        let display = shot.views.iter().find(|s| s.view == v.view && s.display).unwrap_or_else(|| panic!("no display image of view {}", v.view));
+        assert!(display.file.to_string_lossy().ends_with(&format!("-view-{}-display.png", v.view)), "{}", display.file.display());
+        assert_eq!((display.width, display.height), (v.image_rect.width, v.image_rect.height));
+        image::assert_identical(&format!("screenshot-upscale-view-{}", v.view), &Image::load(&display.file), &out.image(&v.file));
+        let app = shot.views.iter().find(|s| s.view == v.view && !s.display).unwrap_or_else(|| panic!("no app image of view {}", v.view));
+        assert!(app.width < display.width && app.height < display.height, "the app's image {}x{} is not the smaller one", app.width, app.height);
+    }
+}
+

@@ -17,7 +17,8 @@
 //! - submission: `queue_submitting` (set-up work of the layer's that goes at the head of the
 //!   app's submission) and `set_up_submitted`, `before_submit` (refresh what a recorded command
 //!   buffer reads; apply what it recorded, in recording order);
-//! - OpenXR side: `before_release` (`xrReleaseSwapchainImage`, before it goes down);
+//! - OpenXR side: `before_release` (`xrReleaseSwapchainImage`, before it goes down),
+//!   `display_ready` (the upscale's display-size image written, at `xrEndFrame`);
 //! - `take_frame` at every `xrEndFrame`, `destroy` at `vkDestroyDevice`.
 
 use super::inject::{Awaiting, Injection};
@@ -192,6 +193,10 @@ pub(crate) trait VkFeature: Send + Sync {
     /// `xrReleaseSwapchainImage` of `image` (index of `swapchain`) is about to go down; the
     /// session's queue is (`family`, `queue_index`).
     fn before_release(&self, _d: &DeviceState, _family: u32, _queue_index: u32, _swapchain: u64, _image_index: u32) {}
+    /// The upscale wrote `views` (view, rect, layer) of `image`, an image of the runtime's
+    /// display-size swapchain behind `display` (its description: the runtime's size), on the
+    /// session's queue, before the runtime gets it back (`xrEndFrame`).
+    fn display_ready(&self, _d: &DeviceState, _family: u32, _queue_index: u32, _display: &crate::shared::Swapchain, _image: u64, _views: &[(u32, crate::shared::ImageRect, u32)]) {}
 
     /// `vkDestroyDevice`, before it goes down (the device is idle).
     fn destroy(&self, _d: &DeviceState) {}

@@ -285,6 +285,19 @@ pub(crate) fn before_release(binding: Option<(DeviceKey, u32, u32)>, swapchain: 
     }
 }
 
+/// The upscale wrote `views` (view, rect, layer) of the runtime's image `image` behind `display`
+/// (described at the runtime's size): the features act on it before the runtime gets it back.
+pub(crate) fn display_ready(binding: Option<(DeviceKey, u32, u32)>, display: &crate::shared::Swapchain, image: u64, views: &[(u32, crate::shared::ImageRect, u32)]) {
+    let Some((device, family, queue)) = binding else { return };
+    let Some(d) = device.state() else { return };
+    if d.pass_through.is_on() || views.is_empty() {
+        return;
+    }
+    for f in d.features.all() {
+        f.display_ready(&d, family, queue, display, image, views);
+    }
+}
+
 /// A handle whose dispatch key we never saw means a broken chain; logged once, never per call.
 fn report_unknown_handle() {
     static ONCE: std::sync::Once = std::sync::Once::new();

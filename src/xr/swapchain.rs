@@ -58,6 +58,11 @@ pub(super) unsafe extern "system" fn create_swapchain(
     let plain = || unsafe { next(session, create_info, swapchain) };
     guard::run("xrCreateSwapchain", &inst.pass_through, |down| {
         inst.check_fault("xrCreateSwapchain")?;
+        // Features may add usage (an extra usage bit changes nothing the app can see).
+        let settings = super::settings(&inst);
+        let added = |usage: xr::SwapchainUsageFlags| {
+            crate::features::XR_FEATURES.iter().fold(xr::SwapchainUsageFlags::EMPTY, |a, f| a | f.swapchain_usage(&settings, usage)) & !usage
+        };
         // The upscale: a swapchain of a told view size is made at the display size below, and
         // the app renders into the layer's images.
         // SAFETY: the app's create info, valid for this call.
@@ -66,7 +71,7 @@ pub(super) unsafe extern "system" fn create_swapchain(
             let mut create = |c: &xr::SwapchainCreateInfo| down.call(|| unsafe { next(session, c, swapchain) });
             // SAFETY: read only after a successful create wrote it.
             let handle = || unsafe { *swapchain };
-            match super::upscale::create_swapchain(s, ci, &mut create, &handle) {
+            match super::upscale::create_swapchain(s, ci, added(ci.usage_flags), &mut create, &handle) {
                 super::upscale::Created::No => {}
                 super::upscale::Created::Yes(r, None) => return Ok(r),
                 super::upscale::Created::Yes(r, Some(i)) => {
@@ -81,11 +86,6 @@ pub(super) unsafe extern "system" fn create_swapchain(
                 }
             }
         }
-        // Features may add usage (an extra usage bit changes nothing the app can see).
-        let settings = super::settings(&inst);
-        let added = |usage: xr::SwapchainUsageFlags| {
-            crate::features::XR_FEATURES.iter().fold(xr::SwapchainUsageFlags::EMPTY, |a, f| a | f.swapchain_usage(&settings, usage)) & !usage
-        };
         // SAFETY: the app's create info, valid for this call (null goes down unchanged).
         let (r, created_images) = swapchain_images::capture(|| match unsafe { create_info.as_ref() } {
             Some(ci) if added(ci.usage_flags) != xr::SwapchainUsageFlags::EMPTY => {
@@ -302,6 +302,6 @@ unsafe fn enumerate_interposed(
     let ours = i.our_images();
     tracing::info!("swapchain {:#x}: the layer's images {ours:x?} (the app's names {app:x?})", swapchain.into_raw());
     sc.session.instance.stats.swapchain_images.fetch_add(app.len() as u64, Ordering::Relaxed);
-    shared::shared().add_swapchain(Arc::new(shared::Swapchain::new(swapchain.into_raw(), sc.desc.clone(), ours)));
+    shared::shared().add_swapchain(Arc::new(shared::Swapchain::new(swapchain.into_raw(), sc.desc.clone(), ours).upscaled()));
     xr::Result::SUCCESS
 }

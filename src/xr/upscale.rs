@@ -231,6 +231,7 @@ fn is_depth_format(f: vk::Format) -> bool {
 pub(super) fn create_swapchain(
     s: &Session,
     ci: &xr::SwapchainCreateInfo,
+    features_usage: xr::SwapchainUsageFlags,
     create: &mut dyn FnMut(&xr::SwapchainCreateInfo) -> xr::Result,
     handle: &dyn Fn() -> xr::Swapchain,
 ) -> Created {
@@ -281,7 +282,8 @@ pub(super) fn create_swapchain(
         height: plan.runtime.1,
         // The app's mip chain stays its own: the runtime gets the upscaled level 0.
         mip_count: 1,
-        usage_flags: ci.usage_flags | needs,
+        // What features add to swapchains (a screenshot's copy of the display-size image) too.
+        usage_flags: ci.usage_flags | needs | features_usage,
         ..*ci
     };
     let (r, created) = crate::swapchain_images::capture(|| create(&runtime_ci));
@@ -420,10 +422,14 @@ pub(super) fn acquired(s: &Session, i: &Interposed) {
 /// One held image's upscale for a frame: its jobs, and per job where EASU runs.
 struct Held<'a> {
     handle: u64,
+    /// The app's swapchain (its description at the app's size).
+    sc: &'a Swapchain,
     i: &'a Interposed,
     index: u32,
     jobs: Vec<Job>,
     fovea: Vec<[f32; 4]>,
+    /// Per job, the projection view it shows (None: another layer's, or a whole image).
+    views: Vec<Option<u32>>,
 }
 
 /// The runtime rect of the app's `rect` of a projection view (`projection`) or another layer.
@@ -495,7 +501,7 @@ pub(super) fn release(s: &Session, handle: u64, sc: &Swapchain, i: &Interposed, 
     let older: Vec<u32> = lock(&i.pending).drain(..).collect();
     if !older.is_empty() {
         let (extent, layers) = ((sc.desc.width, sc.desc.height), sc.desc.array_size);
-        let work: Vec<Held<'_>> = older.iter().map(|&index| Held { handle, i, index, jobs: whole_jobs(i, extent, layers), fovea: Vec::new() }).collect();
+        let work: Vec<Held<'_>> = older.iter().map(|&index| Held { handle, sc, i, index, jobs: whole_jobs(i, extent, layers), fovea: Vec::new(), views: Vec::new() }).collect();
         let r = run_and_release(s, &work);
         if r.into_raw() < 0 {
             return r;
@@ -509,10 +515,13 @@ pub(super) fn release(s: &Session, handle: u64, sc: &Swapchain, i: &Interposed, 
 /// Records and submits the upscales of `work`, then releases their runtime images (oldest first):
 /// the first failing release's result.
 fn run_and_release(s: &Session, work: &[Held<'_>]) -> xr::Result {
-    if let Err(e) = submit(s, work) {
-        if !s.upscale.failures_logged.swap(true, Ordering::Relaxed) {
-            tracing::warn!("upscale: an upscale could not be submitted ({e}); the runtime's image keeps its old pixels this frame");
+    match submit(s, work) {
+        Err(e) => {
+            if !s.upscale.failures_logged.swap(true, Ordering::Relaxed) {
+                tracing::warn!("upscale: an upscale could not be submitted ({e}); the runtime's image keeps its old pixels this frame");
+            }
         }
+        Ok(()) => display_ready(s, work),
     }
     let Some(release) = s.instance.next.release_swapchain_image else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
     let info = xr::SwapchainImageReleaseInfo { ty: xr::SwapchainImageReleaseInfo::TYPE, next: std::ptr::null() };
@@ -525,6 +534,27 @@ fn run_and_release(s: &Session, work: &[Held<'_>]) -> xr::Result {
         }
     }
     first
+}
+
+/// The upscaled projection views of `work` go to the features that read the display-size images
+/// (screenshots), on the session's queue after the upscale, before the runtime gets them back.
+fn display_ready(s: &Session, work: &[Held<'_>]) {
+    let binding = s.binding.map(|b| (b.device_key, b.queue_family_index, b.queue_index));
+    for w in work {
+        let views: Vec<(u32, crate::shared::ImageRect, u32)> = w
+            .jobs
+            .iter()
+            .zip(&w.views)
+            .filter_map(|(j, v)| v.map(|v| (v, crate::shared::ImageRect { x: j.dst.x, y: j.dst.y, width: j.dst.width as i32, height: j.dst.height as i32 }, j.layer)))
+            .collect();
+        let Some(&image) = lock(&w.i.target).desc.runtime_images.get(w.index as usize) else { continue };
+        if views.is_empty() {
+            continue;
+        }
+        let desc = crate::shared::SwapchainDesc { width: w.i.plan.runtime.0, height: w.i.plan.runtime.1, ..w.sc.desc.clone() };
+        let display = crate::shared::Swapchain::new(w.handle, desc, vec![image.as_raw()]);
+        crate::vk::display_ready(binding, &display, image.as_raw(), &views);
+    }
 }
 
 fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
@@ -591,7 +621,7 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
     // The jobs each interposed swapchain's latest held image gets from this frame, with where
     // EASU runs.
     let settings = super::settings(&s.instance);
-    let mut jobs: Vec<(u64, Job, [f32; 4])> = Vec::new();
+    let mut jobs: Vec<(u64, Job, [f32; 4], Option<u32>)> = Vec::new();
     let mut unknown = false;
     for &l in &layers {
         // SAFETY: the app's layer, valid for this call.
@@ -603,8 +633,8 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
                     let i = sc.upscale.as_ref().expect("filtered");
                     if let Some((src, dst)) = runtime_rect(i, (sc.desc.width, sc.desc.height), pixel_rect(&sub.image_rect), projection) {
                         let job = Job { layer: sub.image_array_index, src, dst };
-                        if !jobs.iter().any(|(h, j, _)| *h == handle && *j == job) {
-                            jobs.push((handle, job, fovea_of(&settings, view, dst)));
+                        if !jobs.iter().any(|(h, j, _, _)| *h == handle && *j == job) {
+                            jobs.push((handle, job, fovea_of(&settings, view, dst), view.map(|v| v.0)));
                         }
                     }
                 }
@@ -622,10 +652,14 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
         let held: Vec<u32> = lock(&i.pending).drain(..).collect();
         let n = held.len();
         for (k, index) in held.into_iter().enumerate() {
-            let mine: Vec<(Job, [f32; 4])> = jobs.iter().filter(|(h, _, _)| *h == handle).map(|(_, j, f)| (*j, *f)).collect();
+            let mine: Vec<(Job, [f32; 4], Option<u32>)> = jobs.iter().filter(|(h, _, _, _)| *h == handle).map(|(_, j, f, v)| (*j, *f, *v)).collect();
             // The latest held image is what the frame shows; older ones go out whole.
-            let (jobs, fovea) = if k + 1 == n && !mine.is_empty() { mine.into_iter().unzip() } else { (whole_jobs(i, (sc.desc.width, sc.desc.height), sc.desc.array_size), Vec::new()) };
-            work.push(Held { handle, i, index, jobs, fovea });
+            let (jobs, fovea, views) = if k + 1 == n && !mine.is_empty() {
+                (mine.iter().map(|m| m.0).collect(), mine.iter().map(|m| m.1).collect(), mine.iter().map(|m| m.2).collect())
+            } else {
+                (whole_jobs(i, (sc.desc.width, sc.desc.height), sc.desc.array_size), Vec::new(), Vec::new())
+            };
+            work.push(Held { handle, sc, i, index, jobs, fovea, views });
         }
     }
     let r = run_and_release(s, &work);

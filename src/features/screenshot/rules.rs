@@ -144,6 +144,11 @@ pub fn view_file(stem: &str, view: u32) -> String {
     format!("{stem}-view-{view}.png")
 }
 
+/// The PNG of view `view` as the display got it from the upscale (`upscale.enabled`).
+pub fn display_file(stem: &str, view: u32) -> String {
+    format!("{stem}-view-{view}-display.png")
+}
+
 /// The part of a `width` × `height` image an `imageRect` names, clipped to the image: (x, y,
 /// width, height); None when nothing of it is inside.
 pub fn copy_region(rect: ImageRect, width: u32, height: u32) -> Option<(u32, u32, u32, u32)> {
@@ -232,7 +237,7 @@ pub fn linear_to_srgb8(x: f32) -> u8 {
 }
 
 /// Whether every view in `expected` was captured (a frame's screenshot is complete).
-pub fn views_complete(expected: &[u32], captured: &[u32]) -> bool {
+pub fn views_complete<T: PartialEq>(expected: &[T], captured: &[T]) -> bool {
     !expected.is_empty() && expected.iter().all(|v| captured.contains(v))
 }
 

@@ -62,6 +62,8 @@ pub(super) struct ViewCopy {
     pub format: i32,
     pub swapchain: u64,
     pub offset: u64,
+    /// The upscale's display-size image (`display_ready`), not the app's.
+    pub display: bool,
 }
 
 /// One released image's copy: its objects and views.
@@ -393,26 +395,13 @@ unsafe fn destroy_copy(fns: &ash::Device, c: &Copy) {
     }
 }
 
-impl VkFeature for ScreenshotDevice {
-    fn id(&self) -> &'static str {
-        "screenshot"
-    }
-    fn take_frame(&self) -> Box<dyn FeatureStats> {
-        Box::new(std::mem::take(&mut *lock(&self.frame)))
-    }
-    fn summary(&self) -> Option<String> {
-        let t = lock(&self.total);
-        (!t.is_empty()).then(|| t.summary())
-    }
-
-    fn before_release(&self, d: &DeviceState, family: u32, queue_index: u32, swapchain: u64, image_index: u32) {
-        if !self.armed.load(Ordering::Acquire) || d.pass_through.is_on() {
-            return;
-        }
+impl ScreenshotDevice {
+    /// Copies `uses` (view, rect, layer) of `image` of `sc` on the session's queue into the armed
+    /// frame; `display`: the upscale's display-size image, written as its own pictures. Hands the
+    /// frame off once every expected view is in.
+    fn capture(&self, d: &DeviceState, (family, queue_index): (u32, u32), sc: &crate::shared::Swapchain, image: u64, uses: &[(u32, ImageRect, u32)], display: bool) {
         let started = std::time::Instant::now();
-        let Some(sc) = shared().swapchains.get(swapchain) else { return };
-        let Some(&image) = sc.images.get(image_index as usize) else { return };
-        let uses: Vec<_> = sc.uses().into_iter().filter(|u| !u.depth).collect();
+        let swapchain = sc.handle;
         if uses.is_empty() {
             return;
         }
@@ -420,7 +409,10 @@ impl VkFeature for ScreenshotDevice {
         if !lock(&self.jobs.state).armed.as_ref().is_some_and(|a| a.ready) {
             return;
         }
-        let Some(views) = plan(self, d, &sc, image, &uses.iter().map(|u| (u.view, u.image_rect, u.image_array_index)).collect::<Vec<_>>()) else { return };
+        let Some(mut views) = plan(self, d, sc, image, uses) else { return };
+        for v in &mut views {
+            v.display = display;
+        }
         let size = buffer_size(&views);
         let staging = {
             let mut st = lock(&self.jobs.state);
@@ -449,12 +441,42 @@ impl VkFeature for ScreenshotDevice {
         a.copies.push(copy);
         a.release_us += started.elapsed().as_micros() as u64;
         // Every view of the frame (as the last xrEndFrame tied them to images) copied: done now.
-        let captured: Vec<u32> = a.copies.iter().flat_map(|c| c.views.iter().map(|v| v.view)).collect();
+        let captured: Vec<(u32, bool)> = a.copies.iter().flat_map(|c| c.views.iter().map(|v| (v.view, v.display))).collect();
         if rules::views_complete(&expected_views(), &captured) {
             let a = st.armed.take();
             self.armed.store(false, Ordering::Release);
             hand_off(d, self, st, a);
         }
+    }
+}
+
+impl VkFeature for ScreenshotDevice {
+    fn id(&self) -> &'static str {
+        "screenshot"
+    }
+    fn take_frame(&self) -> Box<dyn FeatureStats> {
+        Box::new(std::mem::take(&mut *lock(&self.frame)))
+    }
+    fn summary(&self) -> Option<String> {
+        let t = lock(&self.total);
+        (!t.is_empty()).then(|| t.summary())
+    }
+
+    fn before_release(&self, d: &DeviceState, family: u32, queue_index: u32, swapchain: u64, image_index: u32) {
+        if !self.armed.load(Ordering::Acquire) || d.pass_through.is_on() {
+            return;
+        }
+        let Some(sc) = shared().swapchains.get(swapchain) else { return };
+        let Some(&image) = sc.images.get(image_index as usize) else { return };
+        let uses: Vec<_> = sc.uses().into_iter().filter(|u| !u.depth).map(|u| (u.view, u.image_rect, u.image_array_index)).collect();
+        self.capture(d, (family, queue_index), &sc, image, &uses, false);
+    }
+
+    fn display_ready(&self, d: &DeviceState, family: u32, queue_index: u32, display: &crate::shared::Swapchain, image: u64, views: &[(u32, ImageRect, u32)]) {
+        if !self.armed.load(Ordering::Acquire) || d.pass_through.is_on() {
+            return;
+        }
+        self.capture(d, (family, queue_index), display, image, views, true);
     }
 
     /// `vkDestroyDevice` (the device is idle): no thread keeps using the device past this point.
@@ -499,9 +521,15 @@ impl VkFeature for ScreenshotDevice {
     }
 }
 
-/// The views of every swapchain image the last `xrEndFrame` named.
-fn expected_views() -> Vec<u32> {
-    let mut views: Vec<u32> = shared().swapchains.values().iter().flat_map(|(_, sc)| sc.uses()).filter(|u| !u.depth).map(|u| u.view).collect();
+/// The views of every swapchain image the last `xrEndFrame` named, (view, false); and of an
+/// upscaled swapchain, the display-size image's too, (view, true).
+fn expected_views() -> Vec<(u32, bool)> {
+    let mut views: Vec<(u32, bool)> = shared()
+        .swapchains
+        .values()
+        .iter()
+        .flat_map(|(_, sc)| sc.uses().into_iter().filter(|u| !u.depth).flat_map(move |u| [Some((u.view, false)), sc.upscaled.then_some((u.view, true))]).flatten())
+        .collect();
     views.sort_unstable();
     views.dedup();
     views
@@ -537,7 +565,7 @@ fn views_of(me: &ScreenshotDevice, sc: &crate::shared::Swapchain, uses: &[(u32, 
         if layer >= desc.array_size.max(1) {
             continue;
         }
-        views.push(ViewCopy { view, region, layer, texels, format: desc.format as i32, swapchain: sc.handle, offset });
+        views.push(ViewCopy { view, region, layer, texels, format: desc.format as i32, swapchain: sc.handle, offset, display: false });
         offset += (region.2 as u64 * region.3 as u64 * texels.bytes_per_texel()).div_ceil(16) * 16;
     }
     (!views.is_empty()).then_some(views)

@@ -63,13 +63,13 @@ pub(super) fn write(request: &Request, frame: u64, mut pictures: Vec<Picture>) {
         let mut views = Vec::new();
         for p in &pictures {
             let (x, y, w, h) = p.view.region;
-            let file = dir.join(rules::view_file(&stem, p.view.view));
+            let file = dir.join(if p.view.display { rules::display_file(&stem, p.view.view) } else { rules::view_file(&stem, p.view.view) });
             let png = encode_png(w, h, &p.rgb)?;
             write_atomic(&file, &png).map_err(|e| format!("{}: {e}", file.display()))?;
             views.push(json!({
                 "view": p.view.view, "file": file, "width": w, "height": h,
                 "image_rect": { "x": x, "y": y, "width": w, "height": h },
-                "image_array_index": p.view.layer, "format": p.view.format, "swapchain": p.view.swapchain,
+                "image_array_index": p.view.layer, "format": p.view.format, "swapchain": p.view.swapchain, "display": p.view.display,
             }));
         }
         let doc = json!({ "app": request.app, "frame": frame, "time_ms": unix_ms, "views": views });
