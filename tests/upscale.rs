@@ -221,3 +221,21 @@ fn quad_layers_and_static_swapchains() {
     }
     assert_eq!(on.log_lines("the runtime shows").len(), 3, "both eyes' swapchains and the quad's interposed");
 }
+
+/// The in-headset overlay with the upscale: its quad is the layer's own swapchain (made below the
+/// interposition), drawn at its own size after the app's upscaled projection layer.
+#[test]
+fn the_overlay_stays_at_its_own_size() {
+    let run = upscaled(Run::new("upscale-overlay"), "upscale-overlay", "easu_rcas").with_layer().env("STEREOSHIM_OVERLAY_ENABLED", "1");
+    let out = run.run();
+    out.assert_ok();
+    let f = out.frame(1);
+    assert_eq!(f.layers.iter().map(|l| l.kind.as_str()).collect::<Vec<_>>(), ["projection", "quad"]);
+    let (w, h) = stereoshim::features::overlay::rules::texture_size();
+    let q = f.layers[1].quad.as_ref().expect("the overlay's quad");
+    assert_eq!((q.image_rect.width, q.image_rect.height), (w, h));
+    assert_eq!(out.log_lines("the runtime shows").len(), 2, "only the app's two eye swapchains are interposed");
+    for v in &f.layers[0].views {
+        assert_eq!((v.image_rect.width, v.image_rect.height), (256, 256), "the projection views at the display size");
+    }
+}
