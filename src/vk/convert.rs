@@ -114,6 +114,18 @@ pub fn clear_value(c: &vk::ClearValue) -> ClearValue {
     ClearValue(unsafe { c.color.uint32 })
 }
 
+/// All the aspects of `f`: depth and/or stencil for depth-stencil formats, else colour (a v1 input
+/// attachment's aspects when the app chains none; whether a swapchain format is a depth one).
+pub fn format_aspects(f: vk::Format) -> vk::ImageAspectFlags {
+    use vk::{Format as F, ImageAspectFlags as A};
+    match f {
+        F::D16_UNORM | F::X8_D24_UNORM_PACK32 | F::D32_SFLOAT => A::DEPTH,
+        F::S8_UINT => A::STENCIL,
+        F::D16_UNORM_S8_UINT | F::D24_UNORM_S8_UINT | F::D32_SFLOAT_S8_UINT => A::DEPTH | A::STENCIL,
+        _ => A::COLOR,
+    }
+}
+
 pub fn image(handle: vk::Image, ci: &vk::ImageCreateInfo<'_>) -> Image {
     Image {
         handle: handle.as_raw(),

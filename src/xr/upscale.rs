@@ -219,12 +219,6 @@ fn usage_to_vk(u: xr::SwapchainUsageFlags) -> vk::ImageUsageFlags {
     .fold(vk::ImageUsageFlags::empty(), |a, (_, v)| a | *v)
 }
 
-fn is_depth_format(f: vk::Format) -> bool {
-    matches!(
-        f,
-        vk::Format::D16_UNORM | vk::Format::X8_D24_UNORM_PACK32 | vk::Format::D32_SFLOAT | vk::Format::S8_UINT | vk::Format::D16_UNORM_S8_UINT | vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT
-    )
-}
 
 /// Decides and, when interposing, creates the runtime's swapchain at the display size
 /// (`create` calls down with a create info) and the app's images.
@@ -245,7 +239,7 @@ pub(super) fn create_swapchain(
         height: ci.height,
         sample_count: ci.sample_count,
         face_count: ci.face_count,
-        depth: ci.usage_flags.contains(xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT) || is_depth_format(format),
+        depth: ci.usage_flags.contains(xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT) || !crate::vk::convert::format_aspects(format).contains(vk::ImageAspectFlags::COLOR),
         protected: ci.create_flags.contains(xr::SwapchainCreateFlags::PROTECTED_CONTENT),
     };
     let plan = match rules::plan(&ask, &latch.views) {
@@ -387,30 +381,32 @@ pub(super) fn acquired(s: &Session, i: &Interposed) {
     if i.first_layouts.swap(true, Ordering::AcqRel) {
         return;
     }
-    let g = lock(&s.upscale.gpu);
-    let Some(g) = g.as_ref() else { return };
-    let t = lock(&i.target);
-    let top = &g.top;
+    // What is needed is taken under the locks; the submission and its wait go without them.
+    let (device, family, queue_index, barriers) = {
+        let g = lock(&s.upscale.gpu);
+        let Some(g) = g.as_ref() else { return };
+        (g.top.device.clone(), g.top.family, g.top.queue_index, lock(&i.target).first_layout_barriers())
+    };
     // SAFETY: objects made and destroyed here through the app-level table; the session's queue,
     // which the binding lets the runtime (and so a layer) use inside xrAcquireSwapchainImage;
     // the fence wait makes sure the buffer is done before it is freed.
     let r: Result<(), String> = unsafe {
         (|| {
-            let pool = top.device.create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(top.family), None).map_err(|e| format!("vkCreateCommandPool: {e}"))?;
+            let pool = device.create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(family), None).map_err(|e| format!("vkCreateCommandPool: {e}"))?;
             let done = (|| {
-                let cb = top.device.allocate_command_buffers(&vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1)).map_err(|e| format!("vkAllocateCommandBuffers: {e}"))?[0];
-                top.device.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
-                t.record_first_layouts(&top.device, cb);
-                top.device.end_command_buffer(cb).map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
-                let fence = top.device.create_fence(&vk::FenceCreateInfo::default(), None).map_err(|e| format!("vkCreateFence: {e}"))?;
-                let queue = top.device.get_device_queue(top.family, top.queue_index);
+                let cb = device.allocate_command_buffers(&vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1)).map_err(|e| format!("vkAllocateCommandBuffers: {e}"))?[0];
+                device.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
+                device.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &barriers);
+                device.end_command_buffer(cb).map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
+                let fence = device.create_fence(&vk::FenceCreateInfo::default(), None).map_err(|e| format!("vkCreateFence: {e}"))?;
+                let queue = device.get_device_queue(family, queue_index);
                 let cbs = [cb];
-                let r = top.device.queue_submit(queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], fence).map_err(|e| format!("vkQueueSubmit: {e}"));
-                let r = r.and_then(|()| top.device.wait_for_fences(&[fence], true, 2_000_000_000).map_err(|e| format!("vkWaitForFences: {e}")));
-                top.device.destroy_fence(fence, None);
+                let r = device.queue_submit(queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], fence).map_err(|e| format!("vkQueueSubmit: {e}"));
+                let r = r.and_then(|()| device.wait_for_fences(&[fence], true, 2_000_000_000).map_err(|e| format!("vkWaitForFences: {e}")));
+                device.destroy_fence(fence, None);
                 r
             })();
-            top.device.destroy_command_pool(pool, None);
+            device.destroy_command_pool(pool, None);
             done
         })()
     };
@@ -562,47 +558,59 @@ fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
     if work.is_empty() {
         return Ok(());
     }
-    let mut g = lock(&s.upscale.gpu);
-    let g = g.as_mut().ok_or("no GPU objects")?;
-    let d = g.device.clone();
-    let (cb, fence) = g.slots.take(&d)?;
-    // SAFETY: a command buffer of the layer's, not in use (its fence signalled or it is new);
-    // the session's queue, used inside xrEndFrame / xrReleaseSwapchainImage as the binding allows.
+    // Recorded under the session's lock; submitted after it is let go (no lock of the layer's is
+    // held while the submission goes down the chain).
+    let (d, queue, cb, fence, gpu_ms, phases_ms) = {
+        let mut g = lock(&s.upscale.gpu);
+        let g = g.as_mut().ok_or("no GPU objects")?;
+        let d = g.device.clone();
+        let (cb, fence) = g.slots.take(&d)?;
+        // SAFETY: a command buffer of the layer's, not in use (its fence signalled or it is new).
+        let recorded = unsafe {
+            (|| {
+                d.fns.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
+                g.slots.mark(&d, cb, 0);
+                // Locked in the frame's swapchain order; no other code holds two targets at once.
+                let targets: Vec<_> = work.iter().map(|w| lock(&w.i.target)).collect();
+                let frame: Vec<Work<'_>> = work
+                    .iter()
+                    .zip(&targets)
+                    .map(|(w, t)| Work { target: t, index: w.index as usize, jobs: &w.jobs, fovea: &w.fovea, sharpness: w.i.sharpness })
+                    .collect();
+                record_frame(&d, &g.pipelines, cb, &frame, &|k| g.slots.mark(&d, cb, k));
+                g.slots.mark(&d, cb, crate::features::upscale::vk::MARKS - 1);
+                d.fns.end_command_buffer(cb).map_err(|e| format!("vkEndCommandBuffer: {e}"))
+            })()
+        };
+        if let Err(e) = recorded {
+            g.slots.abandon(&d, cb);
+            return Err(e);
+        }
+        (d, g.slots.queue, cb, fence, g.slots.last_gpu_ms, g.slots.last_phases_ms.clone())
+    };
+    // SAFETY: the recorded command buffer and its fence (unsignalled); the session's queue, used
+    // inside xrEndFrame / xrReleaseSwapchainImage as the binding allows.
     let r = unsafe {
-        (|| {
-            d.fns.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
-            g.slots.mark(&d, cb, 0);
-            // Locked in the frame's swapchain order; no other code holds two targets at once.
-            let targets: Vec<_> = work.iter().map(|w| lock(&w.i.target)).collect();
-            let frame: Vec<Work<'_>> = work
-                .iter()
-                .zip(&targets)
-                .map(|(w, t)| Work { target: t, index: w.index as usize, jobs: &w.jobs, fovea: &w.fovea, sharpness: w.i.sharpness })
-                .collect();
-            record_frame(&d, &g.pipelines, cb, &frame, &|k| g.slots.mark(&d, cb, k));
-            drop(frame);
-            drop(targets);
-            g.slots.mark(&d, cb, crate::features::upscale::vk::MARKS - 1);
-            d.fns.end_command_buffer(cb).map_err(|e| format!("vkEndCommandBuffer: {e}"))?;
-            let bracket = crate::vk::gpu_time::start(&d, g.slots.queue, 1, true);
-            let cbs = match &bracket {
-                Some(b) => vec![b.begin, cb, b.end],
-                None => vec![cb],
-            };
-            let r = d.fns.queue_submit(g.slots.queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], fence);
-            if let Some(b) = bracket {
-                crate::vk::gpu_time::submitted(&d, b, g.slots.queue, r.is_ok());
-            }
-            r.map_err(|e| format!("vkQueueSubmit: {e}"))
-        })()
+        let bracket = crate::vk::gpu_time::start(&d, queue, 1, true);
+        let cbs = match &bracket {
+            Some(b) => vec![b.begin, cb, b.end],
+            None => vec![cb],
+        };
+        let r = d.fns.queue_submit(queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], fence);
+        if let Some(b) = bracket {
+            crate::vk::gpu_time::submitted(&d, b, queue, r.is_ok());
+        }
+        r.map_err(|e| format!("vkQueueSubmit: {e}"))
     };
     if r.is_err() {
-        g.slots.abandon(&d);
+        if let Some(g) = lock(&s.upscale.gpu).as_mut() {
+            g.slots.abandon(&d, cb);
+        }
     } else {
         let jobs: usize = work.iter().map(|w| w.jobs.len()).sum();
         let pixels: u64 = work.iter().flat_map(|w| &w.jobs).map(|j| j.dst.area()).sum();
         let rendered: u64 = work.iter().flat_map(|w| &w.jobs).map(|j| j.src.area()).sum();
-        crate::shared::shared().upscale_counts(jobs as u64, rendered, pixels, g.slots.last_gpu_ms, &g.slots.last_phases_ms);
+        crate::shared::shared().upscale_counts(jobs as u64, rendered, pixels, gpu_ms, &phases_ms);
     }
     r
 }

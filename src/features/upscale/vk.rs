@@ -515,19 +515,14 @@ impl Target {
         }
     }
 
-    /// Records the first layout of every app image (UNDEFINED → COLOR_ATTACHMENT_OPTIMAL, what the
-    /// binding promises the app at acquire) into `cb`, through the app-level table.
-    ///
-    /// # Safety
-    /// `cb` is recording, allocated through `top`.
-    pub(crate) unsafe fn record_first_layouts(&self, top: &ash::Device, cb: vk::CommandBuffer) {
-        let barriers: Vec<_> = self
-            .app
+    /// The first layout of every app image (UNDEFINED → COLOR_ATTACHMENT_OPTIMAL, what the binding
+    /// promises the app at acquire), as barriers on the app's handles (recorded through the
+    /// app-level table, from TOP_OF_PIPE to COLOR_ATTACHMENT_OUTPUT).
+    pub(crate) fn first_layout_barriers(&self) -> Vec<vk::ImageMemoryBarrier<'static>> {
+        self.app
             .iter()
             .map(|i| image_barrier(i.top, vk::ImageLayout::UNDEFINED, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::AccessFlags::empty(), vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::COLOR_ATTACHMENT_READ, self.desc.layers, self.desc.mips))
-            .collect();
-        // SAFETY: per the contract.
-        unsafe { top.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::DependencyFlags::empty(), &[], &[], &barriers) };
+            .collect()
     }
 }
 
@@ -686,22 +681,22 @@ impl Slots {
         }
     }
 
-    /// The last `take`n buffer was not submitted: its fence would never signal.
-    pub(crate) fn abandon(&mut self, d: &DeviceState) {
-        if let Some((cb, fence)) = self.ring.pop_back() {
-            // Its query pair goes with it; the next new buffer takes the pair of the last one.
-            let freed = self.query_of.remove(&cb);
-            if let Some(freed) = freed {
-                let top = self.query_of.len() as u32;
-                if let Some((_, last)) = self.query_of.iter_mut().find(|(_, p)| **p == top) {
-                    *last = freed;
-                }
+    /// `cb` (handed out by `take`) was not submitted: its fence would never signal.
+    pub(crate) fn abandon(&mut self, d: &DeviceState, cb: vk::CommandBuffer) {
+        let Some(at) = self.ring.iter().position(|&(c, _)| c == cb) else { return };
+        let (cb, fence) = self.ring.remove(at).expect("found");
+        // Its query pair goes with it; the buffer holding the highest pair takes it over, so the
+        // pairs stay 0..len.
+        if let Some(freed) = self.query_of.remove(&cb) {
+            let top = self.query_of.len() as u32;
+            if let Some((_, last)) = self.query_of.iter_mut().find(|(_, p)| **p == top) {
+                *last = freed;
             }
-            // SAFETY: never submitted, so not in use.
-            unsafe {
-                d.fns.destroy_fence(fence, None);
-                d.fns.free_command_buffers(self.pool, &[cb]);
-            }
+        }
+        // SAFETY: never submitted, so not in use.
+        unsafe {
+            d.fns.destroy_fence(fence, None);
+            d.fns.free_command_buffers(self.pool, &[cb]);
         }
     }
 

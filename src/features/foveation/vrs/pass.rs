@@ -148,17 +148,6 @@ fn ptr_or_null<T>(v: &[T]) -> *const T {
     }
 }
 
-/// The aspects a v1 input attachment reads when the app chains no
-/// `VkRenderPassInputAttachmentAspectCreateInfo`: all of its format's.
-fn format_aspects(f: vk::Format) -> vk::ImageAspectFlags {
-    use vk::{Format as F, ImageAspectFlags as A};
-    match f {
-        F::D16_UNORM | F::X8_D24_UNORM_PACK32 | F::D32_SFLOAT => A::DEPTH,
-        F::S8_UINT => A::STENCIL,
-        F::D16_UNORM_S8_UINT | F::D24_UNORM_S8_UINT | F::D32_SFLOAT_S8_UINT => A::DEPTH | A::STENCIL,
-        _ => A::COLOR,
-    }
-}
 
 /// A `VkRenderPassCreateInfo` as the equivalent `VkRenderPassCreateInfo2` (multiview and input
 /// aspects translated); None when its chain holds anything else.
@@ -239,7 +228,7 @@ unsafe fn owned_from_v1(ci: &vk::RenderPassCreateInfo<'_>) -> Option<Owned2> {
                         .iter()
                         .find(|a| a.subpass as usize == i && a.input_attachment_index as usize == j)
                         .map(|a| a.aspect_mask)
-                        .unwrap_or_else(|| atts.get(r.attachment as usize).map_or(vk::ImageAspectFlags::COLOR, |a| format_aspects(a.format)))
+                        .unwrap_or_else(|| atts.get(r.attachment as usize).map_or(vk::ImageAspectFlags::COLOR, |a| crate::vk::convert::format_aspects(a.format)))
                 };
                 r2(r, aspect)
             })
@@ -621,6 +610,7 @@ mod tests {
 
     #[test]
     fn input_aspects_by_format() {
+        use crate::vk::convert::format_aspects;
         assert_eq!(format_aspects(vk::Format::D32_SFLOAT), vk::ImageAspectFlags::DEPTH);
         assert_eq!(format_aspects(vk::Format::S8_UINT), vk::ImageAspectFlags::STENCIL);
         assert_eq!(format_aspects(vk::Format::R16G16B16A16_SFLOAT), vk::ImageAspectFlags::COLOR);
