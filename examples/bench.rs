@@ -148,7 +148,7 @@ fn bench_per_instance(a: &Args) {
         if let Some(ms) = v["upscale"]["gpu_ms"].as_f64() {
             own.push(ms);
             if own.len() == 20 {
-                println!("upscale phases (barriers in, EASU, fragment pass, barriers out), ms: {}", v["upscale"]["phases_ms"]);
+                println!("upscale phases (barriers in and resolves, EASU, RCAS and the copy or the fragment pass, barriers out), ms: {}", v["upscale"]["phases_ms"]);
             }
         }
         if let Some(r) = v["upscale"]["rendered_px"].as_u64() {

@@ -3,7 +3,8 @@
 //! `--scale` of the output; the passes run `--runs` times, each timed by the device's timestamps;
 //! the medians are printed, per eye and for two eyes.
 //!   target/release/examples/upscale_bench [--width 2016] [--height 2240] [--scale 0.77] [--runs 15] [--repeat 50]
-//!     [--easu-spv F --rcas-spv F --group N]   (variants of the same interface, compared)
+//!     [--cas] [--easu-spv F --rcas-spv F --group N]   (a variant of the same interface, alternated with
+//!                                               the layer's passes run by run and compared)
 
 #[path = "../tests/upscale_gpu/mod.rs"]
 mod upscale_gpu;
@@ -34,6 +35,9 @@ struct Args {
     /// The variants' workgroup side (default: the layer's).
     #[arg(long)]
     group: Option<u32>,
+    /// The layer's first pass is CAS (`upscale.method = cas`) instead of EASU.
+    #[arg(long)]
+    cas: bool,
     /// The input's format: rgba8 (what apps render) or rgba32f.
     #[arg(long, default_value = "rgba8")]
     input: String,
@@ -61,21 +65,36 @@ fn main() {
     let read = |p: &Option<std::path::PathBuf>| p.as_ref().map(|p| std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())));
     let (easu_v, rcas_v) = (read(&a.easu_spv), read(&a.rcas_spv));
     let product = upscale_gpu::Shaders::product();
-    let shaders = upscale_gpu::Shaders { easu: easu_v.as_deref().unwrap_or(product.easu), rcas: rcas_v.as_deref().unwrap_or(product.rcas), group: a.group.unwrap_or(product.group), input: if a.input == "rgba32f" { ash::vk::Format::R32G32B32A32_SFLOAT } else { ash::vk::Format::R8G8B8A8_UNORM } };
-    let (mut easu, mut rcas) = (Vec::new(), Vec::new());
+    let input = if a.input == "rgba32f" { ash::vk::Format::R32G32B32A32_SFLOAT } else { ash::vk::Format::R8G8B8A8_UNORM };
+    let easu = if a.cas { stereoshim::features::upscale::gpu::CAS } else { product.easu };
+    let product = upscale_gpu::Shaders { input, easu, ..product };
+    let variant = (easu_v.is_some() || rcas_v.is_some() || a.group.is_some()).then(|| upscale_gpu::Shaders {
+        easu: easu_v.as_deref().unwrap_or(product.easu),
+        rcas: rcas_v.as_deref().unwrap_or(product.rcas),
+        group: a.group.unwrap_or(product.group),
+        input,
+        tiles: &[],
+    });
+    // The layer's passes and the variant alternate run by run in this process (A/B).
+    let mut times: Vec<(Vec<f64>, Vec<f64>)> = vec![Default::default(); 1 + variant.is_some() as usize];
     for _ in 0..a.runs.max(1) {
-        let run = gpu.upscale_with(shaders, &low, (a.width, a.height), 0.8, a.repeat);
-        if !run.texels.iter().all(|t| t.iter().all(|c| c.is_finite())) {
-            eprintln!("the upscale wrote non-finite values");
-            std::process::exit(1);
+        for (k, shaders) in std::iter::once(product).chain(variant).enumerate() {
+            let run = gpu.upscale_with(shaders, &low, (a.width, a.height), 0.8, a.repeat);
+            if !run.texels.iter().all(|t| t.iter().all(|c| c.is_finite())) {
+                eprintln!("the upscale wrote non-finite values");
+                std::process::exit(1);
+            }
+            let Some((e, r)) = run.times_ms else {
+                eprintln!("the device's queue has no timestamps");
+                std::process::exit(1);
+            };
+            times[k].0.push(e);
+            times[k].1.push(r);
         }
-        let Some((e, r)) = run.times_ms else {
-            eprintln!("the device's queue has no timestamps");
-            std::process::exit(1);
-        };
-        easu.push(e);
-        rcas.push(r);
     }
-    let (e, r) = (median(easu), median(rcas));
-    println!("{} {w}x{h} -> {}x{} per eye, {} runs: EASU {e:.3} ms, RCAS {r:.3} ms, both {:.3} ms per eye, {:.3} ms for two eyes", a.input, a.width, a.height, a.runs, e + r, 2.0 * (e + r));
+    for (k, (easu, rcas)) in times.into_iter().enumerate() {
+        let (e, r) = (median(easu), median(rcas));
+        let name = if k == 0 { "layer" } else { "variant" };
+        println!("{name}: {} {w}x{h} -> {}x{} per eye, {} runs: EASU {e:.3} ms, RCAS {r:.3} ms, both {:.3} ms per eye, {:.3} ms for two eyes", a.input, a.width, a.height, a.runs, e + r, 2.0 * (e + r));
+    }
 }

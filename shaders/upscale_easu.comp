@@ -16,7 +16,24 @@ layout(push_constant) uniform Params {
     // of `dst`; bilinear outside. z = 0: EASU everywhere; z < 0: bilinear everywhere
     // (`upscale.method = bilinear`).
     vec4 fovea;
+    ivec4 skip;      // x: the first entry of the tile list, y: 1 when there is one
 } p;
+
+// `upscale.skip_hidden`: the pass runs only the 16×16 tiles of the job the lens shows (or that
+// a shown pixel's filter reads: src/features/upscale/lens.rs), listed from `tiles[skip.x]` as
+// x | y << 16, one per workgroup of a one-dimensional dispatch; the others keep the black they
+// were cleared to. skip.y = 0: a two-dimensional dispatch over the whole rect.
+layout(set = 0, binding = 2, std430) readonly buffer Tiles {
+    uint tiles[];
+};
+
+ivec2 pixel() {
+    if (p.skip.y == 0) {
+        return ivec2(gl_GlobalInvocationID.xy);
+    }
+    uint t = tiles[p.skip.x + int(gl_WorkGroupID.x)];
+    return ivec2(int(t & 0xffffu), int(t >> 16)) * ivec2(gl_WorkGroupSize.xy) + ivec2(gl_LocalInvocationID.xy);
+}
 
 vec3 tap(ivec2 t) {
     ivec2 c = clamp(t, ivec2(0), p.src_rect.zw - 1) + p.src_rect.xy;
@@ -40,7 +57,7 @@ void plus(inout vec2 dir, inout float len, float w, float l, float c, float r, f
 }
 
 void main() {
-    ivec2 o = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 o = pixel();
     if (any(greaterThanEqual(o, p.dst_rect.zw))) {
         return;
     }

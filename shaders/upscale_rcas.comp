@@ -9,6 +9,22 @@ layout(local_size_x = 16, local_size_y = 16) in;
 
 #include "upscale_rcas.glsl"
 
+// `upscale.skip_hidden`: the pass runs only the 16×16 tiles of the job the lens shows (or that
+// a shown pixel's filter reads: src/features/upscale/lens.rs), listed from `tiles[skip.x]` as
+// x | y << 16, one per workgroup of a one-dimensional dispatch; the others keep the black they
+// were cleared to. skip.y = 0: a two-dimensional dispatch over the whole rect.
+layout(set = 0, binding = 2, std430) readonly buffer Tiles {
+    uint tiles[];
+};
+
+ivec2 pixel() {
+    if (p.skip.y == 0) {
+        return ivec2(gl_GlobalInvocationID.xy);
+    }
+    uint t = tiles[p.skip.x + int(gl_WorkGroupID.x)];
+    return ivec2(int(t & 0xffffu), int(t >> 16)) * ivec2(gl_WorkGroupSize.xy) + ivec2(gl_LocalInvocationID.xy);
+}
+
 #ifdef OUT_RGBA8
 layout(set = 0, binding = 1, rgba8) uniform writeonly image2D dst;
 #else
@@ -21,7 +37,7 @@ vec3 srgb_encode(vec3 c) {
 }
 
 void main() {
-    ivec2 q = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 q = pixel();
     if (any(greaterThanEqual(q, p.rect.zw))) {
         return;
     }

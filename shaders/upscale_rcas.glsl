@@ -12,6 +12,9 @@ layout(push_constant) uniform Params {
     // Where RCAS sharpens (`upscale.fovea_only`): an ellipse in destination texels, centre x, y,
     // radii z, w; z = 0: everywhere.
     vec4 fovea;
+    // `upscale.skip_hidden` (the compute pass's): x the first entry of its tile list, y 1 when
+    // it has one.
+    ivec4 skip;
 } p;
 
 // The largest lobe: a neighbour weight of -3/16.

@@ -43,7 +43,24 @@ fn upscaled(run: Run, name: &str, method: &str) -> Run {
     run
 }
 
-/// Per captured view of frame 1: (PSNR, SSIM, edge energy) of `on` against `native`.
+/// The pixels of captured view `v` of frame 1 the runtime's hidden-area mesh covers (what the lens
+/// never shows; none when the runtime has no mesh).
+fn lens_hidden(run: &RunOutput, v: &common::View) -> Vec<bool> {
+    let (w, h) = (v.image_rect.width, v.image_rect.height);
+    match run.frame(1).visibility_masks.iter().find(|m| m.view == v.view) {
+        Some(m) => common::hidden_pixels(&m.hidden_triangles, &v.fov, w, h),
+        None => vec![false; (w * h) as usize],
+    }
+}
+
+/// `i` with the pixels in `hidden` black.
+fn shown(i: &filter::Image, hidden: &[bool]) -> filter::Image {
+    filter::Image::from_fn(i.width, i.height, |x, y| if hidden[(y * i.width + x) as usize] { Rgb([0.0; 3]) } else { i.at(x as i64, y as i64) })
+}
+
+/// Per captured view of frame 1: (PSNR, SSIM, edge energy) of `on` against `native` over what the
+/// runtime shows (the pixels the lens never shows are black in both: the upscale skips them,
+/// `upscale.skip_hidden`).
 fn quality_of(label: &str, on: &RunOutput, native: &RunOutput) -> Vec<(f64, f64, f64)> {
     let (a, b) = (on.views(1), native.views(1));
     assert_eq!(a.len(), b.len(), "{label}: views");
@@ -52,8 +69,14 @@ fn quality_of(label: &str, on: &RunOutput, native: &RunOutput) -> Vec<(f64, f64,
         .map(|(va, vb)| {
             let (ia, ib) = (on.image(&va.file), native.image(&vb.file));
             assert_eq!((ia.width, ia.height), (ib.width, ib.height), "{label}: view {} is not at the display size", va.view);
+            let hidden = lens_hidden(on, va);
             let (fa, fb) = (as_filter_image(&ia), as_filter_image(&ib));
-            let q = (quality::psnr(&fa, &fb), quality::ssim(&fa, &fb), quality::edge_energy(&fa, &fb, 0.1));
+            // Edges where the pixel and the neighbours its gradient reads are all shown.
+            let (w, h) = (ia.width as i64, ia.height as i64);
+            let is_shown = |x: i64, y: i64| !hidden[(y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize];
+            let edges = quality::edge_energy_where(&fa, &fb, 0.1, &|x, y| is_shown(x, y) && is_shown(x + 1, y) && is_shown(x, y + 1));
+            let (fa, fb) = (shown(&fa, &hidden), shown(&fb, &hidden));
+            let q = (quality::psnr(&fa, &fb), quality::ssim(&fa, &fb), edges);
             eprintln!("{label} view {}: {}x{} PSNR {:.2} dB, SSIM {:.4}, edge energy {:.3}", va.view, ia.width, ia.height, q.0, q.1, q.2);
             q
         })
@@ -237,5 +260,68 @@ fn the_overlay_stays_at_its_own_size() {
     assert_eq!(out.log_lines("the runtime shows").len(), 2, "only the app's two eye swapchains are interposed");
     for v in &f.layers[0].views {
         assert_eq!((v.image_rect.width, v.image_rect.height), (256, 256), "the projection views at the display size");
+    }
+}
+
+/// Multisampled swapchains (the app renders its eyes straight into 4-sample swapchain images:
+/// resolved before the upscale; the runtime's swapchain is single-sampled) and swapchains with a
+/// mip chain (the app renders level 0; the runtime's has one level), in each layout: interposed,
+/// and the runtime's images as close to the native run's as a single-sampled app's.
+#[test]
+fn multisampled_and_mip_chain_swapchains() {
+    let cases: [(&str, &[&str], &str); 5] = [
+        ("msaa-per-eye", &["--swapchain-samples", "4", "--layout", "per-eye", "--rendering", "render-pass"], "(4 samples, 1 mip levels)"),
+        ("msaa-multiview", &["--swapchain-samples", "4", "--layout", "multiview", "--rendering", "dynamic"], "(4 samples, 1 mip levels)"),
+        ("msaa-side-by-side", &["--swapchain-samples", "4", "--layout", "side-by-side", "--rendering", "render-pass"], "(4 samples, 1 mip levels)"),
+        ("mips-per-eye", &["--swapchain-mips", "3", "--layout", "per-eye", "--rendering", "dynamic"], "(1 samples, 3 mip levels)"),
+        ("mips-multiview", &["--swapchain-mips", "3", "--layout", "multiview", "--rendering", "render-pass"], "(1 samples, 3 mip levels)"),
+    ];
+    for (label, args, interposed) in cases {
+        let base = Run::new(&format!("upscale-native-{label}")).with_layer().args(args.iter().copied()).env("MOCK_XR_EXIT_AFTER", "4");
+        let native = base.run();
+        native.assert_ok();
+        let on = upscaled(base, &format!("upscale-{label}"), "easu_rcas").run();
+        on.assert_ok();
+        let lines = on.log_lines("the runtime shows");
+        assert!(lines.iter().any(|l| l.contains(interposed)), "{label}: no swapchain interposed {interposed}: {lines:?}");
+        assert_eq!(on.frames().frames.len(), native.frames().frames.len(), "{label}: captured frames");
+        for (p, s, _) in quality_of(label, &on, &native) {
+            assert!(p >= 30.0 && s >= 0.95, "{label}: PSNR {p:.2} dB, SSIM {s:.4}");
+        }
+    }
+}
+
+/// `upscale.skip_hidden`: the upscale skips the tiles the runtime's hidden-area mesh covers. Every
+/// pixel the lens shows is bit for bit what the upscale gives without skipping; the skipped ones
+/// are black; the log says what share was skipped.
+#[test]
+fn the_pixels_the_lens_never_shows_are_skipped() {
+    for layout in ["per-eye", "multiview", "side-by-side"] {
+        let base = Run::new(&format!("upscale-skip-{layout}")).with_layer().args(["--layout", layout]).env("MOCK_XR_EXIT_AFTER", "4");
+        let on = upscaled(base.clone(), &format!("upscale-skip-on-{layout}"), "easu_rcas").run();
+        on.assert_ok();
+        let off = upscaled(base, &format!("upscale-skip-off-{layout}"), "easu_rcas").env("STEREOSHIM_UPSCALE_SKIP_HIDDEN", "0").run();
+        off.assert_ok();
+        assert!(!on.log_lines("the lens never shows").is_empty(), "{layout}: nothing skipped");
+        assert!(off.log_lines("the lens never shows").is_empty(), "{layout}: skipped while off");
+        for (va, vb) in on.views(1).iter().zip(off.views(1)) {
+            let (ia, ib) = (on.image(&va.file), off.image(&vb.file));
+            let hidden = lens_hidden(&on, va);
+            assert!(hidden.iter().any(|&h| h), "{layout}: the runtime has no hidden area here");
+            let (mut black, mut differ_hidden) = (0, 0);
+            for y in 0..ia.height {
+                for x in 0..ia.width {
+                    let (pa, pb) = (ia.pixel(x, y), ib.pixel(x, y));
+                    if hidden[(y * ia.width + x) as usize] {
+                        black += (pa[..3] == [0, 0, 0]) as u32;
+                        differ_hidden += (pa[..3] != pb[..3]) as u32;
+                    } else {
+                        assert_eq!(&pa[..3], &pb[..3], "{layout} view {}: visible pixel ({x}, {y}) changed", va.view);
+                    }
+                }
+            }
+            eprintln!("{layout} view {}: {black} hidden pixels black, {differ_hidden} differ from the full upscale", va.view);
+            assert!(black > 0 && differ_hidden > 0, "{layout} view {}: no hidden pixel was skipped", va.view);
+        }
     }
 }

@@ -47,7 +47,10 @@ fn max_diff(gpu: &[[f32; 4]], cpu: &Image) -> f32 {
 fn the_gpu_passes_match_the_cpu_reference() {
     let gpu = Gpu::new();
     let low = low_res_scene(128, 0.77);
-    for (w, h) in [(128, 128), (150, 131)] {
+    // Scales on both sides of what the shaders' shared-memory block holds (99 → 200 and 251:
+    // block; 99 → 60: a source larger than the destination in y, taps straight from the image),
+    // and sizes that are not multiples of the workgroup.
+    for (w, h) in [(128, 128), (150, 131), (99, 99), (200, 60), (251, 197)] {
         // EASU alone (RCAS at no sharpness copies): within the RGBA16F output's rounding.
         let easu = filter::easu(&low, w, h);
         let got = gpu.upscale_with(Shaders::product(), &low, (w, h), 0.0, 1).texels;
@@ -73,11 +76,63 @@ fn the_gpu_passes_match_the_cpu_reference() {
 fn cas_on_the_gpu_matches_the_cpu_reference() {
     let gpu = Gpu::new();
     let low = low_res_scene(128, 0.77);
-    for (w, h) in [(128, 128), (150, 131)] {
+    for (w, h) in [(128, 128), (150, 131), (99, 99), (200, 60), (251, 197)] {
         let cpu = filter::cas(&low, w, h, 0.0);
         let got = gpu.upscale_with(Shaders { easu: passes::CAS, ..Shaders::product() }, &low, (w, h), 0.0, 1).texels;
         let d = max_diff(&got, &cpu);
         eprintln!("{}x{} → {w}x{h}: CAS max difference {d:.5}", low.width, low.height);
         assert!(d < 2.0e-3, "CAS on the device differs from the reference by {d}");
     }
+}
+
+/// `upscale.skip_hidden` on the device: tiles classed as skipped by a pass come out black; every
+/// pixel of a running tile that reads no skipped EASU tile is exactly what the full upscale gives.
+#[test]
+fn skipped_tiles_are_black_and_the_rest_unchanged() {
+    use stereoshim::features::upscale::lens::{BOTH_SKIP, RCAS_SKIPS, RUN};
+    let gpu = Gpu::new();
+    let low = low_res_scene(128, 0.77);
+    let (w, h) = (150u32, 131u32);
+    let g = passes::GROUP;
+    let (cols, rows) = (w.div_ceil(g), h.div_ceil(g));
+    // The outer ring of tiles: both passes skip the corners, RCAS alone the rest of the ring.
+    let classes: Vec<u32> = (0..rows)
+        .flat_map(|ty| (0..cols).map(move |tx| (tx, ty)))
+        .map(|(tx, ty)| {
+            let (edge_x, edge_y) = (tx == 0 || tx == cols - 1, ty == 0 || ty == rows - 1);
+            match (edge_x, edge_y) {
+                (true, true) => BOTH_SKIP,
+                (true, false) | (false, true) => RCAS_SKIPS,
+                _ => RUN,
+            }
+        })
+        .collect();
+    let full = gpu.upscale_with(Shaders::product(), &low, (w, h), 1.0, 1).texels;
+    let skipped = gpu.upscale_with(Shaders { tiles: &classes, ..Shaders::product() }, &low, (w, h), 1.0, 1).texels;
+    let class = |x: u32, y: u32| classes[((y / g) * cols + x / g) as usize];
+    let (mut black, mut same) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let (a, b) = (full[(y * w + x) as usize], skipped[(y * w + x) as usize]);
+            match class(x, y) {
+                RUN => {
+                    // RCAS reads one pixel around: those must not be in a tile EASU skipped.
+                    let near_skipped = [(-1i32, 0i32), (1, 0), (0, -1), (0, 1)].iter().any(|&(dx, dy)| {
+                        let (nx, ny) = ((x as i32 + dx).clamp(0, w as i32 - 1) as u32, (y as i32 + dy).clamp(0, h as i32 - 1) as u32);
+                        class(nx, ny) == BOTH_SKIP
+                    });
+                    if !near_skipped {
+                        assert_eq!(a, b, "pixel ({x}, {y}) of a running tile changed");
+                        same += 1;
+                    }
+                }
+                _ => {
+                    assert_eq!(&b[..3], &[0.0, 0.0, 0.0], "pixel ({x}, {y}) of a skipped tile is not black");
+                    black += 1;
+                }
+            }
+        }
+    }
+    eprintln!("{black} pixels skipped (black), {same} identical to the full upscale");
+    assert!(black > 0 && same > 0);
 }

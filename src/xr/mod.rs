@@ -11,6 +11,8 @@ mod overlay;
 pub(crate) mod session;
 mod swapchain;
 pub(crate) mod upscale;
+mod upscale_layers;
+mod upscale_lens;
 pub mod probe;
 mod vulkan;
 

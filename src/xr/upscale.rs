@@ -21,7 +21,10 @@ use super::swapchain::Swapchain;
 use crate::core::rect::PixelRect;
 use crate::features::upscale::rules::{self, Ask, Plan, ViewSizes};
 use crate::features::upscale::record::{record_frame, Work};
-use crate::features::upscale::vk::{format_refusal, Job, Output, Pipelines, Slots, Target, TargetDesc};
+use crate::features::upscale::slots::{Slots, MARKS};
+use super::upscale_layers::{pixel_rect, rewrite, sub_images};
+use crate::features::upscale::lens::Tiles;
+use crate::features::upscale::vk::{format_refusal, Job, Output, Pipelines, Target, TargetDesc};
 use crate::features::upscale::UpscaleSettings;
 use crate::settings::Settings;
 use crate::vk::DeviceState;
@@ -114,6 +117,8 @@ pub(crate) struct SessionUpscale {
     /// Recording or submitting an upscale failed (logged once; counted).
     failures_logged: AtomicBool,
     unknown_layer_logged: AtomicBool,
+    /// The lens's hidden area and the tiles it skips (`upscale.skip_hidden`).
+    lens: super::upscale_lens::LensCache,
 }
 
 impl std::fmt::Debug for SessionUpscale {
@@ -239,6 +244,7 @@ pub(super) fn create_swapchain(
         height: ci.height,
         sample_count: ci.sample_count,
         face_count: ci.face_count,
+        mip_count: ci.mip_count,
         depth: ci.usage_flags.contains(xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT) || !crate::vk::convert::format_aspects(format).contains(vk::ImageAspectFlags::COLOR),
         protected: ci.create_flags.contains(xr::SwapchainCreateFlags::PROTECTED_CONTENT),
     };
@@ -274,8 +280,10 @@ pub(super) fn create_swapchain(
     let runtime_ci = xr::SwapchainCreateInfo {
         width: plan.runtime.0,
         height: plan.runtime.1,
-        // The app's mip chain stays its own: the runtime gets the upscaled level 0.
+        // The app's mip chain stays its own: the runtime gets the upscaled level 0. Its samples
+        // too: the runtime gets the upscale of their resolve.
         mip_count: 1,
+        sample_count: 1,
         // What features add to swapchains (a screenshot's copy of the display-size image) too.
         usage_flags: ci.usage_flags | needs | features_usage,
         ..*ci
@@ -290,10 +298,12 @@ pub(super) fn create_swapchain(
         Ok(i) => {
             let i = Box::new(i);
             tracing::info!(
-                "upscale: swapchain {:#x}: the app renders {}x{}, the runtime shows {}x{} ({:?}, {output:?})",
+                "upscale: swapchain {:#x}: the app renders {}x{} ({} samples, {} mip levels), the runtime shows {}x{} ({:?}, {output:?})",
                 swapchain.into_raw(),
                 ci.width,
                 ci.height,
+                ci.sample_count,
+                ci.mip_count,
                 plan.runtime.0,
                 plan.runtime.1,
                 latch.settings.method
@@ -349,6 +359,7 @@ fn make_target(
         extent: (ci.width, ci.height),
         layers: ci.array_size.max(1),
         mips: ci.mip_count.max(1),
+        samples: ci.sample_count.max(1),
         usage: usage_to_vk(ci.usage_flags),
         mutable_format: ci.usage_flags.contains(xr::SwapchainUsageFlags::MUTABLE_FORMAT),
         runtime_extent: plan.runtime,
@@ -426,47 +437,19 @@ struct Held<'a> {
     fovea: Vec<[f32; 4]>,
     /// Per job, the projection view it shows (None: another layer's, or a whole image).
     views: Vec<Option<u32>>,
+    /// Per job, the tiles the lens never shows (`upscale.skip_hidden`).
+    tiles: Vec<Option<Arc<Tiles>>>,
 }
+
+/// A job of the frame: its swapchain, the job, where EASU runs, the projection view it shows and
+/// the tiles the lens never shows there.
+type FrameJob = (u64, Job, [f32; 4], Option<u32>, Option<Arc<Tiles>>);
 
 /// The runtime rect of the app's `rect` of a projection view (`projection`) or another layer.
 fn runtime_rect(i: &Interposed, app_extent: (u32, u32), rect: PixelRect, projection: bool) -> Option<(PixelRect, PixelRect)> {
     let src = rules::clamp_to(rect, app_extent)?;
     let dst = if projection { rules::runtime_rect(src, i.plan.k, i.plan.view, i.plan.runtime)? } else { rules::scaled_rect(src, i.plan.k, app_extent, i.plan.runtime)? };
     Some((src, dst))
-}
-
-fn pixel_rect(r: &xr::Rect2Di) -> PixelRect {
-    PixelRect { x: r.offset.x, y: r.offset.y, width: r.extent.width.max(0) as u32, height: r.extent.height.max(0) as u32 }
-}
-
-fn xr_rect(r: PixelRect) -> xr::Rect2Di {
-    xr::Rect2Di { offset: xr::Offset2Di { x: r.x, y: r.y }, extent: xr::Extent2Di { width: r.width as i32, height: r.height as i32 } }
-}
-
-/// A sub-image of a frame's layer, with its view index and angles when it is a projection view.
-type SubImage = (xr::SwapchainSubImage, Option<(u32, xr::Fovf)>);
-
-/// A layer's sub-images, whether they are projection views.
-///
-/// # Safety
-/// `layer` points to a valid composition layer of the app's frame.
-unsafe fn sub_images(layer: *const xr::CompositionLayerBaseHeader) -> Option<(bool, Vec<SubImage>)> {
-    // SAFETY: per the contract; the type tells the layout.
-    unsafe {
-        let base = layer.as_ref()?;
-        let one = |s: xr::SwapchainSubImage| vec![(s, None)];
-        Some(match base.ty {
-            xr::StructureType::COMPOSITION_LAYER_PROJECTION => {
-                let p = &*(layer as *const xr::CompositionLayerProjection);
-                (true, crate::vk::convert::slice(p.views, p.view_count).iter().enumerate().map(|(i, v)| (v.sub_image, Some((i as u32, v.fov)))).collect())
-            }
-            xr::StructureType::COMPOSITION_LAYER_QUAD => (false, one((*(layer as *const xr::CompositionLayerQuad)).sub_image)),
-            xr::StructureType::COMPOSITION_LAYER_CYLINDER_KHR => (false, one((*(layer as *const xr::CompositionLayerCylinderKHR)).sub_image)),
-            xr::StructureType::COMPOSITION_LAYER_EQUIRECT_KHR => (false, one((*(layer as *const xr::CompositionLayerEquirectKHR)).sub_image)),
-            xr::StructureType::COMPOSITION_LAYER_EQUIRECT2_KHR => (false, one((*(layer as *const xr::CompositionLayerEquirect2KHR)).sub_image)),
-            _ => return None,
-        })
-    }
 }
 
 /// Where EASU runs for a projection view's job (`upscale.fovea_only`): the foveation's inner
@@ -497,7 +480,7 @@ pub(super) fn release(s: &Session, handle: u64, sc: &Swapchain, i: &Interposed, 
     let older: Vec<u32> = lock(&i.pending).drain(..).collect();
     if !older.is_empty() {
         let (extent, layers) = ((sc.desc.width, sc.desc.height), sc.desc.array_size);
-        let work: Vec<Held<'_>> = older.iter().map(|&index| Held { handle, sc, i, index, jobs: whole_jobs(i, extent, layers), fovea: Vec::new(), views: Vec::new() }).collect();
+        let work: Vec<Held<'_>> = older.iter().map(|&index| Held { handle, sc, i, index, jobs: whole_jobs(i, extent, layers), fovea: Vec::new(), views: Vec::new(), tiles: Vec::new() }).collect();
         let r = run_and_release(s, &work);
         if r.into_raw() < 0 {
             return r;
@@ -564,26 +547,29 @@ fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
         let mut g = lock(&s.upscale.gpu);
         let g = g.as_mut().ok_or("no GPU objects")?;
         let d = g.device.clone();
+        // Locked in the frame's swapchain order; no other code holds two targets at once.
+        let mut targets: Vec<_> = work.iter().map(|w| lock(&w.i.target)).collect();
         let (cb, fence) = g.slots.take(&d)?;
         // SAFETY: a command buffer of the layer's, not in use (its fence signalled or it is new).
         let recorded = unsafe {
             (|| {
                 d.fns.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT)).map_err(|e| format!("vkBeginCommandBuffer: {e}"))?;
                 g.slots.mark(&d, cb, 0);
-                // Locked in the frame's swapchain order; no other code holds two targets at once.
-                let targets: Vec<_> = work.iter().map(|w| lock(&w.i.target)).collect();
+                let preps: Vec<_> = work.iter().zip(targets.iter_mut()).map(|(w, t)| t.record_tile_uploads(&d, cb, &w.tiles)).collect();
                 let frame: Vec<Work<'_>> = work
                     .iter()
                     .zip(&targets)
-                    .map(|(w, t)| Work { target: t, index: w.index as usize, jobs: &w.jobs, fovea: &w.fovea, sharpness: w.i.sharpness })
+                    .zip(preps)
+                    .map(|((w, t), prep)| Work { target: t, index: w.index as usize, jobs: &w.jobs, fovea: &w.fovea, tiles: &w.tiles, prep, sharpness: w.i.sharpness })
                     .collect();
                 record_frame(&d, &g.pipelines, cb, &frame, &|k| g.slots.mark(&d, cb, k));
-                g.slots.mark(&d, cb, crate::features::upscale::vk::MARKS - 1);
+                g.slots.mark(&d, cb, MARKS - 1);
                 d.fns.end_command_buffer(cb).map_err(|e| format!("vkEndCommandBuffer: {e}"))
             })()
         };
         if let Err(e) = recorded {
             g.slots.abandon(&d, cb);
+            targets.iter_mut().for_each(|t| t.forget_tiles());
             return Err(e);
         }
         (d, g.slots.queue, cb, fence, g.slots.last_gpu_ms, g.slots.last_phases_ms.clone())
@@ -606,6 +592,8 @@ fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
         if let Some(g) = lock(&s.upscale.gpu).as_mut() {
             g.slots.abandon(&d, cb);
         }
+        // The tile uploads it recorded never ran.
+        work.iter().for_each(|w| lock(&w.i.target).forget_tiles());
     } else {
         let jobs: usize = work.iter().map(|w| w.jobs.len()).sum();
         let pixels: u64 = work.iter().flat_map(|w| &w.jobs).map(|j| j.dst.area()).sum();
@@ -629,7 +617,7 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
     // The jobs each interposed swapchain's latest held image gets from this frame, with where
     // EASU runs.
     let settings = super::settings(&s.instance);
-    let mut jobs: Vec<(u64, Job, [f32; 4], Option<u32>)> = Vec::new();
+    let mut jobs: Vec<FrameJob> = Vec::new();
     let mut unknown = false;
     for &l in &layers {
         // SAFETY: the app's layer, valid for this call.
@@ -641,8 +629,9 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
                     let i = sc.upscale.as_ref().expect("filtered");
                     if let Some((src, dst)) = runtime_rect(i, (sc.desc.width, sc.desc.height), pixel_rect(&sub.image_rect), projection) {
                         let job = Job { layer: sub.image_array_index, src, dst };
-                        if !jobs.iter().any(|(h, j, _, _)| *h == handle && *j == job) {
-                            jobs.push((handle, job, fovea_of(&settings, view, dst), view.map(|v| v.0)));
+                        if !jobs.iter().any(|(h, j, _, _, _)| *h == handle && *j == job) {
+                            let tiles = view.filter(|_| settings.upscale.skip_hidden).and_then(|(v, fov)| s.upscale.lens.tiles(s, v, &fov, dst));
+                            jobs.push((handle, job, fovea_of(&settings, view, dst), view.map(|v| v.0), tiles));
                         }
                     }
                 }
@@ -660,96 +649,33 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
         let held: Vec<u32> = lock(&i.pending).drain(..).collect();
         let n = held.len();
         for (k, index) in held.into_iter().enumerate() {
-            let mine: Vec<(Job, [f32; 4], Option<u32>)> = jobs.iter().filter(|(h, _, _, _)| *h == handle).map(|(_, j, f, v)| (*j, *f, *v)).collect();
+            let mine: Vec<_> = jobs.iter().filter(|m| m.0 == handle).collect();
             // The latest held image is what the frame shows; older ones go out whole.
-            let (jobs, fovea, views) = if k + 1 == n && !mine.is_empty() {
-                (mine.iter().map(|m| m.0).collect(), mine.iter().map(|m| m.1).collect(), mine.iter().map(|m| m.2).collect())
+            let held = if k + 1 == n && !mine.is_empty() {
+                Held {
+                    handle,
+                    sc,
+                    i,
+                    index,
+                    jobs: mine.iter().map(|m| m.1).collect(),
+                    fovea: mine.iter().map(|m| m.2).collect(),
+                    views: mine.iter().map(|m| m.3).collect(),
+                    tiles: mine.iter().map(|m| m.4.clone()).collect(),
+                }
             } else {
-                (whole_jobs(i, (sc.desc.width, sc.desc.height), sc.desc.array_size), Vec::new(), Vec::new())
+                Held { handle, sc, i, index, jobs: whole_jobs(i, (sc.desc.width, sc.desc.height), sc.desc.array_size), fovea: Vec::new(), views: Vec::new(), tiles: Vec::new() }
             };
-            work.push(Held { handle, sc, i, index, jobs, fovea, views });
+            work.push(held);
         }
     }
     let r = run_and_release(s, &work);
     if r.into_raw() < 0 {
         tracing::warn!("upscale: the runtime refused a release ({r:?})");
     }
-    Some(rewrite(info, &layers, &|h| find(h).map(|sc| (sc.upscale.as_ref().expect("filtered"), (sc.desc.width, sc.desc.height)))))
-}
-
-/// The frame with every interposed sub-image's rect mapped to the runtime's image.
-fn rewrite<'a>(info: &xr::FrameEndInfo, layers: &[*const xr::CompositionLayerBaseHeader], lookup: &dyn Fn(xr::Swapchain) -> Option<(&'a Interposed, (u32, u32))>) -> super::feature::AmendedFrameEnd {
-    // Boxed: the pointers handed down must not move while later layers are pushed.
-    #[allow(clippy::vec_box)]
-    struct Keep {
-        projections: Vec<Box<xr::CompositionLayerProjection>>,
-        views: Vec<Vec<xr::CompositionLayerProjectionView>>,
-        quads: Vec<Box<xr::CompositionLayerQuad>>,
-        cylinders: Vec<Box<xr::CompositionLayerCylinderKHR>>,
-        equirects: Vec<Box<xr::CompositionLayerEquirectKHR>>,
-        equirects2: Vec<Box<xr::CompositionLayerEquirect2KHR>>,
-        layers: Vec<*const xr::CompositionLayerBaseHeader>,
-    }
-    let map = |sub: &mut xr::SwapchainSubImage, projection: bool| {
-        if let Some((i, extent)) = lookup(sub.swapchain) {
-            if let Some((_, dst)) = runtime_rect(i, extent, pixel_rect(&sub.image_rect), projection) {
-                sub.image_rect = xr_rect(dst);
-            }
-        }
-    };
-    let mut keep = Keep { projections: Vec::new(), views: Vec::new(), quads: Vec::new(), cylinders: Vec::new(), equirects: Vec::new(), equirects2: Vec::new(), layers: Vec::new() };
-    for &l in layers {
-        // SAFETY: the app's layers, valid for this call; each copied by its type.
-        let out: *const xr::CompositionLayerBaseHeader = unsafe {
-            match l.as_ref().map(|b| b.ty) {
-                Some(xr::StructureType::COMPOSITION_LAYER_PROJECTION) => {
-                    let mut p = Box::new(*(l as *const xr::CompositionLayerProjection));
-                    let mut views = crate::vk::convert::slice(p.views, p.view_count).to_vec();
-                    for v in &mut views {
-                        map(&mut v.sub_image, true);
-                    }
-                    p.views = views.as_ptr();
-                    keep.views.push(views);
-                    let ptr = (&*p as *const xr::CompositionLayerProjection).cast();
-                    keep.projections.push(p);
-                    ptr
-                }
-                Some(xr::StructureType::COMPOSITION_LAYER_QUAD) => {
-                    let mut q = Box::new(*(l as *const xr::CompositionLayerQuad));
-                    map(&mut q.sub_image, false);
-                    let ptr = (&*q as *const xr::CompositionLayerQuad).cast();
-                    keep.quads.push(q);
-                    ptr
-                }
-                Some(xr::StructureType::COMPOSITION_LAYER_CYLINDER_KHR) => {
-                    let mut c = Box::new(*(l as *const xr::CompositionLayerCylinderKHR));
-                    map(&mut c.sub_image, false);
-                    let ptr = (&*c as *const xr::CompositionLayerCylinderKHR).cast();
-                    keep.cylinders.push(c);
-                    ptr
-                }
-                Some(xr::StructureType::COMPOSITION_LAYER_EQUIRECT_KHR) => {
-                    let mut e = Box::new(*(l as *const xr::CompositionLayerEquirectKHR));
-                    map(&mut e.sub_image, false);
-                    let ptr = (&*e as *const xr::CompositionLayerEquirectKHR).cast();
-                    keep.equirects.push(e);
-                    ptr
-                }
-                Some(xr::StructureType::COMPOSITION_LAYER_EQUIRECT2_KHR) => {
-                    let mut e = Box::new(*(l as *const xr::CompositionLayerEquirect2KHR));
-                    map(&mut e.sub_image, false);
-                    let ptr = (&*e as *const xr::CompositionLayerEquirect2KHR).cast();
-                    keep.equirects2.push(e);
-                    ptr
-                }
-                _ => l,
-            }
-        };
-        keep.layers.push(out);
-    }
-    let keep = Box::new(keep);
-    let info = xr::FrameEndInfo { layer_count: keep.layers.len() as u32, layers: if keep.layers.is_empty() { info.layers } else { keep.layers.as_ptr() }, ..*info };
-    super::feature::AmendedFrameEnd { info, _keep: keep }
+    Some(rewrite(info, &layers, &|h, rect, projection| {
+        let sc = find(h)?;
+        runtime_rect(sc.upscale.as_ref().expect("filtered"), (sc.desc.width, sc.desc.height), rect, projection).map(|(_, dst)| dst)
+    }))
 }
 
 /// Destroys an interposed swapchain's objects (before the runtime's swapchain goes down).

@@ -1,6 +1,7 @@
 //! A minimal Vulkan compute harness for the upscale's passes (`features::upscale::gpu`): one
 //! device, the input uploaded as RGBA32F, EASU into an RGBA16F image, RCAS into another, read
-//! back, with the device's timestamps around each pass. Used by tests/upscale_filters.rs (against
+//! back, with the device's timestamps around each pass; the tile classes of
+//! `upscale.skip_hidden` in a storage buffer. Used by tests/upscale_filters.rs (against
 //! the CPU reference) and examples/upscale_bench.rs (their GPU time at a headset's size).
 
 use ash::vk;
@@ -17,12 +18,15 @@ pub struct Shaders<'a> {
     /// The input image's format: R32G32B32A32_SFLOAT (exact, for the comparison with the CPU
     /// reference) or R8G8B8A8_UNORM (what apps render).
     pub input: vk::Format,
+    /// Per workgroup of the output, row by row, the passes that skip it (`lens` classes): each
+    /// pass then runs the list of the others, over outputs cleared black; empty: none skipped.
+    pub tiles: &'a [u32],
 }
 
 impl Shaders<'static> {
     /// The layer's own passes.
     pub fn product() -> Shaders<'static> {
-        Shaders { easu: gpu::EASU, rcas: gpu::RCAS, group: gpu::GROUP, input: vk::Format::R32G32B32A32_SFLOAT }
+        Shaders { easu: gpu::EASU, rcas: gpu::RCAS, group: gpu::GROUP, input: vk::Format::R32G32B32A32_SFLOAT, tiles: &[] }
     }
 }
 
@@ -161,8 +165,8 @@ impl Gpu {
         let (staging, staging_mem) = self.buffer(texels.len() as u64, vk::BufferUsageFlags::TRANSFER_SRC);
         let (readback, readback_mem) = self.buffer(w as u64 * h as u64 * 8, vk::BufferUsageFlags::TRANSFER_DST);
         let (input, input_view, input_mem) = self.image(fmt_in, (src.width, src.height), vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST);
-        let (temp, temp_view, temp_mem) = self.image(fmt, (w, h), vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::STORAGE);
-        let (out, out_view, out_mem) = self.image(fmt, (w, h), vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC);
+        let (temp, temp_view, temp_mem) = self.image(fmt, (w, h), vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_DST);
+        let (out, out_view, out_mem) = self.image(fmt, (w, h), vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST);
         let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
         let layers = vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: 0, layer_count: 1 };
         let barrier = |image, (old, new), (src, dst)| {
@@ -195,21 +199,40 @@ impl Gpu {
             let bindings = [
                 vk::DescriptorSetLayoutBinding::default().binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE),
                 vk::DescriptorSetLayoutBinding::default().binding(1).descriptor_type(vk::DescriptorType::STORAGE_IMAGE).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE),
+                vk::DescriptorSetLayoutBinding::default().binding(2).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE),
             ];
+            // The lists as the layer makes them (`lens::classify`): x | y << 16 of each tile a pass
+            // runs, EASU's then RCAS's.
+            let cols = w.div_ceil(shaders.group) as usize;
+            let list = |skips: u32| -> Vec<u32> { shaders.tiles.iter().enumerate().filter(|(_, &c)| c & skips == 0).map(|(i, _)| (i % cols) as u32 | ((i / cols) as u32) << 16).collect() };
+            let (easu_list, rcas_list) = (list(2), list(1));
+            let lists = [easu_list.clone(), rcas_list.clone()].concat();
+            let (tiles, tiles_mem) = self.buffer(4 * lists.len().max(1) as u64, vk::BufferUsageFlags::STORAGE_BUFFER);
+            let t = d.map_memory(tiles_mem.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()).unwrap() as *mut u32;
+            std::ptr::copy_nonoverlapping(lists.as_ptr(), t, lists.len());
+            d.unmap_memory(tiles_mem.memory);
+            let listed = !shaders.tiles.is_empty();
+            let (easu_skip, rcas_skip) = if listed { ([0, 1, 0, 0], [easu_list.len() as i32, 1, 0, 0]) } else { ([0; 4], [0; 4]) };
             let set_layout = d.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).unwrap();
             let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::COMPUTE, offset: 0, size: gpu::PUSH_BYTES }];
             let set_layouts = [set_layout];
             let layout = d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts).push_constant_ranges(&ranges), None).unwrap();
             let (easu, rcas) = (self.pipeline(shaders.easu, layout), self.pipeline(shaders.rcas, layout));
-            let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 2 }, vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_IMAGE, descriptor_count: 2 }];
+            let sizes = [
+                vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 2 },
+                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_IMAGE, descriptor_count: 2 },
+                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 2 },
+            ];
             let pool = d.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(2).pool_sizes(&sizes), None).unwrap();
             let sets = d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&[set_layout, set_layout])).unwrap();
             for (set, (from, to)) in sets.iter().zip([(input_view, temp_view), (temp_view, out_view)]) {
                 let sampled = [vk::DescriptorImageInfo { sampler, image_view: from, image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL }];
                 let storage = [vk::DescriptorImageInfo { sampler: vk::Sampler::null(), image_view: to, image_layout: vk::ImageLayout::GENERAL }];
+                let table = [vk::DescriptorBufferInfo { buffer: tiles, offset: 0, range: vk::WHOLE_SIZE }];
                 let writes = [
                     vk::WriteDescriptorSet::default().dst_set(*set).dst_binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(&sampled),
                     vk::WriteDescriptorSet::default().dst_set(*set).dst_binding(1).descriptor_type(vk::DescriptorType::STORAGE_IMAGE).image_info(&storage),
+                    vk::WriteDescriptorSet::default().dst_set(*set).dst_binding(2).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&table),
                 ];
                 d.update_descriptor_sets(&writes, &[]);
             }
@@ -223,35 +246,43 @@ impl Gpu {
             d.cmd_pipeline_barrier(cb, top, xfer, vk::DependencyFlags::empty(), &[], &[], &[barrier(input, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL), (none, tw))]);
             let region = vk::BufferImageCopy { buffer_offset: 0, buffer_row_length: 0, buffer_image_height: 0, image_subresource: layers, image_offset: vk::Offset3D::default(), image_extent: vk::Extent3D { width: src.width, height: src.height, depth: 1 } };
             d.cmd_copy_buffer_to_image(cb, staging, input, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &[region]);
+            // Both outputs black first, as the layer clears its intermediates: the tiles a list
+            // leaves out stay so.
+            let to_clear = [barrier(temp, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL), (none, tw)), barrier(out, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL), (none, tw))];
+            d.cmd_pipeline_barrier(cb, top, xfer, vk::DependencyFlags::empty(), &[], &[], &to_clear);
+            for image in [temp, out] {
+                d.cmd_clear_color_image(cb, image, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &vk::ClearColorValue { float32: [0.0, 0.0, 0.0, 1.0] }, &[range]);
+            }
             let to_run = [
                 barrier(input, (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL), (tw, sr)),
-                barrier(temp, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::GENERAL), (none, sw)),
-                barrier(out, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::GENERAL), (none, sw)),
+                barrier(temp, (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::GENERAL), (tw, sw)),
+                barrier(out, (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::GENERAL), (tw, sw)),
             ];
             d.cmd_pipeline_barrier(cb, xfer, cs, vk::DependencyFlags::empty(), &[], &[], &to_run);
-            let (gx, gy) = (w.div_ceil(shaders.group), h.div_ceil(shaders.group));
+            let whole = (w.div_ceil(shaders.group), h.div_ceil(shaders.group));
+            let (easu_groups, rcas_groups) = if listed { ((easu_list.len() as u32, 1), (rcas_list.len() as u32, 1)) } else { (whole, whole) };
             d.cmd_write_timestamp(cb, cs, queries, 0);
             d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, easu);
             d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &sets[..1], &[]);
-            let ep = gpu::EasuParams { src_rect: [0, 0, src.width as i32, src.height as i32], dst_rect: [0, 0, w as i32, h as i32], ..Default::default() };
+            let ep = gpu::EasuParams { src_rect: [0, 0, src.width as i32, src.height as i32], dst_rect: [0, 0, w as i32, h as i32], skip: easu_skip, ..Default::default() };
             d.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, &ep.bytes());
             for k in 0..repeat {
                 if k > 0 {
                     d.cmd_pipeline_barrier(cb, cs, cs, vk::DependencyFlags::empty(), &[], &[], &[barrier(temp, (vk::ImageLayout::GENERAL, vk::ImageLayout::GENERAL), (sw, sw))]);
                 }
-                d.cmd_dispatch(cb, gx, gy, 1);
+                d.cmd_dispatch(cb, easu_groups.0, easu_groups.1, 1);
             }
             d.cmd_pipeline_barrier(cb, cs, cs, vk::DependencyFlags::empty(), &[], &[], &[barrier(temp, (vk::ImageLayout::GENERAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL), (sw, sr))]);
             d.cmd_write_timestamp(cb, cs, queries, 1);
             d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, rcas);
             d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, layout, 0, &sets[1..], &[]);
-            let rp = gpu::RcasParams { rect: [0, 0, w as i32, h as i32], sharpness: [sharpness, 0.0, 0.0, 0.0], ..Default::default() };
+            let rp = gpu::RcasParams { rect: [0, 0, w as i32, h as i32], sharpness: [sharpness, 0.0, 0.0, 0.0], skip: rcas_skip, ..Default::default() };
             d.cmd_push_constants(cb, layout, vk::ShaderStageFlags::COMPUTE, 0, &rp.bytes());
             for k in 0..repeat {
                 if k > 0 {
                     d.cmd_pipeline_barrier(cb, cs, cs, vk::DependencyFlags::empty(), &[], &[], &[barrier(out, (vk::ImageLayout::GENERAL, vk::ImageLayout::GENERAL), (sw, sw))]);
                 }
-                d.cmd_dispatch(cb, gx, gy, 1);
+                d.cmd_dispatch(cb, rcas_groups.0, rcas_groups.1, 1);
             }
             d.cmd_write_timestamp(cb, cs, queries, 2);
             d.cmd_pipeline_barrier(cb, cs, xfer, vk::DependencyFlags::empty(), &[], &[], &[barrier(out, (vk::ImageLayout::GENERAL, vk::ImageLayout::TRANSFER_SRC_OPTIMAL), (sw, tr))]);
@@ -284,10 +315,10 @@ impl Gpu {
                 d.destroy_image_view(view, None);
                 d.destroy_image(image, None);
             }
-            for b in [staging, readback] {
+            for b in [staging, readback, tiles] {
                 d.destroy_buffer(b, None);
             }
-            for m in [staging_mem, readback_mem, input_mem, temp_mem, out_mem] {
+            for m in [staging_mem, readback_mem, tiles_mem, input_mem, temp_mem, out_mem] {
                 d.free_memory(m.memory, None);
             }
             let texels = halves.chunks_exact(4).map(|c| [f16_to_f32(c[0]), f16_to_f32(c[1]), f16_to_f32(c[2]), f16_to_f32(c[3])]).collect();

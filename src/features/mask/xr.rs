@@ -72,7 +72,7 @@ impl XrFeature for MaskXr {
 
 /// Fetches one view's hidden triangle mesh from the runtime (two-call idiom). None when the runtime
 /// offers no visibility mask or the call fails (logged).
-fn runtime_mask(s: &Session, view: u32) -> Option<Vec<[f32; 2]>> {
+pub(crate) fn runtime_mask(s: &Session, view: u32) -> Option<Vec<[f32; 2]>> {
     if !s.instance.has_extension(VISIBILITY_MASK_EXT) {
         return None;
     }

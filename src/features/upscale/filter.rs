@@ -286,6 +286,12 @@ pub mod quality {
     /// native image has an edge (its own gradient above `threshold`), as a fraction of the native
     /// image's there. 1: edges as crisp as native; a blurring upscale gives less.
     pub fn edge_energy(img: &Image, native: &Image, threshold: f32) -> f64 {
+        edge_energy_where(img, native, threshold, &|_, _| true)
+    }
+
+    /// `edge_energy` over the pixels `counted` (x, y) says: the others (a lens's hidden area, whose
+    /// outline is an edge in both images) are left out.
+    pub fn edge_energy_where(img: &Image, native: &Image, threshold: f32, counted: &dyn Fn(i64, i64) -> bool) -> f64 {
         let grad = |im: &Image, x: i64, y: i64| {
             let c = im.at(x, y).luma();
             let dx = im.at(x + 1, y).luma() - c;
@@ -296,7 +302,7 @@ pub mod quality {
         for y in 0..native.height as i64 {
             for x in 0..native.width as i64 {
                 let g = grad(native, x, y);
-                if g > (threshold * threshold) as f64 {
+                if g > (threshold * threshold) as f64 && counted(x, y) {
                     want += g;
                     got += grad(img, x, y);
                 }

@@ -1,6 +1,7 @@
 //! The upscale's GPU passes (`shaders/upscale_easu.comp`, `shaders/upscale_rcas.comp`): their
 //! SPIR-V and push constants. Both read a sampled image with `texelFetch` (binding 0, combined
-//! image sampler) and write an RGBA16F storage image (binding 1), one invocation per output pixel
+//! image sampler) and write an RGBA16F storage image (binding 1), read which tiles they skip from
+//! a storage buffer (binding 2: `lens`, `upscale.skip_hidden`), one invocation per output pixel
 //! in 16×16 workgroups; they match `filter::easu` and `filter::rcas` (tests/upscale_filters.rs
 //! holds them to it on the device).
 
@@ -35,6 +36,9 @@ pub struct EasuParams {
     /// Where EASU runs: an ellipse (centre x, y, radii) in destination texels, bilinear outside;
     /// radius 0: everywhere, negative: nowhere (the bilinear method).
     pub fovea: [f32; 4],
+    /// `upscale.skip_hidden`: the job's first entry in the tile buffer (binding 2) and its tiles
+    /// per row (0: nothing skipped).
+    pub skip: [i32; 4],
 }
 
 /// RCAS's push constants: the rect (the same texels in both images) and the sharpness (x).
@@ -47,24 +51,27 @@ pub struct RcasParams {
     pub sharpness: [f32; 4],
     /// Where RCAS sharpens (as `EasuParams::fovea`; radius 0: everywhere).
     pub fovea: [f32; 4],
+    /// As `EasuParams::skip`.
+    pub skip: [i32; 4],
 }
 
 impl EasuParams {
     /// The push constants' bytes (as the shader's std430-like block lays them out).
     pub fn bytes(&self) -> Vec<u8> {
-        self.src_rect.iter().chain(&self.dst_rect).flat_map(|v| v.to_ne_bytes()).chain(self.fovea.iter().flat_map(|v| v.to_ne_bytes())).collect()
+        let ints = |v: &[i32; 4]| v.iter().flat_map(|x| x.to_ne_bytes()).collect::<Vec<u8>>();
+        [ints(&self.src_rect), ints(&self.dst_rect), self.fovea.iter().flat_map(|v| v.to_ne_bytes()).collect(), ints(&self.skip)].concat()
     }
 }
 
 impl RcasParams {
     /// The push constants' bytes.
     pub fn bytes(&self) -> Vec<u8> {
-        self.rect.iter().flat_map(|v| v.to_ne_bytes()).chain(self.sharpness.iter().chain(&self.fovea).flat_map(|v| v.to_ne_bytes())).collect()
+        self.rect.iter().flat_map(|v| v.to_ne_bytes()).chain(self.sharpness.iter().chain(&self.fovea).flat_map(|v| v.to_ne_bytes())).chain(self.skip.iter().flat_map(|v| v.to_ne_bytes())).collect()
     }
 }
 
 /// The push constants' size (both passes).
-pub const PUSH_BYTES: u32 = 48;
+pub const PUSH_BYTES: u32 = 64;
 
 /// Workgroups covering `width`×`height` pixels.
 pub fn groups(width: u32, height: u32) -> (u32, u32) {

@@ -9,8 +9,10 @@
 
 pub mod filter;
 pub mod gpu;
+pub mod lens;
 pub(crate) mod record;
 pub mod rules;
+pub(crate) mod slots;
 pub(crate) mod vk;
 
 use crate::config::{Config, KeySpec, Kind};
@@ -52,6 +54,12 @@ pub const KEYS: &[KeySpec] = &[
         kind: Kind::Bool,
         default: "false",
         doc: "the costly filter only inside the foveation's inner region, bilinear outside (cheaper, softer periphery)",
+    },
+    KeySpec {
+        key: "upscale.skip_hidden",
+        kind: Kind::Bool,
+        default: "true",
+        doc: "skip the upscale where the runtime's hidden-area mesh says the lens never shows (written black); every pixel within 2 of a visible one is upscaled as without it",
     },
 ];
 
@@ -95,6 +103,7 @@ pub struct UpscaleSettings {
     pub mip_bias: MipBias,
     pub mip_bias_valid: bool,
     pub fovea_only: bool,
+    pub skip_hidden: bool,
 }
 
 impl UpscaleSettings {
@@ -112,6 +121,7 @@ impl UpscaleSettings {
             mip_bias: parsed.unwrap_or(MipBias::Auto),
             mip_bias_valid: parsed.is_some(),
             fovea_only: c.bool("upscale.fovea_only"),
+            skip_hidden: c.bool("upscale.skip_hidden"),
         }
     }
 

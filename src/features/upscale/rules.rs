@@ -96,6 +96,7 @@ pub struct Ask {
     pub height: u32,
     pub sample_count: u32,
     pub face_count: u32,
+    pub mip_count: u32,
     /// A depth or stencil swapchain (usage or format).
     pub depth: bool,
     pub protected: bool,
@@ -109,7 +110,11 @@ pub enum Skip {
     /// Depth stays at the app's size: `XrCompositionLayerDepthInfoKHR::subImage.imageRect` maps
     /// its own rect onto the view, so a depth map at the render size describes the same view.
     Depth,
-    Multisampled(u32),
+    /// Several samples and several mip levels: Vulkan makes no such image (VUID-VkImageCreateInfo-samples-02257),
+    /// so the runtime refuses it too.
+    MultisampledMips,
+    /// A cube map: sized by the app for its cube layer (no told size of a view applies) and
+    /// sampled by direction.
     Cube(u32),
     Protected,
     /// Not a view's aspect (nor two views' side by side): a quad, a UI panel.
@@ -123,8 +128,8 @@ impl Skip {
         match self {
             Skip::Unscaled => "the told size is the display size".into(),
             Skip::Depth => "a depth swapchain (submitted at the app's size: its imageRect maps it onto the view)".into(),
-            Skip::Multisampled(n) => format!("{n} samples per pixel"),
-            Skip::Cube(n) => format!("{n} faces"),
+            Skip::MultisampledMips => "several samples per pixel and several mip levels".into(),
+            Skip::Cube(n) => format!("{n} faces: a cube map, sized by the app (not from a view's told size)"),
             Skip::Protected => "protected content".into(),
             Skip::NotAViewSize => "not a view's aspect (a panel, not an eye)".into(),
             Skip::NoViews => "no view sizes known".into(),
@@ -149,8 +154,8 @@ fn same_aspect(w: u32, h: u32, aspect: f64) -> bool {
     h > 0 && aspect > 0.0 && ((w as f64 / h as f64) / aspect - 1.0).abs() <= 0.02
 }
 
-/// Whether and how a swapchain the app asks for is interposed: a single-sample, single-face
-/// colour swapchain with a view's aspect (or two views' side by side). Its size may be the told
+/// Whether and how a swapchain the app asks for is interposed: a single-face colour swapchain (any
+/// sample count) with a view's aspect (or two views' side by side). Its size may be the told
 /// one or the app's own fraction of it (an engine's render scale): the runtime's image is the
 /// app's size times display ÷ told either way, so the app keeps its own scale on top.
 pub fn plan(ask: &Ask, views: &[ViewSizes]) -> Result<Plan, Skip> {
@@ -160,8 +165,10 @@ pub fn plan(ask: &Ask, views: &[ViewSizes]) -> Result<Plan, Skip> {
     if ask.depth {
         return Err(Skip::Depth);
     }
-    if ask.sample_count > 1 {
-        return Err(Skip::Multisampled(ask.sample_count));
+    // A multisampled swapchain is interposed: the app's images keep their samples, each frame's
+    // are resolved before the upscale, and the runtime's swapchain is single-sampled.
+    if ask.sample_count > 1 && ask.mip_count > 1 {
+        return Err(Skip::MultisampledMips);
     }
     if ask.face_count > 1 {
         return Err(Skip::Cube(ask.face_count));
@@ -271,7 +278,7 @@ mod tests {
     #[test]
     fn which_swapchains_are_interposed() {
         let views = told(&[((2016, 2240), (4096, 4096)), ((2016, 2240), (4096, 4096))], 0.77);
-        let ask = |w, h| Ask { width: w, height: h, sample_count: 1, face_count: 1, depth: false, protected: false };
+        let ask = |w, h| Ask { width: w, height: h, sample_count: 1, face_count: 1, mip_count: 1, depth: false, protected: false };
         let p = plan(&ask(1552, 1725), &views).unwrap();
         assert_eq!((p.runtime, p.view), ((2016, 2240), (2016, 2240)));
         // The app's own render scale on top of the told size: scaled up by the same factors.
@@ -282,7 +289,9 @@ mod tests {
         assert_eq!(plan(&ask(1552, 1728), &views).unwrap().runtime.0, 2016);
         assert_eq!(plan(&ask(512, 512), &views), Err(Skip::NotAViewSize));
         assert_eq!(plan(&Ask { depth: true, ..ask(1552, 1725) }, &views), Err(Skip::Depth));
-        assert_eq!(plan(&Ask { sample_count: 4, ..ask(1552, 1725) }, &views), Err(Skip::Multisampled(4)));
+        assert_eq!(plan(&Ask { sample_count: 4, ..ask(1552, 1725) }, &views).unwrap().runtime, (2016, 2240));
+        assert_eq!(plan(&Ask { mip_count: 3, ..ask(1552, 1725) }, &views).unwrap().runtime, (2016, 2240));
+        assert_eq!(plan(&Ask { sample_count: 4, mip_count: 3, ..ask(1552, 1725) }, &views), Err(Skip::MultisampledMips));
         assert_eq!(plan(&Ask { face_count: 6, ..ask(1552, 1725) }, &views), Err(Skip::Cube(6)));
         assert_eq!(plan(&ask(1552, 1725), &[]), Err(Skip::NoViews));
         let one = told(&[((1, 1), (1, 1))], 0.5);

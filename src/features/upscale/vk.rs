@@ -5,25 +5,35 @@
 //! them; the layer's own objects (pipelines, intermediates, views, descriptors, command buffers)
 //! through the layer's counted table below it (`DeviceState::fns`), as every feature's.
 //!
-//! Per interposed swapchain (`Target`): the app's images and a view per array layer, an RGBA16F
-//! intermediate of the runtime image's size (EASU's output), the descriptor sets (written once:
-//! nothing is updated per frame), and per runtime image and layer a framebuffer. A frame's upscale
-//! (`record::record_frame`) is EASU per job (a view's rect in one array layer) as compute, then RCAS as a
-//! fragment pass drawing the job's rect of the runtime's image as a colour attachment;
-//! `Method::Bilinear` is that fragment pass alone, sampling the app's image. Why fragment and not
-//! compute or a blit for the last step: the runtime's image stays in COLOR_ATTACHMENT_OPTIMAL
-//! (the layout it is acquired and released in, so no transition, which can cost a decompression)
-//! and its format's encoding (sRGB) is done by the output merger. A blit with its two transitions
-//! cost 0.67 ms per frame for two Index eyes on an H100, the whole EASU + RCAS pass 0.24 ms
-//! (docs/benchmarks.md). The app's images come back in the layout the OpenXR Vulkan binding
-//! names, the runtime's never leave it.
+//! Per interposed swapchain (`Target`): the app's images and a view per array layer (with a
+//! multisampled swapchain, also one single-sample image the frame's samples are resolved into,
+//! which the upscale reads), an RGBA16F intermediate of the runtime image's size (EASU's output),
+//! where `Output::Copy` applies an image of texels in the runtime image's encoding (RCAS's output,
+//! copied into the runtime's image), the descriptor sets (written once: nothing is updated per
+//! frame), and for `Output::Fragment` per runtime image and layer a framebuffer. `record` records
+//! a frame's upscale; `slots` holds the command buffers. The app's images come back in the layout
+//! the OpenXR Vulkan binding names; the runtime's are left in it.
 
 use super::gpu;
+use super::lens::Tiles;
 use super::Method;
+use std::sync::Arc;
 use crate::core::rect::PixelRect;
 use crate::vk::DeviceState;
 use ash::vk;
-use ash::vk::Handle as _;
+
+/// How a frame finds a target's intermediates (`Target::record_tile_uploads`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Prep {
+    /// In the layouts the last upscale left them in (else UNDEFINED).
+    pub defined: bool,
+    /// To be cleared black before the passes (they run tile lists, and the tiles outside them
+    /// may hold pixels).
+    pub clear: bool,
+}
+
+/// Tile-class slots per array layer: a layer holds one view, or two side by side.
+const TILE_SLOTS_PER_LAYER: u32 = 2;
 
 /// The intermediates' format: what EASU and RCAS store (`rgba16f` in the shaders).
 const INTERMEDIATE: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
@@ -111,6 +121,7 @@ impl Pipelines {
         let bindings = [
             vk::DescriptorSetLayoutBinding::default().binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).descriptor_count(1).stage_flags(PUSH_STAGES),
             vk::DescriptorSetLayoutBinding::default().binding(1).descriptor_type(vk::DescriptorType::STORAGE_IMAGE).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE),
+            vk::DescriptorSetLayoutBinding::default().binding(2).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE),
         ];
         // SAFETY: per `new`'s contract.
         unsafe {
@@ -206,6 +217,8 @@ pub(crate) struct TargetDesc {
     pub extent: (u32, u32),
     pub layers: u32,
     pub mips: u32,
+    /// Samples per pixel of the app's images (1: single-sampled). The runtime's are single-sampled.
+    pub samples: u32,
     /// The app's usage as Vulkan usage (the layer adds what the upscale reads with).
     pub usage: vk::ImageUsageFlags,
     pub mutable_format: bool,
@@ -224,6 +237,23 @@ pub(crate) struct Target {
     pub(super) a: (vk::Image, vk::DeviceMemory, Vec<vk::ImageView>),
     /// RCAS's output, copied into the runtime's image (`Output::Copy`).
     pub(super) b: (vk::Image, vk::DeviceMemory, Vec<vk::ImageView>),
+    /// The tile classes of `upscale.skip_hidden` (`lens`), in device memory (every workgroup reads
+    /// its entry: host memory across the bus cost more than the skipping saved, on an H100):
+    /// `TILE_SLOTS_PER_LAYER` slots per array layer, a frame's job k in slot k: the tiles EASU
+    /// runs, then from `tile_slot_len` on those RCAS runs; written by `vkCmdUpdateBuffer` in the
+    /// upscale's own command buffer.
+    pub(super) tiles: (vk::Buffer, vk::DeviceMemory),
+    tile_slot_len: u32,
+    /// What each slot holds (or will hold once the recorded upload runs).
+    tile_contents: Vec<Option<Arc<Tiles>>>,
+    /// The intermediates' contents: their layouts are the ones the last upscale left (else
+    /// UNDEFINED), and every tile no pass runs is black (cleared since the tile lists last changed
+    /// and no full dispatch since).
+    inter_defined: bool,
+    inter_black: bool,
+    /// A multisampled swapchain's resolved image (the app's size, single-sampled): what the
+    /// upscale reads. Null for a single-sampled one, whose app images are read directly.
+    pub(super) resolve: (vk::Image, vk::DeviceMemory, Vec<vk::ImageView>),
     pub(super) pool: vk::DescriptorPool,
     /// The app image's set per (app image, layer): EASU's source and output, the bilinear pass's
     /// source. RCAS's per layer (EASU's output as its source).
@@ -262,6 +292,12 @@ impl Target {
             app: Vec::new(),
             a: (vk::Image::null(), vk::DeviceMemory::null(), Vec::new()),
             b: (vk::Image::null(), vk::DeviceMemory::null(), Vec::new()),
+            resolve: (vk::Image::null(), vk::DeviceMemory::null(), Vec::new()),
+            tiles: (vk::Buffer::null(), vk::DeviceMemory::null()),
+            tile_slot_len: 0,
+            tile_contents: Vec::new(),
+            inter_defined: false,
+            inter_black: false,
             pool: vk::DescriptorPool::null(),
             easu_sets: Vec::new(),
             rcas_sets: Vec::new(),
@@ -281,7 +317,10 @@ impl Target {
 
     unsafe fn make(&mut self, d: &DeviceState, top: &ash::Device, p: &Pipelines, count: usize, capture: &dyn Fn(&mut dyn FnMut()) -> Option<vk::Image>) -> Result<(), String> {
         let desc = &self.desc;
-        let usage = desc.usage | vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_SRC;
+        let msaa = desc.samples > 1;
+        // A multisampled image is resolved (its transfer source), a single-sampled one sampled.
+        let read = if msaa { vk::ImageUsageFlags::TRANSFER_SRC } else { vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_SRC };
+        let usage = desc.usage | vk::ImageUsageFlags::COLOR_ATTACHMENT | read;
         let flags = if desc.mutable_format { vk::ImageCreateFlags::MUTABLE_FORMAT } else { vk::ImageCreateFlags::empty() };
         let ci = vk::ImageCreateInfo::default()
             .flags(flags)
@@ -290,7 +329,7 @@ impl Target {
             .extent(vk::Extent3D { width: desc.extent.0, height: desc.extent.1, depth: 1 })
             .mip_levels(desc.mips.max(1))
             .array_layers(desc.layers.max(1))
-            .samples(vk::SampleCountFlags::TYPE_1)
+            .samples(vk::SampleCountFlags::from_raw(desc.samples.max(1)))
             .tiling(vk::ImageTiling::OPTIMAL)
             .usage(usage)
             .sharing_mode(vk::SharingMode::EXCLUSIVE)
@@ -308,25 +347,33 @@ impl Target {
                 let ty = memory_type(&d.memory, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)?;
                 img.memory = top.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None).map_err(err("vkAllocateMemory (app level)"))?;
                 top.bind_image_memory(img.top, img.memory, 0).map_err(err("vkBindImageMemory (app level)"))?;
+                // A multisampled image is never sampled: its resolve is.
                 for layer in 0..desc.layers.max(1) {
-                    let v = view(d, img.ours, desc.format, layer)?;
-                    img.views.push(v);
+                    if !msaa {
+                        let v = view(d, img.ours, desc.format, layer)?;
+                        img.views.push(v);
+                    }
                 }
             }
             let (rw, rh) = desc.runtime_extent;
             let mut inter = Vec::new();
+            if msaa {
+                // Read by the upscale as a single-sampled app image is; it passes through
+                // COLOR_ATTACHMENT_OPTIMAL as one does (`record::record_resolves`).
+                inter.push((2, desc.format, desc.extent, vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::COLOR_ATTACHMENT));
+            }
             if desc.method != Method::Bilinear || desc.output != Output::Fragment {
-                inter.push((0, INTERMEDIATE));
+                // TRANSFER_DST: cleared black where `upscale.skip_hidden` runs no tile.
+                inter.push((0, INTERMEDIATE, (rw, rh), vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST));
             }
             if let Output::Copy { inter: format, .. } = desc.output {
-                inter.push((1, format));
+                inter.push((1, format, (rw, rh), vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST));
             }
-            for (which, format) in inter {
-                let usage = if which == 0 { vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED } else { vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC };
+            for (which, format, (w, h), usage) in inter {
                 let ci = vk::ImageCreateInfo::default()
                     .image_type(vk::ImageType::TYPE_2D)
                     .format(format)
-                    .extent(vk::Extent3D { width: rw, height: rh, depth: 1 })
+                    .extent(vk::Extent3D { width: w, height: h, depth: 1 })
                     .mip_levels(1)
                     .array_layers(desc.layers.max(1))
                     .samples(vk::SampleCountFlags::TYPE_1)
@@ -335,7 +382,11 @@ impl Target {
                     .sharing_mode(vk::SharingMode::EXCLUSIVE)
                     .initial_layout(vk::ImageLayout::UNDEFINED);
                 let image = d.fns.create_image(&ci, None).map_err(err("vkCreateImage (intermediate)"))?;
-                let slot = if which == 0 { &mut self.a } else { &mut self.b };
+                let slot = match which {
+                    0 => &mut self.a,
+                    1 => &mut self.b,
+                    _ => &mut self.resolve,
+                };
                 slot.0 = image;
                 let req = d.fns.get_image_memory_requirements(image);
                 let ty = memory_type(&d.memory, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)?;
@@ -347,10 +398,22 @@ impl Target {
                 }
             }
             let layers = desc.layers.max(1);
+            // Each job's tiles cover at most the runtime image.
+            let (cols, rows) = gpu::groups(rw, rh);
+            self.tile_slot_len = cols * rows;
+            self.tile_contents = vec![None; (TILE_SLOTS_PER_LAYER * layers) as usize];
+            let bytes = 2 * 4 * self.tile_slot_len as u64 * self.tile_contents.len() as u64;
+            let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
+            self.tiles.0 = d.fns.create_buffer(&vk::BufferCreateInfo::default().size(bytes).usage(usage), None).map_err(err("vkCreateBuffer (tiles)"))?;
+            let req = d.fns.get_buffer_memory_requirements(self.tiles.0);
+            let ty = memory_type(&d.memory, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)?;
+            self.tiles.1 = d.fns.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None).map_err(err("vkAllocateMemory (tiles)"))?;
+            d.fns.bind_buffer_memory(self.tiles.0, self.tiles.1, 0).map_err(err("vkBindBufferMemory (tiles)"))?;
             let sets = (count as u32 + 1) * layers;
             let sizes = [
                 vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: sets },
                 vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_IMAGE, descriptor_count: sets },
+                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: sets },
             ];
             self.pool = d.fns.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(sets).pool_sizes(&sizes), None).map_err(err("vkCreateDescriptorPool"))?;
             let alloc = |n: u32| -> Result<Vec<vk::DescriptorSet>, String> {
@@ -360,7 +423,11 @@ impl Target {
             let write = |set: vk::DescriptorSet, src: vk::ImageView, src_layout: vk::ImageLayout, dst: Option<vk::ImageView>| {
                 let s = [vk::DescriptorImageInfo { sampler: p.sampler, image_view: src, image_layout: src_layout }];
                 let o = [vk::DescriptorImageInfo { sampler: vk::Sampler::null(), image_view: dst.unwrap_or_default(), image_layout: vk::ImageLayout::GENERAL }];
-                let mut writes = vec![vk::WriteDescriptorSet::default().dst_set(set).dst_binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(&s)];
+                let b = [vk::DescriptorBufferInfo { buffer: self.tiles.0, offset: 0, range: vk::WHOLE_SIZE }];
+                let mut writes = vec![
+                    vk::WriteDescriptorSet::default().dst_set(set).dst_binding(0).descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER).image_info(&s),
+                    vk::WriteDescriptorSet::default().dst_set(set).dst_binding(2).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b),
+                ];
                 if dst.is_some() {
                     writes.push(vk::WriteDescriptorSet::default().dst_set(set).dst_binding(1).descriptor_type(vk::DescriptorType::STORAGE_IMAGE).image_info(&o));
                 }
@@ -369,11 +436,13 @@ impl Target {
             let easu = desc.method != Method::Bilinear || desc.output != Output::Fragment;
             for img in &self.app {
                 let sets = alloc(layers)?;
+                // Every app image's sets read the resolved image when there is one.
+                let source = if msaa { &self.resolve.2 } else { &img.views };
                 for (l, &set) in sets.iter().enumerate() {
                     // The bilinear pass reads only binding 0: the storage binding is left empty.
                     match easu {
-                        true => write(set, img.views[l], vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, Some(self.a.2[l])),
-                        false => write(set, img.views[l], vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, None),
+                        true => write(set, source[l], vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, Some(self.a.2[l])),
+                        false => write(set, source[l], vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, None),
                     }
                 }
                 self.easu_sets.push(sets);
@@ -496,7 +565,7 @@ impl Target {
             if self.render_pass != vk::RenderPass::null() {
                 d.fns.destroy_render_pass(std::mem::take(&mut self.render_pass), None);
             }
-            for slot in [&mut self.a, &mut self.b] {
+            for slot in [&mut self.a, &mut self.b, &mut self.resolve] {
                 for v in slot.2.drain(..) {
                     d.fns.destroy_image_view(v, None);
                 }
@@ -510,8 +579,92 @@ impl Target {
             if self.pool != vk::DescriptorPool::null() {
                 d.fns.destroy_descriptor_pool(std::mem::take(&mut self.pool), None);
             }
+            if self.tiles.0 != vk::Buffer::null() {
+                d.fns.destroy_buffer(std::mem::take(&mut self.tiles.0), None);
+            }
+            if self.tiles.1 != vk::DeviceMemory::null() {
+                d.fns.free_memory(std::mem::take(&mut self.tiles.1), None);
+            }
+            self.tile_contents.clear();
             self.easu_sets.clear();
             self.rcas_sets.clear();
+        }
+    }
+
+    fn fits(&self, t: &Tiles) -> bool {
+        t.easu.len().max(t.rcas.len()) <= self.tile_slot_len as usize
+    }
+
+    /// Records the upload of the tile lists of a frame's `jobs` (in the frame's order) that its
+    /// slots do not hold yet (rare: a view's first frame, a changed mask or rect), and returns how
+    /// the frame finds the intermediates. The barrier before the upload waits for the earlier
+    /// upscales on the queue still reading the buffer.
+    ///
+    /// # Safety
+    /// `cb` is recording, for the queue every upscale of this target is submitted to.
+    pub(crate) unsafe fn record_tile_uploads(&mut self, d: &DeviceState, cb: vk::CommandBuffer, jobs: &[Option<Arc<Tiles>>]) -> Prep {
+        // SAFETY: per the contract.
+        let uploaded = unsafe { self.upload(d, cb, jobs) };
+        let compact = !jobs.is_empty() && (0..jobs.len()).all(|k| self.tile_params(k, jobs[k].as_ref(), false).is_some());
+        let prep = Prep { defined: self.inter_defined, clear: compact && (uploaded || !self.inter_black) };
+        self.inter_defined = true;
+        self.inter_black = compact;
+        prep
+    }
+
+    /// # Safety
+    /// As for `record_tile_uploads`.
+    unsafe fn upload(&mut self, d: &DeviceState, cb: vk::CommandBuffer, jobs: &[Option<Arc<Tiles>>]) -> bool {
+        let changed: Vec<(usize, Arc<Tiles>)> = jobs
+            .iter()
+            .enumerate()
+            .filter_map(|(k, t)| {
+                let (t, held) = (t.as_ref()?, self.tile_contents.get(k)?);
+                (!held.as_ref().is_some_and(|h| Arc::ptr_eq(h, t)) && self.fits(t)).then(|| (k, t.clone()))
+            })
+            .collect();
+        if changed.is_empty() {
+            return false;
+        }
+        let barrier = |src, dst| [vk::BufferMemoryBarrier::default().src_access_mask(src).dst_access_mask(dst).src_queue_family_index(vk::QUEUE_FAMILY_IGNORED).dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED).buffer(self.tiles.0).offset(0).size(vk::WHOLE_SIZE)];
+        let (compute, transfer) = (vk::PipelineStageFlags::COMPUTE_SHADER, vk::PipelineStageFlags::TRANSFER);
+        // SAFETY: per the contract; the buffer is ours, each write inside it (`fits`), each
+        // update at most 65536 bytes and a multiple of 4 (VUID-vkCmdUpdateBuffer-dataSize-00037).
+        unsafe {
+            d.fns.cmd_pipeline_barrier(cb, compute, transfer, vk::DependencyFlags::empty(), &[], &barrier(vk::AccessFlags::SHADER_READ, vk::AccessFlags::TRANSFER_WRITE), &[]);
+            for (k, t) in &changed {
+                for (list, at) in [(&t.easu, 0), (&t.rcas, self.tile_slot_len as u64)] {
+                    let bytes: Vec<u8> = list.iter().flat_map(|c| c.to_ne_bytes()).collect();
+                    let base = 4 * (2 * *k as u64 * self.tile_slot_len as u64 + at);
+                    for (n, chunk) in bytes.chunks(65536).enumerate() {
+                        d.fns.cmd_update_buffer(cb, self.tiles.0, base + 65536 * n as u64, chunk);
+                    }
+                }
+                self.tile_contents[*k] = Some(t.clone());
+            }
+            d.fns.cmd_pipeline_barrier(cb, transfer, compute, vk::DependencyFlags::empty(), &[], &barrier(vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ), &[]);
+        }
+        true
+    }
+
+    /// The recorded upload did not reach the GPU (the submission failed): upload again next time,
+    /// and take nothing for granted about the intermediates.
+    pub(crate) fn forget_tiles(&mut self) {
+        self.tile_contents.iter_mut().for_each(|t| *t = None);
+        self.inter_defined = false;
+        self.inter_black = false;
+    }
+
+    /// A frame's job `k` with tiles `t`, for EASU's pass or RCAS's: the push constants' `skip`
+    /// (where its list starts) and the list's length (its workgroups); None when it has none (or
+    /// they are not uploaded): the pass runs over the whole rect.
+    pub(crate) fn tile_params(&self, k: usize, t: Option<&Arc<Tiles>>, rcas: bool) -> Option<([i32; 4], u32)> {
+        match (t, self.tile_contents.get(k)) {
+            (Some(t), Some(Some(held))) if Arc::ptr_eq(held, t) => {
+                let (list, at) = if rcas { (&t.rcas, self.tile_slot_len) } else { (&t.easu, 0) };
+                Some(([(2 * k as u32 * self.tile_slot_len + at) as i32, 1, 0, 0], list.len() as u32))
+            }
+            _ => None,
         }
     }
 
@@ -552,167 +705,6 @@ unsafe fn view(d: &DeviceState, image: vk::Image, format: vk::Format, layer: u32
         .subresource_range(vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: 1 });
     // SAFETY: per the contract.
     unsafe { d.fns.create_image_view(&ci, None) }.map_err(err("vkCreateImageView"))
-}
-
-/// The command buffers of one session's upscales: reused once their fence signalled, at most
-/// `MAX` in flight (then the oldest is waited for).
-pub(crate) struct Slots {
-    pool: vk::CommandPool,
-    ring: std::collections::VecDeque<(vk::CommandBuffer, vk::Fence)>,
-    pub queue: vk::Queue,
-    /// Two timestamps per slot (`MAX` slots), around each upscale's commands: its own GPU time,
-    /// read back when the slot is reused (`take`). None where the queue has no timestamps.
-    queries: Option<(vk::QueryPool, f64)>,
-    /// Which query pair each ring entry wrote (by its command buffer).
-    query_of: std::collections::HashMap<vk::CommandBuffer, u32>,
-    /// The GPU time of the last upscale read back, ms, and its phases (`MARKS` - 1 intervals:
-    /// barriers in, EASU, RCAS and the copy (or the fragment pass), barriers out) of the
-    /// submission's last swapchain; the first interval also holds the earlier swapchains' work.
-    pub last_gpu_ms: Option<f64>,
-    pub last_phases_ms: Vec<f64>,
-}
-
-/// Timestamps per upscale: start, after the barriers in, after EASU, after the fragment pass, end.
-pub(crate) const MARKS: u32 = 5;
-
-/// Upscales in flight before an `xrEndFrame` waits: a frame submits one per swapchain (two for
-/// per-eye apps), and runtimes let an app run up to about three frames ahead.
-const MAX: usize = 8;
-/// How long `xrEndFrame` waits for an old upscale before giving up on this one.
-const WAIT_NS: u64 = 2_000_000_000;
-
-impl Slots {
-    /// `timestamp_period`: ns per tick, 0 where the queue family has no timestamps.
-    pub(crate) fn new(d: &DeviceState, family: u32, queue_index: u32, timestamp_period: f32) -> Result<Slots, String> {
-        // SAFETY: a valid create info for the session's queue family on a live device.
-        let pool = unsafe { d.fns.create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(family).flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER), None) }.map_err(err("vkCreateCommandPool"))?;
-        // SAFETY: the binding's queue exists (the runtime accepted the binding).
-        let queue = unsafe { d.fns.get_device_queue(family, queue_index) };
-        let queries = (timestamp_period > 0.0).then(|| {
-            let ci = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(MARKS * MAX as u32);
-            // SAFETY: a valid create info; without the pool the upscale is only untimed.
-            unsafe { d.fns.create_query_pool(&ci, None) }.ok().map(|q| (q, timestamp_period as f64 / 1e6))
-        });
-        Ok(Slots { pool, ring: Default::default(), queue, queries: queries.flatten(), query_of: Default::default(), last_gpu_ms: None, last_phases_ms: Vec::new() })
-    }
-
-    /// Records timestamp `k` (0: start, `MARKS` - 1: end) of `cb`'s upscale. Each is written once
-    /// every earlier command on the queue completed: from the first on, the time is the
-    /// upscale's, its layout transitions included.
-    ///
-    /// # Safety
-    /// `cb` is recording, and was handed out by `take`.
-    pub(crate) unsafe fn mark(&self, d: &DeviceState, cb: vk::CommandBuffer, k: u32) {
-        let (Some((pool, _)), Some(&pair)) = (self.queries, self.query_of.get(&cb)) else { return };
-        // SAFETY: per the contract; the queries belong to this buffer alone.
-        unsafe {
-            if k == 0 {
-                d.fns.cmd_reset_query_pool(cb, pool, MARKS * pair, MARKS);
-            }
-            d.fns.cmd_write_timestamp(cb, vk::PipelineStageFlags::ALL_COMMANDS, pool, MARKS * pair + k.min(MARKS - 1));
-        }
-    }
-
-    /// Reads the timestamps of a completed buffer.
-    fn read(&mut self, d: &DeviceState, cb: vk::CommandBuffer) {
-        let (Some((pool, ms_per_tick)), Some(&pair)) = (self.queries, self.query_of.get(&cb)) else { return };
-        let mut t = [0u64; MARKS as usize];
-        // SAFETY: the buffer completed (its fence signalled), so every query it wrote is written;
-        // marks a recording skipped (no EASU) read as unavailable and fail the whole read.
-        let r = unsafe { d.fns.get_query_pool_results(pool, MARKS * pair, &mut t, vk::QueryResultFlags::TYPE_64) };
-        if r.is_ok() && t[MARKS as usize - 1] >= t[0] {
-            self.last_gpu_ms = Some((t[MARKS as usize - 1] - t[0]) as f64 * ms_per_tick);
-            self.last_phases_ms = t.windows(2).map(|w| w[1].saturating_sub(w[0]) as f64 * ms_per_tick).collect();
-        }
-    }
-
-    /// A command buffer to record into (reset), with its fence (unsignalled).
-    pub(crate) fn take(&mut self, d: &DeviceState) -> Result<(vk::CommandBuffer, vk::Fence), String> {
-        // SAFETY: the layer's own objects of a live device; a fence is reset only once signalled
-        // (its command buffer is then no longer in use).
-        unsafe {
-            let ready = self.ring.front().is_some_and(|&(_, f)| d.fns.get_fence_status(f).unwrap_or(false));
-            let (cb, fence) = if ready || self.ring.len() >= MAX {
-                let (cb, fence) = self.ring.pop_front().expect("checked non-empty");
-                if !ready {
-                    d.fns.wait_for_fences(&[fence], true, WAIT_NS).map_err(err("waiting for an earlier upscale"))?;
-                }
-                self.read(d, cb);
-                d.fns.reset_fences(&[fence]).map_err(err("vkResetFences"))?;
-                d.fns.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty()).map_err(err("vkResetCommandBuffer"))?;
-                (cb, fence)
-            } else {
-                let alloc = vk::CommandBufferAllocateInfo::default().command_pool(self.pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1);
-                let cb = d.fns.allocate_command_buffers(&alloc).map_err(err("vkAllocateCommandBuffers"))?[0];
-                // The loader sets the dispatch word only on objects handed out through it.
-                if let Some(set) = d.set_loader_data {
-                    let r = set(d.handle, cb.as_raw() as usize as *mut std::ffi::c_void);
-                    if r != vk::Result::SUCCESS {
-                        d.fns.free_command_buffers(self.pool, &[cb]);
-                        return Err(format!("vkSetDeviceLoaderData: {r:?}"));
-                    }
-                }
-                let fence = match d.fns.create_fence(&vk::FenceCreateInfo::default(), None) {
-                    Ok(f) => f,
-                    Err(e) => {
-                        d.fns.free_command_buffers(self.pool, &[cb]);
-                        return Err(format!("vkCreateFence: {e}"));
-                    }
-                };
-                let pair = self.query_of.len() as u32;
-                self.query_of.insert(cb, pair);
-                (cb, fence)
-            };
-            self.ring.push_back((cb, fence));
-            Ok((cb, fence))
-        }
-    }
-
-    /// Waits for every upscale in flight (before their objects are destroyed).
-    pub(crate) fn wait_all(&self, d: &DeviceState) {
-        let fences: Vec<vk::Fence> = self.ring.iter().map(|&(_, f)| f).collect();
-        if fences.is_empty() {
-            return;
-        }
-        // SAFETY: the layer's own fences. A fence never submitted (its recording failed) was
-        // taken out of the ring by `abandon`, so every fence here will signal.
-        if let Err(e) = unsafe { d.fns.wait_for_fences(&fences, true, WAIT_NS) } {
-            tracing::warn!("upscale: waiting for the last upscales failed ({e}); destroying their objects anyway");
-        }
-    }
-
-    /// `cb` (handed out by `take`) was not submitted: its fence would never signal.
-    pub(crate) fn abandon(&mut self, d: &DeviceState, cb: vk::CommandBuffer) {
-        let Some(at) = self.ring.iter().position(|&(c, _)| c == cb) else { return };
-        let (cb, fence) = self.ring.remove(at).expect("found");
-        // Its query pair goes with it; the buffer holding the highest pair takes it over, so the
-        // pairs stay 0..len.
-        if let Some(freed) = self.query_of.remove(&cb) {
-            let top = self.query_of.len() as u32;
-            if let Some((_, last)) = self.query_of.iter_mut().find(|(_, p)| **p == top) {
-                *last = freed;
-            }
-        }
-        // SAFETY: never submitted, so not in use.
-        unsafe {
-            d.fns.destroy_fence(fence, None);
-            d.fns.free_command_buffers(self.pool, &[cb]);
-        }
-    }
-
-    pub(crate) fn destroy(&mut self, d: &DeviceState) {
-        self.wait_all(d);
-        // SAFETY: idle (waited above); the pool frees its command buffers.
-        unsafe {
-            for (_, f) in self.ring.drain(..) {
-                d.fns.destroy_fence(f, None);
-            }
-            d.fns.destroy_command_pool(self.pool, None);
-            if let Some((q, _)) = self.queries.take() {
-                d.fns.destroy_query_pool(q, None);
-            }
-        }
-    }
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! `MOCK_XR_CAPTURE`: copies what the app submitted in xrEndFrame out of the swapchain images
 //! (on the app's queue, fenced) into PNGs plus frames.json, as docs/testing.md specifies. This
 //! is how the end-to-end tests see what an app — or a layer in front of it — really rendered.
+//! Mip level 0 is what is read; a multisampled swapchain's rect is resolved first.
 
 use std::io::Write;
 use std::path::Path;
@@ -14,7 +15,7 @@ use crate::session::Session;
 use crate::swapchain::{attachment_layout, full_aspect, is_depth, Swapchain};
 use crate::util::XrResult;
 use crate::visibility_mask;
-use crate::vulkan::vk_err;
+use crate::vulkan::{vk_err, VkContext};
 
 pub struct SubmittedDepth {
     pub swapchain: Arc<Swapchain>,
@@ -166,9 +167,93 @@ fn io_err(e: std::io::Error) -> xr::Result {
     xr::Result::ERROR_RUNTIME_FAILURE
 }
 
-/// Copies every job's region into one host-visible buffer and returns its bytes.
+/// A single-sampled image of one multisampled job's rect: `vkCmdResolveImage` writes the
+/// submitted samples' average into it and the copy to the buffer reads it, so a capture of an
+/// MSAA swapchain is the resolved picture (what a compositor would show), not one sample.
+fn create_resolve_target(vk: &VkContext, format: vk::Format, extent: vk::Extent3D) -> XrResult<(vk::Image, vk::DeviceMemory)> {
+    let d = &vk.device;
+    let ci = vk::ImageCreateInfo::default()
+        .image_type(vk::ImageType::TYPE_2D)
+        .format(format)
+        .extent(extent)
+        .mip_levels(1)
+        .array_layers(1)
+        .samples(vk::SampleCountFlags::TYPE_1)
+        .tiling(vk::ImageTiling::OPTIMAL)
+        .usage(vk::ImageUsageFlags::TRANSFER_DST | vk::ImageUsageFlags::TRANSFER_SRC)
+        .sharing_mode(vk::SharingMode::EXCLUSIVE)
+        .initial_layout(vk::ImageLayout::UNDEFINED);
+    // SAFETY: valid device and create info.
+    let image = unsafe { d.create_image(&ci, None) }.map_err(vk_err("vkCreateImage"))?;
+    let memory = (|| {
+        // SAFETY: image of this device.
+        let req = unsafe { d.get_image_memory_requirements(image) };
+        let ty = vk.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)?;
+        // SAFETY: valid allocate info.
+        let mem = unsafe { d.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None) }
+            .map_err(vk_err("vkAllocateMemory"))?;
+        // SAFETY: fresh image and memory of sufficient size.
+        if let Err(e) = unsafe { d.bind_image_memory(image, mem, 0) } {
+            // SAFETY: never used.
+            unsafe { d.free_memory(mem, None) };
+            return Err(vk_err("vkBindImageMemory")(e));
+        }
+        Ok(mem)
+    })();
+    match memory {
+        Ok(m) => Ok((image, m)),
+        Err(e) => {
+            // SAFETY: never used.
+            unsafe { d.destroy_image(image, None) };
+            Err(e)
+        }
+    }
+}
+
+fn extent_of(r: &xr::Rect2Di) -> vk::Extent3D {
+    vk::Extent3D { width: r.extent.width as u32, height: r.extent.height as u32, depth: 1 }
+}
+
+/// Copies every job's region (mip level 0; resolved first where the swapchain is multisampled)
+/// into one host-visible buffer and returns its bytes.
 fn read_back(s: &Session, jobs: &[Job], size: u64) -> XrResult<Vec<u8>> {
     let vk = s.vk()?;
+    let d = &vk.device;
+    // One resolve target per multisampled job (None for the others); made before anything is
+    // recorded, destroyed after the fence (or at once, on failure).
+    let mut resolved: Vec<Option<(vk::Image, vk::DeviceMemory)>> = Vec::new();
+    let made = jobs.iter().try_for_each(|j| {
+        let target = if j.sc.samples == vk::SampleCountFlags::TYPE_1 {
+            None
+        } else if is_depth(j.sc.format) {
+            // xrCreateSwapchain refuses multisampled depth; never read one sample as if resolved.
+            crate::log!("capture: multisampled depth swapchain {} cannot be resolved", j.sc.handle);
+            return Err(xr::Result::ERROR_RUNTIME_FAILURE);
+        } else {
+            Some(create_resolve_target(vk, j.sc.format, extent_of(&j.rect))?)
+        };
+        resolved.push(target);
+        Ok(())
+    });
+    let destroy_resolved = |resolved: &[Option<(vk::Image, vk::DeviceMemory)>]| {
+        for (i, m) in resolved.iter().flatten() {
+            // SAFETY: no pending GPU work uses them (fence waited, or never submitted).
+            unsafe {
+                d.destroy_image(*i, None);
+                d.free_memory(*m, None);
+            }
+        }
+    };
+    if let Err(e) = made {
+        destroy_resolved(&resolved);
+        return Err(e);
+    }
+    let result = read_back_with(vk, jobs, &resolved, size);
+    destroy_resolved(&resolved);
+    result
+}
+
+fn read_back_with(vk: &VkContext, jobs: &[Job], resolved: &[Option<(vk::Image, vk::DeviceMemory)>], size: u64) -> XrResult<Vec<u8>> {
     let d = &vk.device;
     let bci = vk::BufferCreateInfo::default().size(size).usage(vk::BufferUsageFlags::TRANSFER_DST).sharing_mode(vk::SharingMode::EXCLUSIVE);
     // SAFETY: valid device and create info.
@@ -192,10 +277,12 @@ fn read_back(s: &Session, jobs: &[Job], size: u64) -> XrResult<Vec<u8>> {
                 images.push((j.sc, j.image_index));
             }
         }
+        // Every level: the whole image is in its attachment layout whenever the app does not
+        // hold it, and goes back there as one.
         let range = |sc: &Swapchain| vk::ImageSubresourceRange {
             aspect_mask: full_aspect(sc.format),
             base_mip_level: 0,
-            level_count: 1,
+            level_count: sc.mip_levels,
             base_array_layer: 0,
             layer_count: sc.array_size,
         };
@@ -227,17 +314,23 @@ fn read_back(s: &Session, jobs: &[Job], size: u64) -> XrResult<Vec<u8>> {
                         .subresource_range(range(sc));
                     d.cmd_pipeline_barrier(cb, src_stage, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &[b]);
                 }
-                for j in jobs {
+                record_resolves(d, cb, jobs, resolved);
+                for (j, r) in jobs.iter().zip(resolved) {
                     let aspect = if is_depth(j.sc.format) { vk::ImageAspectFlags::DEPTH } else { vk::ImageAspectFlags::COLOR };
+                    // The rect of its layer, or all of the resolve target made of it.
+                    let (image, layer, offset) = match r {
+                        Some((image, _)) => (*image, 0, vk::Offset3D::default()),
+                        None => (j.sc.images[j.image_index as usize], j.layer, vk::Offset3D { x: j.rect.offset.x, y: j.rect.offset.y, z: 0 }),
+                    };
                     let region = vk::BufferImageCopy {
                         buffer_offset: j.offset,
                         buffer_row_length: 0,
                         buffer_image_height: 0,
-                        image_subresource: vk::ImageSubresourceLayers { aspect_mask: aspect, mip_level: 0, base_array_layer: j.layer, layer_count: 1 },
-                        image_offset: vk::Offset3D { x: j.rect.offset.x, y: j.rect.offset.y, z: 0 },
-                        image_extent: vk::Extent3D { width: j.rect.extent.width as u32, height: j.rect.extent.height as u32, depth: 1 },
+                        image_subresource: vk::ImageSubresourceLayers { aspect_mask: aspect, mip_level: 0, base_array_layer: layer, layer_count: 1 },
+                        image_offset: offset,
+                        image_extent: extent_of(&j.rect),
                     };
-                    d.cmd_copy_image_to_buffer(cb, j.sc.images[j.image_index as usize], vk::ImageLayout::TRANSFER_SRC_OPTIMAL, buffer, &[region]);
+                    d.cmd_copy_image_to_buffer(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, buffer, &[region]);
                 }
                 for (sc, i) in &images {
                     // Back to the layout the app gets on acquire; whatever it does next waits.
@@ -283,6 +376,51 @@ fn read_back(s: &Session, jobs: &[Job], size: u64) -> XrResult<Vec<u8>> {
         }
     }
     result
+}
+
+/// Resolves each multisampled job's rect (mip level 0 of its layer; the swapchain image already
+/// in TRANSFER_SRC_OPTIMAL) into its resolve target and leaves that in TRANSFER_SRC_OPTIMAL for
+/// the copy to the buffer.
+///
+/// # Safety
+/// `cb` is recording, outside a render pass; every image is of `d`.
+unsafe fn record_resolves(d: &ash::Device, cb: vk::CommandBuffer, jobs: &[Job], resolved: &[Option<(vk::Image, vk::DeviceMemory)>]) {
+    let barrier = |image, old, new, src, dst| {
+        vk::ImageMemoryBarrier::default()
+            .src_access_mask(src)
+            .dst_access_mask(dst)
+            .old_layout(old)
+            .new_layout(new)
+            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .image(image)
+            .subresource_range(vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 })
+    };
+    type L = vk::ImageLayout;
+    type A = vk::AccessFlags;
+    let targets: Vec<vk::Image> = resolved.iter().flatten().map(|(i, _)| *i).collect();
+    if targets.is_empty() {
+        return;
+    }
+    let to_dst: Vec<_> = targets.iter().map(|&i| barrier(i, L::UNDEFINED, L::TRANSFER_DST_OPTIMAL, A::empty(), A::TRANSFER_WRITE)).collect();
+    let to_src: Vec<_> = targets.iter().map(|&i| barrier(i, L::TRANSFER_DST_OPTIMAL, L::TRANSFER_SRC_OPTIMAL, A::TRANSFER_WRITE, A::TRANSFER_READ)).collect();
+    let color = |layer| vk::ImageSubresourceLayers { aspect_mask: vk::ImageAspectFlags::COLOR, mip_level: 0, base_array_layer: layer, layer_count: 1 };
+    // SAFETY: per the contract; the images are in the layouts named.
+    unsafe {
+        d.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TOP_OF_PIPE, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &to_dst);
+        for (j, r) in jobs.iter().zip(resolved) {
+            let Some((target, _)) = r else { continue };
+            let region = vk::ImageResolve {
+                src_subresource: color(j.layer),
+                src_offset: vk::Offset3D { x: j.rect.offset.x, y: j.rect.offset.y, z: 0 },
+                dst_subresource: color(0),
+                dst_offset: vk::Offset3D::default(),
+                extent: extent_of(&j.rect),
+            };
+            d.cmd_resolve_image(cb, j.sc.images[j.image_index as usize], L::TRANSFER_SRC_OPTIMAL, *target, L::TRANSFER_DST_OPTIMAL, &[region]);
+        }
+        d.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &to_src);
+    }
 }
 
 /// The runtime's hidden-area mask of each view for this frame: the HIDDEN_TRIANGLE_MESH exactly as

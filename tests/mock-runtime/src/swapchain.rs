@@ -112,6 +112,10 @@ pub struct Swapchain {
     pub width: u32,
     pub height: u32,
     pub array_size: u32,
+    /// `sampleCount`: the images' sample count (1 unless the app asked for MSAA).
+    pub samples: vk::SampleCountFlags,
+    /// `mipCount`: the images' mip levels; the runtime only ever reads level 0.
+    pub mip_levels: u32,
     pub static_image: bool,
     pub images: Vec<vk::Image>,
     memories: Vec<vk::DeviceMemory>,
@@ -184,6 +188,69 @@ fn create_images(vk: &VkContext, ci: &vk::ImageCreateInfo) -> XrResult<(Vec<vk::
     Ok((images, mems))
 }
 
+/// The number of levels of a full mip chain for a `width` × `height` image.
+pub fn full_mip_chain(width: u32, height: u32) -> u32 {
+    32 - width.max(height).max(1).leading_zeros()
+}
+
+/// Checks `faceCount`, `sampleCount` and `mipCount` against what the mock implements and what
+/// the device supports for this format and usage; returns the images' sample count. Every
+/// refusal says why on the log, since the spec names no error of its own for any of them.
+fn check_samples_and_mips(
+    vk: &VkContext,
+    info: &xr::SwapchainCreateInfo,
+    format: vk::Format,
+    usage: vk::ImageUsageFlags,
+    flags: vk::ImageCreateFlags,
+) -> XrResult<vk::SampleCountFlags> {
+    // Cube swapchains are not implemented (capture would have to pick a face): refused, never
+    // faked. Other counts are invalid (the spec allows 1 or 6).
+    if info.face_count != 1 {
+        crate::log!("xrCreateSwapchain: faceCount {} refused: only faceCount 1 is implemented (cube swapchains are not)", info.face_count);
+        return Err(xr::Result::ERROR_VALIDATION_FAILURE);
+    }
+    let full = full_mip_chain(info.width, info.height);
+    if !(1..=full).contains(&info.mip_count) {
+        crate::log!("xrCreateSwapchain: mipCount {} refused: {}x{} has 1..={full} levels", info.mip_count, info.width, info.height);
+        return Err(xr::Result::ERROR_VALIDATION_FAILURE);
+    }
+    let n = info.sample_count;
+    if n == 1 {
+        return Ok(vk::SampleCountFlags::TYPE_1);
+    }
+    if !n.is_power_of_two() || n > 64 {
+        crate::log!("xrCreateSwapchain: sampleCount {n} refused: not a Vulkan sample count (1, 2, 4, … 64)");
+        return Err(xr::Result::ERROR_VALIDATION_FAILURE);
+    }
+    let samples = vk::SampleCountFlags::from_raw(n);
+    // Capture reads what the app submitted by vkCmdResolveImage, which resolves colour only;
+    // depth would need VK_KHR_depth_stencil_resolve in a render pass, which the mock does not do.
+    if is_depth(format) {
+        crate::log!("xrCreateSwapchain: sampleCount {n} refused for depth format {format:?}: multisampled depth swapchains are not implemented (the capture cannot resolve depth)");
+        return Err(xr::Result::ERROR_VALIDATION_FAILURE);
+    }
+    // Vulkan: an image with samples > 1 has exactly one mip level (VUID-VkImageCreateInfo-samples-02257).
+    if info.mip_count != 1 {
+        crate::log!("xrCreateSwapchain: sampleCount {n} with mipCount {} refused: a multisampled Vulkan image has one mip level", info.mip_count);
+        return Err(xr::Result::ERROR_VALIDATION_FAILURE);
+    }
+    // SAFETY: valid physical device of the session; plain query.
+    let props = unsafe {
+        vk.instance.get_physical_device_image_format_properties(vk.physical, format, vk::ImageType::TYPE_2D, vk::ImageTiling::OPTIMAL, usage, flags)
+    };
+    match props {
+        Ok(p) if p.sample_counts.contains(samples) => Ok(samples),
+        Ok(p) => {
+            crate::log!("xrCreateSwapchain: sampleCount {n} refused: the device supports {:?} for {format:?} with usage {usage:?}", p.sample_counts);
+            Err(xr::Result::ERROR_VALIDATION_FAILURE)
+        }
+        Err(e) => {
+            crate::log!("xrCreateSwapchain: sampleCount {n} refused: vkGetPhysicalDeviceImageFormatProperties({format:?}, {usage:?}) -> {e:?}");
+            Err(xr::Result::ERROR_VALIDATION_FAILURE)
+        }
+    }
+}
+
 fn create(s: &Arc<Session>, info: &xr::SwapchainCreateInfo) -> XrResult<u64> {
     use xr::SwapchainCreateFlags as F;
     if info.create_flags.contains(F::PROTECTED_CONTENT) {
@@ -218,27 +285,27 @@ fn create(s: &Arc<Session>, info: &xr::SwapchainCreateInfo) -> XrResult<u64> {
         return Err(xr::Result::ERROR_VALIDATION_FAILURE);
     }
     let hmd = s.instance.cfg.hmd;
-    let bad_size = info.width == 0 || info.height == 0 || info.width > hmd.max.0 || info.height > hmd.max.1;
-    // Mip chains, MSAA and cube swapchains are not implemented: refused, never faked.
-    if bad_size || info.sample_count != 1 || info.face_count != 1 || info.mip_count != 1 || !(1..=MAX_ARRAY_SIZE).contains(&info.array_size) {
-        crate::log!("xrCreateSwapchain: unsupported geometry {}x{} samples {} faces {} mips {} layers {}",
-            info.width, info.height, info.sample_count, info.face_count, info.mip_count, info.array_size);
+    if info.width == 0 || info.height == 0 || info.width > hmd.max.0 || info.height > hmd.max.1 || !(1..=MAX_ARRAY_SIZE).contains(&info.array_size) {
+        crate::log!("xrCreateSwapchain: unsupported size {}x{} with {} layers (max {}x{}, 1..={MAX_ARRAY_SIZE} layers)",
+            info.width, info.height, info.array_size, hmd.max.0, hmd.max.1);
         return Err(xr::Result::ERROR_VALIDATION_FAILURE);
     }
     let mut flags = vk::ImageCreateFlags::empty();
     if u.contains(xr::SwapchainUsageFlags::MUTABLE_FORMAT) {
         flags |= vk::ImageCreateFlags::MUTABLE_FORMAT;
     }
+    let usage = usage_to_vk(u, format);
+    let samples = check_samples_and_mips(vk, info, format, usage, flags)?;
     let ci = vk::ImageCreateInfo::default()
         .flags(flags)
         .image_type(vk::ImageType::TYPE_2D)
         .format(format)
         .extent(vk::Extent3D { width: info.width, height: info.height, depth: 1 })
-        .mip_levels(1)
+        .mip_levels(info.mip_count)
         .array_layers(info.array_size)
-        .samples(vk::SampleCountFlags::TYPE_1)
+        .samples(samples)
         .tiling(vk::ImageTiling::OPTIMAL)
-        .usage(usage_to_vk(u, format))
+        .usage(usage)
         .sharing_mode(vk::SharingMode::EXCLUSIVE)
         .initial_layout(vk::ImageLayout::UNDEFINED);
     let (images, memories) = create_images(vk, &ci)?;
@@ -250,12 +317,14 @@ fn create(s: &Arc<Session>, info: &xr::SwapchainCreateInfo) -> XrResult<u64> {
         width: info.width,
         height: info.height,
         array_size: info.array_size,
+        samples,
+        mip_levels: info.mip_count,
         static_image: info.create_flags.contains(F::STATIC_IMAGE),
         images,
         memories,
         state: Mutex::default(),
     });
-    crate::log!("xrCreateSwapchain {h}: {format:?} {}x{}x{}", info.width, info.height, info.array_size);
+    crate::log!("xrCreateSwapchain {h}: {format:?} {}x{}x{} samples {} mips {}", info.width, info.height, info.array_size, info.sample_count, info.mip_count);
     Ok(h)
 }
 
@@ -346,7 +415,7 @@ fn initialize_layouts(sc: &Swapchain) -> XrResult<()> {
                 .subresource_range(vk::ImageSubresourceRange {
                     aspect_mask: full_aspect(sc.format),
                     base_mip_level: 0,
-                    level_count: 1,
+                    level_count: sc.mip_levels,
                     base_array_layer: 0,
                     layer_count: sc.array_size,
                 })
@@ -453,5 +522,15 @@ mod tests {
         let d = usage_to_vk(xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT, vk::Format::D32_SFLOAT);
         assert!(d.contains(vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT) && !d.contains(vk::ImageUsageFlags::COLOR_ATTACHMENT));
         assert_eq!(full_aspect(vk::Format::D24_UNORM_S8_UINT), vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL);
+    }
+
+    #[test]
+    fn full_mip_chains() {
+        assert_eq!(full_mip_chain(1, 1), 1);
+        assert_eq!(full_mip_chain(8, 8), 4);
+        assert_eq!(full_mip_chain(64, 32), 7);
+        assert_eq!(full_mip_chain(65, 2), 7);
+        assert_eq!(full_mip_chain(3, 1000), 10);
+        assert_eq!(full_mip_chain(16384, 16384), 15);
     }
 }

@@ -8,6 +8,8 @@ use crate::EXT_EYE_GAZE;
 
 pub const SYSTEM_ID: u64 = 0x5EED;
 pub const MAX_LAYERS: u32 = 16;
+/// `maxSwapchainSampleCount` of both views (see xrEnumerateViewConfigurationViews).
+pub const MAX_SWAPCHAIN_SAMPLE_COUNT: u32 = 8;
 
 pub fn check_system(id: xr::SystemId) -> XrResult<()> {
     if id.into_raw() == SYSTEM_ID {
@@ -165,7 +167,10 @@ pub unsafe extern "system" fn xr_enumerate_view_configuration_views(
                 v.max_image_rect_width = hmd.max.0;
                 v.max_image_rect_height = hmd.max.1;
                 v.recommended_swapchain_sample_count = 1;
-                v.max_swapchain_sample_count = 1;
+                // Asked before any Vulkan device is known: the largest count common GPUs render
+                // colour and depth at. xrCreateSwapchain accepts a count only where the session's
+                // device supports it for the swapchain's format and usage (lavapipe: 1 and 4).
+                v.max_swapchain_sample_count = MAX_SWAPCHAIN_SAMPLE_COUNT;
                 Ok(())
             })
         }?;

@@ -3,7 +3,9 @@
 //! `--submit-texture double-wide`'s texture) the passes draw into. Three sets of rects per view:
 //! where it is submitted (`views`), where the eye pass draws it (`scene_views`, scaled by
 //! `--render-scale` / `--viewport-scale`) and where the last pass before any blit writes it
-//! (`final_views`: the double-wide texture's halves, else the submitted rects).
+//! (`final_views`: the double-wide texture's halves, else the submitted rects). The colour
+//! swapchain may be multisampled (`--swapchain-samples`: the eye pass renders into it, with depth
+//! of the same count) or have a mip chain (`--swapchain-mips`: only level 0 is viewed and drawn).
 
 use crate::cli::{Layout, Options};
 use crate::error::{fail, Ctx, Result};
@@ -216,6 +218,15 @@ struct SlotShape {
     final_eyes: Vec<(i32, vk::Extent2D)>,
 }
 
+/// What a swapchain is made of besides format and usage: size, layers, `sampleCount`, `mipCount`.
+#[derive(Debug, Clone, Copy)]
+struct ChainShape {
+    extent: vk::Extent2D,
+    layers: u32,
+    samples: u32,
+    mips: u32,
+}
+
 fn scaled(v: u32, scale: f32, max: u32) -> u32 {
     ((v as f32 * scale).round() as u32).max(16).min(max.max(16))
 }
@@ -264,14 +275,26 @@ impl Targets {
         };
 
         let limits = &gpu.props.limits;
-        if opts.intermediate
-            && !(limits.framebuffer_color_sample_counts.contains(self.samples)
-                && limits.framebuffer_depth_sample_counts.contains(self.samples))
-        {
+        let device_has_samples =
+            limits.framebuffer_color_sample_counts.contains(self.samples) && limits.framebuffer_depth_sample_counts.contains(self.samples);
+        if opts.intermediate && !device_has_samples {
             return fail(format!("--samples {} is not supported by the device", opts.samples));
         }
-
         let vc = &xri.view_config;
+        if opts.swapchain_samples > 1 {
+            // The eye pass renders colour and depth at the swapchain's count: both must exist.
+            if !device_has_samples {
+                return fail(format!(
+                    "--swapchain-samples {}: the device renders colour at {:?} and depth at {:?} samples",
+                    opts.swapchain_samples, limits.framebuffer_color_sample_counts, limits.framebuffer_depth_sample_counts
+                ));
+            }
+            let max = vc.iter().map(|v| v.max_swapchain_sample_count).min().unwrap_or(1);
+            if opts.swapchain_samples > max {
+                return fail(format!("--swapchain-samples {}: the runtime's maxSwapchainSampleCount is {max}", opts.swapchain_samples));
+            }
+        }
+
         let size = |v: usize| {
             vk::Extent2D {
                 width: scaled(vc[v].recommended_image_rect_width, opts.scale, vc[v].max_image_rect_width),
@@ -347,7 +370,13 @@ impl Targets {
         if opts.post == Some(crate::cli::PostEffect::Taa) && !double_wide {
             usage |= xr::SwapchainUsageFlags::TRANSFER_SRC;
         }
-        let color = self.chain(xs, self.color_format, usage, extent, layers, vk::ImageAspectFlags::COLOR)?;
+        // `--swapchain-mips`: the runtime refuses more levels than the size has; say so here.
+        let full_chain = 32 - extent.width.max(extent.height).leading_zeros();
+        if opts.swapchain_mips > full_chain {
+            return fail(format!("--swapchain-mips {}: a {}x{} swapchain has at most {full_chain} levels", opts.swapchain_mips, extent.width, extent.height));
+        }
+        let shape = ChainShape { extent, layers, samples: opts.swapchain_samples, mips: opts.swapchain_mips };
+        let color = self.chain(xs, self.color_format, usage, shape, vk::ImageAspectFlags::COLOR)?;
         let mut slot = Slot {
             extent,
             layers,
@@ -375,8 +404,7 @@ impl Targets {
                 xs,
                 self.depth_format,
                 depth_usage,
-                extent,
-                layers,
+                ChainShape { extent, layers, samples: 1, mips: 1 },
                 depth_aspect(self.depth_format),
             ) {
                 Ok(c) => slot.depth = Some(c),
@@ -442,27 +470,21 @@ impl Targets {
         Ok(())
     }
 
-    fn chain(
-        &self,
-        xs: &XrSession,
-        format: vk::Format,
-        usage: xr::SwapchainUsageFlags,
-        extent: vk::Extent2D,
-        layers: u32,
-        aspect: vk::ImageAspectFlags,
-    ) -> Result<Chain> {
+    /// A swapchain and a view of each image's level 0 (all its layers): what the passes render.
+    fn chain(&self, xs: &XrSession, format: vk::Format, usage: xr::SwapchainUsageFlags, shape: ChainShape, aspect: vk::ImageAspectFlags) -> Result<Chain> {
+        let ChainShape { extent, layers, samples, mips } = shape;
         let swapchain = xs
             .session
             .create_swapchain(&xr::SwapchainCreateInfo {
                 create_flags: xr::SwapchainCreateFlags::EMPTY,
                 usage_flags: usage,
                 format: format.as_raw() as u32,
-                sample_count: 1,
+                sample_count: samples,
                 width: extent.width,
                 height: extent.height,
                 face_count: 1,
                 array_size: layers,
-                mip_count: 1,
+                mip_count: mips,
             })
             .ctx("xrCreateSwapchain")?;
         let images: Vec<vk::Image> = swapchain

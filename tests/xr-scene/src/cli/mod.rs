@@ -2,9 +2,11 @@
 //! combinations that cannot work live in `parse`.
 
 mod post;
+mod swapchain;
 
 use clap::{CommandFactory, Parser, ValueEnum};
 use post::check_post;
+use swapchain::check_swapchain;
 use std::path::PathBuf;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -129,7 +131,14 @@ pub struct Options {
     pub depth: DepthMode,
     pub depth_clear: DepthClear,
     pub intermediate: bool,
+    /// The eye pass's sample count: `--intermediate`'s or `--post`'s target (`--samples`), or on
+    /// the direct path the swapchain's own (`--swapchain-samples`).
     pub samples: u32,
+    /// `--swapchain-samples`: the colour swapchain's `sampleCount` (the eye pass renders into it
+    /// directly when > 1).
+    pub swapchain_samples: u32,
+    /// `--swapchain-mips`: the colour swapchain's `mipCount`; only level 0 is rendered.
+    pub swapchain_mips: u32,
     pub submit_depth: bool,
     pub vulkan: VulkanPath,
     /// `--vulkan-api`: the apiVersion of the app's instance and device.
@@ -252,6 +261,14 @@ struct Args {
     /// Offscreen sample count with --intermediate [default: 4].
     #[arg(long, value_parser = parse_samples)]
     samples: Option<u32>,
+    /// Colour swapchain sampleCount N in 1, 2, 4, 8; N > 1: the eye pass renders straight into
+    /// the multisampled swapchain image (no --intermediate, --post or --submit-depth).
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = parse_swapchain_samples)]
+    swapchain_samples: u32,
+    /// Colour swapchain mipCount N (>= 1, at most the full chain of its size); only level 0 is
+    /// rendered.
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    swapchain_mips: u32,
     /// Submit depth swapchains (XR_KHR_composition_layer_depth).
     #[arg(long)]
     submit_depth: bool,
@@ -396,6 +413,14 @@ struct Args {
     dynamic_resolution: bool,
 }
 
+/// `--swapchain-samples`: the counts an app asks a runtime for (the device decides which it has).
+fn parse_swapchain_samples(v: &str) -> Result<u32, String> {
+    match v.parse::<u32>() {
+        Ok(n @ (1 | 2 | 4 | 8)) => Ok(n),
+        _ => Err(format!("must be 1, 2, 4 or 8, got {v:?}")),
+    }
+}
+
 fn parse_samples(v: &str) -> Result<u32, String> {
     match v.parse::<u32>() {
         Ok(n @ (1 | 2 | 4 | 8 | 16 | 32 | 64)) => Ok(n),
@@ -420,9 +445,15 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
     if a.samples.is_some() && !a.intermediate && a.post.is_none() {
         return Err(usage("--samples only applies with --intermediate or --post"));
     }
+    check_swapchain(&a).map_err(|m| usage(&m))?;
     // `--intermediate` has always meant 4 samples unless told; the post chain's scene target is
-    // single-sampled unless told (Bevy's MSAA is one option among several).
-    let samples = if a.intermediate { a.samples.unwrap_or(4) } else { a.samples.unwrap_or(1) };
+    // single-sampled unless told (Bevy's MSAA is one option among several). On the direct path
+    // the eye pass has the swapchain's samples.
+    let samples = match (a.intermediate, a.post.is_some()) {
+        (true, _) => a.samples.unwrap_or(4),
+        (false, true) => a.samples.unwrap_or(1),
+        (false, false) => a.swapchain_samples,
+    };
     check_post(&a, samples).map_err(|m| usage(&m))?;
     // Depth rendered at N samples cannot simply be submitted: resolving it needs
     // VK_KHR_depth_stencil_resolve and a choice of resolve mode, which this app does not make.
@@ -470,6 +501,8 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         depth_clear: a.depth_clear,
         intermediate: a.intermediate,
         samples,
+        swapchain_samples: a.swapchain_samples,
+        swapchain_mips: a.swapchain_mips,
         submit_depth: a.submit_depth,
         vulkan: a.vulkan,
         vulkan_api: a.vulkan_api,
