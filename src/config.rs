@@ -104,7 +104,7 @@ pub fn keys() -> &'static [KeySpec] {
     ALL.get_or_init(|| {
         let mut all: Vec<KeySpec> = Vec::new();
         // Features sharing a folder (both foveation methods) declare the folder's keys each.
-        for spec in CORE_KEYS.iter().chain(crate::features::KEYS.iter().flat_map(|k| k.iter())).chain(crate::features::overlay::KEYS).chain(crate::features::upscale::KEYS) {
+        for spec in CORE_KEYS.iter().chain(crate::features::KEYS.iter().flat_map(|k| k.iter())).chain(crate::features::overlay::KEYS).chain(crate::features::upscale::KEYS).chain(crate::features::views::KEYS) {
             if !all.iter().any(|k| k.key == spec.key) {
                 all.push(*spec);
             }

@@ -44,6 +44,8 @@ pub struct Settings {
     pub screenshot: ScreenshotSettings,
     /// `upscale.*`: the app renders smaller, the layer upscales into the runtime's swapchain.
     pub upscale: crate::features::upscale::UpscaleSettings,
+    /// `view.*`: the view tricks.
+    pub views: crate::features::views::ViewSettings,
     pub stats_file: String,
     /// `stats.gpu_time`: the submit hooks bracket submissions with timestamps (`vk::gpu_time`).
     pub stats_gpu_time: bool,
@@ -75,6 +77,7 @@ impl Settings {
             overlay: crate::features::overlay::OverlaySettings::from_config(c),
             screenshot: ScreenshotSettings::from_config(c),
             upscale: crate::features::upscale::UpscaleSettings::from_config(c),
+            views: crate::features::views::ViewSettings::from_config(c),
             stats_file: c.text("stats.file").to_string(),
             stats_gpu_time: c.bool("stats.gpu_time"),
             fail_in: c.text("debug.fail_in").split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),

@@ -14,8 +14,9 @@ pub mod mask;
 /// `crate::xr::overlay`).
 pub mod overlay;
 pub mod screenshot;
-/// Not a registry plug-in yet: the upscale's filters (the swapchain side comes with the plug-in).
+/// Not a registry plug-in: the upscale changes no app pass (its shell is `crate::xr::upscale`).
 pub mod upscale;
+pub mod views;
 
 use crate::config::KeySpec;
 use crate::core::stats::FrameStats;
@@ -24,7 +25,7 @@ use crate::core::stats::FrameStats;
 /// `VkFeature` and `Plugin`. Generates the per-device feature set, the config keys and the empty
 /// statistics of a frame.
 macro_rules! registry {
-    (vulkan { $($field:ident: $ty:ty,)* } openxr { $($xfield:ident: $xty:path => $xsession:ty,)* }) => {
+    (vulkan { $($field:ident: $ty:ty,)* } openxr { $($xfield:ident: $xty:path => $xsession:ty, $xinstance:ty,)* }) => {
         /// Every OpenXR feature object, in registry order.
         pub(crate) static XR_FEATURES: &[&dyn crate::xr::feature::XrFeature] = &[$(&$xty,)*];
 
@@ -32,6 +33,14 @@ macro_rules! registry {
         #[derive(Debug, Default)]
         pub(crate) struct XrSessionFeatures {
             $(pub(crate) $xfield: $xsession,)*
+        }
+
+        /// One XR instance's per-feature state (what is decided before any session exists); `()`
+        /// for a feature without any.
+        #[derive(Debug, Default)]
+        #[allow(dead_code)]
+        pub(crate) struct XrInstanceFeatures {
+            $(pub(crate) $xfield: $xinstance,)*
         }
 
         /// One device's feature objects, in registry order.
@@ -77,10 +86,14 @@ registry! {
         // Last: it copies the images as the runtime gets them, after RDM's reconstruction.
         screenshot: screenshot::vk::ScreenshotDevice,
     }
+    // OpenXR features: `field: object => per-session state, per-instance state,`. First the view
+    // tricks: they check each frame's angles at `amend_frame_end`, which stops at the first
+    // feature that amends.
     openxr {
-        mask: mask::xr::MaskXr => mask::xr::MaskSession,
-        foveation: foveation::xr::FoveationXr => foveation::xr::FoveationSession,
-        far_field: far_field::xr::FarFieldXr => far_field::xr::FarFieldSession,
-        screenshot: screenshot::xr::ScreenshotXr => screenshot::xr::ScreenshotSession,
+        views: views::xr::ViewsXr => views::xr::ViewsSession, views::xr::ViewsInstance,
+        mask: mask::xr::MaskXr => mask::xr::MaskSession, (),
+        foveation: foveation::xr::FoveationXr => foveation::xr::FoveationSession, (),
+        far_field: far_field::xr::FarFieldXr => far_field::xr::FarFieldSession, (),
+        screenshot: screenshot::xr::ScreenshotXr => screenshot::xr::ScreenshotSession, (),
     }
 }

@@ -5,7 +5,7 @@
 //! Events: `wanted_extensions` (xrCreateInstance), `swapchain_usage` (xrCreateSwapchain, may add
 //! usage), `action_sets` / `action_sets_attached` / `active_action_sets`
 //! (xrAttachSessionActionSets, xrSyncActions: the feature's own actions next to the app's),
-//! `views_located` (xrLocateViews), `frame_begun` (xrBeginFrame: publish what the Vulkan half
+//! `amend_views` and `views_located` (xrLocateViews), `frame_begun` (xrBeginFrame: publish what the Vulkan half
 //! needs for the frame the app is about to record), `amend_frame_end` (xrEndFrame: may submit
 //! amended layers in place of the app's), `views_enumerated` (xrEnumerateViewConfigurationViews:
 //! may change what the app is told), `event` (xrPollEvent), `config_reloaded` (between frames).
@@ -51,9 +51,13 @@ pub(crate) trait XrFeature: Sync {
     fn views_located(&self, _s: &Session, _info: &xr::ViewLocateInfo, _views: &[xr::View]) {}
     /// `xrBeginFrame` succeeded: the app records the frame's passes next.
     fn frame_begun(&self, _s: &Session) {}
-    /// The runtime answered `xrEnumerateViewConfigurationViews` with `views`; the feature may
-    /// change what the app is told (e.g. the recommended sizes).
-    fn views_enumerated(&self, _s: &Settings, _views: &mut [xr::ViewConfigurationView]) {}
+    /// The runtime answered `xrEnumerateViewConfigurationViews` of `system` with `views`; the
+    /// feature may change what the app is told (e.g. the recommended sizes). Before the upscale
+    /// scales them.
+    fn views_enumerated(&self, _inst: &Instance, _system: xr::SystemId, _config: xr::ViewConfigurationType, _s: &Settings, _views: &mut [xr::ViewConfigurationView]) {}
+    /// The runtime located the app's views (`views`, what the app will get); the feature may
+    /// change them (angles, orientations) before anything else sees them.
+    fn amend_views(&self, _s: &Session, _info: &xr::ViewLocateInfo, _views: &mut [xr::View]) {}
     /// `xrEndFrame` is about to go down with the app's `info`; an amended copy replaces it (the
     /// first feature that amends wins).
     fn amend_frame_end(&self, _s: &Session, _info: &xr::FrameEndInfo) -> Option<AmendedFrameEnd> {

@@ -221,6 +221,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             layer_extensions: added,
             watch: crate::config::Watch::new(&[app_name_for_watch.as_str(), exe.as_str()], std::time::Duration::from_millis(100)),
             upscale: Default::default(),
+            features: Default::default(),
         };
         state().instances.insert(handle.into_raw(), Arc::new(inst));
         Ok(r)
@@ -300,10 +301,11 @@ pub(super) unsafe extern "system" fn enumerate_view_configuration_views(
             // the app's array, which is the app's to change until the call returns.
             let written = unsafe { std::slice::from_raw_parts_mut(views, (*view_count_output).min(view_capacity_input) as usize) };
             let settings = super::settings(&inst);
-            super::upscale::views_enumerated(&inst, &settings, written);
+            // The features' changes (the FOV cut) first; the upscale scales what they tell.
             for f in crate::features::XR_FEATURES {
-                f.views_enumerated(&settings, written);
+                f.views_enumerated(&inst, system_id, view_configuration_type, &settings, written);
             }
+            super::upscale::views_enumerated(&inst, &settings, written);
             for (i, v) in written.iter().enumerate() {
                 tracing::info!(
                     "view {i} of {view_configuration_type:?}: recommended {}x{}, max {}x{}",

@@ -152,6 +152,8 @@ pub(crate) struct Instance {
     pub watch: crate::config::Watch,
     /// The upscale's latched sizes (`xrEnumerateViewConfigurationViews`).
     pub upscale: upscale::InstanceUpscale,
+    /// The features' per-instance state (made by the registry).
+    pub features: crate::features::XrInstanceFeatures,
 }
 
 pub(crate) const VISIBILITY_MASK_EXT: &str = "XR_KHR_visibility_mask";

@@ -237,18 +237,27 @@ pub(super) unsafe extern "system" fn locate_views(
         s.instance.check_fault("xrLocateViews")?;
         let r = down.call(plain);
         if r == xr::Result::SUCCESS && view_capacity_input > 0 && !views.is_null() && !view_count_output.is_null() {
-            // SAFETY: on success the runtime wrote `*view_count_output` (≤ capacity) views.
-            let located = unsafe { std::slice::from_raw_parts(views, (*view_count_output).min(view_capacity_input) as usize) };
+            // SAFETY: on success the runtime wrote `*view_count_output` (≤ capacity) views into the
+            // app's array, which is the app's to change until the call returns.
+            let located = unsafe { std::slice::from_raw_parts_mut(views, (*view_count_output).min(view_capacity_input) as usize) };
+            let runtime_fovs: Vec<ViewFov> = located.iter().map(|v| fov_tangents(&v.fov)).collect();
+            // SAFETY: the app's locate info, valid for this call (the call succeeded).
+            if let Some(info) = unsafe { view_locate_info.as_ref() } {
+                for f in crate::features::XR_FEATURES {
+                    f.amend_views(&s, info, located);
+                }
+            }
+            let located: &[xr::View] = located;
             let mut last = s.views.lock().unwrap_or_else(|e| e.into_inner());
             last.clear();
             last.extend(located.iter().map(|v| LocatedView { pose: v.pose, fov: v.fov }));
             let fovs: Vec<ViewFov> = located.iter().map(|v| fov_tangents(&v.fov)).collect();
-            // The layer hands the runtime's views to the app unchanged: until the app submits a
-            // frame, they are also what it renders with.
+            // The views as the app got them (the features' changes included): until the app
+            // submits a frame, they are also what it renders with.
             if !s.fov_submitted.load(Ordering::Acquire) {
-                crate::shared::shared().update_views(None, Some(fovs.clone()));
+                crate::shared::shared().update_views(None, Some(fovs));
             }
-            crate::shared::shared().update_runtime_fovs(fovs);
+            crate::shared::shared().update_runtime_fovs(runtime_fovs);
             drop(last);
             // SAFETY: the app's locate info, valid for this call (the call succeeded).
             if let Some(info) = unsafe { view_locate_info.as_ref() } {

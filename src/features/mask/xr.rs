@@ -73,11 +73,15 @@ impl XrFeature for MaskXr {
 /// Fetches one view's hidden triangle mesh from the runtime (two-call idiom). None when the runtime
 /// offers no visibility mask or the call fails (logged).
 pub(crate) fn runtime_mask(s: &Session, view: u32) -> Option<Vec<[f32; 2]>> {
+    runtime_mesh(s, view, xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH)
+}
+
+/// One view's triangle mesh of type `ty` (hidden or visible), three points per triangle.
+pub(crate) fn runtime_mesh(s: &Session, view: u32, ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
     if !s.instance.has_extension(VISIBILITY_MASK_EXT) {
         return None;
     }
     let f = s.instance.next.get_visibility_mask?;
-    let ty = xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH;
     let config = xr::ViewConfigurationType::PRIMARY_STEREO;
     let mut mask = xr::VisibilityMaskKHR {
         ty: xr::VisibilityMaskKHR::TYPE,

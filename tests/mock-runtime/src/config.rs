@@ -67,6 +67,10 @@ pub struct Config {
     /// ends the app when it is done, not after a frame count that a loaded machine may reach
     /// before the test acted.
     pub exit_on: Option<std::path::PathBuf>,
+    /// `MOCK_XR_RECOMMENDED_SCALE=F` (0.05..=2): the recommended image size is the profile's × F
+    /// per axis, as a runtime's own resolution setting (SteamVR's supersampling) changes it; the
+    /// FOVs stay. Tests get small images at the recommended size itself.
+    pub recommended_scale: f64,
 }
 
 fn var(name: &str) -> Option<String> {
@@ -151,6 +155,12 @@ impl Gaze {
 }
 
 impl Config {
+    /// The recommended image size (the profile's × `recommended_scale`, at least 1×1).
+    pub fn recommended(&self) -> (u32, u32) {
+        let s = |n: u32| ((n as f64 * self.recommended_scale).round() as u32).max(1);
+        (s(self.hmd.recommended.0), s(self.hmd.recommended.1))
+    }
+
     /// Reads the environment. A malformed variable is an error (xrCreateInstance fails) rather
     /// than a silently different test.
     pub fn from_env() -> Result<Config, String> {
@@ -190,6 +200,11 @@ impl Config {
             },
             crash_at: parse_u64("MOCK_XR_CRASH_AT")?,
             exit_on: var("MOCK_XR_EXIT_ON").map(Into::into),
+            recommended_scale: match var("MOCK_XR_RECOMMENDED_SCALE").map(|v| v.trim().parse::<f64>()) {
+                None => 1.0,
+                Some(Ok(f)) if (0.05..=2.0).contains(&f) => f,
+                Some(_) => return Err("MOCK_XR_RECOMMENDED_SCALE: want a number in 0.05..=2".into()),
+            },
         })
     }
 

@@ -158,12 +158,12 @@ pub unsafe extern "system" fn xr_enumerate_view_configuration_views(
             return Err(xr::Result::ERROR_VALIDATION_FAILURE);
         }
         let hmd = inst.cfg.hmd;
+        let recommended = inst.cfg.recommended();
         // SAFETY: app array of `capacity` elements, each type-checked.
         unsafe {
             two_call(capacity, count_out, 2, |i| {
                 let v = output(views.add(i))?;
-                v.recommended_image_rect_width = hmd.recommended.0;
-                v.recommended_image_rect_height = hmd.recommended.1;
+                (v.recommended_image_rect_width, v.recommended_image_rect_height) = recommended;
                 v.max_image_rect_width = hmd.max.0;
                 v.max_image_rect_height = hmd.max.1;
                 v.recommended_swapchain_sample_count = 1;

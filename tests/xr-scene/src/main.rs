@@ -165,6 +165,15 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
             if views.len() != 2 {
                 return error::fail(format!("xrLocateViews returned {} views", views.len()));
             }
+            // `--widen-fov`: the app renders (and submits) more than it was given.
+            let mut views = views;
+            let widen = opts.widen_fov_deg.to_radians();
+            for v in &mut views {
+                v.fov.angle_left -= widen;
+                v.fov.angle_right += widen;
+                v.fov.angle_up += widen;
+                v.fov.angle_down -= widen;
+            }
             let mut acquired = Vec::new();
             for slot in &mut targets.slots {
                 let color = calls.time("xrAcquireSwapchainImage", || slot.color.swapchain.acquire_image()).ctx("xrAcquireSwapchainImage")?;

@@ -210,6 +210,10 @@ pub struct Options {
     /// `--quad`: a static swapchain of half a view's size, filled once, submitted every frame as a
     /// quad layer after the projection layer (`crate::quad`).
     pub quad: bool,
+    /// `--widen-fov DEG`: each located view's four angles widened by DEG before the app renders
+    /// and submits it (an app that renders more than the runtime asked, e.g. for its own
+    /// reprojection).
+    pub widen_fov_deg: f32,
     /// `--post`: the post-processing chain after the eye pass (none: the eye pass renders the
     /// swapchain image, or `--intermediate`'s target).
     pub post: Option<PostEffect>,
@@ -378,6 +382,9 @@ struct Args {
     /// Submit a quad layer every frame from a static swapchain (half a view's size, filled once).
     #[arg(long)]
     quad: bool,
+    /// Widen each located view's angles by DEG (0..=20) before rendering and submitting it.
+    #[arg(long, value_name = "DEG", default_value_t = 0.0, value_parser = parse_widen)]
+    widen_fov: f32,
     /// Render the eye passes into an RGBA16F target, then post-process into the swapchain with
     /// full-screen draws: tonemap; bloom (down/up-sample chain, then tonemap); taa (history
     /// blended into the tonemap).
@@ -411,6 +418,11 @@ struct Args {
     /// tonemap reads each frame's sub-rect.
     #[arg(long)]
     dynamic_resolution: bool,
+}
+
+/// `--widen-fov`: degrees in 0..=20.
+fn parse_widen(v: &str) -> Result<f32, String> {
+    v.parse::<f32>().ok().filter(|d| (0.0..=20.0).contains(d)).ok_or_else(|| format!("{v}: want degrees in 0..=20"))
 }
 
 /// `--swapchain-samples`: the counts an app asks a runtime for (the device decides which it has).
@@ -534,6 +546,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         submit2: a.submit2,
         visibility_mask: a.visibility_mask,
         quad: a.quad,
+        widen_fov_deg: a.widen_fov,
         post: a.post,
         post_compute: a.post_compute,
         post_subpass: a.post_subpass,
