@@ -42,7 +42,8 @@ struct Args {
     /// Frames per mode before switching between features off (A) and on (B).
     #[arg(long, default_value_t = 40)]
     period: u64,
-    /// The feature(s) switched, comma separated (`mask,foveation,far_field`).
+    /// The feature(s) switched, comma separated (`mask,foveation,far_field`; `fov_cut` is
+    /// `view.fov_cut = "lens"`).
     #[arg(long, default_value = "mask")]
     feature: String,
     /// Extra xr-scene arguments, space separated (`--app-args "--empty"`).
@@ -66,7 +67,14 @@ impl Args {
 /// The config text for mode B (features on) or A (off); `feature` may list several, comma
 /// separated (`mask,foveation,far_field`), switched together.
 fn config_text(feature: &str, on: bool, stats: &Path, extra: &str) -> String {
-    let switches: String = feature.split(',').map(|f| format!("{f}.enabled = {on}\n")).collect();
+    // `fov_cut` is `view.fov_cut`'s lens choice; every other feature its `.enabled`.
+    let switches: String = feature
+        .split(',')
+        .map(|f| match f {
+            "fov_cut" => format!("view.fov_cut = {:?}\n", if on { "lens" } else { "off" }),
+            f => format!("{f}.enabled = {on}\n"),
+        })
+        .collect();
     format!("stats.file = {:?}\nstats.gpu_time = true\n{switches}{extra}\n", stats.to_string_lossy())
 }
 
@@ -87,8 +95,8 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-/// The upscale is latched per XR instance (the told size cannot change under an app's
-/// swapchains): its A/B alternates whole instances of xr-scene (`--instances`), switching the
+/// The upscale and the FOV cut are latched per XR instance (the told size cannot change under an
+/// app's swapchains): their A/B alternates whole instances of xr-scene (`--instances`), switching the
 /// config between them, and takes each frame's mode and end-to-end GPU time (every submission,
 /// the upscale's included) from the layer's own record, whose frame numbers restart per instance.
 fn bench_per_instance(a: &Args) {
@@ -141,7 +149,7 @@ fn bench_per_instance(a: &Args) {
         if v["frame"].as_u64().unwrap_or(0) < 10 {
             continue;
         }
-        let i = v["upscale_enabled"].as_bool().unwrap_or(false) as usize;
+        let i = (v["upscale_enabled"].as_bool().unwrap_or(false) || v["view_fov_cut"].as_bool().unwrap_or(false)) as usize;
         if let Some(b) = v["gpu_ms"]["busy"].as_f64() {
             busy[i].push(b);
         }
@@ -175,7 +183,7 @@ fn bench_per_instance(a: &Args) {
 
 fn main() {
     let a = <Args as clap::Parser>::parse();
-    if a.feature.split(',').any(|f| f == "upscale") {
+    if a.feature.split(',').any(|f| f == "upscale" || f == "fov_cut") {
         return bench_per_instance(&a);
     }
     let (app_args, extra_config) = (a.app_args(), a.config());

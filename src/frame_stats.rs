@@ -45,6 +45,8 @@ pub struct FrameRecord {
     pub gpu_ms: Option<Option<GpuFrameTime>>,
     /// The upscale this frame (None: no swapchain of the session is interposed).
     pub upscale: Option<crate::shared::UpscaleFrame>,
+    /// The OpenXR features' own fields (`XrFeature::frame_stats`).
+    pub extra: Vec<(&'static str, serde_json::Value)>,
 }
 
 impl FrameRecord {
@@ -65,6 +67,9 @@ impl FrameRecord {
         self.stats.write_json(&mut record);
         // Whether this frame was upscaled (`examples/bench --feature upscale` switches on it).
         record.insert("upscale_enabled".into(), self.upscale.is_some().into());
+        for (k, v) in &self.extra {
+            record.insert((*k).into(), v.clone());
+        }
         if let Some(u) = &self.upscale {
             record.insert("upscale".into(), serde_json::json!({"passes": u.passes, "rendered_px": u.rendered_px, "display_px": u.display_px, "gpu_ms": u.gpu_ms, "phases_ms": u.phases_ms}));
         }
@@ -188,7 +193,7 @@ mod tests {
         };
         *stats.get_mut::<RdmFrameStats>().unwrap() = RdmFrameStats { passes: 1, quads_skipped: [(1, 77)].into_iter().collect(), ..Default::default() };
         *stats.get_mut::<VrsFrameStats>().unwrap() = VrsFrameStats { passes: 3, ..Default::default() };
-        let r = FrameRecord { frame: 7, time: 1.5, mask_enabled: true, foveation_enabled: true, far_field_enabled: false, overlay_enabled: false, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true), gpu_ms: None, upscale: None };
+        let r = FrameRecord { frame: 7, time: 1.5, mask_enabled: true, foveation_enabled: true, far_field_enabled: false, overlay_enabled: false, stats, fovea: Vec::new(), fovea_source: None, vulkan_half: Some(true), gpu_ms: None, upscale: None, extra: vec![("view_fov_cut", true.into())] };
         let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
         assert_eq!(v["frame"], 7);
         assert_eq!(v["vulkan_half"], true);
@@ -201,6 +206,7 @@ mod tests {
         assert_eq!((v["vrs"]["passes"].as_u64(), v["foveation_enabled"].as_bool()), (Some(3), Some(true)));
         assert!(v.get("gpu_ms").is_none(), "timer off: no field");
         let t = GpuFrameTime { busy_ms: 1.5, span_ms: 2.0, submissions: 3, untimed: 0 };
+        assert_eq!(serde_json::from_str::<serde_json::Value>(&r.to_json()).unwrap()["view_fov_cut"], true);
         let timed: serde_json::Value = serde_json::from_str(&FrameRecord { gpu_ms: Some(Some(t)), ..r.clone() }.to_json()).unwrap();
         assert_eq!((timed["gpu_ms"]["busy"].as_f64(), timed["gpu_ms"]["span"].as_f64(), timed["gpu_ms"]["submissions"].as_u64()), (Some(1.5), Some(2.0), Some(3)));
         let lost: serde_json::Value = serde_json::from_str(&FrameRecord { gpu_ms: Some(None), ..r.clone() }.to_json()).unwrap();

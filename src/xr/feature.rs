@@ -8,7 +8,8 @@
 //! `amend_views` and `views_located` (xrLocateViews), `frame_begun` (xrBeginFrame: publish what the Vulkan half
 //! needs for the frame the app is about to record), `amend_frame_end` (xrEndFrame: may submit
 //! amended layers in place of the app's), `views_enumerated` (xrEnumerateViewConfigurationViews:
-//! may change what the app is told), `event` (xrPollEvent), `config_reloaded` (between frames).
+//! may change what the app is told), `event` (xrPollEvent), `config_reloaded` (between frames),
+//! `frame_stats` (the frame's `stats.file` line).
 //! Image release reaches the Vulkan features (`crate::vk::before_release`).
 
 use super::session::Session;
@@ -69,4 +70,8 @@ pub(crate) trait XrFeature: Sync {
     }
     /// The configuration was reloaded with `changed` keys.
     fn config_reloaded(&self, _s: &Session, _changed: &[&'static str]) {}
+    /// Fields of the feature's for the frame's `stats.file` line (written after `xrEndFrame`).
+    fn frame_stats(&self, _s: &Session) -> Vec<(&'static str, serde_json::Value)> {
+        Vec::new()
+    }
 }

@@ -63,6 +63,7 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
         vulkan_half,
         gpu_ms: None,
         upscale: shared::shared().take_upscale(),
+        extra: session.map(|s| crate::features::XR_FEATURES.iter().flat_map(|f| f.frame_stats(s)).collect()).unwrap_or_default(),
     };
     if let Some(s) = session {
         let enabled = crate::features::enabled(&settings, &record.stats);

@@ -262,6 +262,13 @@ impl XrFeature for ViewsXr {
         *lock(&s.features.views.given) = given;
     }
 
+    /// `view_fov_cut`: whether the session's views are cut (`examples/bench --feature fov_cut`
+    /// switches on it).
+    fn frame_stats(&self, s: &Session) -> Vec<(&'static str, serde_json::Value)> {
+        let on = !s.features.views.off.load(Ordering::Acquire) && Self::latched(s).is_some();
+        vec![("view_fov_cut", on.into())]
+    }
+
     /// Checks the frame's projection views against the angles and sizes given (never amends).
     fn amend_frame_end(&self, s: &Session, info: &xr::FrameEndInfo) -> Option<AmendedFrameEnd> {
         if s.features.views.off.load(Ordering::Acquire) || info.layer_count == 0 || info.layers.is_null() {
