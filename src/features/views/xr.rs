@@ -220,11 +220,13 @@ impl XrFeature for ViewsXr {
         if config != xr::ViewConfigurationType::PRIMARY_STEREO || views.len() != STEREO_VIEWS {
             return;
         }
-        let mut latch = lock(&inst.features.views.latch);
-        if latch.is_none() {
-            // Decided once per instance: the app sizes its swapchains from the first answer.
-            *latch = Some(if s.views.fov_cut { decide(inst, system, s, views) } else { Latched::default() });
+        // Decided once per instance: the app sizes its swapchains from the first answer. Decided
+        // with no lock held (it asks the runtime), kept by the first call to finish.
+        if lock(&inst.features.views.latch).is_none() {
+            let decided = if s.views.fov_cut { decide(inst, system, s, views) } else { Latched::default() };
+            lock(&inst.features.views.latch).get_or_insert(decided);
         }
+        let latch = lock(&inst.features.views.latch);
         let Some(l) = latch.as_ref() else { return };
         for (v, c) in views.iter_mut().zip(&l.views) {
             // Only where the runtime still answers the size the cut was made on.
