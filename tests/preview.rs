@@ -166,8 +166,8 @@ fn check_profile(name: &str, scale: f64) {
         assert_eq!(jv["far_field"]["role"], if v == 1 { "destination" } else { "source" });
         compare("far_field", &classes_of(&png("far_field"), &j, "far_field", w, h), &expected);
     }
-    // The numbers are printed as well.
-    assert!(text.contains("view 0 mask (runtime)") && text.contains("px skipped") && text.contains("wrote 8 PNGs"), "{text}");
+    // The numbers are printed as well; the FOV cut's picture is the fifth per view.
+    assert!(text.contains("view 0 mask (runtime)") && text.contains("px skipped") && text.contains("view 1 FOV cut: the app renders") && text.contains("wrote 10 PNGs"), "{text}");
 }
 
 #[test]

@@ -504,6 +504,9 @@ fn preview_summary(r: &serde_json::Value) -> String {
         if v["rdm"].is_object() {
             s += &format!("view {i} RDM: {} px skipped ({}){}\n", v["rdm"]["pixels_skipped"], pct(&v["rdm"]["skipped_fraction"]), on("foveation"));
         }
+        if let Some(c) = v["fov_cut"].as_object() {
+            s += &format!("view {i} FOV cut: the app renders {}x{} (pixels {}..{} x {}..{}), {} fewer pixels{}\n", c["width"], c["height"], c["x0"], c["x1"], c["y0"], c["y1"], pct(&c["saved_fraction"]), on("fov_cut"));
+        }
         let f = &v["far_field"];
         if f["role"] == "destination" {
             s += &format!("view {i} far field: {} px reusable ({}) beyond the split{}\n", f["pixels_reusable"], pct(&f["share"]), on("far_field"));

@@ -38,6 +38,8 @@ pub const RDM_RINGS: [Class; 3] = [
 ];
 pub const RDM_SKIPPED: Class = Class { name: "skipped", tint: [0, 0, 0], alpha: 255 };
 pub const FAR_REUSED: Class = Class { name: "reused", tint: [40, 200, 235], alpha: 150 };
+/// The FOV cut: pixels outside it (the app no longer renders them).
+pub const CUT_OFF: Class = Class { name: "cut off", tint: [150, 90, 230], alpha: 180 };
 
 /// Rows under each view holding the legend (three lines of text).
 pub const LEGEND_HEIGHT: u32 = 44;
@@ -60,6 +62,7 @@ pub fn legend_json() -> serde_json::Value {
         "vrs": VRS.iter().map(class).collect::<Vec<_>>(),
         "rdm": RDM_RINGS.iter().chain([&RDM_SKIPPED]).map(class).collect::<Vec<_>>(),
         "far_field": [class(&FAR_REUSED)],
+        "fov_cut": [class(&CUT_OFF)],
     })
 }
 
@@ -218,7 +221,7 @@ fn percent(n: u64, area: u64) -> String {
 }
 
 /// The pictures of one view: (feature, picture) for the mask, VRS, RDM (when the FOV allows
-/// it) and the far field, each over `base`.
+/// it), the far field and the FOV cut (when there is one), each over `base`.
 pub fn view_pictures(p: &Preview, i: usize, base: &Canvas) -> Vec<(&'static str, Canvas)> {
     let v = &p.views[i];
     let area = p.width as u64 * p.height as u64;
@@ -259,6 +262,17 @@ pub fn view_pictures(p: &Preview, i: usize, base: &Canvas) -> Vec<(&'static str,
         (format!("far field, view {i}: the source"), Vec::new())
     };
     out.push(("far_field", c.with_legend(&title, &entries)));
+
+    if let Some(cut) = p.cuts.get(i).copied().flatten() {
+        let mut c = base.clone();
+        let w = p.width as usize;
+        let outside = |k: usize| !((cut.x0..cut.x1).contains(&((k % w) as u32)) && (cut.y0..cut.y1).contains(&((k / w) as u32)));
+        // The cut over the lens: what it leaves out, and inside it what the mask hides.
+        c.paint(&[MASKED, CUT_OFF], |k| if outside(k) { Some(1) } else { v.mask.masked[k].then_some(0) });
+        let left_out = area - cut.size().0 as u64 * cut.size().1 as u64;
+        let title = format!("FOV cut, view {i}: {}x{} of {}x{}", cut.size().0, cut.size().1, p.width, p.height);
+        out.push(("fov_cut", c.with_legend(&title, &[(CUT_OFF, format!("cut off {}", percent(left_out, area))), (MASKED, "hidden by the lens".into())])));
+    }
     out
 }
 
@@ -277,7 +291,7 @@ mod tests {
     fn every_class_is_told_apart_over_the_grid() {
         // A pixel's class must be readable back from its colour (the tests count them).
         let mut seen = std::collections::HashSet::new();
-        let all: Vec<Class> = [MASKED, RDM_SKIPPED, FAR_REUSED].into_iter().chain(VRS).chain(RDM_RINGS).collect();
+        let all: Vec<Class> = [MASKED, RDM_SKIPPED, FAR_REUSED, CUT_OFF].into_iter().chain(VRS).chain(RDM_RINGS).collect();
         for base in [GRID_BACKGROUND, GRID_LINE] {
             assert!(seen.insert(base));
         }

@@ -15,6 +15,7 @@ use crate::features::foveation::rdm::rules::RdmParams;
 use crate::features::foveation::rules::fovea_views;
 use crate::features::foveation::vrs::rules::{self as vrs, EyeRates, FragmentSize};
 use crate::features::mask::{rules as mask_rules, source as mask_source};
+use crate::features::views::rules::{self as views_rules, Cut};
 use crate::settings::Settings;
 use crate::shared::{MaskSource, ViewFov, ViewPose};
 
@@ -151,6 +152,9 @@ pub struct Preview {
     /// The far field's split distance, metres (infinite: nothing is far enough).
     pub split_m: f64,
     pub split_px: f64,
+    /// Per view, the FOV cut (`view.fov_cut = lens`) on this image's grid, from the runtime's
+    /// hidden mesh (None: no mesh, nothing visible); every view one size, as the layer makes it.
+    pub cuts: Vec<Option<Cut>>,
 }
 
 /// Options that are not configuration keys.
@@ -200,7 +204,32 @@ pub fn compute(headset: &Headset, settings: &Settings, options: &Options) -> Pre
             ViewPreview { mask, vrs, rdm, far_field }
         })
         .collect();
-    Preview { width: w, height: h, views, split_m, split_px }
+    let cuts = fov_cuts(headset, settings.views.fov_cut_margin_deg);
+    Preview { width: w, height: h, views, split_m, split_px, cuts }
+}
+
+/// The FOV cut of every view (`features::views::rules`), from the runtime's hidden meshes as the
+/// layer decides it; none at all when a view has no mesh.
+fn fov_cuts(headset: &Headset, margin_deg: f64) -> Vec<Option<Cut>> {
+    let (w, h) = (headset.width, headset.height);
+    let rect = PixelRect { x: 0, y: 0, width: w, height: h };
+    let cuts: Vec<Option<Cut>> = headset
+        .views
+        .iter()
+        .map(|v| {
+            let hidden = v.hidden.as_ref()?;
+            let (_, bits) = mask_rules::coverage_bitmap(&mask_rules::triangles_to_ndc(hidden, &v.fov), rect.viewport(), rect);
+            let fov = views_rules::Fov { left: v.fov.tan_left as f64, right: v.fov.tan_right as f64, up: v.fov.tan_up as f64, down: v.fov.tan_down as f64 };
+            views_rules::cut(&fov, (w, h), &bits, margin_deg)
+        })
+        .collect();
+    if !cuts.iter().all(Option::is_some) {
+        return vec![None; cuts.len()];
+    }
+    let mut plain: Vec<Cut> = cuts.into_iter().flatten().collect();
+    let sizes = vec![(w, h); plain.len()];
+    views_rules::same_size(&mut plain, &sizes);
+    plain.into_iter().map(Some).collect()
 }
 
 fn pose(v: &View) -> ViewPose {
@@ -337,6 +366,12 @@ pub fn report(headset: &Headset, settings: &Settings, p: &Preview, pngs: &dyn Fn
                     "share": frac(v.far_field.pixels_reusable),
                     "png": pngs("far_field", i),
                 },
+                "fov_cut": p.cuts.get(i).copied().flatten().map(|c| json!({
+                    "x0": c.x0, "x1": c.x1, "y0": c.y0, "y1": c.y1,
+                    "width": c.size().0, "height": c.size().1,
+                    "saved_fraction": c.saved_share((p.width, p.height)),
+                    "png": pngs("fov_cut", i),
+                })),
             })
         })
         .collect();
@@ -363,6 +398,7 @@ pub fn report(headset: &Headset, settings: &Settings, p: &Preview, pngs: &dyn Fn
             "foveation": settings.foveation.enabled,
             "far_field": settings.far_field.enabled,
             "upscale": settings.upscale.enabled,
+            "fov_cut": settings.views.fov_cut,
         },
         "upscale": upscale,
         "foveation": { "inner_deg": rings.inner_deg, "middle_deg": rings.middle_deg, "center": "optical axis (fixed foveation)" },
@@ -407,6 +443,29 @@ mod tests {
         assert_eq!(r["upscale"]["rendered_px"], 8100);
         assert_eq!(r["upscale"]["display_px"], 128 * 128);
         assert!((r["upscale"]["mip_bias"].as_f64().unwrap() - 0.7f64.log2()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_fov_cut_as_the_layer_decides_it() {
+        // The Index's published mask at a quarter of its size: as tests/views.rs measures with
+        // the mock runtime (484x560 of 504x560, view 1 from pixel 16).
+        let h = Headset::from_profile(hmd_profiles::profile::HmdProfile::by_name("index").unwrap(), 0.25);
+        let s = settings(&|k| (k == "STEREOSHIM_VIEW_FOV_CUT").then(|| "lens".to_string()));
+        let p = compute(&h, &s, &Options::default());
+        let cuts: Vec<Cut> = p.cuts.iter().map(|c| c.expect("a cut per view")).collect();
+        assert_eq!(cuts.iter().map(|c| (c.x0, c.x1, c.y0, c.y1)).collect::<Vec<_>>(), vec![(0, 484, 0, 560), (16, 500, 0, 560)]);
+        let r = report(&h, &s, &p, &|f, i| format!("{f}-{i}.png"));
+        assert_eq!(r["enabled"]["fov_cut"], true);
+        assert_eq!((r["views"][1]["fov_cut"]["width"].clone(), r["views"][1]["fov_cut"]["png"].clone()), (serde_json::json!(484), serde_json::json!("fov_cut-1.png")));
+        let pictures = draw::view_pictures(&p, 1, &draw::Canvas::grid(p.width, p.height, &h.views[1].fov));
+        let (_, cut) = pictures.iter().find(|(f, _)| *f == "fov_cut").expect("a picture of the cut");
+        // The columns left of the cut are painted, those inside are not.
+        let painted = |x: u32, y: u32| cut.pixels[(y * cut.width + x) as usize] == draw::blend(draw::GRID_BACKGROUND, &draw::CUT_OFF);
+        assert!(painted(3, 200) && !painted(250, 201));
+        // Without a mesh, no cut.
+        let mut bare = h.clone();
+        bare.views[0].hidden = None;
+        assert!(compute(&bare, &s, &Options::default()).cuts.iter().all(Option::is_none));
     }
 
     #[test]
