@@ -311,6 +311,47 @@ mod tests {
         assert!(contained_fov(&deg(-80.0, 80.0, 10.0, -10.0), DQuat::from_rotation_y(30f64.to_radians()), DQuat::IDENTITY).is_none());
     }
 
+    /// What symmetric and parallel views cost on each of the mock's headsets (docs/views.md's
+    /// table, printed with `--nocapture`): the extra pixels at the runtime's density, both views,
+    /// and the horizontal overlap of the two views.
+    #[test]
+    fn costs_per_headset() {
+        use hmd_profiles::profile::{HmdProfile, HMD_NAMES};
+        let pixels = |fovs: &[Fov; 2], base: &[Fov; 2], size: (u32, u32)| -> f64 {
+            let n = |f: &Fov, b: &Fov| {
+                let (w, h) = size_for(size, b, f);
+                w as f64 * h as f64
+            };
+            (n(&fovs[0], &base[0]) + n(&fovs[1], &base[1])) / (2.0 * size.0 as f64 * size.1 as f64) - 1.0
+        };
+        for name in HMD_NAMES.iter().filter(|n| **n != "simple") {
+            let p = HmdProfile::by_name(name).unwrap();
+            let base = [Fov::from_angles(p.fov_rad(0)), Fov::from_angles(p.fov_rad(1))];
+            let (h, f) = (symmetric(base, Symmetric::Horizontal), symmetric(base, Symmetric::Full));
+            let q = |v: usize| {
+                let r = p.eye_in_head(v).1;
+                DQuat::from_xyzw(r.x as f64, r.y as f64, r.z as f64, r.w as f64)
+            };
+            let (_, par) = parallel(base, [q(0), q(1)]).unwrap();
+            // Overlap of the views as the head sees them: a canted view's angles turn with it.
+            let turned = |fov: &Fov, v: usize| contained_fov(fov, q(v), DQuat::IDENTITY).unwrap();
+            let seen = [turned(&base[0], 0), turned(&base[1], 1)];
+            eprintln!(
+                "{name}: symmetric horizontal +{:.1} % pixels, overlap {:.1} -> {:.1} %; full +{:.1} %, overlap {:.1} %; parallel (cant {}°) +{:.1} % pixels",
+                100.0 * pixels(&h, &base, p.recommended),
+                100.0 * overlap(&seen),
+                100.0 * overlap(&h),
+                100.0 * pixels(&f, &base, p.recommended),
+                100.0 * overlap(&f),
+                p.cant_deg,
+                100.0 * pixels(&par, &base, p.recommended)
+            );
+            assert!(pixels(&h, &base, p.recommended) >= 0.0 && pixels(&f, &base, p.recommended) >= pixels(&h, &base, p.recommended) - 1e-9);
+            assert!(overlap(&h) >= overlap(&seen) - 1e-9 || p.cant_deg != 0.0);
+            assert_eq!(pixels(&par, &base, p.recommended) > 1e-6, p.cant_deg != 0.0, "{name}: parallel views cost only with a cant");
+        }
+    }
+
     proptest! {
         /// The cut always holds every visible pixel, on whole pixels, and keeps pixels per tangent.
         #[test]
