@@ -211,25 +211,19 @@ pub fn compute(headset: &Headset, settings: &Settings, options: &Options) -> Pre
 /// The FOV cut of every view (`features::views::rules`), from the runtime's hidden meshes as the
 /// layer decides it; none at all when a view has no mesh.
 fn fov_cuts(headset: &Headset, margin_deg: f64) -> Vec<Option<Cut>> {
-    let (w, h) = (headset.width, headset.height);
-    let rect = PixelRect { x: 0, y: 0, width: w, height: h };
-    let cuts: Vec<Option<Cut>> = headset
+    let size = (headset.width, headset.height);
+    let lenses: Option<Vec<_>> = headset
         .views
         .iter()
         .map(|v| {
-            let hidden = v.hidden.as_ref()?;
-            let (_, bits) = mask_rules::coverage_bitmap(&mask_rules::triangles_to_ndc(hidden, &v.fov), rect.viewport(), rect);
             let fov = views_rules::Fov { left: v.fov.tan_left as f64, right: v.fov.tan_right as f64, up: v.fov.tan_up as f64, down: v.fov.tan_down as f64 };
-            views_rules::cut(&fov, (w, h), &bits, margin_deg)
+            Some((fov, size, mask_rules::hidden_pixels(v.hidden.as_ref()?, &v.fov, size)?))
         })
         .collect();
-    if !cuts.iter().all(Option::is_some) {
-        return vec![None; cuts.len()];
+    match lenses.and_then(|l| views_rules::cuts(&l, margin_deg)) {
+        Some(c) => c.into_iter().map(Some).collect(),
+        None => vec![None; headset.views.len()],
     }
-    let mut plain: Vec<Cut> = cuts.into_iter().flatten().collect();
-    let sizes = vec![(w, h); plain.len()];
-    views_rules::same_size(&mut plain, &sizes);
-    plain.into_iter().map(Some).collect()
 }
 
 fn pose(v: &View) -> ViewPose {

@@ -124,6 +124,19 @@ pub fn coverage_bitmap(ndc: &[[f32; 2]], viewport: ViewportRect, scissor: PixelR
     (clip, bits)
 }
 
+/// Which pixels of a whole `size` image showing `fov` a view's hidden triangles (tangent plane,
+/// three points each) cover, row-major, as the GPU rasterizes the mask; None when nothing maps
+/// (no triangles, a FOV without extent) or the image is too large to count.
+pub fn hidden_pixels(triangles: &[[f32; 2]], fov: &ViewFov, size: (u32, u32)) -> Option<Vec<bool>> {
+    let rect = PixelRect { x: 0, y: 0, width: size.0, height: size.1 };
+    let ndc = triangles_to_ndc(triangles, fov);
+    if ndc.is_empty() {
+        return None;
+    }
+    let (clip, bits) = coverage_bitmap(&ndc, rect.viewport(), rect);
+    (clip == rect && bits.len() as u64 == rect.area()).then_some(bits)
+}
+
 /// How many pixels NDC triangles cover in a viewport, within a scissor.
 pub fn coverage(ndc: &[[f32; 2]], viewport: ViewportRect, scissor: PixelRect) -> u64 {
     coverage_bitmap(ndc, viewport, scissor).1.iter().filter(|&&b| b).count() as u64

@@ -13,8 +13,7 @@
 //! runtime's image is the same every frame there (what an app that masks its hidden area shows).
 #![forbid(unsafe_code)]
 
-use crate::core::rect::PixelRect;
-use crate::features::mask::rules::{coverage_bitmap, triangles_to_ndc};
+use crate::features::mask::rules::hidden_pixels;
 use crate::shared::ViewFov;
 
 /// A tile's class: both passes run.
@@ -47,19 +46,6 @@ impl Tiles {
         let n = self.classes.iter().filter(|&&c| c & RCAS_SKIPS != 0).count();
         n as f64 / self.classes.len().max(1) as f64
     }
-}
-
-/// The pixels of a `size` image showing `fov` that the hidden triangles (tangent plane, three
-/// points each) cover, row-major; None when the rect is too large to count or the FOV is
-/// degenerate (then nothing is skipped).
-pub fn hidden_pixels(triangles: &[[f32; 2]], fov: &ViewFov, size: (u32, u32)) -> Option<Vec<bool>> {
-    let rect = PixelRect { x: 0, y: 0, width: size.0, height: size.1 };
-    let ndc = triangles_to_ndc(triangles, fov);
-    if ndc.is_empty() {
-        return None;
-    }
-    let (clip, bits) = coverage_bitmap(&ndc, rect.viewport(), rect);
-    (clip == rect && bits.len() as u64 == rect.area()).then_some(bits)
 }
 
 /// Classifies the `group`-sized tiles of a `size` image whose `hidden` pixels the lens never shows.

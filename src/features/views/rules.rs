@@ -133,6 +133,15 @@ pub fn same_size(cuts: &mut [Cut], sizes: &[(u32, u32)]) {
     }
 }
 
+/// Every view's cut (`cut` of its FOV, grid size and hidden pixels), made one size (`same_size`);
+/// None unless every view has one: a view left whole would need its own size.
+pub fn cuts(views: &[(Fov, (u32, u32), Vec<bool>)], margin_deg: f64) -> Option<Vec<Cut>> {
+    let mut all: Vec<Cut> = views.iter().map(|(fov, size, hidden)| cut(fov, *size, hidden, margin_deg)).collect::<Option<_>>()?;
+    let sizes: Vec<(u32, u32)> = views.iter().map(|v| v.1).collect();
+    same_size(&mut all, &sizes);
+    Some(all)
+}
+
 /// `view.symmetric`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Symmetric {

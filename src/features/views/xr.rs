@@ -10,7 +10,7 @@
 //! runtime's own angles (its images, already made, show the whole view at a lower density).
 
 use super::rules::{self, Cut, Fov};
-use crate::features::mask::rules::{coverage_bitmap, triangles_to_ndc};
+use crate::features::mask::rules::hidden_pixels;
 use crate::features::mask::xr::runtime_mask;
 use crate::settings::Settings;
 use crate::shared::ViewFov;
@@ -69,14 +69,6 @@ fn tangents(fov: &Fov) -> ViewFov {
     ViewFov { tan_left: fov.left as f32, tan_right: fov.right as f32, tan_up: fov.up as f32, tan_down: fov.down as f32 }
 }
 
-/// The pixels of a `size` image of `fov` that hidden triangles (tangent plane) cover, as the GPU
-/// rasterizes the mask; None when they cannot be counted.
-fn hidden_pixels(triangles: &[[f32; 2]], fov: &Fov, size: (u32, u32)) -> Option<Vec<bool>> {
-    let rect = crate::core::rect::PixelRect { x: 0, y: 0, width: size.0, height: size.1 };
-    let (clip, bits) = coverage_bitmap(&triangles_to_ndc(triangles, &tangents(fov)), rect.viewport(), rect);
-    (clip == rect && bits.len() as u64 == rect.area()).then_some(bits)
-}
-
 /// The runtime's system name.
 fn system_name(inst: &Instance, system: xr::SystemId) -> Option<String> {
     let f = inst.next.get_system_properties?;
@@ -107,24 +99,23 @@ fn session_of(inst: &Instance) -> Option<std::sync::Arc<Session>> {
     crate::xr::state().sessions.values().into_iter().map(|(_, s)| s).find(|s| s.instance.handle == inst.handle)
 }
 
-/// One view's cut from the runtime's meshes (a session exists): the FOV is the box of the hidden
-/// and visible meshes together (they tile it), the lens what the hidden one leaves.
-fn cut_from_runtime(s: &Session, view: u32, size: (u32, u32), margin: f64) -> Option<Cut> {
+/// One view's FOV and hidden pixels on a `size` grid from the runtime's meshes (a session
+/// exists): the FOV is the box of the hidden and visible meshes together (they tile it).
+fn lens_from_runtime(s: &Session, view: u32, size: (u32, u32)) -> Option<(Fov, (u32, u32), Vec<bool>)> {
     let hidden = runtime_mask(s, view)?;
     let visible = crate::features::mask::xr::runtime_mesh(s, view, xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH)?;
-    let all = hidden.iter().chain(&visible);
-    let fov = all.fold(None, |acc: Option<Fov>, p| {
+    let fov = hidden.iter().chain(&visible).fold(None, |acc: Option<Fov>, p| {
         let q = Fov { left: p[0] as f64, right: p[0] as f64, up: p[1] as f64, down: p[1] as f64 };
         Some(acc.map_or(q, |a| a.union(&q)))
     })?;
-    rules::cut(&fov, size, &hidden_pixels(&hidden, &fov, size)?, margin)
+    Some((fov, size, hidden_pixels(&hidden, &tangents(&fov), size)?))
 }
 
-/// One view's cut from an HMD profile's FOV and lens.
-fn cut_from_profile(p: &hmd_profiles::profile::HmdProfile, view: usize, size: (u32, u32), margin: f64) -> Option<Cut> {
+/// One view's FOV and hidden pixels on a `size` grid from an HMD profile.
+fn lens_from_profile(p: &hmd_profiles::profile::HmdProfile, view: usize, size: (u32, u32)) -> Option<(Fov, (u32, u32), Vec<bool>)> {
     let fov = Fov::from_angles(p.fov_rad(view));
     let hidden: Vec<[f32; 2]> = hmd_profiles::mask::hidden_triangle_points(p, view, 1.0).iter().map(|v| [v[0], v[1]]).collect();
-    rules::cut(&fov, size, &hidden_pixels(&hidden, &fov, size)?, margin)
+    Some((fov, size, hidden_pixels(&hidden, &tangents(&fov), size)?))
 }
 
 /// Decides the instance's cuts for `views` (the runtime's answer).
@@ -134,25 +125,20 @@ fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::View
     let session = session_of(inst).filter(|_| inst.has_extension(VISIBILITY_MASK_EXT));
     let name = system_name(inst, system).unwrap_or_default();
     let profile = profile_for(&name);
-    let cuts: Vec<Option<(Cut, &str)>> = sizes
-        .iter()
-        .enumerate()
-        .map(|(i, &size)| match (&session, profile) {
-            (Some(sess), _) => cut_from_runtime(sess, i as u32, size, margin).map(|c| (c, "the runtime's visibility mask")),
-            (None, Some(p)) => cut_from_profile(p, i, size, margin).map(|c| (c, "the HMD profile's lens")),
-            (None, None) => None,
-        })
-        .collect();
-    if cuts.iter().all(Option::is_none) {
-        tracing::warn!("view.fov_cut: no lens known for {name:?} before a session exists (no HMD profile matches it); the views are not cut");
-    }
+    let (lenses, source): (Option<Vec<_>>, &str) = match (&session, profile) {
+        (Some(sess), _) => (sizes.iter().enumerate().map(|(i, &size)| lens_from_runtime(sess, i as u32, size)).collect(), "the runtime's visibility mask"),
+        (None, Some(p)) => (sizes.iter().enumerate().map(|(i, &size)| lens_from_profile(p, i, size)).collect(), "the HMD profile's lens"),
+        (None, None) => (None, ""),
+    };
     // One size for every view (apps render them at one size), or no cut when a view has none.
-    let mut cuts: Vec<Option<(Cut, &str)>> = if cuts.iter().all(Option::is_some) { cuts } else { vec![None; cuts.len()] };
-    let mut plain: Vec<Cut> = cuts.iter().flatten().map(|c| c.0).collect();
-    rules::same_size(&mut plain, &sizes);
-    for (c, p) in cuts.iter_mut().flatten().zip(plain) {
-        c.0 = p;
+    let cuts = lenses.and_then(|l| rules::cuts(&l, margin));
+    if cuts.is_none() {
+        tracing::warn!("view.fov_cut: no lens known for {name:?} (no runtime mesh of a session, no HMD profile matching it); the views are not cut");
     }
+    let cuts: Vec<Option<(Cut, &str)>> = match cuts {
+        Some(c) => c.into_iter().map(|c| Some((c, source))).collect(),
+        None => vec![None; sizes.len()],
+    };
     let views = cuts
         .into_iter()
         .zip(&sizes)
@@ -199,7 +185,7 @@ impl ViewsXr {
             let Some(vc) = vc else { continue };
             let Some(hidden) = runtime_mask(s, i as u32) else { continue };
             let fov = Fov::from_angles([v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down]);
-            let Some(bits) = hidden_pixels(&hidden, &fov, vc.size) else { continue };
+            let Some(bits) = hidden_pixels(&hidden, &tangents(&fov), vc.size) else { continue };
             let w = vc.size.0 as usize;
             let inside = |k: usize| (vc.cut.x0..vc.cut.x1).contains(&((k % w) as u32)) && (vc.cut.y0..vc.cut.y1).contains(&((k / w) as u32));
             let outside = bits.iter().enumerate().any(|(k, &hidden)| !hidden && !inside(k));
