@@ -55,6 +55,7 @@ pub struct Settings {
 
 impl Settings {
     pub fn from_config(c: &Config) -> Settings {
+        let views = crate::features::views::ViewSettings::from_config(c);
         Settings {
             enabled: c.enabled(),
             intermediate: c.choice("mask.intermediate") != "off",
@@ -71,13 +72,15 @@ impl Settings {
                 "off" => FsrSetting::Off,
                 _ => FsrSetting::Auto,
             },
-            mask: MaskSettings::from_config(c),
+            // Symmetric and parallel views pad the app's views beyond what the runtime shows: the
+            // mask hides the padding, so it comes on with them (docs/views.md).
+            mask: MaskSettings { enabled: MaskSettings::from_config(c).enabled || views.widens(), ..MaskSettings::from_config(c) },
             foveation: FoveationSettings::from_config(c),
             far_field: FarFieldSettings::from_config(c),
             overlay: crate::features::overlay::OverlaySettings::from_config(c),
             screenshot: ScreenshotSettings::from_config(c),
             upscale: crate::features::upscale::UpscaleSettings::from_config(c),
-            views: crate::features::views::ViewSettings::from_config(c),
+            views,
             stats_file: c.text("stats.file").to_string(),
             stats_gpu_time: c.bool("stats.gpu_time"),
             fail_in: c.text("debug.fail_in").split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),

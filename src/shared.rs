@@ -117,6 +117,9 @@ pub struct Views {
     pub masks: Vec<ViewMask>,
     pub app_fovs: Vec<ViewFov>,
     pub runtime_fovs: Vec<ViewFov>,
+    /// Per view, the runtime view's orientation in the frame of the view the app was given (x y z
+    /// w), where a feature turned it (parallel views); None: they look the same way.
+    pub runtime_turns: Vec<Option<[f32; 4]>>,
 }
 
 /// One view's foveation: where full rate is needed and how fast the rate falls off, in angular
@@ -254,9 +257,13 @@ impl Shared {
             }
         })
     }
-    /// Replaces the FOVs the runtime reported; bumps the generation only when they changed.
-    pub fn update_runtime_fovs(&self, fovs: Vec<ViewFov>) -> bool {
-        self.update(|next| next.runtime_fovs = fovs)
+    /// Replaces the FOVs the runtime reported and how its views are turned from the app's;
+    /// bumps the generation only when they changed.
+    pub fn update_runtime_fovs(&self, fovs: Vec<ViewFov>, turns: Vec<Option<[f32; 4]>>) -> bool {
+        self.update(|next| {
+            next.runtime_fovs = fovs;
+            next.runtime_turns = turns;
+        })
     }
     fn update(&self, change: impl FnOnce(&mut Views)) -> bool {
         let mut cur = self.views.write().unwrap_or_else(|e| e.into_inner());
@@ -328,8 +335,8 @@ mod tests {
         assert!(s.update_views(Some(vec![mask]), None));
         assert_eq!(s.views().generation, 2);
         assert_eq!(s.views().app_fovs.len(), 2);
-        assert!(s.update_runtime_fovs(vec![fov]));
-        assert!(!s.update_runtime_fovs(vec![fov]));
+        assert!(s.update_runtime_fovs(vec![fov], vec![None]));
+        assert!(!s.update_runtime_fovs(vec![fov], vec![None]));
         assert_eq!((s.views().generation, s.views().runtime_fovs.len()), (3, 1));
     }
 

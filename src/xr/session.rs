@@ -53,6 +53,18 @@ pub(crate) struct Session {
     pub upscale: super::upscale::SessionUpscale,
 }
 
+/// The runtime view's orientation `runtime` in the frame of the view the app was given (`given`),
+/// rounded so that tracking's float noise does not count as a change; None when they look the
+/// same way (no feature turned the view).
+fn runtime_turn(runtime: &xr::Quaternionf, given: &xr::Quaternionf) -> Option<[f32; 4]> {
+    let q = |o: &xr::Quaternionf| glam::DQuat::from_xyzw(o.x as f64, o.y as f64, o.z as f64, o.w as f64).normalize();
+    let rel = q(given).inverse() * q(runtime);
+    let rel = if rel.w < 0.0 { -rel } else { rel };
+    let round = |v: f64| ((v * 1e5).round() / 1e5) as f32;
+    let t = [round(rel.x), round(rel.y), round(rel.z), round(rel.w)];
+    (rel.is_finite() && t != [0.0, 0.0, 0.0, 1.0]).then_some(t)
+}
+
 pub(crate) fn fov_tangents(fov: &xr::Fovf) -> ViewFov {
     ViewFov {
         tan_left: fov.angle_left.tan(),
@@ -241,6 +253,7 @@ pub(super) unsafe extern "system" fn locate_views(
             // app's array, which is the app's to change until the call returns.
             let located = unsafe { std::slice::from_raw_parts_mut(views, (*view_count_output).min(view_capacity_input) as usize) };
             let runtime_fovs: Vec<ViewFov> = located.iter().map(|v| fov_tangents(&v.fov)).collect();
+            let runtime_orientations: Vec<xr::Quaternionf> = located.iter().map(|v| v.pose.orientation).collect();
             // SAFETY: the app's locate info, valid for this call (the call succeeded).
             if let Some(info) = unsafe { view_locate_info.as_ref() } {
                 for f in crate::features::XR_FEATURES {
@@ -257,7 +270,8 @@ pub(super) unsafe extern "system" fn locate_views(
             if !s.fov_submitted.load(Ordering::Acquire) {
                 crate::shared::shared().update_views(None, Some(fovs));
             }
-            crate::shared::shared().update_runtime_fovs(runtime_fovs);
+            let turns = runtime_orientations.iter().zip(located.iter()).map(|(r, v)| runtime_turn(r, &v.pose.orientation)).collect();
+            crate::shared::shared().update_runtime_fovs(runtime_fovs, turns);
             drop(last);
             // SAFETY: the app's locate info, valid for this call (the call succeeded).
             if let Some(info) = unsafe { view_locate_info.as_ref() } {

@@ -25,7 +25,9 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-type Key = (u32, (u32, u32), [u32; 4]);
+/// View, destination size, the app's angles, and the runtime's view (tangents and turn) that the
+/// app's view is reframed from.
+type Key = (u32, (u32, u32), [u32; 4], [u32; 8]);
 
 /// A session's lens state.
 #[derive(Default)]
@@ -52,7 +54,14 @@ impl LensCache {
             return None;
         }
         let events = s.instance.stats.visibility_mask_events.load(Ordering::Relaxed);
-        let key: Key = (view, (dst.width, dst.height), [fov.angle_left, fov.angle_right, fov.angle_up, fov.angle_down].map(f32::to_bits));
+        let fov_tan = ViewFov { tan_left: fov.angle_left.tan(), tan_right: fov.angle_right.tan(), tan_up: fov.angle_up.tan(), tan_down: fov.angle_down.tan() };
+        // The runtime's own view, where the app's differs from it (view tricks: docs/views.md).
+        let shared = crate::shared::shared().views();
+        let runtime = shared.runtime_fovs.get(view as usize).copied().unwrap_or(fov_tan);
+        let turn = shared.runtime_turns.get(view as usize).copied().flatten();
+        let [tx, ty, tz, tw] = turn.unwrap_or([0.0, 0.0, 0.0, 1.0]);
+        let reframe = [runtime.tan_left, runtime.tan_right, runtime.tan_up, runtime.tan_down, tx, ty, tz, tw].map(f32::to_bits);
+        let key: Key = (view, (dst.width, dst.height), [fov.angle_left, fov.angle_right, fov.angle_up, fov.angle_down].map(f32::to_bits), reframe);
         let stale = {
             let g = lock(&self.inner);
             if g.given_up {
@@ -72,9 +81,10 @@ impl LensCache {
             *g = Inner { events: Some(events), meshes, tiles: Vec::new(), given_up: false };
         }
         let mesh = lock(&self.inner).meshes.get(view as usize).cloned().flatten();
-        let fov_tan = ViewFov { tan_left: fov.angle_left.tan(), tan_right: fov.angle_right.tan(), tan_up: fov.angle_up.tan(), tan_down: fov.angle_down.tan() };
         // Classified with no lock held (a few milliseconds for an Index eye).
-        let tiles = mesh.and_then(|m| lens::tiles(&m, &fov_tan, (dst.width, dst.height), gpu::GROUP)).map(Arc::new);
+        let tiles = mesh
+            .and_then(|m| lens::tiles(&crate::features::mask::reframe::in_app_view(&m, &runtime, turn, &fov_tan), &fov_tan, (dst.width, dst.height), gpu::GROUP))
+            .map(Arc::new);
         if let Some(t) = &tiles {
             tracing::info!(
                 "upscale: view {view} at {}x{}: the lens never shows {:.1} % of the upscale's {}x{} tiles; they are skipped",

@@ -4,7 +4,9 @@
 //! `stereoshim preview --hmd` (so a preview shows what the layer would do on that headset).
 //!
 //! All angles are degrees for the LEFT eye in that eye's own view frame; the right eye is the
-//! mirror image (a real headset's optics are mirror-symmetric). Positive x is to the right,
+//! mirror image (a real headset's optics are mirror-symmetric) unless the profile carries the
+//! right eye's own measured frustum (`right_fov`): real units' eyes differ by a few pixels in y,
+//! which is what breaks an app that draws the right eye with the left eye's vertical angles. Positive x is to the right,
 //! positive y is up, the view looks down −z (OpenXR conventions).
 //!
 //! Sources (public):
@@ -19,10 +21,13 @@
 //!   visible meshes, clipped to the frustum (its top edge lies 0.003 above it). Recommended size
 //!   is SteamVR's 100 % render resolution for the Index at 90 Hz (2016×2240), as shown in
 //!   SteamVR's video settings.
-//! - HTC Vive: the OpenVR `IVRSystem::GetProjectionRaw` tangents collected with risa2000's `hmdq`
-//!   tool and published in risa2000's `hmd_geometry_database` (github.com/risa2000/hmdq,
-//!   "hmd_geometry_database"), transcribed as rounded values (treat the third decimal as
-//!   approximate). Recommended size: SteamVR's 100 % (1512×1680).
+//! - HTC Vive: the OpenVR `IVRSystem::GetProjectionRaw` tangents of both eyes of one unit,
+//!   recorded with risa2000's `hmdq` tool and published in risa2000's `hmdgdb`
+//!   (`hmd_cfgs/Vive_Native_R90.md`, recorded 2020-04-18): left eye left −1.397283, right
+//!   1.250510, top 1.464221, bottom −1.477517; right eye left −1.247887, right 1.394608, top
+//!   1.460934, bottom −1.475235. The right eye is not the left's mirror image: its vertical
+//!   angles are 0.003 tangent lower (about 2 pixels at 100 %). Recommended size: SteamVR's 100 %
+//!   (1512×1680).
 //! - Meta Quest 3: Meta's published field of view (110° horizontal, 96° vertical) split into an
 //!   asymmetric per-eye frustum (outer half-angle larger than inner, as the Quest's OpenXR
 //!   runtime reports); the split is an approximation fitted to those totals. Recommended size:
@@ -99,6 +104,9 @@ pub struct HmdProfile {
     /// Rotation of each view about the head's y axis, outward, degrees.
     pub cant_deg: f32,
     pub fov: FovDeg,
+    /// The right eye's own frustum (degrees, its own view frame) where the headset's eyes are
+    /// measured apart; None: the mirror image of `fov`.
+    pub right_fov: Option<FovDeg>,
     pub recommended: (u32, u32),
     pub max: (u32, u32),
     pub lens: Lens,
@@ -137,13 +145,9 @@ fn profiles() -> &'static [HmdProfile] {
         // Index, left eye: SteamVR's OpenXR frustum (the published hidden mesh's rectangle).
         let [l, r, u, d] = INDEX_TANGENTS_LEFT;
         let index_fov = FovDeg { left: tan_deg(l), right: tan_deg(r), up: tan_deg(u), down: tan_deg(d) };
-        // Vive, left eye, GetProjectionRaw tangents.
-        let vive_fov = FovDeg {
-            left: -tan_deg(1.3636),
-            right: tan_deg(1.2210),
-            up: tan_deg(1.4670),
-            down: -tan_deg(1.4681),
-        };
+        // Vive, both eyes of one unit, GetProjectionRaw tangents (hmdgdb).
+        let vive_fov = FovDeg { left: -tan_deg(1.397283), right: tan_deg(1.250510), up: tan_deg(1.464221), down: -tan_deg(1.477517) };
+        let vive_right = FovDeg { left: -tan_deg(1.247887), right: tan_deg(1.394608), up: tan_deg(1.460934), down: -tan_deg(1.475235) };
         vec![
             HmdProfile {
                 name: "simple",
@@ -151,6 +155,7 @@ fn profiles() -> &'static [HmdProfile] {
                 ipd: 0.063,
                 cant_deg: 0.0,
                 fov: SIMPLE_FOV,
+                right_fov: None,
                 recommended: (1024, 1024),
                 max: (4096, 4096),
                 // Exactly the inscribed 45° circle.
@@ -164,6 +169,7 @@ fn profiles() -> &'static [HmdProfile] {
                 ipd: 0.0635,
                 cant_deg: 0.0,
                 fov: index_fov,
+                right_fov: None,
                 recommended: (2016, 2240),
                 max: (4032, 4480),
                 lens: Lens::LineLoop(&INDEX_LINE_LOOP_LEFT),
@@ -176,6 +182,7 @@ fn profiles() -> &'static [HmdProfile] {
                 ipd: 0.063,
                 cant_deg: 0.0,
                 fov: vive_fov,
+                right_fov: Some(vive_right),
                 recommended: (1512, 1680),
                 max: (3024, 3360),
                 lens: ellipse_for(vive_fov, 1.08, 1.06),
@@ -188,6 +195,7 @@ fn profiles() -> &'static [HmdProfile] {
                 ipd: 0.064,
                 cant_deg: 0.0,
                 fov: QUEST3_FOV,
+                right_fov: None,
                 recommended: (1680, 1760),
                 max: (3360, 3520),
                 lens: ellipse_for(QUEST3_FOV, 1.12, 1.12),
@@ -200,6 +208,7 @@ fn profiles() -> &'static [HmdProfile] {
                 ipd: 0.064,
                 cant_deg: 10.0,
                 fov: PIMAX_FOV,
+                right_fov: None,
                 recommended: (3200, 2528),
                 max: (6400, 5056),
                 lens: ellipse_for(PIMAX_FOV, 1.06, 1.1),
@@ -223,8 +232,12 @@ impl HmdProfile {
     /// Frustum of `view` (0 = left, 1 = right) in radians, OpenXR's (left, right, up, down).
     pub fn fov_rad(&self, view: usize) -> [f32; 4] {
         let f = self.fov;
-        let (l, r) = if view == 0 { (f.left, f.right) } else { (-f.right, -f.left) };
-        [l.to_radians(), r.to_radians(), f.up.to_radians(), f.down.to_radians()]
+        let (l, r, u, d) = match (view, self.right_fov) {
+            (0, _) => (f.left, f.right, f.up, f.down),
+            (_, Some(g)) => (g.left, g.right, g.up, g.down),
+            (_, None) => (-f.right, -f.left, f.up, f.down),
+        };
+        [l.to_radians(), r.to_radians(), u.to_radians(), d.to_radians()]
     }
 
     /// The view's pose relative to the head: ±IPD/2 on x, rotated outward by the cant.

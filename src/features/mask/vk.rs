@@ -54,7 +54,11 @@ impl Geometry {
         let mut ndc = BTreeMap::new();
         for m in &views.masks {
             let Some(fov) = views.app_fovs.get(m.view as usize) else { continue };
-            let t = rules::triangles_to_ndc(&m.triangles, fov);
+            // In the view the app renders (turned or wider than the runtime's: docs/views.md),
+            // with what lies outside the runtime's FOV hidden too.
+            let runtime = views.runtime_fovs.get(m.view as usize).unwrap_or(fov);
+            let turn = views.runtime_turns.get(m.view as usize).copied().flatten();
+            let t = rules::triangles_to_ndc(&super::reframe::in_app_view(&m.triangles, runtime, turn, fov), fov);
             if !t.is_empty() {
                 ndc.insert(m.view, t);
             }

@@ -1,9 +1,11 @@
 //! View tricks (docs/views.md): the field of view cut to the lens (`view.fov_cut`), so the app
-//! renders only the pixels the lens can show. `rules` holds the geometry (pure, with symmetric
-//! and parallel views' too), `xr` the OpenXR half (the recommended size, the located views' angles,
-//! the check of the submitted ones).
+//! renders only the pixels the lens can show; symmetric views (`view.symmetric`) and parallel
+//! views (`view.parallel`) for apps that assume them. `rules` holds the geometry (pure),
+//! `source` where a headset's views and lens come from, `xr` the OpenXR half (the recommended
+//! size, the located views' angles and orientations, the check of the submitted ones).
 
 pub mod rules;
+pub(crate) mod source;
 pub(crate) mod xr;
 
 use crate::config::{Config, KeySpec, Kind};
@@ -22,6 +24,18 @@ pub const KEYS: &[KeySpec] = &[
         default: "0.5",
         doc: "degrees kept around the lens's visible area on each side when cutting",
     },
+    KeySpec {
+        key: "view.symmetric",
+        kind: Kind::Choice(&["off", "horizontal", "full"]),
+        default: "off",
+        doc: "horizontal: both eyes get the same vertical angles (their union) and mirrored horizontal ones, for apps that draw one eye with the other's projection shifted; full: each eye symmetric about its axis. The padding the runtime does not show is masked (the hidden-area mask is switched on with it); sizes latched per XR instance",
+    },
+    KeySpec {
+        key: "view.parallel",
+        kind: Kind::Choice(&["off", "on"]),
+        default: "off",
+        doc: "on: canted views (Pimax) are reported parallel, turned to their mean, each widened to contain the canted one (the runtime reprojects); the hidden-area mask is switched on with it",
+    },
 ];
 
 /// The view tricks' typed settings.
@@ -29,10 +43,28 @@ pub const KEYS: &[KeySpec] = &[
 pub struct ViewSettings {
     pub fov_cut: bool,
     pub fov_cut_margin_deg: f64,
+    pub symmetric: rules::Symmetric,
+    pub parallel: bool,
 }
 
 impl ViewSettings {
     pub fn from_config(c: &Config) -> ViewSettings {
-        ViewSettings { fov_cut: c.choice("view.fov_cut") == "lens", fov_cut_margin_deg: c.float("view.fov_cut_margin_deg").clamp(0.0, 10.0) }
+        let symmetric = match c.choice("view.symmetric") {
+            "horizontal" => rules::Symmetric::Horizontal,
+            "full" => rules::Symmetric::Full,
+            _ => rules::Symmetric::Off,
+        };
+        ViewSettings {
+            fov_cut: c.choice("view.fov_cut") == "lens",
+            fov_cut_margin_deg: c.float("view.fov_cut_margin_deg").clamp(0.0, 10.0),
+            symmetric,
+            parallel: c.choice("view.parallel") == "on",
+        }
+    }
+
+    /// Symmetric or parallel views: the app's views reach outside the runtime's, whose padding the
+    /// hidden-area mask hides.
+    pub fn widens(&self) -> bool {
+        self.symmetric != rules::Symmetric::Off || self.parallel
     }
 }

@@ -206,6 +206,31 @@ pub fn parallel(fovs: [Fov; 2], orientations: [DQuat; 2]) -> Option<(DQuat, [Fov
     Some((mean, [contained_fov(&fovs[0], orientations[0], mean)?, contained_fov(&fovs[1], orientations[1], mean)?]))
 }
 
+/// Below this angle (radians) two views count as parallel: tracking noise, not a cant.
+const PARALLEL_EPS: f64 = 1e-5;
+
+/// The views the app is given for symmetric and parallel views: the two views (left eye first; FOVs
+/// and orientations in one frame) turned parallel when `parallel` and they are not (both the mean
+/// orientation, returned, each FOV the smallest holding its canted one), then made symmetric as
+/// `mode` says. None when a canted view's corner is not in front of the mean.
+pub fn widen(fovs: [Fov; 2], orientations: [DQuat; 2], mode: Symmetric, parallel_views: bool) -> Option<(Option<DQuat>, [Fov; 2])> {
+    let canted = orientations[0].angle_between(orientations[1]) > PARALLEL_EPS;
+    let (turn, fovs) = if parallel_views && canted {
+        let (mean, f) = parallel(fovs, orientations)?;
+        (Some(mean), f)
+    } else {
+        (None, fovs)
+    };
+    Some((turn, symmetric(fovs, mode)))
+}
+
+/// The overlap of two views (orientations in the head's frame, left eye first) as the head sees
+/// them: each turned into the head's frame first.
+pub fn seen_overlap(fovs: &[Fov; 2], orientations: [DQuat; 2]) -> Option<f64> {
+    let seen = [contained_fov(&fovs[0], orientations[0], DQuat::IDENTITY)?, contained_fov(&fovs[1], orientations[1], DQuat::IDENTITY)?];
+    Some(overlap(&seen))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -318,6 +343,25 @@ mod tests {
         assert_eq!(contained_fov(&fov, DQuat::IDENTITY, DQuat::IDENTITY).map(|f| f.angles()), Some(fov.angles()));
         // A corner behind the new orientation: no parallel view.
         assert!(contained_fov(&deg(-80.0, 80.0, 10.0, -10.0), DQuat::from_rotation_y(30f64.to_radians()), DQuat::IDENTITY).is_none());
+    }
+
+    #[test]
+    fn widen_turns_parallel_first_then_makes_symmetric() {
+        let (a, b) = (deg(-60.0, 45.0, 50.0, -50.0), deg(-45.0, 60.0, 48.0, -52.0));
+        let cant = [DQuat::from_rotation_y(10f64.to_radians()), DQuat::from_rotation_y(-10f64.to_radians())];
+        // Parallel views of parallel eyes: nothing to turn.
+        let (t, f) = widen([a, b], [DQuat::IDENTITY; 2], Symmetric::Off, true).unwrap();
+        assert!(t.is_none() && f == [a, b]);
+        // Canted: both turned to the mean, then symmetric.
+        let (t, f) = widen([a, b], cant, Symmetric::Horizontal, true).unwrap();
+        assert!(t.unwrap().angle_between(DQuat::IDENTITY) < 1e-12);
+        let (_, p) = parallel([a, b], cant).unwrap();
+        assert_eq!(f, symmetric(p, Symmetric::Horizontal));
+        assert!((f[0].up - f[1].up).abs() < 1e-15 && (f[0].left + f[1].right).abs() < 1e-15);
+        // Symmetric alone keeps the cant.
+        let (t, f) = widen([a, b], cant, Symmetric::Full, false).unwrap();
+        assert!(t.is_none() && f == symmetric([a, b], Symmetric::Full));
+        assert!(seen_overlap(&[a, b], cant).unwrap() < seen_overlap(&[a, b], [DQuat::IDENTITY; 2]).unwrap());
     }
 
     /// What symmetric and parallel views cost on each of the mock's headsets (docs/views.md's

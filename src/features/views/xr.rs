@@ -1,19 +1,27 @@
-//! The FOV cut's OpenXR half (`view.fov_cut = lens`). At the instance's first
-//! `xrEnumerateViewConfigurationViews` each view's cut is decided on whole pixels of the runtime's
-//! recommended image and latched for the instance (the app sizes its swapchains from it): from the
-//! runtime's own hidden and visible meshes when a session already exists (their union spans the
-//! view's FOV), else from the HMD profile the runtime's system name matches; else nothing is cut.
-//! `xrLocateViews` then hands the app the angles of exactly the cut pixels of each view's grid.
-//! Per session, the first located views are checked against the runtime's hidden-area mesh (the
-//! cut must hold every pixel the lens shows), and every frame's submitted angles against the ones
-//! given: either failing turns the cut off for the session (logged), and the app then gets the
-//! runtime's own angles (its images, already made, show the whole view at a lower density).
+//! The view tricks' OpenXR half (docs/views.md). At the instance's first
+//! `xrEnumerateViewConfigurationViews` they are decided and latched for the instance (the app sizes
+//! its swapchains from that answer), from the lens and views `source` finds:
+//! - the FOV cut (`view.fov_cut = lens`): each view's cut on whole pixels of the runtime's
+//!   recommended image;
+//! - symmetric and parallel views (`view.symmetric`, `view.parallel`): the size that keeps the
+//!   runtime's pixels per tangent over the widened views.
+//!
+//! `xrLocateViews` then hands the app the angles of exactly the cut pixels of each view's grid,
+//! turned parallel (both views the mean orientation, each FOV the smallest holding its canted one)
+//! and made symmetric, in that order, computed from each frame's located views. Per session, the
+//! first located views are checked against the runtime's hidden-area mesh (the cut must hold every
+//! pixel the lens shows), and every frame's submitted views against the ones given (angles, size,
+//! and for parallel views their relative turn): any failing turns the tricks off for the session
+//! (logged), and the app then gets the runtime's own views (its images, already made, show them at
+//! another density). The padding symmetric and parallel views add beyond the runtime's FOV is
+//! hidden by the mask (`mask::reframe`), which comes on with them (`Settings`).
 
-use super::rules::{self, Cut, Fov};
+use super::rules::{self, Cut, Fov, Symmetric};
+use super::source::{lens_from_profile, lens_from_runtime, profile_for, session_of, system_name, tangents, turns_from_profile};
 use crate::features::mask::rules::hidden_pixels;
 use crate::features::mask::xr::runtime_mask;
 use crate::settings::Settings;
-use crate::shared::ViewFov;
+use glam::DQuat;
 use crate::xr::feature::{AmendedFrameEnd, XrFeature};
 use crate::xr::session::Session;
 use crate::xr::{Instance, VISIBILITY_MASK_EXT};
@@ -25,11 +33,15 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Views of `XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO`, the configuration the cut applies to.
+/// Views of `XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO`, the configuration the tricks apply to.
 const STEREO_VIEWS: usize = 2;
 
 /// How far a submitted angle may be from the one given (radians): the app's own float round trip.
 const ANGLE_TOLERANCE: f32 = 1e-5;
+
+/// How far the submitted views' relative turn may be from the given one's (radians): float round
+/// trips through the app's pose math, far below the smallest cant (degrees).
+const TURN_TOLERANCE: f64 = 1e-3;
 
 /// The view tricks' OpenXR half.
 pub(crate) struct ViewsXr;
@@ -41,84 +53,88 @@ struct ViewCut {
     cut: Cut,
 }
 
+/// Symmetric and parallel views as latched: the modes, and the size each view is told.
+#[derive(Clone, Debug, PartialEq)]
+struct Widened {
+    symmetric: Symmetric,
+    parallel: bool,
+    sizes: Vec<(u32, u32)>,
+}
+
 /// What an instance latched at its first `xrEnumerateViewConfigurationViews`.
 #[derive(Clone, Debug, Default)]
 struct Latched {
+    /// The runtime's recommended sizes it was decided on.
+    runtime_sizes: Vec<(u32, u32)>,
     /// Per view (None: not cut).
     views: Vec<Option<ViewCut>>,
+    /// Symmetric or parallel views (None: neither).
+    widened: Option<Widened>,
 }
 
-/// The FOV cut's per-instance state.
+impl Latched {
+    /// The size view `i` is told.
+    fn told(&self, i: usize) -> Option<(u32, u32)> {
+        match &self.widened {
+            Some(w) => w.sizes.get(i).copied(),
+            None => self.views.get(i).copied().flatten().map(|c| c.cut.size()),
+        }
+    }
+
+    /// The tricks on, in words ("the cut and the parallel views").
+    fn names(&self) -> String {
+        let mut n = Vec::new();
+        if self.views.iter().any(Option::is_some) {
+            n.push("the cut");
+        }
+        if let Some(w) = &self.widened {
+            if w.parallel {
+                n.push("the parallel views");
+            }
+            if w.symmetric != Symmetric::Off {
+                n.push("the symmetric views");
+            }
+        }
+        n.join(" and ")
+    }
+}
+
+/// The views given to the app in a frame, for the check of what it submits.
+#[derive(Clone, Debug, Default)]
+struct Given {
+    /// Per view (XrFovf order: left, right, up, down).
+    angles: Vec<[f32; 4]>,
+    /// The right view's orientation in the left's frame (parallel views only).
+    turn: Option<DQuat>,
+}
+
+/// The view tricks' per-instance state.
 #[derive(Debug, Default)]
 pub(crate) struct ViewsInstance {
     latch: Mutex<Option<Latched>>,
 }
 
-/// The FOV cut's per-session state.
+/// The view tricks' per-session state.
 #[derive(Debug, Default)]
 pub(crate) struct ViewsSession {
-    /// The cut is off for this session (a check failed).
+    /// The tricks are off for this session (a check failed).
     off: AtomicBool,
     /// The runtime's mesh was checked against the cut.
     checked: AtomicBool,
-    /// The angles the app was last given per view (XrFovf order: left, right, up, down).
-    given: Mutex<Vec<[f32; 4]>>,
+    /// The views the app was last given.
+    given: Mutex<Given>,
 }
 
-fn tangents(fov: &Fov) -> ViewFov {
-    ViewFov { tan_left: fov.left as f32, tan_right: fov.right as f32, tan_up: fov.up as f32, tan_down: fov.down as f32 }
+/// `q` as glam's (f64).
+fn dquat(q: &xr::Quaternionf) -> DQuat {
+    DQuat::from_xyzw(q.x as f64, q.y as f64, q.z as f64, q.w as f64).normalize()
 }
 
-/// The runtime's system name.
-fn system_name(inst: &Instance, system: xr::SystemId) -> Option<String> {
-    let f = inst.next.get_system_properties?;
-    // SAFETY: a zeroed output struct with its type set (every field is plain data).
-    let mut p: xr::SystemProperties = unsafe { std::mem::zeroed() };
-    p.ty = xr::SystemProperties::TYPE;
-    // SAFETY: the instance's own system, an output struct of the right type.
-    if unsafe { f(inst.handle, system, &mut p) } != xr::Result::SUCCESS {
-        return None;
-    }
-    // SAFETY: the runtime wrote a NUL-terminated name into the fixed array.
-    let name = unsafe { std::ffi::CStr::from_ptr(p.system_name.as_ptr()) };
-    Some(name.to_string_lossy().into_owned())
+fn fov_of(v: &xr::View) -> Fov {
+    Fov::from_angles([v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down])
 }
 
-/// The HMD profile a runtime's system name names (the mock's exactly, real headsets by product).
-fn profile_for(name: &str) -> Option<&'static hmd_profiles::profile::HmdProfile> {
-    use hmd_profiles::profile::{HmdProfile, HMD_NAMES};
-    if let Some(p) = HMD_NAMES.iter().filter_map(|n| HmdProfile::by_name(n)).find(|p| p.system_name == name) {
-        return Some(p);
-    }
-    let lower = name.to_lowercase();
-    [("index", "index"), ("vive", "vive"), ("quest 3", "quest3"), ("pimax", "pimax")].iter().find(|(k, _)| lower.contains(k)).and_then(|(_, n)| HmdProfile::by_name(n))
-}
-
-/// A live session of `inst`, whose runtime meshes can be asked for.
-fn session_of(inst: &Instance) -> Option<std::sync::Arc<Session>> {
-    crate::xr::state().sessions.values().into_iter().map(|(_, s)| s).find(|s| s.instance.handle == inst.handle)
-}
-
-/// One view's FOV and hidden pixels on a `size` grid from the runtime's meshes (a session
-/// exists): the FOV is the box of the hidden and visible meshes together (they tile it).
-fn lens_from_runtime(s: &Session, view: u32, size: (u32, u32)) -> Option<(Fov, (u32, u32), Vec<bool>)> {
-    let hidden = runtime_mask(s, view)?;
-    let visible = crate::features::mask::xr::runtime_mesh(s, view, xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH)?;
-    let fov = hidden.iter().chain(&visible).fold(None, |acc: Option<Fov>, p| {
-        let q = Fov { left: p[0] as f64, right: p[0] as f64, up: p[1] as f64, down: p[1] as f64 };
-        Some(acc.map_or(q, |a| a.union(&q)))
-    })?;
-    Some((fov, size, hidden_pixels(&hidden, &tangents(&fov), size)?))
-}
-
-/// One view's FOV and hidden pixels on a `size` grid from an HMD profile.
-fn lens_from_profile(p: &hmd_profiles::profile::HmdProfile, view: usize, size: (u32, u32)) -> Option<(Fov, (u32, u32), Vec<bool>)> {
-    let fov = Fov::from_angles(p.fov_rad(view));
-    let hidden: Vec<[f32; 2]> = hmd_profiles::mask::hidden_triangle_points(p, view, 1.0).iter().map(|v| [v[0], v[1]]).collect();
-    Some((fov, size, hidden_pixels(&hidden, &tangents(&fov), size)?))
-}
-
-/// Decides the instance's cuts for `views` (the runtime's answer).
+/// Decides the instance's view tricks for `views` (the runtime's answer).
 fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::ViewConfigurationView]) -> Latched {
     let margin = s.views.fov_cut_margin_deg;
     let sizes: Vec<(u32, u32)> = views.iter().map(|v| (v.recommended_image_rect_width, v.recommended_image_rect_height)).collect();
@@ -130,48 +146,91 @@ fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::View
         (None, Some(p)) => (sizes.iter().enumerate().map(|(i, &size)| lens_from_profile(p, i, size)).collect(), "the HMD profile's lens"),
         (None, None) => (None, ""),
     };
-    // One size for every view (apps render them at one size), or no cut when a view has none.
-    let cuts = lenses.and_then(|l| rules::cuts(&l, margin));
-    if cuts.is_none() {
-        tracing::warn!("view.fov_cut: no lens known for {name:?} (no runtime mesh of a session, no HMD profile matching it); the views are not cut");
+    let mut latched = Latched { runtime_sizes: sizes.clone(), views: vec![None; sizes.len()], widened: None };
+    if s.views.fov_cut {
+        // One size for every view (apps render them at one size), or no cut when a view has none.
+        match lenses.as_ref().and_then(|l| rules::cuts(l, margin)) {
+            Some(cuts) => {
+                for (i, (cut, &size)) in cuts.into_iter().zip(&sizes).enumerate() {
+                    tracing::info!(
+                        "view.fov_cut: view {i}: {}x{} -> {}x{} (pixels {}..{} x {}..{}), {:.1} % fewer pixels; the lens from {source}",
+                        size.0,
+                        size.1,
+                        cut.size().0,
+                        cut.size().1,
+                        cut.x0,
+                        cut.x1,
+                        cut.y0,
+                        cut.y1,
+                        100.0 * cut.saved_share(size)
+                    );
+                    latched.views[i] = Some(ViewCut { size, cut });
+                }
+            }
+            None => tracing::warn!("view.fov_cut: no lens known for {name:?} (no runtime mesh of a session, no HMD profile matching it); the views are not cut"),
+        }
     }
-    let cuts: Vec<Option<(Cut, &str)>> = match cuts {
-        Some(c) => c.into_iter().map(|c| Some((c, source))).collect(),
-        None => vec![None; sizes.len()],
+    if s.views.widens() {
+        let max = views.iter().map(|v| (v.max_image_rect_width, v.max_image_rect_height)).fold((u32::MAX, u32::MAX), |a, m| (a.0.min(m.0), a.1.min(m.1)));
+        latched.widened = widen(s, &name, profile, lenses.as_deref(), &latched, max, source);
+    }
+    latched
+}
+
+/// The sizes of symmetric and parallel views: each view's size (the cut's, else the runtime's)
+/// grown with its FOV at the same pixels per tangent, one size for both (the larger of each side,
+/// so neither eye loses density). None (logged) when the views' FOVs are not known.
+#[allow(clippy::too_many_arguments)]
+fn widen(s: &Settings, name: &str, profile: Option<&hmd_profiles::profile::HmdProfile>, lenses: Option<&[(Fov, (u32, u32), Vec<bool>)]>, latched: &Latched, max: (u32, u32), source: &str) -> Option<Widened> {
+    let (symmetric, parallel) = (s.views.symmetric, s.views.parallel);
+    let Some(lenses) = lenses.filter(|l| l.len() == STEREO_VIEWS) else {
+        tracing::warn!("view.symmetric / view.parallel: the views of {name:?} are not known before they are located (no runtime mesh of a session, no HMD profile matching it); the views are not widened");
+        return None;
     };
-    let views = cuts
-        .into_iter()
-        .zip(&sizes)
-        .enumerate()
-        .map(|(i, (c, &size))| {
-            let (cut, source) = c?;
-            tracing::info!(
-                "view.fov_cut: view {i}: {}x{} -> {}x{} (pixels {}..{} x {}..{}), {:.1} % fewer pixels; the lens from {source}",
-                size.0,
-                size.1,
-                cut.size().0,
-                cut.size().1,
-                cut.x0,
-                cut.x1,
-                cut.y0,
-                cut.y1,
-                100.0 * cut.saved_share(size)
-            );
-            Some(ViewCut { size, cut })
-        })
-        .collect();
-    Latched { views }
+    let base: Vec<(Fov, (u32, u32))> = lenses.iter().zip(&latched.views).map(|((fov, size, _), c)| c.map_or((*fov, *size), |c| (c.cut.fov, c.cut.size()))).collect();
+    let fovs = [base[0].0, base[1].0];
+    // The displays' cant from the profile; a runtime without one is taken as parallel until its
+    // views are located (each frame's views are widened from what the runtime locates).
+    let turns = profile.map(turns_from_profile).unwrap_or([DQuat::IDENTITY; 2]);
+    let Some((_, wide)) = rules::widen(fovs, turns, symmetric, parallel) else {
+        tracing::warn!("view.parallel: a canted view of {name:?} reaches behind the parallel one; the views are not widened");
+        return None;
+    };
+    let grown: Vec<(u32, u32)> = base.iter().zip(&wide).map(|((fov, size), w)| rules::size_for(*size, fov, w)).collect();
+    let needed = grown.iter().fold((0, 0), |a, g| (a.0.max(g.0), a.1.max(g.1)));
+    // Within the runtime's largest image: past it the views keep their angles at a lower density.
+    let one = (needed.0.min(max.0).max(1), needed.1.min(max.1).max(1));
+    if one != needed {
+        tracing::warn!("view.symmetric / view.parallel: the widened views need {}x{}, more than the runtime's largest image {}x{}; they get {}x{} (fewer pixels per degree than the runtime's)", needed.0, needed.1, max.0, max.1, one.0, one.1);
+    }
+    let pixels = |v: &[(u32, u32)]| v.iter().map(|&(w, h)| w as f64 * h as f64).sum::<f64>();
+    let before = pixels(&base.iter().map(|b| b.1).collect::<Vec<_>>());
+    let turned = if parallel { [DQuat::IDENTITY; 2] } else { turns };
+    let overlap = |f: &[Fov; 2], t: [DQuat; 2]| rules::seen_overlap(f, t).map_or("unknown".to_string(), |o| format!("{:.1} %", 100.0 * o));
+    tracing::info!(
+        "view.symmetric = {symmetric:?}, view.parallel = {}: views {} -> {}x{} each, {:+.1} % pixels; overlap of the views {} -> {}; the views from {source}",
+        if parallel { "on" } else { "off" },
+        base.iter().map(|b| format!("{}x{}", b.1 .0, b.1 .1)).collect::<Vec<_>>().join(", "),
+        one.0,
+        one.1,
+        100.0 * (2.0 * one.0 as f64 * one.1 as f64 / before - 1.0),
+        overlap(&fovs, turns),
+        overlap(&wide, turned),
+    );
+    Some(Widened { symmetric, parallel, sizes: vec![one; STEREO_VIEWS] })
 }
 
 impl ViewsXr {
     fn latched(s: &Session) -> Option<Latched> {
-        lock(&s.instance.features.views.latch).clone().filter(|l| l.views.iter().any(Option::is_some))
+        lock(&s.instance.features.views.latch).clone().filter(|l| l.views.iter().any(Option::is_some) || l.widened.is_some())
     }
 
-    /// Turns the cut off for session `s`, saying why (once).
-    fn turn_off(s: &Session, why: &str) {
+    /// Turns the tricks off for session `s`, saying why (once).
+    fn turn_off(s: &Session, l: &Latched, why: &str) {
         if !s.features.views.off.swap(true, Ordering::AcqRel) {
-            tracing::warn!("view.fov_cut: {why}; the cut is off for this session (the app gets the runtime's angles)");
+            let names = l.names();
+            let verb = if names.contains(" and ") { "are" } else { "is" };
+            tracing::warn!("view tricks: {why}; {names} {verb} off for this session (the app gets the runtime's views)");
         }
     }
 
@@ -184,13 +243,13 @@ impl ViewsXr {
         for (i, (vc, v)) in l.views.iter().zip(views).enumerate() {
             let Some(vc) = vc else { continue };
             let Some(hidden) = runtime_mask(s, i as u32) else { continue };
-            let fov = Fov::from_angles([v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down]);
+            let fov = fov_of(v);
             let Some(bits) = hidden_pixels(&hidden, &tangents(&fov), vc.size) else { continue };
             let w = vc.size.0 as usize;
             let inside = |k: usize| (vc.cut.x0..vc.cut.x1).contains(&((k % w) as u32)) && (vc.cut.y0..vc.cut.y1).contains(&((k / w) as u32));
             let outside = bits.iter().enumerate().any(|(k, &hidden)| !hidden && !inside(k));
             if outside {
-                Self::turn_off(s, &format!("view {i}: the runtime's lens shows pixels outside the cut"));
+                Self::turn_off(s, l, &format!("view {i}: the runtime's lens shows pixels outside the cut"));
                 return;
             }
         }
@@ -209,15 +268,16 @@ impl XrFeature for ViewsXr {
         // Decided once per instance: the app sizes its swapchains from the first answer. Decided
         // with no lock held (it asks the runtime), kept by the first call to finish.
         if lock(&inst.features.views.latch).is_none() {
-            let decided = if s.views.fov_cut { decide(inst, system, s, views) } else { Latched::default() };
+            let decided = if s.views.fov_cut || s.views.widens() { decide(inst, system, s, views) } else { Latched::default() };
             lock(&inst.features.views.latch).get_or_insert(decided);
         }
         let latch = lock(&inst.features.views.latch);
         let Some(l) = latch.as_ref() else { return };
-        for (v, c) in views.iter_mut().zip(&l.views) {
-            // Only where the runtime still answers the size the cut was made on.
-            if let Some(c) = c.filter(|c| c.size == (v.recommended_image_rect_width, v.recommended_image_rect_height)) {
-                (v.recommended_image_rect_width, v.recommended_image_rect_height) = c.cut.size();
+        for (i, v) in views.iter_mut().enumerate() {
+            // Only where the runtime still answers the size the tricks were decided on.
+            let answered = (v.recommended_image_rect_width, v.recommended_image_rect_height);
+            if let Some(told) = l.told(i).filter(|_| l.runtime_sizes.get(i) == Some(&answered)) {
+                (v.recommended_image_rect_width, v.recommended_image_rect_height) = told;
             }
         }
     }
@@ -233,43 +293,73 @@ impl XrFeature for ViewsXr {
         if s.features.views.off.load(Ordering::Acquire) {
             return;
         }
-        let mut given = Vec::with_capacity(views.len());
+        let located: Vec<xr::View> = views.to_vec();
         for (v, c) in views.iter_mut().zip(&l.views) {
-            if let Some(c) = c {
-                let fov = Fov::from_angles([v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down]);
-                if fov.is_valid() {
-                    // The tangents of the cut's pixel boundaries on the runtime's grid of this FOV.
-                    let (px, py) = (fov.width() / c.size.0 as f64, fov.height() / c.size.1 as f64);
-                    let cut = Fov { left: fov.left + c.cut.x0 as f64 * px, right: fov.left + c.cut.x1 as f64 * px, up: fov.up - c.cut.y0 as f64 * py, down: fov.up - c.cut.y1 as f64 * py };
-                    let [left, right, up, down] = cut.angles();
-                    v.fov = xr::Fovf { angle_left: left, angle_right: right, angle_up: up, angle_down: down };
+            let Some(c) = c else { continue };
+            let fov = fov_of(v);
+            if fov.is_valid() {
+                // The tangents of the cut's pixel boundaries on the runtime's grid of this FOV.
+                let (px, py) = (fov.width() / c.size.0 as f64, fov.height() / c.size.1 as f64);
+                let cut = Fov { left: fov.left + c.cut.x0 as f64 * px, right: fov.left + c.cut.x1 as f64 * px, up: fov.up - c.cut.y0 as f64 * py, down: fov.up - c.cut.y1 as f64 * py };
+                let [left, right, up, down] = cut.angles();
+                v.fov = xr::Fovf { angle_left: left, angle_right: right, angle_up: up, angle_down: down };
+            }
+        }
+        let mut turn = None;
+        if let Some(w) = &l.widened {
+            // From this frame's views: the runtime's own angles and cant rule, the latch only sized.
+            let (fovs, orientations) = ([fov_of(&views[0]), fov_of(&views[1])], [dquat(&views[0].pose.orientation), dquat(&views[1].pose.orientation)]);
+            match rules::widen(fovs, orientations, w.symmetric, w.parallel).filter(|_| fovs.iter().all(Fov::is_valid)) {
+                Some((mean, wide)) => {
+                    for (v, f) in views.iter_mut().zip(wide) {
+                        let [left, right, up, down] = f.angles();
+                        v.fov = xr::Fovf { angle_left: left, angle_right: right, angle_up: up, angle_down: down };
+                        if let Some(m) = mean {
+                            v.pose.orientation = xr::Quaternionf { x: m.x as f32, y: m.y as f32, z: m.z as f32, w: m.w as f32 };
+                        }
+                    }
+                    if w.parallel {
+                        turn = Some(dquat(&views[0].pose.orientation).inverse() * dquat(&views[1].pose.orientation));
+                    }
+                }
+                None => {
+                    Self::turn_off(s, &l, "the located views cannot be widened (a canted view reaches behind the parallel one, or an angle is not finite)");
+                    views.copy_from_slice(&located);
+                    return;
                 }
             }
-            given.push([v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down]);
         }
-        *lock(&s.features.views.given) = given;
+        let angles = views.iter().map(|v| [v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down]).collect();
+        *lock(&s.features.views.given) = Given { angles, turn };
     }
 
-    /// `view_fov_cut`: whether the session's views are cut (`examples/bench --feature fov_cut`
-    /// switches on it).
+    /// `view_fov_cut`, `view_symmetric`, `view_parallel`: which tricks the session's views have
+    /// (`examples/bench --feature fov_cut` switches on the first).
     fn frame_stats(&self, s: &Session) -> Vec<(&'static str, serde_json::Value)> {
-        let on = !s.features.views.off.load(Ordering::Acquire) && Self::latched(s).is_some();
-        vec![("view_fov_cut", on.into())]
+        let l = Self::latched(s).filter(|_| !s.features.views.off.load(Ordering::Acquire));
+        let cut = l.as_ref().is_some_and(|l| l.views.iter().any(Option::is_some));
+        let w = l.and_then(|l| l.widened);
+        let symmetric = match w.as_ref().map(|w| w.symmetric) {
+            Some(Symmetric::Horizontal) => "horizontal",
+            Some(Symmetric::Full) => "full",
+            _ => "off",
+        };
+        vec![("view_fov_cut", cut.into()), ("view_symmetric", symmetric.into()), ("view_parallel", w.is_some_and(|w| w.parallel).into())]
     }
 
-    /// Checks the frame's projection views against the angles and sizes given (never amends).
+    /// Checks the frame's projection views against the views and sizes given (never amends).
     fn amend_frame_end(&self, s: &Session, info: &xr::FrameEndInfo) -> Option<AmendedFrameEnd> {
         if s.features.views.off.load(Ordering::Acquire) || info.layer_count == 0 || info.layers.is_null() {
             return None;
         }
         let l = Self::latched(s)?;
         let given = lock(&s.features.views.given).clone();
-        // The size each view was told: the cut's, or the upscale's share of it.
+        // The size each view was told: the tricks', or the upscale's share of it.
         let upscale = s.instance.upscale.latched().filter(|u| u.settings.enabled);
         let told = |i: usize| -> Option<(u32, u32)> {
             match &upscale {
                 Some(u) => u.views.get(i).map(|v| v.render),
-                None => l.views.get(i).copied().flatten().map(|c| c.cut.size()),
+                None => l.told(i),
             }
         };
         // SAFETY: the app's layers, valid for this call (non-null, counted).
@@ -284,15 +374,24 @@ impl XrFeature for ViewsXr {
             let p = unsafe { &*(layer as *const xr::CompositionLayerProjection) };
             // SAFETY: its views array as counted, valid for this call.
             let views = unsafe { crate::vk::convert::slice(p.views, p.view_count) };
-            for (i, (v, g)) in views.iter().zip(&given).enumerate() {
+            for (i, (v, g)) in views.iter().zip(&given.angles).enumerate() {
                 let a = [v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down];
                 if a.iter().zip(g).any(|(a, g)| (a - g).abs() > ANGLE_TOLERANCE) {
-                    Self::turn_off(s, &format!("the app submitted view {i} with angles {a:?}, not the {g:?} it was given"));
+                    Self::turn_off(s, &l, &format!("the app submitted view {i} with angles {a:?}, not the {g:?} it was given"));
                     return None;
                 }
                 let size = (v.sub_image.image_rect.extent.width.max(0) as u32, v.sub_image.image_rect.extent.height.max(0) as u32);
                 if let Some(t) = told(i).filter(|&t| t != size) {
-                    Self::turn_off(s, &format!("the app renders view {i} at {}x{}, not the {}x{} it was told", size.0, size.1, t.0, t.1));
+                    Self::turn_off(s, &l, &format!("the app renders view {i} at {}x{}, not the {}x{} it was told", size.0, size.1, t.0, t.1));
+                    return None;
+                }
+            }
+            // Parallel views: the views' turn against each other, which no choice of the app's
+            // space changes (a canted submission would be composited as parallel).
+            if let (Some(g), [v0, v1, ..]) = (given.turn, views) {
+                let turn = dquat(&v0.pose.orientation).inverse() * dquat(&v1.pose.orientation);
+                if turn.angle_between(g) > TURN_TOLERANCE {
+                    Self::turn_off(s, &l, &format!("the app submitted views turned {:.2}° apart, not the {:.2}° it was given", turn.angle_between(DQuat::IDENTITY).to_degrees(), g.angle_between(DQuat::IDENTITY).to_degrees()));
                     return None;
                 }
             }

@@ -40,6 +40,16 @@ mod tests {
         assert!((p1.x - p0.x - p.ipd).abs() < 1e-6 && p0.x < 0.0);
     }
 
+    /// The Vive's eyes are measured apart (hmdgdb): the right eye is not the left's mirror image,
+    /// its vertical angles differ (what breaks an app assuming symmetric eyes).
+    #[test]
+    fn vive_eyes_are_measured_apart() {
+        let p = HmdProfile::by_name("vive").unwrap();
+        let ([l0, r0, u0, d0], [l1, r1, u1, d1]) = (p.fov_rad(0), p.fov_rad(1));
+        assert!((u0.tan() - 1.464221).abs() < 1e-5 && (u1.tan() - 1.460934).abs() < 1e-5 && (d1.tan() + 1.475235).abs() < 1e-5);
+        assert!((u0 - u1).abs() > 5e-4 && (d0 - d1).abs() > 5e-4 && (l1 + r0).abs() > 5e-4 && (r1 + l0).abs() > 5e-4);
+    }
+
     #[test]
     fn pimax_views_are_canted_outward() {
         let p = HmdProfile::by_name("pimax").unwrap();

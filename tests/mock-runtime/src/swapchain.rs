@@ -284,10 +284,10 @@ fn create(s: &Arc<Session>, info: &xr::SwapchainCreateInfo) -> XrResult<u64> {
         crate::log!("xrCreateSwapchain: usage {u:?} does not fit format {format:?}");
         return Err(xr::Result::ERROR_VALIDATION_FAILURE);
     }
-    let hmd = s.instance.cfg.hmd;
-    if info.width == 0 || info.height == 0 || info.width > hmd.max.0 || info.height > hmd.max.1 || !(1..=MAX_ARRAY_SIZE).contains(&info.array_size) {
-        crate::log!("xrCreateSwapchain: unsupported size {}x{} with {} layers (max {}x{}, 1..={MAX_ARRAY_SIZE} layers)",
-            info.width, info.height, info.array_size, hmd.max.0, hmd.max.1);
+    let max = crate::system::MAX_SWAPCHAIN_EXTENT;
+    if info.width == 0 || info.height == 0 || info.width > max || info.height > max || !(1..=MAX_ARRAY_SIZE).contains(&info.array_size) {
+        crate::log!("xrCreateSwapchain: unsupported size {}x{} with {} layers (max {max}x{max}, 1..={MAX_ARRAY_SIZE} layers)",
+            info.width, info.height, info.array_size);
         return Err(xr::Result::ERROR_VALIDATION_FAILURE);
     }
     let mut flags = vk::ImageCreateFlags::empty();

@@ -6,6 +6,10 @@ use crate::instance::{self, Instance};
 use crate::util::{find_in_chain, guard, input, out_ptr, output, two_call, two_call_copy, write_fixed, XrResult};
 use crate::EXT_EYE_GAZE;
 
+/// The largest swapchain image side, as Monado reports it (16 × 1024): an image holds every
+/// view side by side at up to the largest image rect each (`maxImageRect*`, the profile's).
+pub const MAX_SWAPCHAIN_EXTENT: u32 = 16 * 1024;
+
 pub const SYSTEM_ID: u64 = 0x5EED;
 pub const MAX_LAYERS: u32 = 16;
 /// `maxSwapchainSampleCount` of both views (see xrEnumerateViewConfigurationViews).
@@ -68,8 +72,8 @@ pub unsafe extern "system" fn xr_get_system_properties(
         p.vendor_id = 0x5E5E;
         write_fixed(&mut p.system_name, hmd.system_name);
         p.graphics_properties = xr::SystemGraphicsProperties {
-            max_swapchain_image_height: hmd.max.1,
-            max_swapchain_image_width: hmd.max.0,
+            max_swapchain_image_height: MAX_SWAPCHAIN_EXTENT,
+            max_swapchain_image_width: MAX_SWAPCHAIN_EXTENT,
             max_layer_count: inst.cfg.max_layers,
         };
         p.tracking_properties = xr::SystemTrackingProperties { orientation_tracking: xr::TRUE, position_tracking: xr::TRUE };

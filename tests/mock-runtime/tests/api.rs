@@ -301,12 +301,13 @@ fn visibility_mask_geometry_and_change_event() {
             hidden_before = h;
         }
     }
-    // left and right masks mirror each other (x → −x)
+    // left and right masks mirror each other (x → −x), up to the Vive's measured eyes, whose
+    // frusta differ by 0.003 tangent from each other's mirror image
     let (l, _) = mask(x, s, 0, xr::VisibilityMaskTypeKHR::LINE_LOOP);
     let (r, _) = mask(x, s, 1, xr::VisibilityMaskTypeKHR::LINE_LOOP);
     let lmin = l.iter().map(|p| p[0]).fold(f32::MAX, f32::min);
     let rmax = r.iter().map(|p| p[0]).fold(f32::MIN, f32::max);
-    assert!((lmin + rmax).abs() < 1e-4);
+    assert!((lmin + rmax).abs() < 4e-3, "{lmin} {rmax}");
 
     // the change at frame 1: one event per view after the first xrEndFrame
     assert_eq!(begin_session(x, s), xr::Result::SUCCESS);

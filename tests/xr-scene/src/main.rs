@@ -188,7 +188,7 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
                 };
                 acquired.push(renderer::Acquired { color, depth });
             }
-            let uniforms = frame_uniforms(&views, reversed, opts.animate, opts.far_movers, frame);
+            let uniforms = frame_uniforms(&assumed(opts, &views), reversed, opts.animate, opts.far_movers, frame);
             let finished = renderer.render(gpu, &targets, &acquired, &uniforms, frame)?;
             for slot in &mut targets.slots {
                 calls.time("xrReleaseSwapchainImage", || slot.color.swapchain.release_image()).ctx("xrReleaseSwapchainImage")?;
@@ -264,6 +264,24 @@ fn push_stats(stats: &mut Option<stats::StatsLog>, xr_us: &mut std::collections:
         }
     }
     Ok(())
+}
+
+/// The views as an app that assumes symmetric or parallel eyes draws them (`--assume-symmetric`,
+/// `--assume-parallel`); it submits them as located.
+fn assumed(opts: &cli::Options, views: &[oxr::View]) -> Vec<oxr::View> {
+    let mut v = views.to_vec();
+    if opts.assume_parallel {
+        let q = |o: oxr::Quaternionf| Quat::from_xyzw(o.x, o.y, o.z, o.w);
+        let m = q(v[0].pose.orientation).slerp(q(v[1].pose.orientation), 0.5).normalize();
+        for e in &mut v {
+            e.pose.orientation = oxr::Quaternionf { x: m.x, y: m.y, z: m.z, w: m.w };
+        }
+    }
+    if opts.assume_symmetric {
+        let l = v[0].fov;
+        v[1].fov = oxr::Fovf { angle_left: -l.angle_right, angle_right: -l.angle_left, angle_up: l.angle_up, angle_down: l.angle_down };
+    }
+    v
 }
 
 fn frame_uniforms(views: &[oxr::View], reversed: bool, animate: bool, far_movers: bool, frame: u64) -> renderer::FrameUniforms {

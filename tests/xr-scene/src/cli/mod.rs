@@ -214,6 +214,14 @@ pub struct Options {
     /// and submits it (an app that renders more than the runtime asked, e.g. for its own
     /// reprojection).
     pub widen_fov_deg: f32,
+    /// `--assume-symmetric`: the right eye is drawn with the left eye's projection mirrored (its
+    /// vertical angles, its horizontal ones swapped), as single-pass-stereo renderers do; each
+    /// view is submitted as located.
+    pub assume_symmetric: bool,
+    /// `--assume-parallel`: both eyes are drawn looking the same way (the mean of the located
+    /// orientations), as apps that place each eye at the head's orientation do; each view is
+    /// submitted as located.
+    pub assume_parallel: bool,
     /// `--post`: the post-processing chain after the eye pass (none: the eye pass renders the
     /// swapchain image, or `--intermediate`'s target).
     pub post: Option<PostEffect>,
@@ -385,6 +393,14 @@ struct Args {
     /// Widen each located view's angles by DEG (0..=20) before rendering and submitting it.
     #[arg(long, value_name = "DEG", default_value_t = 0.0, value_parser = parse_widen)]
     widen_fov: f32,
+    /// Draw the right eye with the left eye's projection mirrored (an app assuming symmetric
+    /// eyes); submit the views as located.
+    #[arg(long)]
+    assume_symmetric: bool,
+    /// Draw both eyes looking the same way (an app assuming parallel eyes); submit the views as
+    /// located.
+    #[arg(long)]
+    assume_parallel: bool,
     /// Render the eye passes into an RGBA16F target, then post-process into the swapchain with
     /// full-screen draws: tonemap; bloom (down/up-sample chain, then tonemap); taa (history
     /// blended into the tonemap).
@@ -547,6 +563,8 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         visibility_mask: a.visibility_mask,
         quad: a.quad,
         widen_fov_deg: a.widen_fov,
+        assume_symmetric: a.assume_symmetric,
+        assume_parallel: a.assume_parallel,
         post: a.post,
         post_compute: a.post_compute,
         post_subpass: a.post_subpass,

@@ -1,0 +1,74 @@
+//! Where a headset's views and lens come from, for the view tricks' decisions at the first
+//! `xrEnumerateViewConfigurationViews` (before any view is located): the runtime's own meshes when
+//! a session already exists (their union spans the view's FOV), else the HMD profile the runtime's
+//! system name names (the mock's exactly, real headsets by product).
+
+use super::rules::Fov;
+use crate::features::mask::rules::hidden_pixels;
+use crate::features::mask::xr::runtime_mask;
+use crate::shared::ViewFov;
+use crate::xr::session::Session;
+use crate::xr::Instance;
+use openxr_sys as xr;
+
+pub(crate) fn tangents(fov: &Fov) -> ViewFov {
+    ViewFov { tan_left: fov.left as f32, tan_right: fov.right as f32, tan_up: fov.up as f32, tan_down: fov.down as f32 }
+}
+
+/// The runtime's system name.
+pub(crate) fn system_name(inst: &Instance, system: xr::SystemId) -> Option<String> {
+    let f = inst.next.get_system_properties?;
+    // SAFETY: a zeroed output struct with its type set (every field is plain data).
+    let mut p: xr::SystemProperties = unsafe { std::mem::zeroed() };
+    p.ty = xr::SystemProperties::TYPE;
+    // SAFETY: the instance's own system, an output struct of the right type.
+    if unsafe { f(inst.handle, system, &mut p) } != xr::Result::SUCCESS {
+        return None;
+    }
+    // SAFETY: the runtime wrote a NUL-terminated name into the fixed array.
+    let name = unsafe { std::ffi::CStr::from_ptr(p.system_name.as_ptr()) };
+    Some(name.to_string_lossy().into_owned())
+}
+
+/// The HMD profile a runtime's system name names (the mock's exactly, real headsets by product).
+pub(crate) fn profile_for(name: &str) -> Option<&'static hmd_profiles::profile::HmdProfile> {
+    use hmd_profiles::profile::{HmdProfile, HMD_NAMES};
+    if let Some(p) = HMD_NAMES.iter().filter_map(|n| HmdProfile::by_name(n)).find(|p| p.system_name == name) {
+        return Some(p);
+    }
+    let lower = name.to_lowercase();
+    [("index", "index"), ("vive", "vive"), ("quest 3", "quest3"), ("pimax", "pimax")].iter().find(|(k, _)| lower.contains(k)).and_then(|(_, n)| HmdProfile::by_name(n))
+}
+
+/// A live session of `inst`, whose runtime meshes can be asked for.
+pub(crate) fn session_of(inst: &Instance) -> Option<std::sync::Arc<Session>> {
+    crate::xr::state().sessions.values().into_iter().map(|(_, s)| s).find(|s| s.instance.handle == inst.handle)
+}
+
+/// One view's FOV and hidden pixels on a `size` grid from the runtime's meshes (a session
+/// exists): the FOV is the box of the hidden and visible meshes together (they tile it).
+pub(crate) fn lens_from_runtime(s: &Session, view: u32, size: (u32, u32)) -> Option<(Fov, (u32, u32), Vec<bool>)> {
+    let hidden = runtime_mask(s, view)?;
+    let visible = crate::features::mask::xr::runtime_mesh(s, view, xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH)?;
+    let fov = hidden.iter().chain(&visible).fold(None, |acc: Option<Fov>, p| {
+        let q = Fov { left: p[0] as f64, right: p[0] as f64, up: p[1] as f64, down: p[1] as f64 };
+        Some(acc.map_or(q, |a| a.union(&q)))
+    })?;
+    Some((fov, size, hidden_pixels(&hidden, &tangents(&fov), size)?))
+}
+
+/// One view's FOV and hidden pixels on a `size` grid from an HMD profile.
+pub(crate) fn lens_from_profile(p: &hmd_profiles::profile::HmdProfile, view: usize, size: (u32, u32)) -> Option<(Fov, (u32, u32), Vec<bool>)> {
+    let fov = Fov::from_angles(p.fov_rad(view));
+    let hidden: Vec<[f32; 2]> = hmd_profiles::mask::hidden_triangle_points(p, view, 1.0).iter().map(|v| [v[0], v[1]]).collect();
+    Some((fov, size, hidden_pixels(&hidden, &tangents(&fov), size)?))
+}
+
+
+/// Each view's orientation in the head's frame from an HMD profile (its displays' cant).
+pub(crate) fn turns_from_profile(p: &hmd_profiles::profile::HmdProfile) -> [glam::DQuat; 2] {
+    [0, 1].map(|v| {
+        let r = p.eye_in_head(v).1;
+        glam::DQuat::from_xyzw(r.x as f64, r.y as f64, r.z as f64, r.w as f64)
+    })
+}

@@ -1,0 +1,214 @@
+//! Symmetric and parallel views (`view.symmetric`, `view.parallel`, src/features/views) on the
+//! mock runtime and lavapipe, validation with synchronization on: xr-scene's `--assume-symmetric`
+//! (the right eye drawn with the left eye's projection mirrored) on the Vive, whose measured eyes
+//! differ in y, and `--assume-parallel` (both eyes drawn looking the same way) on the canted
+//! Pimax render wrongly without the feature and, with it, match the reference (the app drawing the
+//! runtime's own views) after reprojection into the runtime's view, over what the lens shows.
+
+mod common;
+
+use common::{Run, RunOutput, View};
+use glam::{DQuat, DVec3};
+
+/// The threshold the feature's images must reach against the reference after reprojection.
+const MATCH_DB: f64 = 40.0;
+
+/// Images are compared as a display shows them: at a quarter of the headset's recommended density
+/// in each direction (blocks of `BLOCK × scale` pixels averaged). Both images are point-sampled renders whose grids
+/// differ by a fraction of a pixel (symmetric views keep the runtime's density, not its pixel
+/// grid; parallel views turn it), so at the rendered density resampling alone leaves the
+/// aliased edges of the scene about 30 dB apart whatever the geometry; a runtime's own
+/// reprojection filters them the same way.
+const BLOCK: u32 = 4;
+
+
+/// `hmd` at `scale` of its recommended size, the app at that size itself, `frames` frames.
+fn run(name: &str, hmd: &str, frames: u32, scale: f64) -> Run {
+    Run::new(name).with_layer().env("MOCK_XR_HMD", hmd).env("MOCK_XR_EXIT_AFTER", &frames.to_string()).env("MOCK_XR_RECOMMENDED_SCALE", &scale.to_string()).args(["--scale", "1"])
+}
+
+fn named(run: &Run, name: &str) -> Run {
+    let mut r = run.clone();
+    r.name = name.into();
+    r
+}
+
+fn quat(v: &View) -> DQuat {
+    let [x, y, z, w] = v.pose.orientation;
+    DQuat::from_xyzw(x as f64, y as f64, z as f64, w as f64).normalize()
+}
+
+fn tangents(v: &View) -> [f64; 4] {
+    [v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down].map(|a| (a as f64).tan())
+}
+
+/// View `a` of one run seen from view `b` of the reference run (the runtime's view): bilinear
+/// samples of `a`'s image, placed by its submitted angles and orientation.
+struct Reprojected {
+    ia: common::image::Image,
+    ib: common::image::Image,
+    /// Which pixels of `b` the runtime's lens hides.
+    hidden: Vec<bool>,
+    a_tan: [f64; 4],
+    b_tan: [f64; 4],
+    to_a: DQuat,
+}
+
+impl Reprojected {
+    fn new(on: &RunOutput, a: &View, reference: &RunOutput, b: &View) -> Reprojected {
+        let (ia, ib) = (on.image(&a.file), reference.image(&b.file));
+        let hidden = match reference.frame(1).visibility_masks.iter().find(|m| m.view == b.view) {
+            Some(m) => common::hidden_pixels(&m.hidden_triangles, &b.fov, ib.width, ib.height),
+            None => vec![false; (ib.width * ib.height) as usize],
+        };
+        Reprojected { ia, ib, hidden, a_tan: tangents(a), b_tan: tangents(b), to_a: quat(a).inverse() * quat(b) }
+    }
+
+    /// `a`'s colour (channel `c`) where `b`'s pixel centre (x, y), moved by (dx, dy) pixels, looks;
+    /// black past `a`'s image.
+    fn sample(&self, x: f64, y: f64, c: usize) -> f64 {
+        let ([bl, br, bu, bd], [al, ar, au, ad]) = (self.b_tan, self.a_tan);
+        let tx = bl + (x + 0.5) / self.ib.width as f64 * (br - bl);
+        let ty = bu - (y + 0.5) / self.ib.height as f64 * (bu - bd);
+        let d = self.to_a * DVec3::new(tx, ty, -1.0);
+        let (sx, sy) = (d.x / -d.z, d.y / -d.z);
+        let (px, py) = ((sx - al) / (ar - al) * self.ia.width as f64 - 0.5, (au - sy) / (au - ad) * self.ia.height as f64 - 0.5);
+        let (x0, y0) = (px.floor(), py.floor());
+        let (fx, fy) = (px - x0, py - y0);
+        let at = |xi: f64, yi: f64| -> f64 {
+            if xi < 0.0 || yi < 0.0 || xi >= self.ia.width as f64 || yi >= self.ia.height as f64 {
+                0.0
+            } else {
+                self.ia.pixel(xi as u32, yi as u32)[c] as f64
+            }
+        };
+        (at(x0, y0) * (1.0 - fx) + at(x0 + 1.0, y0) * fx) * (1.0 - fy) + (at(x0, y0 + 1.0) * (1.0 - fx) + at(x0 + 1.0, y0 + 1.0) * fx) * fy
+    }
+
+    fn max(&self) -> f64 {
+        ((1u32 << self.ib.bit_depth) - 1) as f64
+    }
+
+    /// PSNR (dB) against `b`'s image over the blocks of `k` × `k` pixels the lens shows whole,
+    /// each block's mean compared.
+    fn psnr(&self, k: u32) -> f64 {
+        let (w, h) = (self.ib.width / k, self.ib.height / k);
+        let mut sums = vec![([0.0f64; 3], [0.0f64; 3], true); (w * h) as usize];
+        for y in 0..h * k {
+            for x in 0..w * k {
+                let block = &mut sums[((y / k) * w + x / k) as usize];
+                if self.hidden[(y * self.ib.width + x) as usize] {
+                    block.2 = false;
+                    continue;
+                }
+                let pb = self.ib.pixel(x, y);
+                for c in 0..3 {
+                    block.0[c] += self.sample(x as f64, y as f64, c);
+                    block.1[c] += pb[c] as f64;
+                }
+            }
+        }
+        let (mut se, mut n) = (0.0, 0u64);
+        for (a, b, _) in sums.iter().filter(|s| s.2) {
+            se += (0..3).map(|c| ((a[c] - b[c]) / (self.max() * (k * k) as f64)).powi(2)).sum::<f64>();
+            n += 1;
+        }
+        let mse = se / (3.0 * n.max(1) as f64);
+        if mse == 0.0 { f64::INFINITY } else { -10.0 * mse.log10() }
+    }
+}
+
+/// The layer's report of the widened views: `+X %` pixels, from its log line.
+fn extra_pixels(run: &RunOutput) -> f64 {
+    let lines = run.log_lines("view.symmetric = ");
+    let line = lines.first().unwrap_or_else(|| panic!("no widened views reported: {:?}", run.log_lines("view.")));
+    let p = line.split(" each, ").nth(1).and_then(|s| s.split(" % pixels").next()).expect("pixels");
+    p.trim().parse().unwrap_or_else(|_| panic!("{line}"))
+}
+
+/// PSNR (dB) of two images on the same pixel grid (view `a` of `x`, view `b` of `y`), over the
+/// pixels the runtime's lens shows in `y`'s view, and how many pixels differ at all.
+fn same_grid(x: &RunOutput, a: &View, y: &RunOutput, b: &View) -> (f64, u64) {
+    let (ia, ib) = (x.image(&a.file), y.image(&b.file));
+    assert_eq!((ia.width, ia.height), (ib.width, ib.height), "not one grid");
+    let r = Reprojected::new(y, b, y, b);
+    let (mut se, mut n, mut differ) = (0.0, 0u64, 0u64);
+    for yy in 0..ib.height {
+        for xx in 0..ib.width {
+            let (pa, pb) = (ia.pixel(xx, yy), ib.pixel(xx, yy));
+            differ += (pa[..3] != pb[..3]) as u64;
+            if !r.hidden[(yy * ib.width + xx) as usize] {
+                se += (0..3).map(|c| ((pa[c] as f64 - pb[c] as f64) / r.max()).powi(2)).sum::<f64>();
+                n += 1;
+            }
+        }
+    }
+    let mse = se / (3.0 * n.max(1) as f64);
+    (if mse == 0.0 { f64::INFINITY } else { -10.0 * mse.log10() }, differ)
+}
+
+/// One `--assume-*` case in one layout × rendering, four runs: the reference (the app drawing the
+/// views it is given, no feature), the assuming app without and with the feature, and the
+/// reference app with the feature. Asserted here: with the feature the assuming app draws what an
+/// app drawing its given views draws (its assumption holds), and that matches the reference after
+/// reprojection into the runtime's view. Returns, per view, the PSNR of the assuming app without
+/// the feature against the reference on the same pixel grid (what the assumption breaks).
+/// `scale`: of the headset's recommended size.
+fn assume_case(hmd: &str, scale: f64, assume: &str, key: &str, value: &str, layout: &str, rendering: &str) -> Vec<f64> {
+    let label = format!("{hmd}{assume}-{layout}-{rendering}");
+    let base = run("", hmd, 2, scale).args(["--layout", layout, "--rendering", rendering]);
+    let block = (BLOCK as f64 * scale).round() as u32;
+    let reference = named(&base, &format!("widened-ref-{label}")).run();
+    reference.assert_ok();
+    let wrong = named(&base, &format!("widened-wrong-{label}")).args([assume]).run();
+    wrong.assert_ok();
+    let fixed = named(&base, &format!("widened-fixed-{label}")).args([assume]).env(key, value).run();
+    fixed.assert_ok();
+    let given = named(&base, &format!("widened-given-{label}")).env(key, value).run();
+    given.assert_ok();
+    for r in [&fixed, &given] {
+        assert!(r.log_lines("off for this session").is_empty(), "{label}: turned off: {:?}", r.log_lines("view tricks"));
+    }
+    let mut out = Vec::new();
+    for (((w, f), g), r) in wrong.views(1).iter().zip(fixed.views(1)).zip(given.views(1)).zip(reference.views(1)) {
+        let (broken, _) = same_grid(&wrong, w, &reference, r);
+        let (_, differ) = same_grid(&fixed, f, &given, g);
+        let matched = Reprojected::new(&fixed, f, &reference, r).psnr(block);
+        eprintln!(
+            "{label} view {}: {}x{} -> {}x{}; {assume} without the feature {broken:.1} dB against the reference; with {key}={value} {differ} pixels differ from the views drawn as given, {matched:.1} dB against the reference after reprojection",
+            r.view, r.image_rect.width, r.image_rect.height, f.image_rect.width, f.image_rect.height
+        );
+        let pixels = f.image_rect.width as u64 * f.image_rect.height as u64;
+        assert!(differ <= pixels / 10_000, "{label} view {}: {differ} pixels differ from the views drawn as given", r.view);
+        assert!(matched >= MATCH_DB, "{label} view {}: {matched:.1} dB with the feature", r.view);
+        out.push(broken);
+    }
+    eprintln!("{label}: {:+.1} % pixels", extra_pixels(&fixed));
+    out
+}
+
+fn layouts() -> impl Iterator<Item = (&'static str, &'static str)> {
+    ["per-eye", "multiview", "side-by-side"].into_iter().flat_map(|l| ["render-pass", "dynamic"].map(move |r| (l, r)))
+}
+
+/// `--assume-symmetric` on the Vive (its right eye's angles 0.003 tangent from the left's mirror
+/// image, up to 1.5 pixels at the edges): without `view.symmetric` the right eye is not the
+/// reference (the left is, bit for bit); with it both are, in every layout × rendering.
+#[test]
+fn an_app_assuming_symmetric_eyes_needs_symmetric_views() {
+    for (layout, rendering) in layouts() {
+        let p = assume_case("vive", 1.0, "--assume-symmetric", "STEREOSHIM_VIEW_SYMMETRIC", "horizontal", layout, rendering);
+        assert!(p[0].is_infinite() && p[1] < MATCH_DB, "{layout}-{rendering}: without the feature {p:?} dB: the break does not show");
+    }
+}
+
+/// `--assume-parallel` on the Pimax (views canted 10° outward each): both eyes are wrong without
+/// `view.parallel`, right with it, in every layout × rendering.
+#[test]
+fn an_app_assuming_parallel_eyes_needs_parallel_views() {
+    for (layout, rendering) in layouts() {
+        let p = assume_case("pimax", 1.0, "--assume-parallel", "STEREOSHIM_VIEW_PARALLEL", "on", layout, rendering);
+        assert!(p.iter().all(|&db| db < MATCH_DB - 10.0), "{layout}-{rendering}: without the feature {p:?} dB: the break does not show");
+    }
+}
+
