@@ -43,7 +43,8 @@ struct Args {
     #[arg(long, default_value_t = 40)]
     period: u64,
     /// The feature(s) switched, comma separated (`mask,foveation,far_field`; `fov_cut` is
-    /// `view.fov_cut = "lens"`).
+    /// `view.fov_cut = "lens"`, `symmetric` `view.symmetric = "horizontal"` (`symmetric_full`:
+    /// `"full"`), `parallel` `view.parallel = "on"`).
     #[arg(long, default_value = "mask")]
     feature: String,
     /// Extra xr-scene arguments, space separated (`--app-args "--empty"`).
@@ -67,11 +68,14 @@ impl Args {
 /// The config text for mode B (features on) or A (off); `feature` may list several, comma
 /// separated (`mask,foveation,far_field`), switched together.
 fn config_text(feature: &str, on: bool, stats: &Path, extra: &str) -> String {
-    // `fov_cut` is `view.fov_cut`'s lens choice; every other feature its `.enabled`.
+    // The view tricks are `view.*` choices; every other feature its `.enabled`.
     let switches: String = feature
         .split(',')
         .map(|f| match f {
             "fov_cut" => format!("view.fov_cut = {:?}\n", if on { "lens" } else { "off" }),
+            "symmetric" => format!("view.symmetric = {:?}\n", if on { "horizontal" } else { "off" }),
+            "symmetric_full" => format!("view.symmetric = {:?}\n", if on { "full" } else { "off" }),
+            "parallel" => format!("view.parallel = {:?}\n", if on { "on" } else { "off" }),
             f => format!("{f}.enabled = {on}\n"),
         })
         .collect();
@@ -149,7 +153,8 @@ fn bench_per_instance(a: &Args) {
         if v["frame"].as_u64().unwrap_or(0) < 10 {
             continue;
         }
-        let i = (v["upscale_enabled"].as_bool().unwrap_or(false) || v["view_fov_cut"].as_bool().unwrap_or(false)) as usize;
+        let on = |k: &str| v[k].as_bool().unwrap_or(false);
+        let i = (on("upscale_enabled") || on("view_fov_cut") || on("view_parallel") || v["view_symmetric"].as_str().is_some_and(|m| m != "off")) as usize;
         if let Some(b) = v["gpu_ms"]["busy"].as_f64() {
             busy[i].push(b);
         }
@@ -183,7 +188,8 @@ fn bench_per_instance(a: &Args) {
 
 fn main() {
     let a = <Args as clap::Parser>::parse();
-    if a.feature.split(',').any(|f| f == "upscale" || f == "fov_cut") {
+    // Features latched per XR instance are switched between instances.
+    if a.feature.split(',').any(|f| ["upscale", "fov_cut", "symmetric", "symmetric_full", "parallel"].contains(&f)) {
         return bench_per_instance(&a);
     }
     let (app_args, extra_config) = (a.app_args(), a.config());

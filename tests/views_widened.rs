@@ -212,3 +212,86 @@ fn an_app_assuming_parallel_eyes_needs_parallel_views() {
     }
 }
 
+
+/// With RDM on, the views are compared against RDM on the runtime's views: RDM shades a pattern
+/// of the pixel grid and reconstructs the rest, so on two grids the periphery differs by about
+/// what RDM itself changes (printed), a little below `MATCH_DB`.
+const EVERY_FEATURE_DB: f64 = 35.0;
+
+/// The shaded fragments of view `v` in frame 2 (`--pixel-stats`).
+fn shaded(run: &RunOutput, v: u32) -> u64 {
+    run.pixel_counts(2, v).iter().map(|&c| c as u64).sum()
+}
+
+/// The pixels of the widened view `w` (of run `on`) clearly outside the runtime's view `r` (more
+/// than 1.5 pixels past its edge), and how many of them were shaded at all in frame 2.
+fn padding_shaded(on: &RunOutput, w: &View, r: &View) -> (u64, u64) {
+    let counts = on.pixel_counts(2, w.view);
+    let ([wl, wr, wu, wd], [rl, rr, ru, rd]) = (tangents(w), tangents(r));
+    let to_r = quat(r).inverse() * quat(w);
+    let (ww, wh) = (w.image_rect.width, w.image_rect.height);
+    let margin = 1.5 * ((wr - wl) / ww as f64).max((wu - wd) / wh as f64);
+    let (mut padding, mut shaded) = (0, 0);
+    for y in 0..wh {
+        for x in 0..ww {
+            let d = to_r * DVec3::new(wl + (x as f64 + 0.5) / ww as f64 * (wr - wl), wu - (y as f64 + 0.5) / wh as f64 * (wu - wd), -1.0);
+            let (tx, ty) = (d.x / -d.z, d.y / -d.z);
+            if d.z >= 0.0 || tx < rl - margin || tx > rr + margin || ty > ru + margin || ty < rd - margin {
+                padding += 1;
+                shaded += (counts[(y * ww + x) as usize] > 0) as u64;
+            }
+        }
+    }
+    (padding, shaded)
+}
+
+/// Each view trick with the mask, foveation (RDM) and the far field on, and with the upscale (the
+/// widening first, then the scale): the assuming app's views match the same features' views of the
+/// app drawing the runtime's own views after reprojection; no pixel of the padding outside the
+/// runtime's views is shaded (the mask comes on with the tricks).
+#[test]
+fn with_every_feature_and_the_upscale() {
+    // The last: the mode whose padding is checked (`full` symmetry pads the Vive's views by 5 %).
+    let cases = [("vive", "--assume-symmetric", "STEREOSHIM_VIEW_SYMMETRIC", "horizontal", "full"), ("pimax", "--assume-parallel", "STEREOSHIM_VIEW_PARALLEL", "on", "on")];
+    for (hmd, assume, key, value, padded) in cases {
+        let base = run("", hmd, 3, 1.0).pixel_stats();
+        let reference = common::every_feature(base.clone(), &format!("widened-all-ref-{hmd}")).run();
+        reference.assert_ok();
+        let widened = common::every_feature(base.clone(), &format!("widened-all-{hmd}")).args([assume]).env(key, value).run();
+        widened.assert_ok();
+        let plain = named(&base, &format!("widened-plain-{hmd}")).run();
+        plain.assert_ok();
+        let plain_masked = named(&base, &format!("widened-plain-masked-{hmd}")).env("STEREOSHIM_MASK_ENABLED", "1").run();
+        plain_masked.assert_ok();
+        let masked = named(&base, &format!("widened-masked-{hmd}")).env(key, padded).run();
+        masked.assert_ok();
+        let upscaled = named(&base, &format!("widened-upscaled-{hmd}")).args([assume]).env(key, value).env("STEREOSHIM_UPSCALE_ENABLED", "1").run();
+        upscaled.assert_ok();
+        for r in [&widened, &masked, &upscaled] {
+            assert!(r.log_lines("off for this session").is_empty(), "{hmd}: turned off: {:?}", r.log_lines("view tricks"));
+        }
+        assert!(!upscaled.log_lines("the runtime shows").is_empty(), "{hmd}: nothing upscaled");
+        let (w, r, u, m) = (widened.views(2), reference.views(2), upscaled.views(2), masked.views(2));
+        for i in 0..2 {
+            let all = Reprojected::new(&widened, w[i], &reference, r[i]).psnr(BLOCK);
+            // What RDM's reconstruction itself changes, on one grid: the two runs' grids differ,
+            // so their reconstructions differ by about as much.
+            let own = Reprojected::new(&reference, r[i], &plain, plain.views(2)[i]).psnr(BLOCK);
+            let up = Reprojected::new(&upscaled, u[i], &plain, plain.views(2)[i]).psnr(BLOCK);
+            // The widened views' fragments against the runtime's views' with the mask (it comes
+            // on with the trick).
+            let (fm, fp) = (shaded(&masked, i as u32), shaded(&plain_masked, i as u32));
+            let area = |v: &View| v.image_rect.width as f64 * v.image_rect.height as f64;
+            eprintln!(
+                "{hmd} view {i}: every feature {all:.1} dB against the same features on the runtime's views (RDM's own change {own:.1} dB); with the upscale {up:.1} dB; fragments {fp} -> {fm} ({:+.1} %) for {:+.1} % pixels",
+                100.0 * (fm as f64 / fp as f64 - 1.0),
+                100.0 * (area(m[i]) / area(plain.views(2)[i]) - 1.0)
+            );
+            assert!(all >= EVERY_FEATURE_DB, "{hmd} view {i}: every feature {all:.1} dB");
+            assert!(up >= 28.0, "{hmd} view {i}: with the upscale {up:.1} dB");
+            let (padding, shaded_padding) = padding_shaded(&masked, m[i], plain.views(2)[i]);
+            eprintln!("{hmd} view {i}: {padding} pixels of padding outside the runtime's view, {shaded_padding} of them shaded");
+            assert!(padding > 0 && shaded_padding == 0, "{hmd} view {i}: {shaded_padding} of {padding} padding pixels shaded");
+        }
+    }
+}

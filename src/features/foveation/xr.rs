@@ -264,15 +264,20 @@ fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
     let mut filters = lock(&s.features.foveation.gaze.filters);
     filters.resize_with(views.len(), GazeFilter::default);
     let mut source = CenterSource::Fixed;
+    // The lens's axis in each view the app was given: the runtime view's, which parallel views
+    // turn away from the app's (docs/views.md); the app's own axis otherwise.
+    let turns = crate::shared::shared().views().runtime_turns.clone();
+    let lens_axis = |i: usize| turns.get(i).copied().flatten().and_then(|t| fovea::gaze_in_view([0.0, 0.0, 0.0, 1.0], fovea::forward(t))).unwrap_or([0.0, 0.0]);
     let centers: Vec<fovea::Tangent> = views
         .iter()
         .zip(filters.iter_mut())
-        .map(|(v, f)| {
+        .enumerate()
+        .map(|(i, (v, f))| {
             let q = v.pose.orientation;
             let sample = direction.and_then(|d| fovea::gaze_in_view([q.x, q.y, q.z, q.w], d));
             let (c, src) = f.update(sample, info.display_time.as_nanos());
             source = src;
-            c
+            if src == CenterSource::Fixed { lens_axis(i) } else { c }
         })
         .collect();
     drop(filters);
