@@ -207,3 +207,67 @@ fn upscaled_with_every_feature() {
         assert!(d.visible_psnr >= 30.0, "bevy-upscale: frame {} view {}: visible pixels at {:.1} dB", d.frame, d.view, d.visible_psnr);
     }
 }
+
+/// The FOV cut (`view.fov_cut = lens`) with Bevy at a quarter of the Index's recommended size:
+/// Bevy makes its swapchains at the told (cut) size and renders the cut angles, through its
+/// MSAA main pass, tonemapping and upscaling pass; the cut stays on, and every compared view is
+/// the crop of the uncut run's over what the lens shows (the cut on whole pixels of the uncut
+/// grid).
+#[test]
+fn fov_cut() {
+    let Some(exe) = engine::scene_exe() else { return };
+    let run = |name: &str, cut: bool| {
+        SceneRun::new(name, &[], true)
+            .env("MOCK_XR_HMD", "index")
+            .env("MOCK_XR_RECOMMENDED_SCALE", "0.25")
+            .env("MOCK_XR_EXIT_AFTER", &FRAMES.to_string())
+            .env("MOCK_XR_CAPTURE_FRAMES", &format!("{WARM_UP}-{}", FRAMES - 1))
+            .env("STEREOSHIM_VIEW_FOV_CUT", if cut { "lens" } else { "off" })
+            .run(&exe)
+    };
+    let uncut = run("bevy-fov-cut-off", false);
+    let cut = run("bevy-fov-cut-on", true);
+    uncut.assert_clean();
+    cut.assert_clean();
+    let added = engine::errors_added(&uncut.vk_errors, &cut.vk_errors);
+    assert!(added.is_empty(), "bevy-fov-cut: Vulkan validation errors the uncut run does not have: {added:?}");
+    assert!(cut.out.log_lines("off for this session").is_empty(), "bevy-fov-cut: the cut was turned off:\n{}", cut.out.log);
+    // Each view's cut (x0, y0, width, height) from the layer's log line.
+    let cuts: Vec<(u32, u32, u32, u32)> = (0..2)
+        .map(|v| {
+            let line = cut.out.log_lines(&format!("view.fov_cut: view {v}:")).first().copied().unwrap_or_else(|| panic!("bevy-fov-cut: no cut of view {v}:\n{}", cut.out.log)).to_string();
+            let px = line.split("(pixels ").nth(1).and_then(|s| s.split(')').next()).expect("pixels");
+            let n: Vec<u32> = px.split(|c: char| !c.is_ascii_digit()).filter(|s| !s.is_empty()).map(|s| s.parse().unwrap()).collect();
+            (n[0], n[2], n[1] - n[0], n[3] - n[2])
+        })
+        .collect();
+    for frame in WARM_UP..FRAMES {
+        for (a, b) in cut.out.views(frame).iter().zip(uncut.out.views(frame)) {
+            let (x0, y0, w, h) = cuts[a.view as usize];
+            assert_eq!((a.image_rect.width, a.image_rect.height), (w, h), "bevy-fov-cut: frame {frame} view {}: not the cut size", a.view);
+            let (ia, ib) = (cut.out.image(&a.file), uncut.out.image(&b.file));
+            assert_shows_scene("bevy-fov-cut-on", &ia);
+            let hidden = match cut.out.frame(frame).visibility_masks.iter().find(|m| m.view == a.view) {
+                Some(m) => common::hidden_pixels(&m.hidden_triangles, &a.fov, w, h),
+                None => vec![false; (w * h) as usize],
+            };
+            let max = ((1u32 << ia.bit_depth) - 1) as f64;
+            let (mut se, mut n, mut differ) = (0.0, 0u64, 0u64);
+            for y in 0..h {
+                for x in 0..w {
+                    if hidden[(y * w + x) as usize] {
+                        continue;
+                    }
+                    let (pa, pb) = (ia.pixel(x, y), ib.pixel(x0 + x, y0 + y));
+                    differ += (pa[..3] != pb[..3]) as u64;
+                    se += (0..3).map(|c| ((pa[c] as f64 - pb[c] as f64) / max).powi(2)).sum::<f64>();
+                    n += 1;
+                }
+            }
+            let mse = se / (3.0 * n as f64);
+            let psnr = if mse == 0.0 { f64::INFINITY } else { -10.0 * mse.log10() };
+            eprintln!("bevy-fov-cut: frame {frame} view {}: {}x{} -> {w}x{h}; against the crop at ({x0}, {y0}) {psnr:.1} dB, {differ} of {n} visible pixels differ", a.view, b.image_rect.width, b.image_rect.height);
+            assert!(psnr >= 45.0, "bevy-fov-cut: frame {frame} view {}: {psnr:.1} dB against the crop", a.view);
+        }
+    }
+}

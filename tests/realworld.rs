@@ -778,6 +778,37 @@ fn vulkan2_layer_upscale() {
     c.finish(&[&o, base]);
 }
 
+/// hello_xr (XR_KHR_vulkan_enable2) on Monado with `view.fov_cut = lens`: the cut is decided from
+/// Monado's own visibility mask (hello_xr enumerates its views after creating its session), hello_xr
+/// makes its swapchains at the cut size and submits the cut angles (the cut stays on), and nothing
+/// else changes: clean exit, no validation error, the frame rate kept, the cubes drawn.
+#[test]
+fn vulkan2_layer_fov_cut() {
+    let Some(root) = root() else { return };
+    let base = baseline(&root, "Vulkan2");
+    let spec = Spec { layer: Layer::Explicit, env: vec![("STEREOSHIM_VIEW_FOV_CUT".into(), "lens".into())], ..Spec::new("vulkan2-fov-cut", "Vulkan2") };
+    let o = run(&root, &spec);
+    let mut c = Checks::default();
+    check_clean_exit(&mut c, &o);
+    check_layer_loaded(&mut c, &o);
+    check_validation(&mut c, &o);
+    // The cut of each view as the layer logged it, and the size hello_xr made its swapchains.
+    let cuts: Vec<(u32, u32)> = o
+        .log
+        .lines()
+        .filter(|l| l.contains("view.fov_cut: view "))
+        .filter_map(|l| l.split(" -> ").nth(1)?.split_whitespace().next()?.split_once('x').and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?))))
+        .collect();
+    let made = swapchain_sizes(&o.app_log);
+    eprintln!("{}: cuts {cuts:?}, hello_xr's swapchains {made:?}; {}", o.name, o.log.lines().filter(|l| l.contains("view.fov_cut")).collect::<Vec<_>>().join(" | "));
+    c.check(cuts.len() == 2 && made == cuts, || format!("{}: the cut sizes {cuts:?} are not hello_xr's swapchains {made:?}", o.name));
+    c.check(!o.log.contains("off for this session"), || format!("{}: the cut was turned off", o.name));
+    let cut_frames = o.stats.iter().filter(|s| s["view_fov_cut"].as_bool() == Some(true)).count();
+    c.check(o.rendered() > 0 && cut_frames + 2 >= o.rendered(), || format!("{}: {cut_frames} of {} rendered frames cut", o.name, o.rendered()));
+    check_frames_kept(&mut c, &root, base, &o, &spec);
+    c.finish(&[&o, base]);
+}
+
 // --- the implicit layer: `stereoshim install --user` inside the root ---
 
 const CONFIG: &str = "mask.enabled = true\nfoveation.enabled = true\nfoveation.method = \"rdm\"\nstats.file = \"/tmp/stats.jsonl\"\n";

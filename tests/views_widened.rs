@@ -101,10 +101,9 @@ impl Reprojected {
                     block.2 = false;
                     continue;
                 }
-                let pb = self.ib.pixel(x, y);
-                for c in 0..3 {
+                for (c, &pb) in self.ib.pixel(x, y).iter().take(3).enumerate() {
                     block.0[c] += self.sample(x as f64, y as f64, c);
-                    block.1[c] += pb[c] as f64;
+                    block.1[c] += pb as f64;
                 }
             }
         }

@@ -14,7 +14,8 @@ export PATH=$G:$PATH
 nvidia-smi -L
 printf '{"file_format_version":"1.0.0","runtime":{"name":"mock","library_path":"%s"}}\n' "$G/libmock_runtime.so" > $G/mock-runtime.json
 VRS='foveation.method = "vrs"; foveation.eye_tracking = "off"'
-b() { # name, hmd, cost, feature, config, app args
+b() { # name, hmd, cost, feature, config, app args; ONLY (a regex) picks runs by name
+  [[ -n "${ONLY:-}" && ! $1 =~ $ONLY ]] && return
   echo "== $1"
   timeout -k 5 150 examples/bench --hmd $2 --scale 1.0 --shading-cost $3 --frames 240 --period 30 --layout per-eye --feature $4 --config "mask.enabled = true; $5" --app-args "--rendering dynamic $6" > $OUT/$1.txt 2>&1; echo "exit $?" >> $OUT/$1.txt
   grep -E "^\| $2|exit" $OUT/$1.txt | head -3

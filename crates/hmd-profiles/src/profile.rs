@@ -145,8 +145,10 @@ fn profiles() -> &'static [HmdProfile] {
         // Index, left eye: SteamVR's OpenXR frustum (the published hidden mesh's rectangle).
         let [l, r, u, d] = INDEX_TANGENTS_LEFT;
         let index_fov = FovDeg { left: tan_deg(l), right: tan_deg(r), up: tan_deg(u), down: tan_deg(d) };
-        // Vive, both eyes of one unit, GetProjectionRaw tangents (hmdgdb).
+        // Vive, both eyes of one unit, GetProjectionRaw tangents (hmdgdb), digits as published.
+        #[allow(clippy::excessive_precision)]
         let vive_fov = FovDeg { left: -tan_deg(1.397283), right: tan_deg(1.250510), up: tan_deg(1.464221), down: -tan_deg(1.477517) };
+        #[allow(clippy::excessive_precision)]
         let vive_right = FovDeg { left: -tan_deg(1.247887), right: tan_deg(1.394608), up: tan_deg(1.460934), down: -tan_deg(1.475235) };
         vec![
             HmdProfile {

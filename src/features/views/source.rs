@@ -11,6 +11,10 @@ use crate::xr::session::Session;
 use crate::xr::Instance;
 use openxr_sys as xr;
 
+/// One view's lens on a pixel grid: its FOV, the grid's size, and which of the grid's pixels the
+/// lens hides (row-major).
+pub(crate) type Lens = (Fov, (u32, u32), Vec<bool>);
+
 pub(crate) fn tangents(fov: &Fov) -> ViewFov {
     ViewFov { tan_left: fov.left as f32, tan_right: fov.right as f32, tan_up: fov.up as f32, tan_down: fov.down as f32 }
 }
@@ -47,7 +51,7 @@ pub(crate) fn session_of(inst: &Instance) -> Option<std::sync::Arc<Session>> {
 
 /// One view's FOV and hidden pixels on a `size` grid from the runtime's meshes (a session
 /// exists): the FOV is the box of the hidden and visible meshes together (they tile it).
-pub(crate) fn lens_from_runtime(s: &Session, view: u32, size: (u32, u32)) -> Option<(Fov, (u32, u32), Vec<bool>)> {
+pub(crate) fn lens_from_runtime(s: &Session, view: u32, size: (u32, u32)) -> Option<Lens> {
     let hidden = runtime_mask(s, view)?;
     let visible = crate::features::mask::xr::runtime_mesh(s, view, xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH)?;
     let fov = hidden.iter().chain(&visible).fold(None, |acc: Option<Fov>, p| {
@@ -58,7 +62,7 @@ pub(crate) fn lens_from_runtime(s: &Session, view: u32, size: (u32, u32)) -> Opt
 }
 
 /// One view's FOV and hidden pixels on a `size` grid from an HMD profile.
-pub(crate) fn lens_from_profile(p: &hmd_profiles::profile::HmdProfile, view: usize, size: (u32, u32)) -> Option<(Fov, (u32, u32), Vec<bool>)> {
+pub(crate) fn lens_from_profile(p: &hmd_profiles::profile::HmdProfile, view: usize, size: (u32, u32)) -> Option<Lens> {
     let fov = Fov::from_angles(p.fov_rad(view));
     let hidden: Vec<[f32; 2]> = hmd_profiles::mask::hidden_triangle_points(p, view, 1.0).iter().map(|v| [v[0], v[1]]).collect();
     Some((fov, size, hidden_pixels(&hidden, &tangents(&fov), size)?))

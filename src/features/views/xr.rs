@@ -1,6 +1,8 @@
 //! The view tricks' OpenXR half (docs/views.md). At the instance's first
-//! `xrEnumerateViewConfigurationViews` they are decided and latched for the instance (the app sizes
-//! its swapchains from that answer), from the lens and views `source` finds:
+//! `xrEnumerateViewConfigurationViews` that can know the views (a session's runtime meshes, or an
+//! HMD profile) they are decided and latched for the instance (the app sizes its swapchains from
+//! that answer; an app that sized them from an earlier one fails the checks below), from the lens
+//! and views `source` finds:
 //! - the FOV cut (`view.fov_cut = lens`): each view's cut on whole pixels of the runtime's
 //!   recommended image;
 //! - symmetric and parallel views (`view.symmetric`, `view.parallel`): the size that keeps the
@@ -17,7 +19,7 @@
 //! hidden by the mask (`mask::reframe`), which comes on with them (`Settings`).
 
 use super::rules::{self, Cut, Fov, Symmetric};
-use super::source::{lens_from_profile, lens_from_runtime, profile_for, session_of, system_name, tangents, turns_from_profile};
+use super::source::{Lens, lens_from_profile, lens_from_runtime, profile_for, session_of, system_name, tangents, turns_from_profile};
 use crate::features::mask::rules::hidden_pixels;
 use crate::features::mask::xr::runtime_mask;
 use crate::settings::Settings;
@@ -134,8 +136,10 @@ fn fov_of(v: &xr::View) -> Fov {
     Fov::from_angles([v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down])
 }
 
-/// Decides the instance's view tricks for `views` (the runtime's answer).
-fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::ViewConfigurationView]) -> Latched {
+/// Decides the instance's view tricks for `views` (the runtime's answer); None while the views
+/// cannot be known yet (no session whose runtime meshes tell them, no HMD profile): apps such as
+/// hello_xr enumerate once to log before their session and again to size their swapchains.
+fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::ViewConfigurationView]) -> Option<Latched> {
     let margin = s.views.fov_cut_margin_deg;
     let sizes: Vec<(u32, u32)> = views.iter().map(|v| (v.recommended_image_rect_width, v.recommended_image_rect_height)).collect();
     let session = session_of(inst).filter(|_| inst.has_extension(VISIBILITY_MASK_EXT));
@@ -144,6 +148,10 @@ fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::View
     let (lenses, source): (Option<Vec<_>>, &str) = match (&session, profile) {
         (Some(sess), _) => (sizes.iter().enumerate().map(|(i, &size)| lens_from_runtime(sess, i as u32, size)).collect(), "the runtime's visibility mask"),
         (None, Some(p)) => (sizes.iter().enumerate().map(|(i, &size)| lens_from_profile(p, i, size)).collect(), "the HMD profile's lens"),
+        (None, None) if session_of(inst).is_none() => {
+            tracing::info!("view tricks: the views of {name:?} are not known before a session (no HMD profile matches it); decided at the next xrEnumerateViewConfigurationViews after xrCreateSession");
+            return None;
+        }
         (None, None) => (None, ""),
     };
     let mut latched = Latched { runtime_sizes: sizes.clone(), views: vec![None; sizes.len()], widened: None };
@@ -174,14 +182,14 @@ fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::View
         let max = views.iter().map(|v| (v.max_image_rect_width, v.max_image_rect_height)).fold((u32::MAX, u32::MAX), |a, m| (a.0.min(m.0), a.1.min(m.1)));
         latched.widened = widen(s, &name, profile, lenses.as_deref(), &latched, max, source);
     }
-    latched
+    Some(latched)
 }
 
 /// The sizes of symmetric and parallel views: each view's size (the cut's, else the runtime's)
 /// grown with its FOV at the same pixels per tangent, one size for both (the larger of each side,
 /// so neither eye loses density). None (logged) when the views' FOVs are not known.
 #[allow(clippy::too_many_arguments)]
-fn widen(s: &Settings, name: &str, profile: Option<&hmd_profiles::profile::HmdProfile>, lenses: Option<&[(Fov, (u32, u32), Vec<bool>)]>, latched: &Latched, max: (u32, u32), source: &str) -> Option<Widened> {
+fn widen(s: &Settings, name: &str, profile: Option<&hmd_profiles::profile::HmdProfile>, lenses: Option<&[Lens]>, latched: &Latched, max: (u32, u32), source: &str) -> Option<Widened> {
     let (symmetric, parallel) = (s.views.symmetric, s.views.parallel);
     let Some(lenses) = lenses.filter(|l| l.len() == STEREO_VIEWS) else {
         tracing::warn!("view.symmetric / view.parallel: the views of {name:?} are not known before they are located (no runtime mesh of a session, no HMD profile matching it); the views are not widened");
@@ -268,8 +276,14 @@ impl XrFeature for ViewsXr {
         // Decided once per instance: the app sizes its swapchains from the first answer. Decided
         // with no lock held (it asks the runtime), kept by the first call to finish.
         if lock(&inst.features.views.latch).is_none() {
-            let decided = if s.views.fov_cut || s.views.widens() { decide(inst, system, s, views) } else { Latched::default() };
-            lock(&inst.features.views.latch).get_or_insert(decided);
+            let decided = if s.views.fov_cut || s.views.widens() { decide(inst, system, s, views) } else { Some(Latched::default()) };
+            match decided {
+                Some(d) => {
+                    lock(&inst.features.views.latch).get_or_insert(d);
+                }
+                // Not yet: this answer goes to the app unchanged.
+                None => return,
+            }
         }
         let latch = lock(&inst.features.views.latch);
         let Some(l) = latch.as_ref() else { return };
