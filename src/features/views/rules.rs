@@ -152,6 +152,17 @@ pub enum Symmetric {
     Full,
 }
 
+impl Symmetric {
+    /// The config's name of the mode (`view.symmetric`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Symmetric::Off => "off",
+            Symmetric::Horizontal => "horizontal",
+            Symmetric::Full => "full",
+        }
+    }
+}
+
 /// The two views' FOVs (left eye, right eye) made symmetric as `mode` says; each contains the
 /// eye's own.
 pub fn symmetric(fovs: [Fov; 2], mode: Symmetric) -> [Fov; 2] {

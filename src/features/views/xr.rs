@@ -216,7 +216,8 @@ fn widen(s: &Settings, name: &str, profile: Option<&hmd_profiles::profile::HmdPr
     let turned = if parallel { [DQuat::IDENTITY; 2] } else { turns };
     let overlap = |f: &[Fov; 2], t: [DQuat; 2]| rules::seen_overlap(f, t).map_or("unknown".to_string(), |o| format!("{:.1} %", 100.0 * o));
     tracing::info!(
-        "view.symmetric = {symmetric:?}, view.parallel = {}: views {} -> {}x{} each, {:+.1} % pixels; overlap of the views {} -> {}; the views from {source}",
+        "view.symmetric = {}, view.parallel = {}: views {} -> {}x{} each, {:+.1} % pixels; overlap of the views {} -> {}; the views from {source}; the hidden-area mask hides what the runtime does not show",
+        symmetric.name(),
         if parallel { "on" } else { "off" },
         base.iter().map(|b| format!("{}x{}", b.1 .0, b.1 .1)).collect::<Vec<_>>().join(", "),
         one.0,
@@ -353,11 +354,7 @@ impl XrFeature for ViewsXr {
         let l = Self::latched(s).filter(|_| !s.features.views.off.load(Ordering::Acquire));
         let cut = l.as_ref().is_some_and(|l| l.views.iter().any(Option::is_some));
         let w = l.and_then(|l| l.widened);
-        let symmetric = match w.as_ref().map(|w| w.symmetric) {
-            Some(Symmetric::Horizontal) => "horizontal",
-            Some(Symmetric::Full) => "full",
-            _ => "off",
-        };
+        let symmetric = w.as_ref().map_or("off", |w| w.symmetric.name());
         vec![("view_fov_cut", cut.into()), ("view_symmetric", symmetric.into()), ("view_parallel", w.is_some_and(|w| w.parallel).into())]
     }
 
