@@ -294,3 +294,43 @@ fn with_every_feature_and_the_upscale() {
         }
     }
 }
+
+/// Twice the signed area of a polygon.
+fn area2(p: &[[f64; 2]]) -> f64 {
+    (0..p.len()).map(|i| p[i][0] * p[(i + 1) % p.len()][1] - p[(i + 1) % p.len()][0] * p[i][1]).sum()
+}
+
+/// An app that draws the runtime's hidden-area mesh itself (`--visibility-mask`) gets it as its
+/// widened views see it: the runtime's hidden triangles turned into the parallel view, and the
+/// padding outside the runtime's view added. Its hidden area (tangent plane, printed by
+/// xr-scene) is what the geometry says: the app's view less the runtime's view's quadrilateral
+/// in it, plus the runtime's hidden triangles there.
+#[test]
+fn an_app_drawing_the_visibility_mask_gets_it_in_its_views() {
+    for (hmd, key, value) in [("pimax", "STEREOSHIM_VIEW_PARALLEL", "on"), ("vive", "STEREOSHIM_VIEW_SYMMETRIC", "full")] {
+        let base = run("", hmd, 2, 0.25).args(["--visibility-mask"]);
+        let reference = named(&base, &format!("widened-vismask-ref-{hmd}")).run();
+        reference.assert_ok();
+        let on = named(&base, &format!("widened-vismask-{hmd}")).env(key, value).run();
+        on.assert_ok();
+        for (a, r) in on.views(1).iter().zip(reference.views(1)) {
+            let line = on.stderr.lines().find(|l| l.contains(&format!("visibility mask view {}:", a.view))).unwrap_or_else(|| panic!("{hmd}: no mask line:\n{}", on.stderr)).to_string();
+            let got: f64 = line.rsplit(' ').next().and_then(|x| x.parse().ok()).unwrap_or_else(|| panic!("{line}"));
+            // The runtime's view and hidden mesh, in the app's view's tangent plane.
+            let to_app = quat(a).inverse() * quat(r);
+            let map = |p: [f64; 2]| {
+                let d = to_app * DVec3::new(p[0], p[1], -1.0);
+                [d.x / -d.z, d.y / -d.z]
+            };
+            let ([al, ar, au, ad], [rl, rr, ru, rd]) = (tangents(a), tangents(r));
+            let quad: Vec<[f64; 2]> = [[rl, rd], [rr, rd], [rr, ru], [rl, ru]].into_iter().map(map).collect();
+            let hidden = &reference.frame(1).visibility_masks.iter().find(|m| m.view == r.view).expect("runtime mask").hidden_triangles;
+            let hidden_area: f64 = hidden.chunks_exact(3).map(|t| area2(&t.iter().map(|p| map([p[0] as f64, p[1] as f64])).collect::<Vec<_>>()).abs() / 2.0).sum();
+            let want = (ar - al) * (au - ad) - area2(&quad).abs() / 2.0 + hidden_area;
+            let runtime_area: f64 = hidden.chunks_exact(3).map(|t| area2(&t.iter().map(|p| [p[0] as f64, p[1] as f64]).collect::<Vec<_>>()).abs() / 2.0).sum();
+            eprintln!("{hmd} view {}: the app's hidden area {got:.4} (the runtime's own mesh {runtime_area:.4}), the geometry says {want:.4}", a.view);
+            assert!((got - want).abs() <= 1e-3 * want, "{hmd} view {}: hidden area {got} against {want}", a.view);
+            assert!(got > runtime_area * 1.01, "{hmd} view {}: no padding added", a.view);
+        }
+    }
+}

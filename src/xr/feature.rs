@@ -59,6 +59,13 @@ pub(crate) trait XrFeature: Sync {
     /// The runtime located the app's views (`views`, what the app will get); the feature may
     /// change them (angles, orientations) before anything else sees them.
     fn amend_views(&self, _s: &Session, _info: &xr::ViewLocateInfo, _views: &mut [xr::View]) {}
+    /// The app asks for view `view`'s visibility mask of type `ty`: a feature that changed the
+    /// app's views answers with the mesh as those views see it (triangles, three points each;
+    /// a line loop's points in order), which the app gets instead of the runtime's (the first
+    /// feature that answers wins). Asked with no lock of the layer's held: it may call down.
+    fn amend_visibility_mask(&self, _s: &Session, _view: u32, _ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
+        None
+    }
     /// `xrEndFrame` is about to go down with the app's `info`; an amended copy replaces it (the
     /// first feature that amends wins).
     fn amend_frame_end(&self, _s: &Session, _info: &xr::FrameEndInfo) -> Option<AmendedFrameEnd> {

@@ -291,9 +291,9 @@ pub(super) unsafe extern "system" fn get_visibility_mask(
     visibility_mask_type: xr::VisibilityMaskTypeKHR,
     visibility_mask: *mut xr::VisibilityMaskKHR,
 ) -> xr::Result {
-    let inst = match lookup(session) {
-        Ok(s) => s.instance.clone(),
-        Err(Some(inst)) => inst,
+    let (inst, sess) = match lookup(session) {
+        Ok(s) => (s.instance.clone(), Some(s)),
+        Err(Some(inst)) => (inst, None),
         Err(None) => return xr::Result::ERROR_HANDLE_INVALID,
     };
     let Some(next) = inst.next.get_visibility_mask else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
@@ -301,6 +301,14 @@ pub(super) unsafe extern "system" fn get_visibility_mask(
     let plain = || unsafe { next(session, view_configuration_type, view_index, visibility_mask_type, visibility_mask) };
     guard::run("xrGetVisibilityMaskKHR", &inst.pass_through, |down| {
         inst.check_fault("xrGetVisibilityMaskKHR")?;
+        // A feature that changed the app's views answers with the mesh as they see it.
+        let amended = sess.as_ref().filter(|_| view_configuration_type == xr::ViewConfigurationType::PRIMARY_STEREO).and_then(|s| {
+            crate::features::XR_FEATURES.iter().find_map(|f| f.amend_visibility_mask(s, view_index, visibility_mask_type))
+        });
+        if let Some(points) = amended {
+            // SAFETY: the app's output struct for this call, or null (refused below).
+            return Ok(unsafe { write_visibility_mask(&points, visibility_mask) });
+        }
         let r = down.call(plain);
         // SAFETY: on return the runtime filled the counts of the app's struct.
         if let Some(m) = unsafe { visibility_mask.as_ref() } {
@@ -313,4 +321,74 @@ pub(super) unsafe extern "system" fn get_visibility_mask(
         }
         Ok(r)
     }, plain)
+}
+
+/// Writes `points` (indexed in order) into the app's `XrVisibilityMaskKHR` by the two-call idiom:
+/// the counts always, the arrays when both capacities are given and large enough.
+///
+/// # Safety
+/// `mask` is null or the app's output struct, its arrays holding the capacities it gives.
+unsafe fn write_visibility_mask(points: &[[f32; 2]], mask: *mut xr::VisibilityMaskKHR) -> xr::Result {
+    // SAFETY: the caller's contract: null or the app's struct, valid for this call.
+    let Some(m) = (unsafe { mask.as_mut() }) else { return xr::Result::ERROR_VALIDATION_FAILURE };
+    let n = points.len() as u32;
+    m.vertex_count_output = n;
+    m.index_count_output = n;
+    if m.vertex_capacity_input == 0 && m.index_capacity_input == 0 {
+        return xr::Result::SUCCESS;
+    }
+    if m.vertex_capacity_input < n || m.index_capacity_input < n {
+        return xr::Result::ERROR_SIZE_INSUFFICIENT;
+    }
+    if (n > 0) && (m.vertices.is_null() || m.indices.is_null()) {
+        return xr::Result::ERROR_VALIDATION_FAILURE;
+    }
+    for (i, p) in points.iter().enumerate() {
+        // SAFETY: within the capacities the app gave (checked above), its arrays.
+        unsafe {
+            *m.vertices.add(i) = xr::Vector2f { x: p[0], y: p[1] };
+            *m.indices.add(i) = i as u32;
+        }
+    }
+    xr::Result::SUCCESS
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn empty() -> xr::VisibilityMaskKHR {
+        xr::VisibilityMaskKHR {
+            ty: xr::VisibilityMaskKHR::TYPE,
+            next: std::ptr::null_mut(),
+            vertex_capacity_input: 0,
+            vertex_count_output: 0,
+            vertices: std::ptr::null_mut(),
+            index_capacity_input: 0,
+            index_count_output: 0,
+            indices: std::ptr::null_mut(),
+        }
+    }
+
+    /// The amended mask goes to the app by the two-call idiom: counts, too small, filled.
+    #[test]
+    fn an_amended_mask_follows_the_two_call_idiom() {
+        let points = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        let mut m = empty();
+        // SAFETY: a local struct with no arrays (capacities 0).
+        assert_eq!(unsafe { write_visibility_mask(&points, &mut m) }, xr::Result::SUCCESS);
+        assert_eq!((m.vertex_count_output, m.index_count_output), (3, 3));
+        let (mut v, mut i) = (vec![xr::Vector2f { x: 9.0, y: 9.0 }; 2], vec![9u32; 2]);
+        (m.vertex_capacity_input, m.index_capacity_input, m.vertices, m.indices) = (2, 2, v.as_mut_ptr(), i.as_mut_ptr());
+        // SAFETY: the arrays hold the capacities given.
+        assert_eq!(unsafe { write_visibility_mask(&points, &mut m) }, xr::Result::ERROR_SIZE_INSUFFICIENT);
+        assert_eq!(i, [9, 9], "nothing written past a short capacity");
+        let (mut v, mut i) = (vec![xr::Vector2f { x: 9.0, y: 9.0 }; 3], vec![9u32; 3]);
+        (m.vertex_capacity_input, m.index_capacity_input, m.vertices, m.indices) = (3, 3, v.as_mut_ptr(), i.as_mut_ptr());
+        // SAFETY: as above.
+        assert_eq!(unsafe { write_visibility_mask(&points, &mut m) }, xr::Result::SUCCESS);
+        assert_eq!((v[1].x, v[2].y, i.clone()), (1.0, 1.0, vec![0, 1, 2]));
+        // SAFETY: null is refused.
+        assert_eq!(unsafe { write_visibility_mask(&points, std::ptr::null_mut()) }, xr::Result::ERROR_VALIDATION_FAILURE);
+    }
 }

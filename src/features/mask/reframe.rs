@@ -43,6 +43,19 @@ pub fn in_app_view(triangles: &[[f32; 2]], runtime: &ViewFov, turn: Option<[f32;
     out
 }
 
+/// Points of the runtime view's tangent plane as the app's view, turned by `turn` from it, sees
+/// them, in groups of `group` (3: triangles; the whole list: a line loop); a group with a point
+/// behind the app's view is dropped.
+pub fn turned(points: &[[f32; 2]], turn: [f32; 4], group: usize) -> Vec<[f32; 2]> {
+    let [x, y, z, w] = turn;
+    let q = DQuat::from_xyzw(x as f64, y as f64, z as f64, w as f64).normalize();
+    let map = |p: &[f32; 2]| {
+        let d = q * DVec3::new(p[0] as f64, p[1] as f64, -1.0);
+        (d.z < -1e-6).then(|| [(d.x / -d.z) as f32, (d.y / -d.z) as f32])
+    };
+    points.chunks(group.max(1)).filter_map(|g| g.iter().map(map).collect::<Option<Vec<_>>>()).flatten().collect()
+}
+
 /// Twice the signed area of a polygon (counter-clockwise positive).
 fn area2(poly: &[DVec2]) -> f64 {
     (0..poly.len()).map(|i| poly[i].perp_dot(poly[(i + 1) % poly.len()])).sum()
@@ -104,6 +117,22 @@ mod tests {
 
     fn fov(l: f32, r: f32, u: f32, d: f32) -> ViewFov {
         ViewFov { tan_left: l, tan_right: r, tan_up: u, tan_down: d }
+    }
+
+    #[test]
+    fn turned_points_keep_their_directions() {
+        let turn = DQuat::from_rotation_y(10f64.to_radians());
+        let t = [turn.x as f32, turn.y as f32, turn.z as f32, turn.w as f32];
+        let out = turned(&[[0.0, 0.0], [0.5, 0.2], [-0.3, 0.1]], t, 3);
+        // The runtime's axis seen 10° to the left in the app's view.
+        assert!((out[0][0] as f64 + 10f64.to_radians().tan()).abs() < 1e-6 && out[0][1].abs() < 1e-6);
+        for (p, q) in [[0.5f64, 0.2], [-0.3, 0.1]].iter().zip(&out[1..]) {
+            let d = turn * DVec3::new(p[0], p[1], -1.0);
+            assert!((q[0] as f64 - d.x / -d.z).abs() < 1e-6 && (q[1] as f64 - d.y / -d.z).abs() < 1e-6);
+        }
+        // A point that turns behind the view drops its triangle.
+        let far = DQuat::from_rotation_y(80f64.to_radians());
+        assert!(turned(&[[0.0, 0.0], [-9.0, 0.0], [0.0, 1.0]], [far.x as f32, far.y as f32, far.z as f32, far.w as f32], 3).is_empty());
     }
 
     #[test]

@@ -20,6 +20,7 @@
 
 use super::rules::{self, Cut, Fov, Symmetric};
 use super::source::{Lens, lens_from_profile, lens_from_runtime, profile_for, session_of, system_name, tangents, turns_from_profile};
+use crate::features::mask::reframe;
 use crate::features::mask::rules::hidden_pixels;
 use crate::features::mask::xr::runtime_mask;
 use crate::settings::Settings;
@@ -55,12 +56,19 @@ struct ViewCut {
     cut: Cut,
 }
 
-/// Symmetric and parallel views as latched: the modes, and the size each view is told.
+/// Symmetric and parallel views as latched: the modes, the size each view is told, and the views
+/// as decided (for a visibility mask asked before any view is located).
 #[derive(Clone, Debug, PartialEq)]
 struct Widened {
     symmetric: Symmetric,
     parallel: bool,
     sizes: Vec<(u32, u32)>,
+    /// The runtime's views' FOVs.
+    runtime: [Fov; 2],
+    /// The views' FOVs as the app gets them.
+    app: [Fov; 2],
+    /// The runtime's views' orientation in the frame of the app's (parallel views of canted ones).
+    turns: [Option<DQuat>; 2],
 }
 
 /// What an instance latched at its first `xrEnumerateViewConfigurationViews`.
@@ -200,7 +208,7 @@ fn widen(s: &Settings, name: &str, profile: Option<&hmd_profiles::profile::HmdPr
     // The displays' cant from the profile; a runtime without one is taken as parallel until its
     // views are located (each frame's views are widened from what the runtime locates).
     let turns = profile.map(turns_from_profile).unwrap_or([DQuat::IDENTITY; 2]);
-    let Some((_, wide)) = rules::widen(fovs, turns, symmetric, parallel) else {
+    let Some((mean, wide)) = rules::widen(fovs, turns, symmetric, parallel) else {
         tracing::warn!("view.parallel: a canted view of {name:?} reaches behind the parallel one; the views are not widened");
         return None;
     };
@@ -226,7 +234,9 @@ fn widen(s: &Settings, name: &str, profile: Option<&hmd_profiles::profile::HmdPr
         overlap(&fovs, turns),
         overlap(&wide, turned),
     );
-    Some(Widened { symmetric, parallel, sizes: vec![one; STEREO_VIEWS] })
+    let runtime = [lenses[0].0, lenses[1].0];
+    let turns = mean.map_or([None; 2], |m| turns.map(|t| Some(m.inverse() * t)));
+    Some(Widened { symmetric, parallel, sizes: vec![one; STEREO_VIEWS], runtime, app: wide, turns })
 }
 
 impl ViewsXr {
@@ -346,6 +356,34 @@ impl XrFeature for ViewsXr {
         }
         let angles = views.iter().map(|v| [v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down]).collect();
         *lock(&s.features.views.given) = Given { angles, turn };
+    }
+
+    /// Symmetric and parallel views: the runtime's mesh as the app's views see it (a hidden mesh
+    /// with the padding outside the runtime's views added; visible meshes and line loops turned
+    /// with parallel views). From this frame's views once located, else the latched ones.
+    fn amend_visibility_mask(&self, s: &Session, view: u32, ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
+        if s.features.views.off.load(Ordering::Acquire) {
+            return None;
+        }
+        let w = Self::latched(s)?.widened?;
+        let i = view as usize;
+        if i >= STEREO_VIEWS {
+            return None;
+        }
+        let shared = crate::shared::shared().views();
+        let q = |t: DQuat| [t.x as f32, t.y as f32, t.z as f32, t.w as f32];
+        let (runtime, app, turn) = match (shared.runtime_fovs.get(i), shared.app_fovs.get(i)) {
+            (Some(r), Some(a)) => (*r, *a, shared.runtime_turns.get(i).copied().flatten()),
+            _ => (tangents(&w.runtime[i]), tangents(&w.app[i]), w.turns[i].map(q)),
+        };
+        let mesh = crate::features::mask::xr::runtime_mesh(s, view, ty)?;
+        match ty {
+            xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH => Some(reframe::in_app_view(&mesh, &runtime, turn, &app)),
+            // What the runtime shows stays where it is: only a turn moves it.
+            xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH => turn.map(|t| reframe::turned(&mesh, t, 3)),
+            xr::VisibilityMaskTypeKHR::LINE_LOOP => turn.map(|t| reframe::turned(&mesh, t, mesh.len())),
+            _ => None,
+        }
     }
 
     /// `view_fov_cut`, `view_symmetric`, `view_parallel`: which tricks the session's views have

@@ -161,7 +161,8 @@ impl XrSession {
     }
 
     /// `--visibility-mask`: each view's hidden-area mesh, fetched once, as an app that draws its
-    /// own mask would (xr-scene only checks that the call succeeds and returns triangles).
+    /// own mask would (xr-scene checks that the call succeeds and returns triangles, and prints
+    /// their area in the view's tangent plane).
     pub fn fetch_visibility_masks(&self) -> Result<()> {
         for view in 0..2 {
             let mask = self
@@ -171,6 +172,16 @@ impl XrSession {
             if mask.indices.len() % 3 != 0 {
                 return fail(format!("xrGetVisibilityMaskKHR: view {view}: {} indices, not whole triangles", mask.indices.len()));
             }
+            // What the tests read: the hidden area in the view's tangent plane.
+            let v = |i: &u32| mask.vertices.get(*i as usize).map(|p| (p.x as f64, p.y as f64));
+            let mut area = 0.0;
+            for t in mask.indices.chunks_exact(3) {
+                let (Some(a), Some(b), Some(c)) = (v(&t[0]), v(&t[1]), v(&t[2])) else {
+                    return fail(format!("xrGetVisibilityMaskKHR: view {view}: an index past the {} vertices", mask.vertices.len()));
+                };
+                area += ((b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)).abs() / 2.0;
+            }
+            eprintln!("xr-scene: visibility mask view {view}: {} triangles, hidden area {area:.6}", mask.indices.len() / 3);
         }
         Ok(())
     }
