@@ -70,7 +70,7 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
         for w in s.summary.lock().unwrap_or_else(|e| e.into_inner()).add_frame(&enabled, &record.stats) {
             tracing::warn!("{w}");
         }
-        super::overlay::frame_ended(s, &settings, &record, &enabled);
+        super::overlay::frame_ended(s, &settings, &record, &shown(&enabled, &record));
     }
     if frame == 0 || !record.stats.is_empty() {
         tracing::debug!("frame stats: {}", record.to_json());
@@ -79,6 +79,18 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
     // times that came back meanwhile (usually of earlier frames) go to their own lines.
     let times = crate::vk::end_gpu_frame(frame);
     crate::frame_stats::sink().frame(&settings.stats_file, record, settings.stats_gpu_time, &times);
+}
+
+/// What the overlay names as on: the Vulkan features, then the upscale and the view tricks, which
+/// change no app pass and are told by the frame's record.
+fn shown(enabled: &[(&'static str, bool)], record: &crate::frame_stats::FrameRecord) -> Vec<(&'static str, bool)> {
+    let extra = |key: &str| record.extra.iter().find(|(k, _)| *k == key).map(|(_, v)| v);
+    let mut v = enabled.to_vec();
+    v.push(("upscale", record.upscale.is_some()));
+    v.push(("fov_cut", extra("view_fov_cut").and_then(|v| v.as_bool()) == Some(true)));
+    v.push(("symmetric", extra("view_symmetric").and_then(|v| v.as_str()).is_some_and(|m| m != "off")));
+    v.push(("parallel", extra("view_parallel").and_then(|v| v.as_bool()) == Some(true)));
+    v
 }
 
 /// Applies a changed config file from the next frame on (frame boundaries keep every frame's
