@@ -541,6 +541,11 @@ fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
     if work.is_empty() {
         return Ok(());
     }
+    // A full slot ring's oldest upscale is waited for with no lock held.
+    let due = lock(&s.upscale.gpu).as_ref().and_then(|g| g.slots.due(&g.device).map(|f| (g.device.clone(), f)));
+    if let Some((d, fence)) = due {
+        crate::features::upscale::slots::wait(&d, fence);
+    }
     // Recorded under the session's lock; submitted after it is let go (no lock of the layer's is
     // held while the submission goes down the chain).
     let (d, queue, cb, fence, gpu_ms, phases_ms) = {

@@ -82,6 +82,14 @@ impl Slots {
         }
     }
 
+    /// The fence `take` would wait for next (the ring is full and its oldest upscale still runs):
+    /// the caller waits for it with no lock held (`wait`), so `take` then finds it signalled.
+    pub(crate) fn due(&self, d: &DeviceState) -> Option<vk::Fence> {
+        let &(_, fence) = self.ring.front()?;
+        // SAFETY: the layer's own fence of a live device.
+        (self.ring.len() >= MAX && !unsafe { d.fns.get_fence_status(fence) }.unwrap_or(false)).then_some(fence)
+    }
+
     /// A command buffer to record into (reset), with its fence (unsignalled).
     pub(crate) fn take(&mut self, d: &DeviceState) -> Result<(vk::CommandBuffer, vk::Fence), String> {
         // SAFETY: the layer's own objects of a live device; a fence is reset only once signalled
@@ -169,4 +177,12 @@ impl Slots {
             }
         }
     }
+}
+
+/// Waits for an upscale's `fence` (from `Slots::due`), as `take` would; a failure is `take`'s to
+/// report when it waits again.
+pub(crate) fn wait(d: &DeviceState, fence: vk::Fence) {
+    // SAFETY: the layer's own fence, submitted (it is in the ring), of a live device; the ring
+    // keeps it until `take` resets it after this wait.
+    let _ = unsafe { d.fns.wait_for_fences(&[fence], true, WAIT_NS) };
 }
