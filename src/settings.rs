@@ -74,7 +74,10 @@ impl Settings {
             },
             // Symmetric and parallel views pad the app's views beyond what the runtime shows: the
             // mask hides the padding, so it comes on with them (docs/views.md).
-            mask: MaskSettings { enabled: MaskSettings::from_config(c).enabled || views.widens(), ..MaskSettings::from_config(c) },
+            mask: {
+                let mask = MaskSettings::from_config(c);
+                MaskSettings { enabled: mask.enabled || views.widens(), ..mask }
+            },
             foveation: FoveationSettings::from_config(c),
             far_field: FarFieldSettings::from_config(c),
             overlay: crate::features::overlay::OverlaySettings::from_config(c),

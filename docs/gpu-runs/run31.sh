@@ -6,13 +6,7 @@
 # frame's mode and end-to-end GPU time from the layer's stats.file.
 set -u
 cd "$(dirname "$0")"
-G=$PWD
-for f in ../.gl/*.deb; do dpkg -x $f /; done; ldconfig
-export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
-export PATH=$G:$PATH
-nvidia-smi -L
-printf '{"file_format_version":"1.0.0","runtime":{"name":"mock","library_path":"%s"}}\n' "$G/libmock_runtime.so" > $G/mock-runtime.json
-VRS='foveation.method = "vrs"; foveation.eye_tracking = "off"'
+. ./prologue.sh
 b() { # name, cost, feature, config, app args
   echo "== $1"
   timeout -k 5 150 examples/bench --hmd index --scale 1.0 --shading-cost $2 --frames 240 --period 30 --layout per-eye --feature $3 --config "$4" --app-args "--rendering dynamic $5" > $OUT/$1.txt 2>&1; echo "exit $?" >> $OUT/$1.txt

@@ -7,13 +7,7 @@
 # both modes here: the numbers are the views' own cost, not the mask's saving.
 set -u
 cd "$(dirname "$0")"
-G=$PWD
-for f in ../.gl/*.deb; do dpkg -x $f /; done; ldconfig
-export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
-export PATH=$G:$PATH
-nvidia-smi -L
-printf '{"file_format_version":"1.0.0","runtime":{"name":"mock","library_path":"%s"}}\n' "$G/libmock_runtime.so" > $G/mock-runtime.json
-VRS='foveation.method = "vrs"; foveation.eye_tracking = "off"'
+. ./prologue.sh
 b() { # name, hmd, cost, feature, config, app args; ONLY (a regex) picks runs by name
   [[ -n "${ONLY:-}" && ! $1 =~ $ONLY ]] && return
   echo "== $1"

@@ -157,6 +157,20 @@ pub(crate) struct Instance {
 }
 
 pub(crate) const VISIBILITY_MASK_EXT: &str = "XR_KHR_visibility_mask";
+
+/// An `XrVisibilityMaskKHR` asking for the counts only (the two-call idiom's first call).
+pub(crate) fn empty_visibility_mask() -> xr::VisibilityMaskKHR {
+    xr::VisibilityMaskKHR {
+        ty: xr::VisibilityMaskKHR::TYPE,
+        next: std::ptr::null_mut(),
+        vertex_capacity_input: 0,
+        vertex_count_output: 0,
+        vertices: std::ptr::null_mut(),
+        index_capacity_input: 0,
+        index_count_output: 0,
+        indices: std::ptr::null_mut(),
+    }
+}
 pub(crate) const EYE_GAZE_EXT: &str = "XR_EXT_eye_gaze_interaction";
 
 /// The extension an extension function belongs to, for those the layer may enable for itself.

@@ -357,24 +357,11 @@ unsafe fn write_visibility_mask(points: &[[f32; 2]], mask: *mut xr::VisibilityMa
 mod tests {
     use super::*;
 
-    fn empty() -> xr::VisibilityMaskKHR {
-        xr::VisibilityMaskKHR {
-            ty: xr::VisibilityMaskKHR::TYPE,
-            next: std::ptr::null_mut(),
-            vertex_capacity_input: 0,
-            vertex_count_output: 0,
-            vertices: std::ptr::null_mut(),
-            index_capacity_input: 0,
-            index_count_output: 0,
-            indices: std::ptr::null_mut(),
-        }
-    }
-
     /// The amended mask goes to the app by the two-call idiom: counts, too small, filled.
     #[test]
     fn an_amended_mask_follows_the_two_call_idiom() {
         let points = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
-        let mut m = empty();
+        let mut m = crate::xr::empty_visibility_mask();
         // SAFETY: a local struct with no arrays (capacities 0).
         assert_eq!(unsafe { write_visibility_mask(&points, &mut m) }, xr::Result::SUCCESS);
         assert_eq!((m.vertex_count_output, m.index_count_output), (3, 3));

@@ -8,7 +8,6 @@
 use super::session::Session;
 use crate::core::rect::PixelRect;
 use crate::features::upscale::{gpu, lens};
-use crate::shared::ViewFov;
 use openxr_sys as xr;
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -54,7 +53,7 @@ impl LensCache {
             return None;
         }
         let events = s.instance.stats.visibility_mask_events.load(Ordering::Relaxed);
-        let fov_tan = ViewFov { tan_left: fov.angle_left.tan(), tan_right: fov.angle_right.tan(), tan_up: fov.angle_up.tan(), tan_down: fov.angle_down.tan() };
+        let fov_tan = super::session::fov_tangents(fov);
         // The runtime's own view, where the app's differs from it (view tricks: docs/views.md).
         let shared = crate::shared::shared().views();
         let runtime = shared.runtime_fovs.get(view as usize).copied().unwrap_or(fov_tan);

@@ -83,16 +83,7 @@ pub(crate) fn runtime_mesh(s: &Session, view: u32, ty: xr::VisibilityMaskTypeKHR
     }
     let f = s.instance.next.get_visibility_mask?;
     let config = xr::ViewConfigurationType::PRIMARY_STEREO;
-    let mut mask = xr::VisibilityMaskKHR {
-        ty: xr::VisibilityMaskKHR::TYPE,
-        next: std::ptr::null_mut(),
-        vertex_capacity_input: 0,
-        vertex_count_output: 0,
-        vertices: std::ptr::null_mut(),
-        index_capacity_input: 0,
-        index_count_output: 0,
-        indices: std::ptr::null_mut(),
-    };
+    let mut mask = crate::xr::empty_visibility_mask();
     // SAFETY: the two-call idiom: counts first, then arrays of the reported sizes.
     let r = unsafe { f(s.handle, config, view, ty, &mut mask) };
     if r != xr::Result::SUCCESS {

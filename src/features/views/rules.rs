@@ -36,6 +36,12 @@ impl Fov {
         [self.left, self.right, self.up, self.down].iter().all(|v| v.is_finite()) && self.width() > 0.0 && self.height() > 0.0
     }
     /// The smallest FOV holding both.
+    /// The angles of pixels `x0..x1` × `y0..y1` (rows from the top) of a `size` grid showing
+    /// this FOV.
+    pub fn pixels(&self, size: (u32, u32), (x0, x1, y0, y1): (u32, u32, u32, u32)) -> Fov {
+        let (px, py) = (self.width() / size.0 as f64, self.height() / size.1 as f64);
+        Fov { left: self.left + x0 as f64 * px, right: self.left + x1 as f64 * px, up: self.up - y0 as f64 * py, down: self.up - y1 as f64 * py }
+    }
     pub fn union(&self, o: &Fov) -> Fov {
         Fov { left: self.left.min(o.left), right: self.right.max(o.right), up: self.up.max(o.up), down: self.down.min(o.down) }
     }
@@ -107,8 +113,7 @@ pub fn cut(fov: &Fov, size: (u32, u32), hidden: &[bool], margin_deg: f64) -> Opt
     let y0 = ((fov.up - widen(fov.up - y0 as f64 * py, m)) / py + 1e-9).floor().clamp(0.0, y0 as f64) as u32;
     let y1 = ((fov.up - widen(fov.up - y1 as f64 * py, -m)) / py - 1e-9).ceil().clamp(y1 as f64, h as f64) as u32;
     let (x0, y0) = (x0 - x0 % CUT_ALIGN, y0 - y0 % CUT_ALIGN);
-    let cut_fov = Fov { left: fov.left + x0 as f64 * px, right: fov.left + x1 as f64 * px, up: fov.up - y0 as f64 * py, down: fov.up - y1 as f64 * py };
-    Some(Cut { x0, x1, y0, y1, fov: cut_fov })
+    Some(Cut { x0, x1, y0, y1, fov: fov.pixels(size, (x0, x1, y0, y1)) })
 }
 
 /// The views' cuts (each on its own `sizes` grid) made one size, the largest width and height:

@@ -49,13 +49,6 @@ const TURN_TOLERANCE: f64 = 1e-3;
 /// The view tricks' OpenXR half.
 pub(crate) struct ViewsXr;
 
-/// One view's cut on the runtime's recommended grid (`size`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct ViewCut {
-    size: (u32, u32),
-    cut: Cut,
-}
-
 /// Symmetric and parallel views as latched: the modes, the size each view is told, and the views
 /// as decided (for a visibility mask asked before any view is located).
 #[derive(Clone, Debug, PartialEq)]
@@ -76,8 +69,8 @@ struct Widened {
 struct Latched {
     /// The runtime's recommended sizes it was decided on.
     runtime_sizes: Vec<(u32, u32)>,
-    /// Per view (None: not cut).
-    views: Vec<Option<ViewCut>>,
+    /// Per view, its cut on the runtime's recommended grid (None: not cut).
+    views: Vec<Option<Cut>>,
     /// Symmetric or parallel views (None: neither).
     widened: Option<Widened>,
 }
@@ -87,7 +80,7 @@ impl Latched {
     fn told(&self, i: usize) -> Option<(u32, u32)> {
         match &self.widened {
             Some(w) => w.sizes.get(i).copied(),
-            None => self.views.get(i).copied().flatten().map(|c| c.cut.size()),
+            None => self.views.get(i).copied().flatten().map(|c| c.size()),
         }
     }
 
@@ -180,7 +173,7 @@ fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::View
                         cut.y1,
                         100.0 * cut.saved_share(size)
                     );
-                    latched.views[i] = Some(ViewCut { size, cut });
+                    latched.views[i] = Some(cut);
                 }
             }
             None => tracing::warn!("view.fov_cut: no lens known for {name:?} (no runtime mesh of a session, no HMD profile matching it); the views are not cut"),
@@ -203,7 +196,7 @@ fn widen(s: &Settings, name: &str, profile: Option<&hmd_profiles::profile::HmdPr
         tracing::warn!("view.symmetric / view.parallel: the views of {name:?} are not known before they are located (no runtime mesh of a session, no HMD profile matching it); the views are not widened");
         return None;
     };
-    let base: Vec<(Fov, (u32, u32))> = lenses.iter().zip(&latched.views).map(|((fov, size, _), c)| c.map_or((*fov, *size), |c| (c.cut.fov, c.cut.size()))).collect();
+    let base: Vec<(Fov, (u32, u32))> = lenses.iter().zip(&latched.views).map(|((fov, size, _), c)| c.map_or((*fov, *size), |c| (c.fov, c.size()))).collect();
     let fovs = [base[0].0, base[1].0];
     // The displays' cant from the profile; a runtime without one is taken as parallel until its
     // views are located (each frame's views are widened from what the runtime locates).
@@ -259,13 +252,12 @@ impl ViewsXr {
         if !s.instance.has_extension(VISIBILITY_MASK_EXT) {
             return;
         }
-        for (i, (vc, v)) in l.views.iter().zip(views).enumerate() {
-            let Some(vc) = vc else { continue };
+        for (i, ((c, &size), v)) in l.views.iter().zip(&l.runtime_sizes).zip(views).enumerate() {
+            let Some(c) = c else { continue };
             let Some(hidden) = runtime_mask(s, i as u32) else { continue };
-            let fov = fov_of(v);
-            let Some(bits) = hidden_pixels(&hidden, &tangents(&fov), vc.size) else { continue };
-            let w = vc.size.0 as usize;
-            let inside = |k: usize| (vc.cut.x0..vc.cut.x1).contains(&((k % w) as u32)) && (vc.cut.y0..vc.cut.y1).contains(&((k / w) as u32));
+            let Some(bits) = hidden_pixels(&hidden, &tangents(&fov_of(v)), size) else { continue };
+            let w = size.0 as usize;
+            let inside = |k: usize| (c.x0..c.x1).contains(&((k % w) as u32)) && (c.y0..c.y1).contains(&((k / w) as u32));
             let outside = bits.iter().enumerate().any(|(k, &hidden)| !hidden && !inside(k));
             if outside {
                 Self::turn_off(s, l, &format!("view {i}: the runtime's lens shows pixels outside the cut"));
@@ -319,14 +311,12 @@ impl XrFeature for ViewsXr {
             return;
         }
         let located: Vec<xr::View> = views.to_vec();
-        for (v, c) in views.iter_mut().zip(&l.views) {
+        for ((v, c), &size) in views.iter_mut().zip(&l.views).zip(&l.runtime_sizes) {
             let Some(c) = c else { continue };
             let fov = fov_of(v);
             if fov.is_valid() {
-                // The tangents of the cut's pixel boundaries on the runtime's grid of this FOV.
-                let (px, py) = (fov.width() / c.size.0 as f64, fov.height() / c.size.1 as f64);
-                let cut = Fov { left: fov.left + c.cut.x0 as f64 * px, right: fov.left + c.cut.x1 as f64 * px, up: fov.up - c.cut.y0 as f64 * py, down: fov.up - c.cut.y1 as f64 * py };
-                let [left, right, up, down] = cut.angles();
+                // The cut's pixels on the runtime's grid of this frame's FOV.
+                let [left, right, up, down] = fov.pixels(size, (c.x0, c.x1, c.y0, c.y1)).angles();
                 v.fov = xr::Fovf { angle_left: left, angle_right: right, angle_up: up, angle_down: down };
             }
         }
