@@ -34,7 +34,7 @@ pub struct FrameRecord {
     /// Every feature's counters (each writes its own fields).
     pub stats: FrameStats,
     /// The foveation the frame was recorded with (empty when off).
-    pub fovea: Vec<crate::shared::FoveaView>,
+    pub fovea: Vec<crate::core::views::FoveaView>,
     /// Where the fovea centres came from: "Fixed", "Gaze" or "Held" (None when off).
     pub fovea_source: Option<String>,
     /// Whether the layer's Vulkan half tracks the session's device (None: no session known).
@@ -44,7 +44,7 @@ pub struct FrameRecord {
     /// could not be had (`null`), else the layer-side GPU time of the frame.
     pub gpu_ms: Option<Option<GpuFrameTime>>,
     /// The upscale this frame (None: no swapchain of the session is interposed).
-    pub upscale: Option<crate::shared::UpscaleFrame>,
+    pub upscale: Option<crate::core::views::UpscaleFrame>,
     /// The OpenXR features' own fields (`XrFeature::frame_stats`).
     pub extra: Vec<(&'static str, serde_json::Value)>,
 }
@@ -184,7 +184,7 @@ mod tests {
     fn records_are_json_lines() {
         use crate::features::foveation::{rdm::rules::RdmFrameStats, vrs::rules::VrsFrameStats};
         use crate::features::mask::rules::MaskFrameStats;
-        let mut stats = crate::features::empty_stats();
+        let mut stats = crate::registry::empty_stats();
         *stats.get_mut::<MaskFrameStats>().unwrap() = MaskFrameStats {
             passes_masked: 2,
             not_masked: [("no_depth_attachment", 1)].into_iter().collect(),

@@ -2,7 +2,7 @@
 //! apps render less. `xr` and `vk` are the thin FFI shells; everything else is safe core logic
 //! that needs no GPU and is unit-tested.
 
-pub mod config;
+pub mod bridge;
 pub mod core;
 pub mod doctor;
 pub mod features;
@@ -14,10 +14,7 @@ pub mod notices;
 pub mod private_fs;
 pub mod registry;
 pub mod settings;
-pub mod shared;
 pub mod stats_summary;
-pub mod submission;
-pub mod swapchain_images;
 pub mod track;
 pub mod vk;
 pub mod vk_manifest;

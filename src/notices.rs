@@ -80,7 +80,7 @@ mod tests {
     use crate::features::mask::rules::MaskFrameStats;
 
     fn frame(masked: u64, reasons: &[(&'static str, u64)]) -> FrameStats {
-        let mut f = crate::features::empty_stats();
+        let mut f = crate::registry::empty_stats();
         *f.get_mut::<MaskFrameStats>().unwrap() = MaskFrameStats { passes_masked: masked, not_masked: reasons.iter().copied().collect(), ..Default::default() };
         f
     }

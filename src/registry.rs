@@ -1,73 +1,103 @@
-//! Typed handle → state maps shared by the entry points. Lookups never insert (a lookup of a
-//! handle the layer never saw succeed must not invent state), values are `Arc`s so no lock is held
-//! while the caller works with them or calls down the chain.
+//! The feature registry: the one file that names every feature, in the order the chassis calls
+//! them (the mask's depth goes down before radial density masking's checkerboard over the same
+//! cleared depth; variable-rate shading amends passes the others leave untouched). The shells
+//! learn about features only through what this file generates: the per-device and per-session
+//! feature sets, the key list the configuration is resolved against, the empty statistics.
+//!
+//! Adding a feature: a folder under `src/features/`, and one line here.
 
-use std::collections::HashMap;
-use std::hash::Hash;
-use std::sync::{Arc, RwLock};
+use crate::features::{far_field, foveation, mask, overlay, screenshot, upscale, views};
+use crate::core::config::{self, KeySpec};
+use crate::core::stats::FrameStats;
 
-#[derive(Debug)]
-pub struct HandleMap<K, V> {
-    map: RwLock<HashMap<K, Arc<V>>>,
+/// Declares the registered features: `field: Type` per feature, where `Type` implements
+/// `VkFeature` and `Plugin`. Generates the per-device feature set, the config keys and the empty
+/// statistics of a frame.
+macro_rules! registry {
+    (vulkan { $($field:ident: $ty:ty,)* } openxr { $($xfield:ident: $xty:path => $xsession:ty, $xinstance:ty,)* }) => {
+        /// Every OpenXR feature object, in registry order.
+        pub(crate) static XR_FEATURES: &[&dyn crate::xr::feature::XrFeature] = &[$(&$xty,)*];
+
+        /// One session's per-feature state (OpenXR side).
+        #[derive(Debug, Default)]
+        pub(crate) struct XrSessionFeatures {
+            $(pub(crate) $xfield: $xsession,)*
+        }
+
+        /// One XR instance's per-feature state (what is decided before any session exists); `()`
+        /// for a feature without any.
+        #[derive(Debug, Default)]
+        #[allow(dead_code)]
+        pub(crate) struct XrInstanceFeatures {
+            $(pub(crate) $xfield: $xinstance,)*
+        }
+
+        /// One device's feature objects, in registry order.
+        pub(crate) struct DeviceFeatures {
+            $(pub(crate) $field: $ty,)*
+        }
+
+        impl DeviceFeatures {
+            pub(crate) fn new(init: &crate::vk::feature::DeviceInit<'_>) -> DeviceFeatures {
+                DeviceFeatures { $($field: <$ty as crate::vk::feature::Plugin>::new(init),)* }
+            }
+            /// Every feature, in registry order (the chassis dispatches events over this).
+            pub(crate) fn all(&self) -> [&dyn crate::vk::feature::VkFeature; registry!(@count $($field)*)] {
+                [$(&self.$field,)*]
+            }
+        }
+
+        /// Every feature's config keys, in registry order.
+        pub const KEYS: &[&[KeySpec]] = &[$(<$ty as crate::vk::feature::Plugin>::KEYS,)*];
+
+        /// A frame's statistics with every feature present (and empty).
+        pub fn empty_stats() -> FrameStats {
+            FrameStats::new(vec![$(<$ty as crate::vk::feature::Plugin>::empty_stats(),)*])
+        }
+
+        /// (feature id, whether the user has it on) for a frame recorded under `s`.
+        pub fn enabled(s: &crate::settings::Settings, frame: &FrameStats) -> Vec<(&'static str, bool)> {
+            let ids = empty_stats();
+            let on = [$(<$ty as crate::vk::feature::Plugin>::enabled(s, frame),)*];
+            ids.iter().map(|f| f.id()).zip(on).collect()
+        }
+    };
+    (@count) => { 0 };
+    (@count $head:ident $($tail:ident)*) => { 1 + registry!(@count $($tail)*) };
 }
 
-impl<K, V> Default for HandleMap<K, V> {
-    fn default() -> Self {
-        HandleMap { map: RwLock::new(HashMap::new()) }
+registry! {
+    vulkan {
+        mask: mask::vk::MaskDevice,
+        rdm: foveation::rdm::vk::RdmDevice,
+        vrs: foveation::vrs::vk::VrsDevice,
+        far_field: far_field::vk::FarFieldDevice,
+        // Last: it copies the images as the runtime gets them, after RDM's reconstruction.
+        screenshot: screenshot::vk::ScreenshotDevice,
+    }
+    // OpenXR features: `field: object => per-session state, per-instance state,`. First the view
+    // tricks: they check each frame's angles at `amend_frame_end`, which stops at the first
+    // feature that amends.
+    openxr {
+        views: views::xr::ViewsXr => views::xr::ViewsSession, views::xr::ViewsInstance,
+        mask: mask::xr::MaskXr => mask::xr::MaskSession, (),
+        foveation: foveation::xr::FoveationXr => foveation::xr::FoveationSession, (),
+        far_field: far_field::xr::FarFieldXr => far_field::xr::FarFieldSession, (),
+        screenshot: screenshot::xr::ScreenshotXr => screenshot::xr::ScreenshotSession, (),
     }
 }
 
-impl<K: Eq + Hash + Copy, V> HandleMap<K, V> {
-    pub fn get(&self, key: K) -> Option<Arc<V>> {
-        self.read().get(&key).cloned()
-    }
-    /// Records state for a handle the call down just created; replaces stale state of a reused
-    /// handle value (drivers may reuse handle values after destruction).
-    pub fn insert(&self, key: K, value: Arc<V>) {
-        self.write().insert(key, value);
-    }
-    pub fn remove(&self, key: K) -> Option<Arc<V>> {
-        self.write().remove(&key)
-    }
-    /// Removes every entry matching `pred` (children of a destroyed parent).
-    pub fn retain(&self, mut keep: impl FnMut(&K, &Arc<V>) -> bool) {
-        self.write().retain(|k, v| keep(k, v));
-    }
-    pub fn len(&self) -> usize {
-        self.read().len()
-    }
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-    /// A snapshot, so callers iterate without holding the lock.
-    pub fn values(&self) -> Vec<(K, Arc<V>)> {
-        self.read().iter().map(|(k, v)| (*k, v.clone())).collect()
-    }
-
-    // A poisoned lock only means another thread panicked inside the layer (already caught and
-    // reported); the map itself is still consistent, since no operation leaves it half-done.
-    fn read(&self) -> std::sync::RwLockReadGuard<'_, HashMap<K, Arc<V>>> {
-        self.map.read().unwrap_or_else(|e| e.into_inner())
-    }
-    fn write(&self) -> std::sync::RwLockWriteGuard<'_, HashMap<K, Arc<V>>> {
-        self.map.write().unwrap_or_else(|e| e.into_inner())
-    }
+/// Every key the layer reads: the chassis' (`config::CORE_KEYS`) and every feature's, each once,
+/// in that order.
+pub fn keys() -> &'static [KeySpec] {
+    static ALL: std::sync::OnceLock<Vec<KeySpec>> = std::sync::OnceLock::new();
+    ALL.get_or_init(|| {
+        let mut lists: Vec<&[KeySpec]> = vec![config::CORE_KEYS];
+        lists.extend(KEYS.iter().copied());
+        lists.extend([overlay::KEYS, upscale::KEYS, views::KEYS]);
+        config::join_keys(&lists)
+    })
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn lookup_never_inserts() {
-        let m: HandleMap<u64, u32> = HandleMap::default();
-        assert!(m.get(1).is_none());
-        assert!(m.is_empty());
-        m.insert(1, Arc::new(10));
-        assert_eq!(*m.get(1).unwrap(), 10);
-        m.insert(2, Arc::new(20));
-        m.retain(|_, v| **v > 10);
-        assert_eq!(m.len(), 1);
-        assert_eq!(m.remove(2).map(|v| *v), Some(20));
-    }
-}
+mod config_tests;

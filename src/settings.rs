@@ -7,7 +7,7 @@
 //! refreshed only after a publish.
 #![forbid(unsafe_code)]
 
-use crate::config::Config;
+use crate::core::config::Config;
 use crate::features::far_field::FarFieldSettings;
 use crate::features::foveation::FoveationSettings;
 use crate::features::mask::MaskSettings;
@@ -128,7 +128,7 @@ pub fn current() -> Option<Arc<Settings>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::Inputs;
+    use crate::core::config::Inputs;
 
     #[test]
     fn parsed_once_from_the_config() {
@@ -139,7 +139,7 @@ mod tests {
             "STEREOSHIM_DEBUG_FAIL_IN" => Some("vkCmdDraw, xrEndFrame".to_string()),
             _ => None,
         };
-        let (c, d) = Config::resolve(&Inputs { file: None, app_names: &[], env: &env });
+        let (c, d) = Config::resolve(&Inputs { keys: crate::registry::keys(), file: None, app_names: &[], env: &env });
         assert!(d.is_empty(), "{d:?}");
         let s = Settings::from_config(&c);
         assert!(s.mask.enabled && !s.intermediate && !s.foveation.enabled);
@@ -149,7 +149,7 @@ mod tests {
 
     #[test]
     fn publish_reaches_every_thread() {
-        let (c, _) = Config::resolve(&Inputs { file: None, app_names: &[], env: &|_| None });
+        let (c, _) = Config::resolve(&Inputs { keys: crate::registry::keys(), file: None, app_names: &[], env: &|_| None });
         let mut s = Settings::from_config(&c);
         s.stats_file = "first".into();
         publish(s.clone());

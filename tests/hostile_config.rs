@@ -6,7 +6,8 @@
 use proptest::prelude::*;
 use std::collections::BTreeMap;
 use std::path::Path;
-use stereoshim::config::{keys, Config, Inputs};
+use stereoshim::core::config::{Config, Inputs};
+use stereoshim::registry::keys;
 use stereoshim::settings::Settings;
 
 /// Random text shaped like TOML: known and unknown keys, sections, values of every type, broken
@@ -40,14 +41,14 @@ fn tomlish() -> impl Strategy<Value = String> {
 
 fn resolve(file: Option<&str>, env: &BTreeMap<String, String>) -> (Config, Vec<String>) {
     let get = |k: &str| env.get(k).cloned();
-    let inputs = Inputs { file: file.map(|t| (Path::new("/c/config.toml"), t)), app_names: &["x", "xr-scene"], env: &get };
+    let inputs = Inputs { keys: keys(), file: file.map(|t| (Path::new("/c/config.toml"), t)), app_names: &["x", "xr-scene"], env: &get };
     Config::resolve(&inputs)
 }
 
 /// Every key holds a value a fresh default of the same key could hold (its type), and the typed
 /// settings build from it.
 fn assert_usable(c: &Config) {
-    let defaults = Config::defaults();
+    let defaults = Config::defaults(keys());
     for spec in keys() {
         assert_eq!(std::mem::discriminant(c.value(spec.key)), std::mem::discriminant(defaults.value(spec.key)), "{}", spec.key);
     }
@@ -71,7 +72,7 @@ proptest! {
         // A key that kept its default although the file set it was rejected, and said so.
         for spec in keys() {
             let set = text.lines().any(|l| l.split('=').next().is_some_and(|k| k.trim() == spec.key));
-            if set && c.value(spec.key) == Config::defaults().value(spec.key) && !matches!(c.source(spec.key), stereoshim::config::Source::File { .. } | stereoshim::config::Source::App { .. }) {
+            if set && c.value(spec.key) == Config::defaults(keys()).value(spec.key) && !matches!(c.source(spec.key), stereoshim::core::config::Source::File { .. } | stereoshim::core::config::Source::App { .. }) {
                 prop_assert!(!diagnostics.is_empty(), "{} set in\n{}\nbut neither applied nor reported", spec.key, text);
             }
         }
@@ -84,7 +85,7 @@ proptest! {
         for spec in keys() {
             let var = spec.env_var();
             if let Some(text) = values.get(&var) {
-                let applied = matches!(c.source(spec.key), stereoshim::config::Source::Env(v) if *v == var);
+                let applied = matches!(c.source(spec.key), stereoshim::core::config::Source::Env(v) if *v == var);
                 let reported = diagnostics.iter().any(|d| d.contains(&var));
                 prop_assert!(applied != reported, "${}={:?}: applied {} reported {}: {:?}", var, text, applied, reported, diagnostics);
             }

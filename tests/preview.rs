@@ -17,7 +17,7 @@ use stereoshim::features::far_field::rules::{footprint_inside, split_distance, P
 use stereoshim::features::foveation::rdm::rules::RdmParams;
 use stereoshim::features::foveation::vrs::rules as vrs;
 use stereoshim::features::mask::{rules as mask_rules, source as mask_source};
-use stereoshim::shared::{FoveaView, ViewFov, ViewPose};
+use stereoshim::core::views::{FoveaView, ViewFov, ViewPose};
 
 /// Runs `stereoshim preview ARGS` with nothing of the developer's setup (config, layers, runtime)
 /// leaking in; `env` adds variables. Returns the exit code and stdout + stderr.

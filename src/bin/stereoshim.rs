@@ -285,8 +285,8 @@ fn status_cmd(app: Option<String>) -> Result<(), String> {
     }
     let app = app.unwrap_or_default();
     let names: Vec<&str> = if app.is_empty() { vec![] } else { vec![app.as_str()] };
-    let (config, diagnostics) = stereoshim::config::load(&names);
-    let path = stereoshim::config::default_path(&env);
+    let (config, diagnostics) = stereoshim::core::config::load(stereoshim::registry::keys(), &names);
+    let path = stereoshim::core::config::default_path(&env);
     println!(
         "effective config{} (file {}):",
         if app.is_empty() { String::new() } else { format!(" for app {app:?}") },
@@ -361,7 +361,7 @@ fn stats_cmd(file: Option<PathBuf>, follow: bool, csv: bool, app: Option<String>
         Some(f) => f,
         None => {
             let names: Vec<&str> = app.iter().map(String::as_str).collect();
-            let (config, _) = stereoshim::config::load(&names);
+            let (config, _) = stereoshim::core::config::load(stereoshim::registry::keys(), &names);
             let configured = stereoshim::settings::Settings::from_config(&config).stats_file;
             if configured.is_empty() {
                 return Err("no stats file: pass FILE, or set stats.file in the config".into());
@@ -424,8 +424,8 @@ fn preview_cmd(a: PreviewArgs) -> Result<(), String> {
     let names: Vec<&str> = a.app.iter().map(String::as_str).collect();
     let (config, diagnostics) = match &a.config {
         Some(path) if !path.is_file() => return Err(format!("{}: no such config file", path.display())),
-        Some(path) => stereoshim::config::load_from(Some(path), &names),
-        None => stereoshim::config::load(&names),
+        Some(path) => stereoshim::core::config::load_from(stereoshim::registry::keys(), Some(path), &names),
+        None => stereoshim::core::config::load(stereoshim::registry::keys(), &names),
     };
     for d in &diagnostics {
         eprintln!("stereoshim: config: {d}");

@@ -4,9 +4,12 @@
 //! here knows a feature.
 #![forbid(unsafe_code)]
 
+pub mod config;
 pub mod fovea;
 pub mod gpu_time;
+pub mod handles;
 pub mod lifetime;
 pub mod pass;
 pub mod rect;
 pub mod stats;
+pub mod views;

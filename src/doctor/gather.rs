@@ -186,9 +186,9 @@ pub fn layer_log() -> Option<String> {
 }
 
 pub fn config(file: Option<&Path>, app: Option<&str>) -> ConfigFacts {
-    let path = file.map(Path::to_path_buf).or_else(|| crate::config::default_path(&env));
+    let path = file.map(Path::to_path_buf).or_else(|| crate::core::config::default_path(&env));
     let names: Vec<&str> = app.into_iter().collect();
-    let (config, diagnostics) = crate::config::load_from(path.as_deref(), &names);
+    let (config, diagnostics) = crate::core::config::load_from(crate::registry::keys(), path.as_deref(), &names);
     let exists = path.as_ref().is_some_and(|p| p.is_file());
     let mut diagnostics = diagnostics;
     if exists {

@@ -4,7 +4,7 @@
 //! machine; the probing lives in `gather` and the FFI shells (`vk::probe`, `xr::probe`).
 #![forbid(unsafe_code)]
 
-use crate::config::Config;
+use crate::core::config::Config;
 use crate::features::foveation::Method;
 use crate::manifest::{DISABLE_ENV, VK_LAYER_NAME, VK_NEGOTIATE, XR_LAYER_NAME, XR_NEGOTIATE};
 use crate::settings::Settings;
@@ -511,7 +511,7 @@ pub fn config(c: &ConfigFacts) -> Vec<Finding> {
         let set: Vec<String> = c
             .config
             .entries()
-            .filter(|(_, _, s)| !matches!(s, crate::config::Source::Default))
+            .filter(|(_, _, s)| !matches!(s, crate::core::config::Source::Default))
             .map(|(k, v, _)| format!("{k} = {v}"))
             .collect();
         let file = if c.exists { file } else { format!("{file} (absent: defaults)") };

@@ -6,7 +6,7 @@
 #![forbid(unsafe_code)]
 
 use super::{rate_name, Preview, RATES};
-use crate::shared::ViewFov;
+use crate::core::views::ViewFov;
 
 pub type Rgb = [u8; 3];
 
@@ -230,8 +230,8 @@ pub fn view_pictures(p: &Preview, i: usize, base: &Canvas) -> Vec<(&'static str,
     let mut c = base.clone();
     c.paint(&[MASKED], |k| v.mask.masked[k].then_some(0));
     let source = match v.mask.source {
-        Some(crate::shared::MaskSource::Runtime) => "runtime mesh",
-        Some(crate::shared::MaskSource::Synthesized) => "synthesized lens",
+        Some(crate::core::views::MaskSource::Runtime) => "runtime mesh",
+        Some(crate::core::views::MaskSource::Synthesized) => "synthesized lens",
         None => "none",
     };
     out.push(("mask", c.with_legend(&format!("mask, view {i}: {source}"), &[(MASKED, format!("masked {}", percent(v.mask.pixels_masked, area)))])));

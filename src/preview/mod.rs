@@ -17,7 +17,7 @@ use crate::features::foveation::vrs::rules::{self as vrs, EyeRates, FragmentSize
 use crate::features::mask::{rules as mask_rules, source as mask_source};
 use crate::features::views::rules::{self as views_rules, Cut};
 use crate::settings::Settings;
-use crate::shared::{MaskSource, ViewFov, ViewPose};
+use crate::core::views::{MaskSource, ViewFov, ViewPose};
 
 /// One view of the headset as a runtime reports it.
 #[derive(Clone, Debug, PartialEq)]
@@ -410,10 +410,10 @@ pub fn report(headset: &Headset, settings: &Settings, p: &Preview, pngs: &dyn Fn
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{Config, Inputs};
+    use crate::core::config::{Config, Inputs};
 
     fn settings(env: &dyn Fn(&str) -> Option<String>) -> Settings {
-        let (c, d) = Config::resolve(&Inputs { file: None, app_names: &[], env });
+        let (c, d) = Config::resolve(&Inputs { keys: crate::registry::keys(), file: None, app_names: &[], env });
         assert!(d.is_empty(), "{d:?}");
         Settings::from_config(&c)
     }

@@ -4,7 +4,7 @@
 //! so the app's next draw sees the state it set, and the frame stays bit-identical.
 
 use super::resources::{Framebuffer, ImageView, RenderPass};
-use crate::shared::SwapchainImage;
+use crate::bridge::SwapchainImage;
 use ash::vk;
 use std::collections::BTreeMap;
 use std::sync::Arc;

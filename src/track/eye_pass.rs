@@ -8,7 +8,7 @@ use super::cmd::{AttachmentUse, PassInstance};
 use super::resources::RenderPass;
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
-use crate::shared::{EyeUse, ImageRect};
+use crate::core::views::{EyeUse, ImageRect};
 use ash::vk;
 
 /// One eye as an image holds it: which view, in which array layer, in which rect (image pixels).

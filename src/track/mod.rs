@@ -12,8 +12,8 @@ pub mod flow;
 pub mod resources;
 pub mod traced;
 
-use crate::registry::HandleMap;
-use crate::shared::Shared;
+use crate::core::handles::HandleMap;
+use crate::bridge::Shared;
 use ash::vk;
 use cmd::{AttachmentUse, ClearValue, CmdState, DynamicRendering, PassInstance, PassKind, Rect};
 use resources::{CommandPool, Framebuffer, FramebufferAttachments, GraphicsPipeline, Image, ImageView, RenderPass};
@@ -398,7 +398,8 @@ impl DeviceTracker {
 mod tests {
     use super::resources::*;
     use super::*;
-    use crate::shared::{Swapchain, SwapchainDesc};
+    use crate::bridge::Swapchain;
+use crate::core::views::SwapchainDesc;
 
     fn tracker_with_pass() -> (DeviceTracker, Shared) {
         let t = DeviceTracker::default();
@@ -544,7 +545,7 @@ mod tests {
 
     #[test]
     fn transfers_into_swapchain_images_make_intermediate_targets() {
-        use crate::shared::{EyeUse, ImageRect};
+        use crate::core::views::{EyeUse, ImageRect};
         let (t, shared) = tracker_with_pass();
         // Image 101 (64×64) copied 1:1 into swapchain image 100: eyes known once uses are.
         let whole = crate::core::rect::PixelRect { x: 0, y: 0, width: 64, height: 64 };

@@ -2,7 +2,7 @@
 //! views, render passes, framebuffers, pipelines): recorded once at creation by the FFI shell, so
 //! every later decision is a safe lookup that needs neither the app's pointers nor a GPU.
 
-use crate::shared::{Shared, SwapchainImage};
+use crate::bridge::{Shared, SwapchainImage};
 use ash::vk;
 use std::sync::Arc;
 

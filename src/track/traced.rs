@@ -11,8 +11,8 @@ use super::descriptors::{BoundImage, Descriptors};
 use super::eye_pass::EyeSource;
 use super::flow::{self, ImageUse, Op, Region, Walked, World};
 use super::resources::{Image, ImageView};
-use crate::registry::HandleMap;
-use crate::shared::Shared;
+use crate::core::handles::HandleMap;
+use crate::bridge::Shared;
 use ash::vk;
 use std::collections::{HashMap, HashSet, VecDeque};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -278,7 +278,8 @@ fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, submi
 mod tests {
     use super::*;
     use crate::core::rect::PixelRect;
-    use crate::shared::{EyeUse, ImageRect, Swapchain, SwapchainDesc};
+    use crate::core::views::{EyeUse, ImageRect, SwapchainDesc};
+use crate::bridge::Swapchain;
     use crate::track::flow::{DrawRecord, PassRecord};
 
     fn image(h: u64, w: u32) -> Image {

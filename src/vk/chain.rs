@@ -54,13 +54,13 @@ unsafe fn loader_data_callback(mut p_next: *const c_void) -> Option<super::PfnSe
     None
 }
 
-fn resolve_config() -> Arc<crate::config::Config> {
-    if let Some(c) = crate::shared::shared().config() {
+fn resolve_config() -> Arc<crate::core::config::Config> {
+    if let Some(c) = crate::bridge::shared().config() {
         return c;
     }
     let exe = std::env::current_exe().ok().and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()));
     let names: Vec<&str> = exe.as_deref().into_iter().collect();
-    let (config, diagnostics) = crate::config::load(&names);
+    let (config, diagnostics) = crate::core::config::load(crate::registry::keys(), &names);
     crate::log::init(config.choice("log.level"));
     for d in diagnostics {
         tracing::warn!("config: {d}");
@@ -457,7 +457,7 @@ pub(super) unsafe extern "system" fn create_device(
             pass_through: inst.pass_through.clone(),
             track: Default::default(),
             extension_decision: decision,
-            features: crate::features::DeviceFeatures::new(&super::feature::DeviceInit { settings: &device_settings, memory, rates, set_loader_data, software }),
+            features: crate::registry::DeviceFeatures::new(&super::feature::DeviceInit { settings: &device_settings, memory, rates, set_loader_data, software }),
             settings: device_settings.clone(),
             set_loader_data,
             memory,

@@ -369,7 +369,7 @@ pub unsafe fn rendering(
     tracker: &DeviceTracker,
     info: &vk::RenderingInfo<'_>,
 ) -> (Rect, crate::track::cmd::DynamicRendering) {
-    let shared = crate::shared::shared();
+    let shared = crate::bridge::shared();
     let att = |a: &vk::RenderingAttachmentInfo<'_>| RenderingAttachment {
         attachment: tracker.attachment(
             shared,

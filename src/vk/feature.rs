@@ -23,7 +23,7 @@
 
 use super::inject::{Awaiting, Injection};
 use super::DeviceState;
-use crate::config::KeySpec;
+use crate::core::config::KeySpec;
 use crate::core::pass::NotMasked;
 use crate::core::stats::FeatureStats;
 use crate::settings::Settings;
@@ -196,7 +196,7 @@ pub(crate) trait VkFeature: Send + Sync {
     /// The upscale wrote `views` (view, rect, layer) of `image`, an image of the runtime's
     /// display-size swapchain behind `display` (its description: the runtime's size), on the
     /// session's queue, before the runtime gets it back (`xrEndFrame`).
-    fn display_ready(&self, _d: &DeviceState, _family: u32, _queue_index: u32, _display: &crate::shared::Swapchain, _image: u64, _views: &[(u32, crate::shared::ImageRect, u32)]) {}
+    fn display_ready(&self, _d: &DeviceState, _family: u32, _queue_index: u32, _display: &crate::bridge::Swapchain, _image: u64, _views: &[(u32, crate::core::views::ImageRect, u32)]) {}
 
     /// `vkDestroyDevice`, before it goes down (the device is idle).
     fn destroy(&self, _d: &DeviceState) {}

@@ -22,9 +22,9 @@ pub mod probe;
 #[cfg(test)]
 pub(crate) mod test_chain;
 
-use crate::config::Config;
+use crate::core::config::Config;
 use crate::guard::{self, PassThrough};
-use crate::registry::HandleMap;
+use crate::core::handles::HandleMap;
 use crate::track::device_ext::Decision;
 use crate::track::DeviceTracker;
 use ash::vk::{self, Handle};
@@ -104,7 +104,7 @@ pub(crate) struct DeviceState {
     /// The physical device's memory types (for the layer's own allocations).
     pub memory: vk::PhysicalDeviceMemoryProperties,
     /// Every registered feature's per-device object (`crate::features`).
-    pub features: crate::features::DeviceFeatures,
+    pub features: crate::registry::DeviceFeatures,
     /// The injection chassis: triggers, pipeline cache.
     pub inject: inject::InjectDevice,
     /// Holds of recorded command buffers and their submissions.
@@ -240,7 +240,7 @@ pub(crate) fn device_is_live(state: &Arc<DeviceState>) -> bool {
 /// starts its next frame). The OpenXR half calls this once per `xrEndFrame`; it is also where
 /// completed submissions release what they held.
 pub fn take_frame_stats() -> crate::core::stats::FrameStats {
-    let mut all = crate::features::empty_stats();
+    let mut all = crate::registry::empty_stats();
     for (_, d) in layer().devices.values() {
         lifetime::poll(&d);
         d.inject.new_frame();
@@ -287,7 +287,7 @@ pub(crate) fn before_release(binding: Option<(DeviceKey, u32, u32)>, swapchain: 
 
 /// The upscale wrote `views` (view, rect, layer) of the runtime's image `image` behind `display`
 /// (described at the runtime's size): the features act on it before the runtime gets it back.
-pub(crate) fn display_ready(binding: Option<(DeviceKey, u32, u32)>, display: &crate::shared::Swapchain, image: u64, views: &[(u32, crate::shared::ImageRect, u32)]) {
+pub(crate) fn display_ready(binding: Option<(DeviceKey, u32, u32)>, display: &crate::bridge::Swapchain, image: u64, views: &[(u32, crate::core::views::ImageRect, u32)]) {
     let Some((device, family, queue)) = binding else { return };
     let Some(d) = device.state() else { return };
     if d.pass_through.is_on() || views.is_empty() {

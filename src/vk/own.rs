@@ -6,7 +6,7 @@
 //! checked to be 0 once it destroyed everything at `vkDestroyDevice` (issue 11: a layer that
 //! leaked per session would show there and in tests/vk_objects.rs).
 
-use crate::registry::HandleMap;
+use crate::core::handles::HandleMap;
 use ash::vk;
 use std::ffi::{c_void, CStr};
 use std::sync::atomic::{AtomicI64, Ordering};

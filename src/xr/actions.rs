@@ -34,7 +34,7 @@ pub(super) unsafe extern "system" fn attach_session_action_sets(
         inst.check_fault("xrAttachSessionActionSets")?;
         // SAFETY: the app's attach info, valid for this call (null goes down for the runtime).
         let Some((s, info)) = sess.as_ref().zip(unsafe { attach_info.as_ref() }) else { return Ok(down.call(plain)) };
-        let ours: Vec<(usize, Vec<xr::ActionSet>)> = crate::features::XR_FEATURES.iter().map(|f| f.action_sets(s)).enumerate().filter(|(_, v)| !v.is_empty()).collect();
+        let ours: Vec<(usize, Vec<xr::ActionSet>)> = crate::registry::XR_FEATURES.iter().map(|f| f.action_sets(s)).enumerate().filter(|(_, v)| !v.is_empty()).collect();
         if ours.is_empty() {
             return Ok(down.call(plain));
         }
@@ -47,7 +47,7 @@ pub(super) unsafe extern "system" fn attach_session_action_sets(
         // SAFETY: the copy and the array live until the call returns.
         let r = down.call(|| unsafe { next(session, &with) });
         for (i, _) in &ours {
-            crate::features::XR_FEATURES[*i].action_sets_attached(s, r);
+            crate::registry::XR_FEATURES[*i].action_sets_attached(s, r);
         }
         Ok(r)
     }, plain)
@@ -64,7 +64,7 @@ pub(super) unsafe extern "system" fn sync_actions(session: xr::Session, sync_inf
     let plain = || unsafe { next(session, sync_info) };
     guard::run("xrSyncActions", &inst.pass_through, |down| {
         inst.check_fault("xrSyncActions")?;
-        let ours: Vec<xr::ActiveActionSet> = sess.as_ref().map(|s| crate::features::XR_FEATURES.iter().flat_map(|f| f.active_action_sets(s)).collect()).unwrap_or_default();
+        let ours: Vec<xr::ActiveActionSet> = sess.as_ref().map(|s| crate::registry::XR_FEATURES.iter().flat_map(|f| f.active_action_sets(s)).collect()).unwrap_or_default();
         // SAFETY: the app's sync info, valid for this call.
         let (false, Some(info)) = (ours.is_empty(), unsafe { sync_info.as_ref() }) else { return Ok(down.call(plain)) };
         // SAFETY: the app's array of `count_active_action_sets` entries.

@@ -1,5 +1,5 @@
 //! What a feature is to the OpenXR chassis: the events the OpenXR hooks raise over the registry
-//! (`crate::features::XR_FEATURES`), each with a do-nothing default. Per-session state lives in
+//! (`crate::registry::XR_FEATURES`), each with a do-nothing default. Per-session state lives in
 //! the session's `XrSessionFeatures` (made by the registry), so no hook names a feature.
 //!
 //! Events: `wanted_extensions` (xrCreateInstance), `swapchain_usage` (xrCreateSwapchain, may add

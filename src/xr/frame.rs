@@ -3,8 +3,9 @@
 
 use super::session;
 use crate::guard;
-use crate::shared::{self, ImageRect};
-use crate::submission::{self, SubImage, SubmittedView};
+use crate::bridge;
+use crate::core::views::ImageRect;
+use crate::bridge::eye_uses::{self, SubImage, SubmittedView};
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::sync::atomic::Ordering;
@@ -24,7 +25,7 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
         let r = down.call(plain);
         // The app records its eye passes after this; masks must be there by then.
         if let (Some(s), true) = (&sess, r.into_raw() >= 0) {
-            for f in crate::features::XR_FEATURES {
+            for f in crate::registry::XR_FEATURES {
                 f.frame_begun(s);
             }
         }
@@ -37,7 +38,7 @@ pub(super) unsafe extern "system" fn begin_frame(session: xr::Session, frame_beg
 fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>, frame: u64) {
     let stats = crate::vk::take_frame_stats();
     let settings = super::settings(inst);
-    let fovea = shared::shared().foveation().views.clone();
+    let fovea = bridge::shared().foveation().views.clone();
     let fovea_source = if fovea.is_empty() {
         None
     } else {
@@ -62,11 +63,11 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
         fovea_source,
         vulkan_half,
         gpu_ms: None,
-        upscale: shared::shared().take_upscale(),
-        extra: session.map(|s| crate::features::XR_FEATURES.iter().flat_map(|f| f.frame_stats(s)).collect()).unwrap_or_default(),
+        upscale: bridge::shared().take_upscale(),
+        extra: session.map(|s| crate::registry::XR_FEATURES.iter().flat_map(|f| f.frame_stats(s)).collect()).unwrap_or_default(),
     };
     if let Some(s) = session {
-        let enabled = crate::features::enabled(&settings, &record.stats);
+        let enabled = crate::registry::enabled(&settings, &record.stats);
         for w in s.summary.lock().unwrap_or_else(|e| e.into_inner()).add_frame(&enabled, &record.stats) {
             tracing::warn!("{w}");
         }
@@ -100,15 +101,15 @@ fn reload_config(inst: &super::Instance) {
     for d in &diagnostics {
         tracing::warn!("config: {d}");
     }
-    let shared = shared::shared();
+    let shared = bridge::shared();
     let old = shared.config().unwrap_or_else(|| inst.config.clone());
-    let changed = crate::config::changed_keys(&old, &config);
+    let changed = crate::core::config::changed_keys(&old, &config);
     if changed.is_empty() {
         return;
     }
     tracing::info!("config reloaded, changed: {changed:?} (features apply from the next frame; `enabled` and `log.level` only at start)");
     for (_, s) in super::state().sessions.values() {
-        for f in crate::features::XR_FEATURES {
+        for f in crate::registry::XR_FEATURES {
             f.config_reloaded(&s, &changed);
         }
     }
@@ -132,7 +133,7 @@ fn sub_image(s: &xr::SwapchainSubImage) -> SubImage {
 ///
 /// # Safety
 /// As for `read_projection_layers`.
-unsafe fn read_fovs(info: *const xr::FrameEndInfo) -> Option<Vec<crate::shared::ViewFov>> {
+unsafe fn read_fovs(info: *const xr::FrameEndInfo) -> Option<Vec<crate::core::views::ViewFov>> {
     // SAFETY: per the caller's contract.
     unsafe {
         let info = info.as_ref()?;
@@ -155,7 +156,7 @@ unsafe fn read_fovs(info: *const xr::FrameEndInfo) -> Option<Vec<crate::shared::
 ///
 /// # Safety
 /// As for `read_projection_layers`.
-unsafe fn read_depth_range(info: *const xr::FrameEndInfo) -> Option<crate::shared::DepthRange> {
+unsafe fn read_depth_range(info: *const xr::FrameEndInfo) -> Option<crate::core::views::DepthRange> {
     // SAFETY: per the caller's contract, every non-null pointer is valid for its count.
     unsafe {
         let info = info.as_ref()?;
@@ -176,7 +177,7 @@ unsafe fn read_depth_range(info: *const xr::FrameEndInfo) -> Option<crate::share
                 while let Some(s) = next.as_ref() {
                     if s.ty == xr::StructureType::COMPOSITION_LAYER_DEPTH_INFO_KHR {
                         let d = &*(next as *const xr::CompositionLayerDepthInfoKHR);
-                        return Some(crate::shared::DepthRange { near_z: d.near_z, far_z: d.far_z, min_depth: d.min_depth, max_depth: d.max_depth });
+                        return Some(crate::core::views::DepthRange { near_z: d.near_z, far_z: d.far_z, min_depth: d.min_depth, max_depth: d.max_depth });
                     }
                     next = s.next;
                 }
@@ -250,7 +251,7 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
         // SAFETY: the app's frame end info, valid for this call (null is handled).
         let app_info = unsafe { frame_end_info.as_ref() };
         let amended = match (session::lookup(session), app_info) {
-            (Ok(s), Some(info)) => crate::features::XR_FEATURES.iter().find_map(|f| f.amend_frame_end(&s, info)),
+            (Ok(s), Some(info)) => crate::registry::XR_FEATURES.iter().find_map(|f| f.amend_frame_end(&s, info)),
             _ => None,
         };
         // The upscale: held images upscaled and released, interposed rects in display pixels
@@ -309,7 +310,7 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
         let frame = inst.stats.frames_ended.fetch_add(1, Ordering::Relaxed);
         write_frame_stats(&inst, session::lookup(session).ok().as_deref(), frame);
         reload_config(&inst);
-        let shared = shared::shared();
+        let shared = bridge::shared();
         if let Some(range) = depth_range {
             shared.update_far_field(|f| f.depth = Some(range));
         }
@@ -318,7 +319,7 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
             shared.update_views(None, Some(fovs));
         }
         let Some(layers) = layers else { return Ok(r) };
-        for (swapchain, uses) in submission::eye_uses(&layers) {
+        for (swapchain, uses) in eye_uses::eye_uses(&layers) {
             let Some(sc) = shared.swapchains.get(swapchain) else { continue };
             if sc.set_uses(uses.clone()) {
                 inst.stats.eye_use_changes.fetch_add(1, Ordering::Relaxed);

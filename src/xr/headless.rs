@@ -7,7 +7,7 @@
 //! the session's creation; the `openxr` crate does the rest.
 
 use crate::preview::{Headset, View};
-use crate::shared::ViewFov;
+use crate::core::views::ViewFov;
 use openxr as oxr;
 use std::time::{Duration, Instant};
 

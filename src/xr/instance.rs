@@ -33,10 +33,10 @@ impl Stats {
 }
 
 /// Instance extensions the features use for themselves, if the runtime has them.
-fn wanted_extensions(config: &crate::config::Config) -> Vec<&'static str> {
+fn wanted_extensions(config: &crate::core::config::Config) -> Vec<&'static str> {
     let settings = crate::settings::Settings::from_config(config);
     let mut v: Vec<&'static str> = Vec::new();
-    for f in crate::features::XR_FEATURES {
+    for f in crate::registry::XR_FEATURES {
         let wanted = f.wanted_extensions(&settings);
         tracing::debug!(feature = f.id(), ?wanted, "instance extensions a feature uses");
         for e in wanted {
@@ -136,7 +136,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
         // SAFETY: `info` is the app's create info, valid for this call.
         let app_name = unsafe { info.as_ref() }.map(|i| super::fixed_str(&i.application_info.application_name)).unwrap_or_default();
         let exe = exe_name();
-        let (config, diagnostics) = crate::config::load(&[app_name.as_str(), exe.as_str()]);
+        let (config, diagnostics) = crate::core::config::load(crate::registry::keys(), &[app_name.as_str(), exe.as_str()]);
         crate::log::init(config.choice("log.level"));
         for d in &diagnostics {
             tracing::warn!("config: {d}");
@@ -196,7 +196,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
         let next = unsafe { Next::load(next_gipa, handle) };
         let config = Arc::new(config);
         let app_name_for_watch = app_name.clone();
-        crate::shared::shared().set_config(config.clone());
+        crate::bridge::shared().set_config(config.clone());
         tracing::info!(
             enabled = config.enabled(),
             exe,
@@ -219,7 +219,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             stats: Stats::default(),
             app_extensions,
             layer_extensions: added,
-            watch: crate::config::Watch::new(&[app_name_for_watch.as_str(), exe.as_str()], std::time::Duration::from_millis(100)),
+            watch: crate::core::config::Watch::new(crate::registry::keys(), &[app_name_for_watch.as_str(), exe.as_str()], std::time::Duration::from_millis(100)),
             upscale: Default::default(),
             features: Default::default(),
         };
@@ -259,7 +259,7 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: xr::Instance) ->
                 tracing::info!("{} swapchain(s) not destroyed by the app go with the instance", orphans.len());
             }
             for handle in orphans {
-                crate::shared::shared().remove_swapchain(handle);
+                crate::bridge::shared().remove_swapchain(handle);
             }
             st.swapchains.retain(|_, s| s.session.instance.handle != instance);
             st.sessions.retain(|_, s| s.instance.handle != instance);
@@ -272,7 +272,7 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: xr::Instance) ->
                 st.instances.len(),
                 st.sessions.len(),
                 st.swapchains.len(),
-                crate::shared::shared().swapchains.len()
+                crate::bridge::shared().swapchains.len()
             );
         }
         Ok(r)
@@ -302,7 +302,7 @@ pub(super) unsafe extern "system" fn enumerate_view_configuration_views(
             let written = unsafe { std::slice::from_raw_parts_mut(views, (*view_count_output).min(view_capacity_input) as usize) };
             let settings = super::settings(&inst);
             // The features' changes (the FOV cut) first; the upscale scales what they tell.
-            for f in crate::features::XR_FEATURES {
+            for f in crate::registry::XR_FEATURES {
                 f.views_enumerated(&inst, system_id, view_configuration_type, &settings, written);
             }
             super::upscale::views_enumerated(&inst, &settings, written);
@@ -340,7 +340,7 @@ pub(super) unsafe extern "system" fn poll_event(instance: xr::Instance, event_da
             // Every feature sees every event; one that is the layer's own is hidden from the app:
             // poll again with the buffer restored to what the app passed in.
             // Not `any`: every feature must see the event, whoever owns it.
-            let ours = crate::features::XR_FEATURES.iter().map(|f| f.event(&inst, event)).fold(false, |a, b| a | b);
+            let ours = crate::registry::XR_FEATURES.iter().map(|f| f.event(&inst, event)).fold(false, |a, b| a | b);
             if ours {
                 // SAFETY: the app's event buffer, valid for this call.
                 unsafe {

@@ -16,9 +16,9 @@ mod upscale_lens;
 pub mod probe;
 mod vulkan;
 
-use crate::config::Config;
+use crate::core::config::Config;
 use crate::guard::PassThrough;
-use crate::registry::HandleMap;
+use crate::core::handles::HandleMap;
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::ffi::{c_char, CStr};
@@ -149,11 +149,11 @@ pub(crate) struct Instance {
     /// Extensions the layer enabled for itself; their functions and events stay hidden from the app.
     pub layer_extensions: Vec<String>,
     /// The config file, re-read when it changes; feature settings then apply from the next frame.
-    pub watch: crate::config::Watch,
+    pub watch: crate::core::config::Watch,
     /// The upscale's latched sizes (`xrEnumerateViewConfigurationViews`).
     pub upscale: upscale::InstanceUpscale,
     /// The features' per-instance state (made by the registry).
-    pub features: crate::features::XrInstanceFeatures,
+    pub features: crate::registry::XrInstanceFeatures,
 }
 
 pub(crate) const VISIBILITY_MASK_EXT: &str = "XR_KHR_visibility_mask";

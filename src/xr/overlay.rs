@@ -122,7 +122,7 @@ pub(super) fn quad(s: &Session, settings: &Settings, app_layers: u32) -> Option<
         let mut t = lock(&o.text);
         if std::mem::take(&mut t.dirty) || !ov.released {
             if t.enabled.is_empty() {
-                t.enabled = crate::features::enabled(settings, &crate::features::empty_stats());
+                t.enabled = crate::registry::enabled(settings, &crate::registry::empty_stats());
             }
             Some(rules::lines(&t.enabled, t.last.as_ref()))
         } else {
@@ -249,7 +249,7 @@ fn setup(s: &Session) -> Result<Overlay, String> {
     // The images as the Vulkan half sees them are noted while they are made (a layer above may
     // wrap the handles the runtime reports).
     // SAFETY: the session is live; `ci` and the output are valid for the call.
-    let (r, created) = crate::swapchain_images::capture(|| unsafe { create(s.handle, &ci, &mut swapchain) });
+    let (r, created) = crate::bridge::swapchain_images::capture(|| unsafe { create(s.handle, &ci, &mut swapchain) });
     xr_check("xrCreateSwapchain", r)?;
     let made = (|| -> Result<Overlay, String> {
         let mut n = 0u32;

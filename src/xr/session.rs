@@ -4,7 +4,7 @@
 
 use super::{state, Instance};
 use crate::guard;
-use crate::shared::ViewFov;
+use crate::core::views::ViewFov;
 use std::sync::atomic::{AtomicBool, Ordering};
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
@@ -39,7 +39,7 @@ pub(crate) struct Session {
     /// before that from located views.
     pub fov_submitted: AtomicBool,
     /// Every feature's per-session state.
-    pub features: crate::features::XrSessionFeatures,
+    pub features: crate::registry::XrSessionFeatures,
     /// Whether the Vulkan half tracks the session's device (it can act on nothing otherwise).
     pub vulkan_half: bool,
     /// What the enabled features did over the session (`notices`): warnings once per reason, and a
@@ -211,7 +211,7 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
                 tracing::info!("{} swapchain(s) not destroyed by the app go with the session", orphans.len());
             }
             for handle in orphans {
-                crate::shared::shared().remove_swapchain(handle);
+                crate::bridge::shared().remove_swapchain(handle);
             }
             st.swapchains.retain(|_, s| s.session.handle != session);
             st.sessions.remove(session.into_raw());
@@ -256,7 +256,7 @@ pub(super) unsafe extern "system" fn locate_views(
             let runtime_orientations: Vec<xr::Quaternionf> = located.iter().map(|v| v.pose.orientation).collect();
             // SAFETY: the app's locate info, valid for this call (the call succeeded).
             if let Some(info) = unsafe { view_locate_info.as_ref() } {
-                for f in crate::features::XR_FEATURES {
+                for f in crate::registry::XR_FEATURES {
                     f.amend_views(&s, info, located);
                 }
             }
@@ -268,14 +268,14 @@ pub(super) unsafe extern "system" fn locate_views(
             // The views as the app got them (the features' changes included): until the app
             // submits a frame, they are also what it renders with.
             if !s.fov_submitted.load(Ordering::Acquire) {
-                crate::shared::shared().update_views(None, Some(fovs));
+                crate::bridge::shared().update_views(None, Some(fovs));
             }
             let turns = runtime_orientations.iter().zip(located.iter()).map(|(r, v)| runtime_turn(r, &v.pose.orientation)).collect();
-            crate::shared::shared().update_runtime_fovs(runtime_fovs, turns);
+            crate::bridge::shared().update_runtime_fovs(runtime_fovs, turns);
             drop(last);
             // SAFETY: the app's locate info, valid for this call (the call succeeded).
             if let Some(info) = unsafe { view_locate_info.as_ref() } {
-                for f in crate::features::XR_FEATURES {
+                for f in crate::registry::XR_FEATURES {
                     f.views_located(&s, info, located);
                 }
             }
@@ -303,7 +303,7 @@ pub(super) unsafe extern "system" fn get_visibility_mask(
         inst.check_fault("xrGetVisibilityMaskKHR")?;
         // A feature that changed the app's views answers with the mesh as they see it.
         let amended = sess.as_ref().filter(|_| view_configuration_type == xr::ViewConfigurationType::PRIMARY_STEREO).and_then(|s| {
-            crate::features::XR_FEATURES.iter().find_map(|f| f.amend_visibility_mask(s, view_index, visibility_mask_type))
+            crate::registry::XR_FEATURES.iter().find_map(|f| f.amend_visibility_mask(s, view_index, visibility_mask_type))
         });
         if let Some(points) = amended {
             // SAFETY: the app's output struct for this call, or null (refused below).

@@ -4,8 +4,9 @@
 use super::session::{self, Session};
 use super::{state, Instance};
 use crate::guard;
-use crate::shared::{self, SwapchainDesc};
-use crate::swapchain_images;
+use crate::bridge;
+use crate::core::views::SwapchainDesc;
+use crate::bridge::swapchain_images;
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::collections::VecDeque;
@@ -61,7 +62,7 @@ pub(super) unsafe extern "system" fn create_swapchain(
         // Features may add usage (an extra usage bit changes nothing the app can see).
         let settings = super::settings(&inst);
         let added = |usage: xr::SwapchainUsageFlags| {
-            crate::features::XR_FEATURES.iter().fold(xr::SwapchainUsageFlags::EMPTY, |a, f| a | f.swapchain_usage(&settings, usage)) & !usage
+            crate::registry::XR_FEATURES.iter().fold(xr::SwapchainUsageFlags::EMPTY, |a, f| a | f.swapchain_usage(&settings, usage)) & !usage
         };
         // The upscale: a swapchain of a told view size is made at the display size below, and
         // the app renders into the layer's images.
@@ -134,7 +135,7 @@ pub(super) unsafe extern "system" fn destroy_swapchain(swapchain: xr::Swapchain)
         }
         let r = down.call(plain);
         if r == xr::Result::SUCCESS && sc.is_some() {
-            shared::shared().remove_swapchain(swapchain.into_raw());
+            bridge::shared().remove_swapchain(swapchain.into_raw());
             state().swapchains.remove(swapchain.into_raw());
         }
         Ok(r)
@@ -182,7 +183,7 @@ pub(super) unsafe extern "system" fn enumerate_swapchain_images(
             }
         };
         inst.stats.swapchain_images.fetch_add(count as u64, Ordering::Relaxed);
-        shared::shared().add_swapchain(Arc::new(shared::Swapchain::new(swapchain.into_raw(), sc.desc.clone(), handles)));
+        bridge::shared().add_swapchain(Arc::new(bridge::Swapchain::new(swapchain.into_raw(), sc.desc.clone(), handles)));
         Ok(r)
     }, plain)
 }
@@ -302,6 +303,6 @@ unsafe fn enumerate_interposed(
     let ours = i.our_images();
     tracing::info!("swapchain {:#x}: the layer's images {ours:x?} (the app's names {app:x?})", swapchain.into_raw());
     sc.session.instance.stats.swapchain_images.fetch_add(app.len() as u64, Ordering::Relaxed);
-    shared::shared().add_swapchain(Arc::new(shared::Swapchain::new(swapchain.into_raw(), sc.desc.clone(), ours).upscaled()));
+    bridge::shared().add_swapchain(Arc::new(bridge::Swapchain::new(swapchain.into_raw(), sc.desc.clone(), ours).upscaled()));
     xr::Result::SUCCESS
 }

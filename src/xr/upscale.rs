@@ -288,7 +288,7 @@ pub(super) fn create_swapchain(
         usage_flags: ci.usage_flags | needs | features_usage,
         ..*ci
     };
-    let (r, created) = crate::swapchain_images::capture(|| create(&runtime_ci));
+    let (r, created) = crate::bridge::swapchain_images::capture(|| create(&runtime_ci));
     if r != xr::Result::SUCCESS {
         tracing::warn!("upscale: the runtime refused its {}x{} swapchain: {r:?} (given to the app)", plan.runtime.0, plan.runtime.1);
         return Created::Yes(r, None);
@@ -329,7 +329,7 @@ fn make_target(
     (format, output): (vk::Format, Output),
     plan: Plan,
     swapchain: xr::Swapchain,
-    created: &[crate::swapchain_images::CreatedImage],
+    created: &[crate::bridge::swapchain_images::CreatedImage],
     settings: &UpscaleSettings,
 ) -> Result<Interposed, String> {
     let enumerate = s.instance.next.enumerate_swapchain_images.ok_or("no xrEnumerateSwapchainImages")?;
@@ -341,7 +341,7 @@ fn make_target(
     // SAFETY: `reported` holds `n` typed Vulkan image structs.
     xr_ok("xrEnumerateSwapchainImages", unsafe { enumerate(swapchain, n, &mut n, reported.as_mut_ptr().cast()) })?;
     reported.truncate(n as usize);
-    let wanted = crate::swapchain_images::Wanted {
+    let wanted = crate::bridge::swapchain_images::Wanted {
         format: runtime_ci.format,
         width: runtime_ci.width,
         height: runtime_ci.height,
@@ -349,7 +349,7 @@ fn make_target(
         sample_count: runtime_ci.sample_count,
         mip_count: runtime_ci.mip_count,
     };
-    let runtime_images: Vec<vk::Image> = crate::swapchain_images::match_images(&wanted, created, &reported.iter().map(|r| r.image).collect::<Vec<_>>())
+    let runtime_images: Vec<vk::Image> = crate::bridge::swapchain_images::match_images(&wanted, created, &reported.iter().map(|r| r.image).collect::<Vec<_>>())
         .images()
         .iter()
         .map(|&h| vk::Image::from_raw(h))
@@ -370,7 +370,7 @@ fn make_target(
     let g = lock(&s.upscale.gpu);
     let g = g.as_ref().ok_or("no GPU objects")?;
     let capture = |f: &mut dyn FnMut()| -> Option<vk::Image> {
-        let ((), c) = crate::swapchain_images::capture(f);
+        let ((), c) = crate::bridge::swapchain_images::capture(f);
         c.first().map(|c| vk::Image::from_raw(c.image))
     };
     // SAFETY: `top` is the app-level table of the session's device; the runtime images are the
@@ -456,7 +456,7 @@ fn runtime_rect(i: &Interposed, app_extent: (u32, u32), rect: PixelRect, project
 /// region of the view (its fixed centre when foveation publishes none), else everywhere.
 fn fovea_of(settings: &Settings, view: Option<(u32, xr::Fovf)>, dst: PixelRect) -> [f32; 4] {
     let (true, Some((index, fov))) = (settings.upscale.fovea_only, view) else { return [0.0; 4] };
-    let published = crate::shared::shared().foveation();
+    let published = crate::bridge::shared().foveation();
     let (center, inner) = published.views.iter().find(|f| f.view == index).map_or(([0.0, 0.0], settings.foveation.rings.inner_deg), |f| (f.center, f.inner_deg));
     let tan = [fov.angle_left.tan(), fov.angle_right.tan(), fov.angle_up.tan(), fov.angle_down.tan()];
     rules::fovea_ellipse(center, inner, tan, dst)
@@ -520,18 +520,18 @@ fn run_and_release(s: &Session, work: &[Held<'_>]) -> xr::Result {
 fn display_ready(s: &Session, work: &[Held<'_>]) {
     let binding = s.binding.map(|b| (b.device_key, b.queue_family_index, b.queue_index));
     for w in work {
-        let views: Vec<(u32, crate::shared::ImageRect, u32)> = w
+        let views: Vec<(u32, crate::core::views::ImageRect, u32)> = w
             .jobs
             .iter()
             .zip(&w.views)
-            .filter_map(|(j, v)| v.map(|v| (v, crate::shared::ImageRect { x: j.dst.x, y: j.dst.y, width: j.dst.width as i32, height: j.dst.height as i32 }, j.layer)))
+            .filter_map(|(j, v)| v.map(|v| (v, crate::core::views::ImageRect { x: j.dst.x, y: j.dst.y, width: j.dst.width as i32, height: j.dst.height as i32 }, j.layer)))
             .collect();
         let Some(&image) = lock(&w.i.target).desc.runtime_images.get(w.index as usize) else { continue };
         if views.is_empty() {
             continue;
         }
-        let desc = crate::shared::SwapchainDesc { width: w.i.plan.runtime.0, height: w.i.plan.runtime.1, ..w.sc.desc.clone() };
-        let display = crate::shared::Swapchain::new(w.handle, desc, vec![image.as_raw()]);
+        let desc = crate::core::views::SwapchainDesc { width: w.i.plan.runtime.0, height: w.i.plan.runtime.1, ..w.sc.desc.clone() };
+        let display = crate::bridge::Swapchain::new(w.handle, desc, vec![image.as_raw()]);
         crate::vk::display_ready(binding, &display, image.as_raw(), &views);
     }
 }
@@ -603,7 +603,7 @@ fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
         let jobs: usize = work.iter().map(|w| w.jobs.len()).sum();
         let pixels: u64 = work.iter().flat_map(|w| &w.jobs).map(|j| j.dst.area()).sum();
         let rendered: u64 = work.iter().flat_map(|w| &w.jobs).map(|j| j.src.area()).sum();
-        crate::shared::shared().upscale_counts(jobs as u64, rendered, pixels, gpu_ms, &phases_ms);
+        crate::bridge::shared().upscale_counts(jobs as u64, rendered, pixels, gpu_ms, &phases_ms);
     }
     r
 }

@@ -55,7 +55,7 @@ impl LensCache {
         let events = s.instance.stats.visibility_mask_events.load(Ordering::Relaxed);
         let fov_tan = super::session::fov_tangents(fov);
         // The runtime's own view, where the app's differs from it (view tricks: docs/views.md).
-        let shared = crate::shared::shared().views();
+        let shared = crate::bridge::shared().views();
         let runtime = shared.runtime_fovs.get(view as usize).copied().unwrap_or(fov_tan);
         let turn = shared.runtime_turns.get(view as usize).copied().flatten();
         let [tx, ty, tz, tw] = turn.unwrap_or([0.0, 0.0, 0.0, 1.0]);

@@ -6,7 +6,7 @@ use super::image::{self, Image};
 use super::{Fov, RunOutput};
 use stereoshim::core::rect::PixelRect;
 use stereoshim::features::foveation::rdm::rules::RdmParams;
-use stereoshim::shared::{FoveaView, ViewFov};
+use stereoshim::core::views::{FoveaView, ViewFov};
 
 /// With the hidden-area mask: how far from its outline the periphery PSNR starts (the filter reads
 /// up to 2 px beyond a skipped quad).

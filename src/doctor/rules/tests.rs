@@ -1,11 +1,11 @@
 //! Unit tests of the doctor's rules: gathered facts in, findings (status, words, fix) out.
 
 use super::*;
-use crate::config::Inputs;
+use crate::core::config::Inputs;
 use crate::track::device_ext::FsrSupport;
 
 fn cfg(toml: &str) -> (Config, Vec<String>) {
-    Config::resolve(&Inputs { file: Some((Path::new("/c/config.toml"), toml)), app_names: &[], env: &|_| None })
+    Config::resolve(&Inputs { keys: crate::registry::keys(), file: Some((Path::new("/c/config.toml"), toml)), app_names: &[], env: &|_| None })
 }
 
 fn only(findings: &[Finding], status: Status) -> Vec<&Finding> {

@@ -13,7 +13,7 @@ pub mod stats;
 pub(crate) mod vk;
 pub(crate) mod xr;
 
-use crate::config::{Config, Kind, KeySpec};
+use crate::core::config::{Config, Kind, KeySpec};
 
 /// Far field's config keys.
 pub const KEYS: &[KeySpec] = &[

@@ -4,7 +4,7 @@
 #![forbid(unsafe_code)]
 
 use crate::core::rect::PixelRect;
-use crate::shared::{DepthRange, ViewFov, ViewPose};
+use crate::core::views::{DepthRange, ViewFov, ViewPose};
 use glam::{DMat3, DQuat, DVec3};
 
 /// The app's depth convention, as `1/z = a + b·depth` (exact for any perspective projection:

@@ -20,7 +20,8 @@ use super::stats::FarFieldStats;
 use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
 use crate::settings::Settings;
-use crate::shared::{shared, FarFieldViews, ViewPose};
+use crate::bridge::shared;
+use crate::core::views::{FarFieldViews, ViewPose};
 use crate::track::cmd::{AttachmentUse, PassInstance};
 use crate::track::eye_pass::{EyeDraw, EyeLayout};
 use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
@@ -158,7 +159,7 @@ pub(crate) struct FarFieldDevice {
 }
 
 impl Plugin for FarFieldDevice {
-    const KEYS: &'static [crate::config::KeySpec] = super::KEYS;
+    const KEYS: &'static [crate::core::config::KeySpec] = super::KEYS;
     fn new(init: &DeviceInit<'_>) -> FarFieldDevice {
         FarFieldDevice { pixels_reused: Arc::default(), query_pools: Arc::default(), layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default(), objects: Mutex::default() }
     }

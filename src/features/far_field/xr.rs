@@ -4,7 +4,8 @@
 //! so the source eye can be copied.
 
 use crate::settings::Settings;
-use crate::shared::{shared, ViewPose};
+use crate::bridge::shared;
+use crate::core::views::ViewPose;
 use crate::xr::feature::XrFeature;
 use crate::xr::session::Session;
 use openxr_sys as xr;

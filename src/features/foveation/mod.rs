@@ -7,7 +7,7 @@ pub mod rules;
 pub mod vrs;
 pub(crate) mod xr;
 
-use crate::config::{Config, Kind, KeySpec};
+use crate::core::config::{Config, Kind, KeySpec};
 pub use rules::Rings;
 
 /// Foveation's config keys (shared by both methods).

@@ -3,9 +3,9 @@
 //! the rate maps can follow without flicker. Pure; the OpenXR shell feeds it samples.
 #![forbid(unsafe_code)]
 
-use crate::config::Config;
+use crate::core::config::Config;
 use crate::core::fovea::{angle_between_deg, Tangent};
-use crate::shared::FoveaView;
+use crate::core::views::FoveaView;
 
 /// Full-rate radius and half-rate outer radius, degrees.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -103,19 +103,19 @@ pub fn fovea_views(centers: &[Tangent], rings: Rings) -> Vec<FoveaView> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{Config, Inputs};
+    use crate::core::config::{Config, Inputs};
     use crate::core::fovea::{forward, gaze_in_view};
 
     #[test]
     fn presets_and_overrides() {
-        let (c, _) = Config::resolve(&Inputs { file: None, app_names: &[], env: &|_| None });
+        let (c, _) = Config::resolve(&Inputs { keys: crate::registry::keys(), file: None, app_names: &[], env: &|_| None });
         assert_eq!(Rings::from_config(&c), Rings { inner_deg: 20.0, middle_deg: 35.0 });
         let env = |k: &str| match k {
             "STEREOSHIM_FOVEATION_PRESET" => Some("aggressive".to_string()),
             "STEREOSHIM_FOVEATION_INNER_DEG" => Some("30".to_string()),
             _ => None,
         };
-        let (c, d) = Config::resolve(&Inputs { file: None, app_names: &[], env: &env });
+        let (c, d) = Config::resolve(&Inputs { keys: crate::registry::keys(), file: None, app_names: &[], env: &env });
         assert!(d.is_empty());
         // The explicit inner radius wins and the middle ring grows to stay outside it.
         assert_eq!(Rings::from_config(&c), Rings { inner_deg: 30.0, middle_deg: 30.0 });

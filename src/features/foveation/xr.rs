@@ -222,7 +222,7 @@ impl XrFeature for FoveationXr {
     /// it is off.
     fn frame_begun(&self, s: &Session) {
         let settings = settings(&s.instance);
-        let shared = crate::shared::shared();
+        let shared = crate::bridge::shared();
         if !settings.foveation.enabled {
             shared.update_foveation(Vec::new());
             return;
@@ -266,7 +266,7 @@ fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
     let mut source = CenterSource::Fixed;
     // The lens's axis in each view the app was given: the runtime view's, which parallel views
     // turn away from the app's (docs/views.md); the app's own axis otherwise.
-    let turns = crate::shared::shared().views().runtime_turns.clone();
+    let turns = crate::bridge::shared().views().runtime_turns.clone();
     let lens_axis = |i: usize| turns.get(i).copied().flatten().and_then(|t| fovea::gaze_in_view([0.0, 0.0, 0.0, 1.0], fovea::forward(t))).unwrap_or([0.0, 0.0]);
     let centers: Vec<fovea::Tangent> = views
         .iter()

@@ -7,7 +7,7 @@ pub mod source;
 pub(crate) mod vk;
 pub(crate) mod xr;
 
-use crate::config::{Config, Kind, KeySpec};
+use crate::core::config::{Config, Kind, KeySpec};
 
 /// The mask's config keys.
 pub const KEYS: &[KeySpec] = &[

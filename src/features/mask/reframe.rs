@@ -5,7 +5,7 @@
 //! (which tiles it skips) and the tests.
 #![forbid(unsafe_code)]
 
-use crate::shared::ViewFov;
+use crate::core::views::ViewFov;
 use glam::{DQuat, DVec2, DVec3};
 
 /// A piece of padding thinner than this (tangent units, about 1/100 pixel at any real density) is

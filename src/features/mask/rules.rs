@@ -7,7 +7,7 @@
 use crate::core::rect::{PixelRect, ViewportRect};
 use crate::core::pass::NotMasked;
 use crate::core::stats::{json_counts, FeatureStats};
-use crate::shared::ViewFov;
+use crate::core::views::ViewFov;
 use std::collections::BTreeMap;
 
 /// Sub-pixel precision of vertex positions: lavapipe (llvmpipe) and most GPUs snap to 1/256 px.

@@ -3,7 +3,7 @@
 //! config means the same on every HMD). Pure; the OpenXR shell fetches and publishes.
 #![forbid(unsafe_code)]
 
-use crate::shared::MaskSource;
+use crate::core::views::MaskSource;
 use std::f64::consts::PI;
 
 /// The configured lens: visible where the direction's angle from the optical axis, split into its

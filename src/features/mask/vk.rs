@@ -13,7 +13,8 @@ use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
 use crate::features::mask::rules::{self, MaskFrameStats};
 use crate::settings::Settings;
-use crate::shared::{shared, Views};
+use crate::bridge::shared;
+use crate::core::views::Views;
 use crate::track::cmd::PassInstance;
 use crate::track::eye_pass::{EyeDraw, EyeLayout, EyeSource, MaskPlan};
 use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
@@ -201,7 +202,7 @@ pub(crate) struct MaskDevice {
 }
 
 impl Plugin for MaskDevice {
-    const KEYS: &'static [crate::config::KeySpec] = super::KEYS;
+    const KEYS: &'static [crate::core::config::KeySpec] = super::KEYS;
     fn new(init: &DeviceInit<'_>) -> MaskDevice {
         MaskDevice { layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default(), open: OpenPasses::default() }
     }

@@ -5,7 +5,7 @@
 
 use super::source as mask_source;
 use crate::settings::Settings;
-use crate::shared::ViewMask;
+use crate::core::views::ViewMask;
 use crate::xr::feature::XrFeature;
 use crate::xr::session::Session;
 use crate::xr::{settings, state, Instance, VISIBILITY_MASK_EXT};
@@ -125,5 +125,5 @@ fn refresh_masks(s: &Session) {
             None => tracing::info!("view {view}: no hidden-area mask (mask.source = runtime and the runtime has none)"),
         }
     }
-    crate::shared::shared().update_views(Some(masks), None);
+    crate::bridge::shared().update_views(Some(masks), None);
 }

@@ -5,7 +5,7 @@
 
 pub mod rules;
 
-use crate::config::{Config, Kind, KeySpec};
+use crate::core::config::{Config, Kind, KeySpec};
 
 /// The overlay's config keys.
 pub const KEYS: &[KeySpec] = &[

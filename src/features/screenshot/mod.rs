@@ -11,7 +11,7 @@ pub(crate) mod vk;
 mod write;
 pub(crate) mod xr;
 
-use crate::config::{Config, Kind, KeySpec};
+use crate::core::config::{Config, Kind, KeySpec};
 use crate::core::stats::{json_counts, FeatureStats};
 use std::collections::BTreeMap;
 

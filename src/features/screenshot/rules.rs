@@ -4,7 +4,7 @@
 //! called, which part of a swapchain image is copied, and how its texels become PNG samples.
 #![forbid(unsafe_code)]
 
-use crate::shared::ImageRect;
+use crate::core::views::ImageRect;
 use std::path::{Path, PathBuf};
 
 /// How often at most the trigger files are looked at (one `stat` or `open` each): a person

@@ -12,10 +12,11 @@
 use super::rules::{self, Texels};
 use super::write::{self, Picture};
 use super::ScreenshotStats;
-use crate::config::KeySpec;
+use crate::core::config::KeySpec;
 use crate::core::stats::FeatureStats;
 use crate::settings::Settings;
-use crate::shared::{shared, ImageRect};
+use crate::bridge::shared;
+use crate::core::views::ImageRect;
 use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
 use crate::vk::DeviceState;
 use ash::vk::{self, Handle};
@@ -399,7 +400,7 @@ impl ScreenshotDevice {
     /// Copies `uses` (view, rect, layer) of `image` of `sc` on the session's queue into the armed
     /// frame; `display`: the upscale's display-size image, written as its own pictures. Hands the
     /// frame off once every expected view is in.
-    fn capture(&self, d: &DeviceState, (family, queue_index): (u32, u32), sc: &crate::shared::Swapchain, image: u64, uses: &[(u32, ImageRect, u32)], display: bool) {
+    fn capture(&self, d: &DeviceState, (family, queue_index): (u32, u32), sc: &crate::bridge::Swapchain, image: u64, uses: &[(u32, ImageRect, u32)], display: bool) {
         let started = std::time::Instant::now();
         let swapchain = sc.handle;
         if uses.is_empty() {
@@ -472,7 +473,7 @@ impl VkFeature for ScreenshotDevice {
         self.capture(d, (family, queue_index), &sc, image, &uses, false);
     }
 
-    fn display_ready(&self, d: &DeviceState, family: u32, queue_index: u32, display: &crate::shared::Swapchain, image: u64, views: &[(u32, ImageRect, u32)]) {
+    fn display_ready(&self, d: &DeviceState, family: u32, queue_index: u32, display: &crate::bridge::Swapchain, image: u64, views: &[(u32, ImageRect, u32)]) {
         if !self.armed.load(Ordering::Acquire) || d.pass_through.is_on() {
             return;
         }
@@ -537,7 +538,7 @@ fn expected_views() -> Vec<(u32, bool)> {
 
 /// What to copy of `image` for its `uses` (view, rect, layer), with each view's offset in the
 /// buffer; None (counted, logged once) when the image cannot be copied.
-fn plan(me: &ScreenshotDevice, d: &DeviceState, sc: &crate::shared::Swapchain, image: u64, uses: &[(u32, ImageRect, u32)]) -> Option<Vec<ViewCopy>> {
+fn plan(me: &ScreenshotDevice, d: &DeviceState, sc: &crate::bridge::Swapchain, image: u64, uses: &[(u32, ImageRect, u32)]) -> Option<Vec<ViewCopy>> {
     let usage = d.track.images.get(image).map(|i| i.usage);
     if usage.is_some_and(|u| !u.contains(vk::ImageUsageFlags::TRANSFER_SRC)) {
         me.not_applied("usage", || format!("swapchain image usage {usage:?} lacks TRANSFER_SRC"));
@@ -548,7 +549,7 @@ fn plan(me: &ScreenshotDevice, d: &DeviceState, sc: &crate::shared::Swapchain, i
 
 /// The views of `uses` (view, rect, layer) of one of the swapchain's images and their offsets in
 /// the read-back buffer; None (counted, logged once) when its images cannot be copied.
-fn views_of(me: &ScreenshotDevice, sc: &crate::shared::Swapchain, uses: &[(u32, ImageRect, u32)]) -> Option<Vec<ViewCopy>> {
+fn views_of(me: &ScreenshotDevice, sc: &crate::bridge::Swapchain, uses: &[(u32, ImageRect, u32)]) -> Option<Vec<ViewCopy>> {
     let desc = &sc.desc;
     let Some(texels) = Texels::of(desc.format as i32) else {
         me.not_applied("format", || format!("swapchain format {:?} is not converted", vk::Format::from_raw(desc.format as i32)));
@@ -579,7 +580,7 @@ fn buffer_size(views: &[ViewCopy]) -> u64 {
 /// Records and submits the copy of `views` of `image` on the session's queue, into `staging` (made
 /// ahead) or a buffer made here (a swapchain not known at the request).
 #[allow(clippy::too_many_arguments)]
-fn copy(me: &ScreenshotDevice, d: &DeviceState, image: u64, desc: &crate::shared::SwapchainDesc, views: Vec<ViewCopy>, staging: Option<Staging>, family: u32, queue_index: u32) -> Result<Copy, String> {
+fn copy(me: &ScreenshotDevice, d: &DeviceState, image: u64, desc: &crate::core::views::SwapchainDesc, views: Vec<ViewCopy>, staging: Option<Staging>, family: u32, queue_index: u32) -> Result<Copy, String> {
     let Some(set_loader_data) = me.set_loader_data else {
         if let Some(s) = staging {
             // SAFETY: never submitted.

@@ -14,7 +14,7 @@
 #![forbid(unsafe_code)]
 
 use crate::features::mask::rules::hidden_pixels;
-use crate::shared::ViewFov;
+use crate::core::views::ViewFov;
 
 /// A tile's class: both passes run.
 pub const RUN: u32 = 0;

@@ -15,7 +15,7 @@ pub mod rules;
 pub(crate) mod slots;
 pub(crate) mod vk;
 
-use crate::config::{Config, KeySpec, Kind};
+use crate::core::config::{Config, KeySpec, Kind};
 
 /// The upscale's config keys.
 pub const KEYS: &[KeySpec] = &[

@@ -8,7 +8,7 @@ pub mod rules;
 pub(crate) mod source;
 pub(crate) mod xr;
 
-use crate::config::{Config, KeySpec, Kind};
+use crate::core::config::{Config, KeySpec, Kind};
 
 /// The view tricks' config keys.
 pub const KEYS: &[KeySpec] = &[

@@ -6,7 +6,7 @@
 use super::rules::Fov;
 use crate::features::mask::rules::hidden_pixels;
 use crate::features::mask::xr::runtime_mask;
-use crate::shared::ViewFov;
+use crate::core::views::ViewFov;
 use crate::xr::session::Session;
 use crate::xr::Instance;
 use openxr_sys as xr;

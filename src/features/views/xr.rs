@@ -360,7 +360,7 @@ impl XrFeature for ViewsXr {
         if i >= STEREO_VIEWS {
             return None;
         }
-        let shared = crate::shared::shared().views();
+        let shared = crate::bridge::shared().views();
         let q = |t: DQuat| [t.x as f32, t.y as f32, t.z as f32, t.w as f32];
         let (runtime, app, turn) = match (shared.runtime_fovs.get(i), shared.app_fovs.get(i)) {
             (Some(r), Some(a)) => (*r, *a, shared.runtime_turns.get(i).copied().flatten()),

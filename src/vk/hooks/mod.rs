@@ -169,7 +169,7 @@ pub(super) unsafe extern "system" fn create_image(
                 // SAFETY: on success the handle was written; the create info is valid during the
                 // app's call.
                 let (h, ci) = unsafe { (*out, &*ci) };
-                crate::swapchain_images::note_created(crate::swapchain_images::CreatedImage {
+                crate::bridge::swapchain_images::note_created(crate::bridge::swapchain_images::CreatedImage {
                     image: h.as_raw(),
                     format: ci.format.as_raw(),
                     width: ci.extent.width,

@@ -250,7 +250,7 @@ ext_state_hook!(cmd_set_patch_control_points, "vkCmdSetPatchControlPointsEXT", c
 fn begin_pass(d: &DeviceState, cb: u64, kind: PassKind, info: *const vk::RenderPassBeginInfo<'_>) {
     // SAFETY: a valid begin info during the app's call.
     let begin = unsafe { convert::render_pass_begin(&*info) };
-    d.track.begin_render_pass(crate::shared::shared(), cb, kind, begin);
+    d.track.begin_render_pass(crate::bridge::shared(), cb, kind, begin);
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_begin_render_pass(cb: vk::CommandBuffer, info: *const vk::RenderPassBeginInfo<'_>, contents: vk::SubpassContents) {
@@ -414,7 +414,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_bind_vertex_buffers2(
 /// raised to the features.
 fn transfer(d: &DeviceState, cb: vk::CommandBuffer, src: vk::Image, dst: vk::Image, regions: Vec<crate::track::eye_pass::TransferRegion>) {
     if inject::any_injects(d, &d.settings()) {
-        d.track.record_transfer(crate::shared::shared(), src.as_raw(), dst.as_raw(), &regions);
+        d.track.record_transfer(crate::bridge::shared(), src.as_raw(), dst.as_raw(), &regions);
     }
     d.track.flow_transfer(cb.as_raw(), src.as_raw(), dst.as_raw(), &regions);
     for f in d.features.all() {

@@ -20,7 +20,7 @@ use super::DeviceState;
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
 use crate::settings::Settings;
-use crate::shared::shared;
+use crate::bridge::shared;
 use crate::track::cmd::{AttachmentUse, PassInstance, StateCmd};
 use crate::track::eye_pass::{self, EyeDraw, EyeSource, Eyes, Learned, MaskPlan};
 use ash::vk::{self, Handle};

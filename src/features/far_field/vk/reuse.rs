@@ -6,7 +6,7 @@ use super::{lock, pose_of, FarFieldDevice, ReuseOp, ReuseView};
 use crate::features::far_field::rules::{self, InverseDepth, NoSource, PixelMap, ViewGeometry};
 use crate::core::rect::PixelRect;
 use crate::settings::Settings;
-use crate::shared::FarFieldViews;
+use crate::core::views::FarFieldViews;
 use crate::vk::inject;
 use crate::vk::DeviceState;
 use ash::vk;

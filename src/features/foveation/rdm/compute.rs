@@ -563,8 +563,8 @@ mod tests {
         let b = pc.bytes();
         assert_eq!(b.len(), 80);
         assert_eq!((&b[0..4], &b[16..20], &b[32..36], &b[48..52], &b[64..68]), (&1i32.to_ne_bytes()[..], &5f32.to_ne_bytes()[..], &6f32.to_ne_bytes()[..], &7i32.to_ne_bytes()[..], &11i32.to_ne_bytes()[..]));
-        let fov = crate::shared::ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
-        let fovea = crate::shared::FoveaView { view: 0, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 };
+        let fov = crate::core::views::ViewFov { tan_left: -1.0, tan_right: 1.0, tan_up: 1.0, tan_down: -1.0 };
+        let fovea = crate::core::views::FoveaView { view: 0, center: [0.0, 0.0], inner_deg: 20.0, middle_deg: 35.0 };
         // Tiles of 32 px: row 0 tiles 0, 1, 2 → one span, clipped to the rect's 80 px; row 1
         // (8 px left of the rect): tiles 0 and 2, apart.
         assert_eq!(super::super::rules::TILE_QUADS, 16);

@@ -11,7 +11,8 @@ use super::rules::{compute_path, NotApplied, Pending};
 use super::vk::{lock, log_once, RdmDevice};
 use crate::core::rect::PixelRect;
 use crate::features::foveation::Reconstruction;
-use crate::shared::{self, shared};
+use crate::bridge::{self, shared};
+
 use crate::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::collections::VecDeque;
@@ -124,7 +125,7 @@ pub(super) fn layer_error(what: &str) -> impl Fn(vk::Result) -> Failure + '_ {
     move |e| (NotApplied::LayerError, format!("{what}: {e}"))
 }
 
-fn reconstruct(d: &DeviceState, sc: &shared::Swapchain, image: u64, pending: &[Pending], family: u32, queue_index: u32, fill_only: bool) -> Result<How, Failure> {
+fn reconstruct(d: &DeviceState, sc: &bridge::Swapchain, image: u64, pending: &[Pending], family: u32, queue_index: u32, fill_only: bool) -> Result<How, Failure> {
     let usage = d.track.images.get(image).map(|img| img.usage);
     let format = vk::Format::from_raw(sc.desc.format as i32);
     let (width, height, layers) = (sc.desc.width, sc.desc.height, sc.desc.array_size.max(1));

@@ -9,7 +9,7 @@ pub use crate::core::fovea::Ring;
 use crate::core::rect::PixelRect;
 use crate::track::eye_pass::TransferRegion;
 use crate::core::stats::{json_counts, FeatureStats};
-use crate::shared::{FoveaView, ViewFov};
+use crate::core::views::{FoveaView, ViewFov};
 use std::collections::BTreeMap;
 
 /// Everything the rule needs for one eye, as the shaders receive it (vertex attributes of the

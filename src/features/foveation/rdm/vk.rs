@@ -10,7 +10,7 @@ use super::rules::{hand_off, HandOff, NotApplied, Pending, RdmFrameStats, RdmPar
 use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
 use crate::settings::Settings;
-use crate::shared::shared;
+use crate::bridge::shared;
 use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan, TransferRegion};
 use crate::vk::feature::{Destroyed, DeviceInit, Plugin, VkFeature};
 use crate::vk::inject::open_passes::OpenPasses;
@@ -91,7 +91,7 @@ pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 
 impl Plugin for RdmDevice {
     /// `foveation.*`, shared with VRS (the registry lists a key once).
-    const KEYS: &'static [crate::config::KeySpec] = crate::features::foveation::KEYS;
+    const KEYS: &'static [crate::core::config::KeySpec] = crate::features::foveation::KEYS;
     fn new(init: &DeviceInit<'_>) -> RdmDevice {
         RdmDevice {
             layer_enabled: init.settings.enabled,

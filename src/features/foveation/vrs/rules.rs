@@ -21,7 +21,7 @@ use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
 use crate::track::eye_pass::EyeSource;
 use crate::core::stats::{json_counts, FeatureStats};
-use crate::shared::{FoveaView, ViewFov};
+use crate::core::views::{FoveaView, ViewFov};
 use std::collections::BTreeMap;
 
 /// A shading rate as its fragment size in pixels.

@@ -27,7 +27,7 @@ use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
 use crate::features::foveation::Method;
 use crate::settings::Settings;
-use crate::shared::shared;
+use crate::bridge::shared;
 use crate::track::cmd::{PassInstance, PassKind};
 use crate::track::eye_pass::{self, Facts};
 use crate::vk::feature::{Amended, AmendedRenderPass, Destroyed, DeviceInit, Plugin, RenderPassInfo, VkFeature};
@@ -136,7 +136,7 @@ pub(super) enum Mode {
 
 impl Plugin for VrsDevice {
     /// `foveation.*`, shared with RDM (the registry lists a key once).
-    const KEYS: &'static [crate::config::KeySpec] = crate::features::foveation::KEYS;
+    const KEYS: &'static [crate::core::config::KeySpec] = crate::features::foveation::KEYS;
     fn new(init: &DeviceInit<'_>) -> VrsDevice {
         VrsDevice {
             layer_enabled: init.settings.enabled,

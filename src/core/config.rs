@@ -33,9 +33,9 @@ impl KeySpec {
     }
 }
 
-/// Every key the layer reads. Features add their keys here.
-/// The chassis' own keys; each feature declares its own (`crate::features::KEYS`).
-const CORE_KEYS: &[KeySpec] = &[
+/// The chassis' own keys; each feature declares its own, and the registry lists them all
+/// (`crate::registry::keys`): this module is given the list, it names no feature.
+pub const CORE_KEYS: &[KeySpec] = &[
     KeySpec {
         key: "enabled",
         kind: Kind::Bool,
@@ -98,19 +98,15 @@ const CORE_KEYS: &[KeySpec] = &[
     },
 ];
 
-/// Every key: the chassis' and every registered feature's, in that order.
-pub fn keys() -> &'static [KeySpec] {
-    static ALL: std::sync::OnceLock<Vec<KeySpec>> = std::sync::OnceLock::new();
-    ALL.get_or_init(|| {
-        let mut all: Vec<KeySpec> = Vec::new();
-        // Features sharing a folder (both foveation methods) declare the folder's keys each.
-        for spec in CORE_KEYS.iter().chain(crate::features::KEYS.iter().flat_map(|k| k.iter())).chain(crate::features::overlay::KEYS).chain(crate::features::upscale::KEYS).chain(crate::features::views::KEYS) {
-            if !all.iter().any(|k| k.key == spec.key) {
-                all.push(*spec);
-            }
+/// `lists` joined in order, each key once (features sharing a folder declare its keys each).
+pub fn join_keys(lists: &[&[KeySpec]]) -> Vec<KeySpec> {
+    let mut all: Vec<KeySpec> = Vec::new();
+    for spec in lists.iter().flat_map(|l| l.iter()) {
+        if !all.iter().any(|k| k.key == spec.key) {
+            all.push(*spec);
         }
-        all
-    })
+    }
+    all
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -155,12 +151,16 @@ impl fmt::Display for Source {
 /// The resolved configuration of one application.
 #[derive(Clone, Debug)]
 pub struct Config {
+    /// The keys it was resolved against (the caller's list).
+    keys: &'static [KeySpec],
     values: BTreeMap<&'static str, (Value, Source)>,
 }
 
 /// What the resolution is given; the environment is a function so tests need not touch the
 /// process environment.
 pub struct Inputs<'a> {
+    /// Every key there is (`crate::registry::keys`); anything else is reported unknown.
+    pub keys: &'static [KeySpec],
     /// The config file's path and text, if one exists.
     pub file: Option<(&'a Path, &'a str)>,
     /// Names the app's section may be keyed by: `XrApplicationInfo::applicationName`, then the
@@ -171,18 +171,18 @@ pub struct Inputs<'a> {
 
 impl Config {
     /// All defaults, as the layer runs when nothing is configured.
-    pub fn defaults() -> Config {
-        let values = keys()
+    pub fn defaults(keys: &'static [KeySpec]) -> Config {
+        let values = keys
             .iter()
             .map(|k| (k.key, (parse_value(k, &RawValue::Text(k.default.into())).expect("valid default"), Source::Default)))
             .collect();
-        Config { values }
+        Config { keys, values }
     }
 
     /// Resolves the configuration; every problem found is returned as one diagnostic line and the
     /// affected key keeps the value of the lower-precedence source.
     pub fn resolve(inputs: &Inputs<'_>) -> (Config, Vec<String>) {
-        let mut config = Config::defaults();
+        let mut config = Config::defaults(inputs.keys);
         let mut diagnostics = Vec::new();
         if let Some((path, text)) = inputs.file {
             match parse_file(text) {
@@ -205,7 +205,7 @@ impl Config {
                 }
             }
         }
-        for spec in keys() {
+        for spec in inputs.keys {
             let var = spec.env_var();
             if let Some(text) = (inputs.env)(&var) {
                 match parse_value(spec, &RawValue::Text(text.clone())) {
@@ -220,7 +220,7 @@ impl Config {
     }
 
     fn apply(&mut self, entry: &Entry, source: Source, path: &Path, diagnostics: &mut Vec<String>) {
-        let Some(spec) = keys().iter().find(|k| k.key == entry.key) else {
+        let Some(spec) = self.keys.iter().find(|k| k.key == entry.key) else {
             diagnostics.push(format!("{}:{}: unknown key `{}` ignored", path.display(), entry.line, entry.key));
             return;
         };
@@ -239,11 +239,11 @@ impl Config {
     }
 
     pub fn value(&self, key: &str) -> &Value {
-        &self.values.get(key).unwrap_or_else(|| panic!("config key `{key}` is not in config::keys()")).0
+        &self.values.get(key).unwrap_or_else(|| panic!("config key `{key}` is not a registered key")).0
     }
 
     pub fn source(&self, key: &str) -> &Source {
-        &self.values.get(key).unwrap_or_else(|| panic!("config key `{key}` is not in config::keys()")).1
+        &self.values.get(key).unwrap_or_else(|| panic!("config key `{key}` is not a registered key")).1
     }
 
     pub fn bool(&self, key: &str) -> bool {
@@ -269,6 +269,11 @@ impl Config {
             Value::Text(t) => t,
             other => panic!("config key `{key}` is not text: {other:?}"),
         }
+    }
+
+    /// The keys it was resolved against.
+    pub fn keys(&self) -> &'static [KeySpec] {
+        self.keys
     }
 
     /// The master switch.
@@ -301,19 +306,19 @@ pub fn default_path(env: &dyn Fn(&str) -> Option<String>) -> Option<PathBuf> {
 }
 
 /// Loads and resolves the configuration from the process environment and the default file.
-pub fn load(app_names: &[&str]) -> (Config, Vec<String>) {
-    load_from(default_path(&|k| std::env::var(k).ok()).as_deref(), app_names)
+pub fn load(keys: &'static [KeySpec], app_names: &[&str]) -> (Config, Vec<String>) {
+    load_from(keys, default_path(&|k| std::env::var(k).ok()).as_deref(), app_names)
 }
 
 /// Resolves the configuration from the process environment and the file at `path`.
-pub fn load_from(path: Option<&Path>, app_names: &[&str]) -> (Config, Vec<String>) {
+pub fn load_from(keys: &'static [KeySpec], path: Option<&Path>, app_names: &[&str]) -> (Config, Vec<String>) {
     let env = |k: &str| std::env::var(k).ok();
     let text = path.and_then(|p| std::fs::read_to_string(p).ok());
     let file = match (path, &text) {
         (Some(p), Some(t)) => Some((p, t.as_str())),
         _ => None,
     };
-    Config::resolve(&Inputs { file, app_names, env: &env })
+    Config::resolve(&Inputs { keys, file, app_names, env: &env })
 }
 
 /// A value as written, before it is checked against its key.
@@ -475,182 +480,12 @@ fn raw_name(raw: &RawValue) -> &'static str {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn resolve(file: Option<&str>, apps: &[&str], env: &[(&str, &str)]) -> (Config, Vec<String>) {
-        let env: Vec<(String, String)> = env.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
-        let lookup = move |k: &str| env.iter().find(|(key, _)| key == k).map(|(_, v)| v.clone());
-        let path = Path::new("/cfg/config.toml");
-        Config::resolve(&Inputs { file: file.map(|t| (path, t)), app_names: apps, env: &lookup })
-    }
-
-    #[test]
-    fn defaults_without_file_or_env() {
-        let (c, d) = resolve(None, &[], &[]);
-        assert!(d.is_empty());
-        assert!(c.enabled());
-        assert_eq!(c.choice("log.level"), "info");
-        assert_eq!(c.source("enabled"), &Source::Default);
-    }
-
-    #[test]
-    fn env_var_names_follow_keys() {
-        let names: Vec<String> = keys().iter().map(KeySpec::env_var).collect();
-        assert!(names.contains(&"STEREOSHIM_LOG_LEVEL".to_string()));
-        assert!(names.contains(&"STEREOSHIM_VULKAN_FRAGMENT_SHADING_RATE".to_string()));
-        assert!(names.contains(&"STEREOSHIM_ENABLED".to_string()));
-    }
-
-    #[test]
-    fn file_then_app_section_then_env() {
-        let file = "enabled = false\n[log]\nlevel = \"warn\"\n\n[app.\"My Game\"]\nlog.level = \"debug\"\nenabled = true\n";
-        let (c, d) = resolve(Some(file), &["Other"], &[]);
-        assert!(d.is_empty(), "{d:?}");
-        assert!(!c.enabled());
-        assert_eq!(c.choice("log.level"), "warn");
-        assert_eq!(c.source("log.level"), &Source::File { path: "/cfg/config.toml".into(), line: 3 });
-
-        let (c, _) = resolve(Some(file), &["My Game", "game.exe"], &[]);
-        assert!(c.enabled());
-        assert_eq!(c.choice("log.level"), "debug");
-        assert!(matches!(c.source("log.level"), Source::App { line: 6, .. }));
-
-        // The app picked its section; the user's environment still wins over it.
-        let (c, _) = resolve(Some(file), &["My Game"], &[("STEREOSHIM_LOG_LEVEL", "TRACE"), ("STEREOSHIM_ENABLED", "0")]);
-        assert_eq!(c.choice("log.level"), "trace");
-        assert!(!c.enabled());
-        assert_eq!(c.source("enabled"), &Source::Env("STEREOSHIM_ENABLED".into()));
-    }
-
-    #[test]
-    fn executable_name_is_the_fallback_section() {
-        let file = "[app.\"xr-scene\"]\nenabled = false\n";
-        let (c, _) = resolve(Some(file), &["Some Title", "xr-scene"], &[]);
-        assert!(!c.enabled());
-    }
-
-    #[test]
-    fn syntax_error_reports_line_and_keeps_defaults() {
-        let (c, d) = resolve(Some("enabled = true\nlog.level = \"warn\n"), &[], &[]);
-        assert_eq!(d.len(), 1, "{d:?}");
-        assert!(d[0].contains("/cfg/config.toml: line 2"), "{d:?}");
-        assert_eq!(c.choice("log.level"), "info");
-    }
-
-    #[test]
-    fn bad_values_cost_only_their_key() {
-        let file = "enabled = \"yes please\"\nlog.level = \"loud\"\nvulkan.fragment_shading_rate = \"on\"\nnot.a.key = 3\napp = 5\n";
-        let (c, d) = resolve(Some(file), &[], &[]);
-        assert!(c.enabled());
-        assert_eq!(c.choice("log.level"), "info");
-        assert_eq!(c.choice("vulkan.fragment_shading_rate"), "on");
-        let joined = d.join("\n");
-        assert!(joined.contains(":1: `enabled`: expected true or false"), "{joined}");
-        assert!(joined.contains(":2: `log.level`: expected one of off|error|warn|info|debug|trace"), "{joined}");
-        assert!(joined.contains(":4: unknown key `not.a.key`"), "{joined}");
-        assert!(joined.contains(":5: `app` must be a table"), "{joined}");
-        assert_eq!(d.len(), 4, "{joined}");
-    }
-
-    #[test]
-    fn bad_env_value_keeps_file_value() {
-        let (c, d) = resolve(Some("log.level = \"warn\""), &[], &[("STEREOSHIM_LOG_LEVEL", "chatty")]);
-        assert_eq!(c.choice("log.level"), "warn");
-        assert_eq!(d.len(), 1);
-        assert!(d[0].contains("$STEREOSHIM_LOG_LEVEL=\"chatty\""), "{d:?}");
-    }
-
-    #[test]
-    fn wrong_types_and_ranges() {
-        let spec = KeySpec { key: "x", kind: Kind::Float { min: 0.0, max: 90.0 }, default: "1", doc: "" };
-        assert_eq!(parse_value(&spec, &RawValue::Number(45.0)), Ok(Value::Float(45.0)));
-        assert!(parse_value(&spec, &RawValue::Number(91.0)).is_err());
-        assert!(parse_value(&spec, &RawValue::Text("nan".into())).is_err());
-        assert!(parse_value(&spec, &RawValue::Bool(true)).unwrap_err().contains("got a boolean"));
-        assert_eq!(parse_value(&spec, &RawValue::Text(" 12.5 ".into())), Ok(Value::Float(12.5)));
-    }
-
-    #[test]
-    fn fail_in_lists_calls() {
-        let (c, _) = resolve(None, &[], &[("STEREOSHIM_DEBUG_FAIL_IN", "xrEndFrame, vkCreateImage")]);
-        assert!(c.fails_in("xrEndFrame"));
-        assert!(c.fails_in("vkCreateImage"));
-        assert!(!c.fails_in("xrBeginFrame"));
-    }
-
-    #[test]
-    fn config_path_precedence() {
-        let env = |k: &str| match k {
-            "XDG_CONFIG_HOME" => Some("/x".to_string()),
-            "HOME" => Some("/home/u".to_string()),
-            _ => None,
-        };
-        assert_eq!(default_path(&env), Some(PathBuf::from("/x/stereoshim/config.toml")));
-        let env2 = |k: &str| if k == "HOME" { Some("/home/u".to_string()) } else { None };
-        assert_eq!(default_path(&env2), Some(PathBuf::from("/home/u/.config/stereoshim/config.toml")));
-        let env3 = |k: &str| if k == "STEREOSHIM_CONFIG" { Some("/etc/s.toml".to_string()) } else { None };
-        assert_eq!(default_path(&env3), Some(PathBuf::from("/etc/s.toml")));
-    }
-}
-
-#[cfg(test)]
-mod watch_tests {
-    use super::*;
-
-    #[test]
-    fn reload_sees_a_changed_file_once() {
-        let dir = std::env::temp_dir().join(format!("stereoshim-watch-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("config.toml");
-        std::fs::write(&path, "mask.enabled = false\n").unwrap();
-        let watch = Watch {
-            path: Some(path.clone()),
-            app_names: vec![],
-            interval: std::time::Duration::ZERO,
-            state: std::sync::Mutex::new(WatchState {
-                modified: std::fs::metadata(&path).and_then(|m| m.modified()).ok(),
-                checked: std::time::Instant::now(),
-            }),
-        };
-        assert!(watch.poll().is_none());
-        // A different modification time, as a later write has (coarse clocks can repeat one).
-        let later = std::fs::metadata(&path).unwrap().modified().unwrap() + std::time::Duration::from_secs(2);
-        std::fs::write(&path, "mask.enabled = true\n").unwrap();
-        std::fs::File::options().write(true).open(&path).unwrap().set_modified(later).unwrap();
-        let (reloaded, diagnostics) = watch.poll().expect("a changed file is reloaded");
-        assert!(diagnostics.is_empty(), "{diagnostics:?}");
-        assert!(reloaded.bool("mask.enabled"));
-        assert!(watch.poll().is_none());
-        let (a, _) = Config::resolve(&Inputs { file: Some((&path, "mask.enabled = true")), app_names: &[], env: &|_| None });
-        assert_eq!(changed_keys(&Config::defaults(), &a), vec!["mask.enabled"]);
-        std::fs::remove_dir_all(&dir).ok();
-    }
-}
-
-#[cfg(test)]
-mod docs_tests {
-    /// docs/configuration.md documents every key with its default; this keeps the two in step.
-    #[test]
-    fn every_key_is_documented() {
-        let doc = include_str!("../docs/configuration.md");
-        for spec in super::keys() {
-            let row = doc
-                .lines()
-                .find(|l| l.starts_with(&format!("| `{}` |", spec.key)))
-                .unwrap_or_else(|| panic!("docs/configuration.md lacks a row for `{}`", spec.key));
-            let default = if spec.default.is_empty() { "\"\"".to_string() } else { spec.default.to_string() };
-            assert!(row.contains(&format!("| {default} |")), "docs/configuration.md: default of `{}` is not {default}", spec.key);
-        }
-    }
-}
-
 /// Watches the config file so feature settings apply while the app runs (tuning in the headset,
 /// A/B benchmarks). Checks the file's modification time at most every `interval`; cheap enough to
 /// ask once per frame.
 #[derive(Debug)]
 pub struct Watch {
+    keys: &'static [KeySpec],
     path: Option<PathBuf>,
     app_names: Vec<String>,
     interval: std::time::Duration,
@@ -664,10 +499,11 @@ struct WatchState {
 }
 
 impl Watch {
-    pub fn new(app_names: &[&str], interval: std::time::Duration) -> Watch {
+    pub fn new(keys: &'static [KeySpec], app_names: &[&str], interval: std::time::Duration) -> Watch {
         let path = default_path(&|k| std::env::var(k).ok());
         let modified = path.as_ref().and_then(|p| std::fs::metadata(p).and_then(|m| m.modified()).ok());
         Watch {
+            keys,
             path,
             app_names: app_names.iter().map(|s| s.to_string()).collect(),
             interval,
@@ -690,11 +526,60 @@ impl Watch {
         st.modified = modified;
         drop(st);
         let names: Vec<&str> = self.app_names.iter().map(String::as_str).collect();
-        Some(load_from(Some(path), &names))
+        Some(load_from(self.keys, Some(path), &names))
     }
 }
 
 /// Keys whose values differ between two configurations (for the reload log line).
 pub fn changed_keys(a: &Config, b: &Config) -> Vec<&'static str> {
-    keys().iter().map(|k| k.key).filter(|k| a.value(k) != b.value(k)).collect()
+    a.keys.iter().map(|k| k.key).filter(|k| b.values.contains_key(k) && a.value(k) != b.value(k)).collect()
 }
+
+#[cfg(test)]
+mod watch_tests {
+    use super::*;
+
+    #[test]
+    fn wrong_types_and_ranges() {
+        let spec = KeySpec { key: "x", kind: Kind::Float { min: 0.0, max: 90.0 }, default: "1", doc: "" };
+        assert_eq!(parse_value(&spec, &RawValue::Number(45.0)), Ok(Value::Float(45.0)));
+        assert!(parse_value(&spec, &RawValue::Number(91.0)).is_err());
+        assert!(parse_value(&spec, &RawValue::Text("nan".into())).is_err());
+        assert!(parse_value(&spec, &RawValue::Bool(true)).unwrap_err().contains("got a boolean"));
+        assert_eq!(parse_value(&spec, &RawValue::Text(" 12.5 ".into())), Ok(Value::Float(12.5)));
+    }
+
+    /// The one key the test writes (the registry's full list is tested in `crate::registry`).
+    const KEYS: &[KeySpec] = &[KeySpec { key: "mask.enabled", kind: Kind::Bool, default: "false", doc: "" }];
+
+    #[test]
+    fn reload_sees_a_changed_file_once() {
+        let dir = std::env::temp_dir().join(format!("stereoshim-watch-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("config.toml");
+        std::fs::write(&path, "mask.enabled = false\n").unwrap();
+        let watch = Watch {
+            keys: KEYS,
+            path: Some(path.clone()),
+            app_names: vec![],
+            interval: std::time::Duration::ZERO,
+            state: std::sync::Mutex::new(WatchState {
+                modified: std::fs::metadata(&path).and_then(|m| m.modified()).ok(),
+                checked: std::time::Instant::now(),
+            }),
+        };
+        assert!(watch.poll().is_none());
+        // A different modification time, as a later write has (coarse clocks can repeat one).
+        let later = std::fs::metadata(&path).unwrap().modified().unwrap() + std::time::Duration::from_secs(2);
+        std::fs::write(&path, "mask.enabled = true\n").unwrap();
+        std::fs::File::options().write(true).open(&path).unwrap().set_modified(later).unwrap();
+        let (reloaded, diagnostics) = watch.poll().expect("a changed file is reloaded");
+        assert!(diagnostics.is_empty(), "{diagnostics:?}");
+        assert!(reloaded.bool("mask.enabled"));
+        assert!(watch.poll().is_none());
+        let (a, _) = Config::resolve(&Inputs { keys: KEYS, file: Some((&path, "mask.enabled = true")), app_names: &[], env: &|_| None });
+        assert_eq!(changed_keys(&Config::defaults(KEYS), &a), vec!["mask.enabled"]);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
+

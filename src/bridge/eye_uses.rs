@@ -2,7 +2,7 @@
 //! array layer of it) shows which view only from the app's submission, so it turns the submitted
 //! projection layers into per-swapchain eye uses here, away from the FFI shell.
 
-use crate::shared::{EyeUse, ImageRect};
+use crate::core::views::{EyeUse, ImageRect};
 use std::collections::BTreeMap;
 
 /// One sub-image reference of a projection view, as read from the app's structs.
