@@ -7,7 +7,8 @@
 //! Adding a feature: a folder under `src/features/`, and one line here.
 
 use crate::features::{far_field, foveation, mask, overlay, screenshot, upscale, views};
-use crate::core::config::{self, KeySpec};
+use crate::core::config::{self, Config, KeySpec};
+use crate::plugin::settings::Settings;
 use crate::core::stats::FrameStats;
 
 /// Declares the registered features: `field: Type` per feature, where `Type` implements
@@ -56,7 +57,7 @@ macro_rules! registry {
         }
 
         /// (feature id, whether the user has it on) for a frame recorded under `s`.
-        pub fn enabled(s: &crate::settings::Settings, frame: &FrameStats) -> Vec<(&'static str, bool)> {
+        pub fn enabled(s: &crate::plugin::settings::Settings, frame: &FrameStats) -> Vec<(&'static str, bool)> {
             let ids = empty_stats();
             let on = [$(<$ty as crate::vk::feature::Plugin>::enabled(s, frame),)*];
             ids.iter().map(|f| f.id()).zip(on).collect()
@@ -87,6 +88,36 @@ registry! {
     }
 }
 
+/// Every feature's settings type, each parsed from the configuration by its own `from_config`.
+macro_rules! feature_settings {
+    ($($ty:ty,)*) => {
+        impl Settings {
+            /// The typed settings of `c`: the chassis' and every feature's.
+            pub fn from_config(c: &Config) -> Settings {
+                let mut s = Settings::chassis(c);
+                $(s.features = s.features.with(<$ty>::from_config(c));)*
+                // Symmetric and parallel views pad the app's views beyond what the runtime shows:
+                // the mask hides the padding, so it comes on with them (docs/views.md).
+                if s.of::<views::ViewSettings>().widens() {
+                    let mask = mask::MaskSettings { enabled: true, ..s.of::<mask::MaskSettings>().clone() };
+                    s.features = s.features.with(mask);
+                }
+                s
+            }
+        }
+    };
+}
+
+feature_settings! {
+    mask::MaskSettings,
+    foveation::FoveationSettings,
+    far_field::FarFieldSettings,
+    overlay::OverlaySettings,
+    screenshot::ScreenshotSettings,
+    upscale::UpscaleSettings,
+    views::ViewSettings,
+}
+
 /// Every key the layer reads: the chassis' (`config::CORE_KEYS`) and every feature's, each once,
 /// in that order.
 pub fn keys() -> &'static [KeySpec] {
@@ -101,3 +132,27 @@ pub fn keys() -> &'static [KeySpec] {
 
 #[cfg(test)]
 mod config_tests;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::core::config::Inputs;
+
+    #[test]
+    fn parsed_once_from_the_config() {
+        let env = |k: &str| match k {
+            "STEREOSHIM_MASK_ENABLED" => Some("true".to_string()),
+            "STEREOSHIM_MASK_INTERMEDIATE" => Some("off".to_string()),
+            "STEREOSHIM_FOVEATION_METHOD" => Some("rdm".to_string()),
+            "STEREOSHIM_DEBUG_FAIL_IN" => Some("vkCmdDraw, xrEndFrame".to_string()),
+            _ => None,
+        };
+        let (c, d) = Config::resolve(&Inputs { keys: crate::registry::keys(), file: None, app_names: &[], env: &env });
+        assert!(d.is_empty(), "{d:?}");
+        let s = Settings::from_config(&c);
+        assert!(s.of::<mask::MaskSettings>().enabled && !s.intermediate && !s.of::<foveation::FoveationSettings>().enabled);
+        assert_eq!(s.of::<foveation::FoveationSettings>().method, crate::features::foveation::Method::Rdm);
+        assert!(s.fails_in("xrEndFrame") && !s.fails_in("xrBeginFrame"));
+    }
+
+}

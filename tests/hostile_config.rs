@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use stereoshim::core::config::{Config, Inputs};
 use stereoshim::registry::keys;
-use stereoshim::settings::Settings;
+use stereoshim::plugin::settings::Settings;
 
 /// Random text shaped like TOML: known and unknown keys, sections, values of every type, broken
 /// lines.

@@ -362,7 +362,7 @@ fn stats_cmd(file: Option<PathBuf>, follow: bool, csv: bool, app: Option<String>
         None => {
             let names: Vec<&str> = app.iter().map(String::as_str).collect();
             let (config, _) = stereoshim::core::config::load(stereoshim::registry::keys(), &names);
-            let configured = stereoshim::settings::Settings::from_config(&config).stats_file;
+            let configured = stereoshim::plugin::settings::Settings::from_config(&config).stats_file;
             if configured.is_empty() {
                 return Err("no stats file: pass FILE, or set stats.file in the config".into());
             }
@@ -430,7 +430,7 @@ fn preview_cmd(a: PreviewArgs) -> Result<(), String> {
     for d in &diagnostics {
         eprintln!("stereoshim: config: {d}");
     }
-    let settings = stereoshim::settings::Settings::from_config(&config);
+    let settings = stereoshim::plugin::settings::Settings::from_config(&config);
     let mut headset = match &a.hmd {
         Some(name) => {
             let profile = hmd_profiles::profile::HmdProfile::by_name(name).ok_or("unknown headset")?;

@@ -92,7 +92,7 @@ impl Shared {
         self.config.read().unwrap_or_else(|e| e.into_inner()).clone()
     }
     /// Makes `config` the live configuration (the OpenXR half publishes its typed settings
-    /// beside it: `crate::settings::publish`).
+    /// beside it: `crate::plugin::settings::publish`).
     pub fn set_config(&self, config: Arc<crate::core::config::Config>) {
         *self.config.write().unwrap_or_else(|e| e.into_inner()) = Some(config);
     }

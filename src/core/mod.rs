@@ -9,6 +9,7 @@ pub mod fovea;
 pub mod gpu_time;
 pub mod handles;
 pub mod lifetime;
+pub mod parts;
 pub mod pass;
 pub mod rect;
 pub mod stats;

@@ -4,10 +4,12 @@
 //! machine; the probing lives in `gather` and the FFI shells (`vk::probe`, `xr::probe`).
 #![forbid(unsafe_code)]
 
+use crate::features::upscale::UpscaleSettings;
+use crate::features::foveation::FoveationSettings;
 use crate::core::config::Config;
 use crate::features::foveation::Method;
 use crate::manifest::{DISABLE_ENV, VK_LAYER_NAME, VK_NEGOTIATE, XR_LAYER_NAME, XR_NEGOTIATE};
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::track::device_ext;
 use crate::vk::probe::{DeviceFacts, LibraryFacts, VulkanFacts};
 use std::path::{Path, PathBuf};
@@ -409,7 +411,7 @@ pub fn foveation_on(d: &DeviceFacts, instance_version: u32, config: &Config) -> 
         fsr_support: d.fsr,
     });
     let attachment = decision.enable_fsr.is_some_and(|f| f.attachment) && d.fsr_texel.0 > 0 && d.fsr_texel.1 > 0;
-    (Settings::from_config(config).foveation.method.resolve(attachment, d.cpu), attachment)
+    (Settings::from_config(config).of::<FoveationSettings>().method.resolve(attachment, d.cpu), attachment)
 }
 
 fn yes(b: bool) -> &'static str {
@@ -468,10 +470,10 @@ pub fn gpu(vk: &Result<VulkanFacts, String>, config: &Config) -> Vec<Finding> {
             Some(Method::Auto) | None => "none (auto does not foveate on a CPU implementation)".to_string(),
         };
         let c = format!("foveation.{i}");
-        let detail = format!("foveation.method = {} -> {picked}{}", config.choice("foveation.method"), if s.foveation.enabled { "" } else { "; foveation.enabled = false" });
+        let detail = format!("foveation.method = {} -> {picked}{}", config.choice("foveation.method"), if s.of::<FoveationSettings>().enabled { "" } else { "; foveation.enabled = false" });
         out.push(match method {
-            Some(Method::Vrs) if !attachment && s.foveation.enabled => warning(&c, detail, "set foveation.method = auto (rdm where there are no attachment rates)"),
-            None | Some(Method::Auto) if s.foveation.enabled => warning(&c, detail, "set foveation.method = rdm to foveate anyway (slower than none on most CPU-rendered apps)"),
+            Some(Method::Vrs) if !attachment && s.of::<FoveationSettings>().enabled => warning(&c, detail, "set foveation.method = auto (rdm where there are no attachment rates)"),
+            None | Some(Method::Auto) if s.of::<FoveationSettings>().enabled => warning(&c, detail, "set foveation.method = rdm to foveate anyway (slower than none on most CPU-rendered apps)"),
             _ => ok(&c, detail),
         });
     }
@@ -537,7 +539,7 @@ pub fn config(c: &ConfigFacts) -> Vec<Finding> {
 /// The upscale as configured: what the app will render, and a mip bias the layer cannot read.
 pub fn upscale(s: &Settings) -> Vec<Finding> {
     const C: &str = "upscale";
-    let u = &s.upscale;
+    let u = &s.of::<UpscaleSettings>();
     if !u.enabled {
         return Vec::new();
     }

@@ -7,6 +7,11 @@
 
 pub mod draw;
 
+use crate::features::views::ViewSettings;
+use crate::features::upscale::UpscaleSettings;
+use crate::features::mask::MaskSettings;
+use crate::features::foveation::FoveationSettings;
+use crate::features::far_field::FarFieldSettings;
 use crate::core::fovea::Ring;
 use crate::core::rect::PixelRect;
 use crate::features::far_field::rules::{self as far_rules, PixelMap, ViewGeometry};
@@ -16,7 +21,7 @@ use crate::features::foveation::rules::fovea_views;
 use crate::features::foveation::vrs::rules::{self as vrs, EyeRates, FragmentSize};
 use crate::features::mask::{rules as mask_rules, source as mask_source};
 use crate::features::views::rules::{self as views_rules, Cut};
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::core::views::{MaskSource, ViewFov, ViewPose};
 
 /// One view of the headset as a runtime reports it.
@@ -175,10 +180,10 @@ impl Default for Options {
 pub fn compute(headset: &Headset, settings: &Settings, options: &Options) -> Preview {
     let (w, h) = (headset.width, headset.height);
     let rect = PixelRect { x: 0, y: 0, width: w, height: h };
-    let (policy, lens) = mask_source::from_settings(&settings.mask);
+    let (policy, lens) = mask_source::from_settings(&settings.of::<MaskSettings>());
     // Fixed foveation (no gaze in a preview): every centre on the optical axis.
-    let foveae = fovea_views(&vec![[0.0, 0.0]; headset.views.len()], settings.foveation.rings);
-    let ff = &settings.far_field;
+    let foveae = fovea_views(&vec![[0.0, 0.0]; headset.views.len()], settings.of::<FoveationSettings>().rings);
+    let ff = &settings.of::<FarFieldSettings>();
     let split_px = options.split_px.unwrap_or(ff.split_px);
     let geometry: Vec<ViewGeometry> = headset.views.iter().map(|v| ViewGeometry::of(&pose(v), rect)).collect();
     let source = (ff.source_view as usize).min(geometry.len().saturating_sub(1));
@@ -204,7 +209,7 @@ pub fn compute(headset: &Headset, settings: &Settings, options: &Options) -> Pre
             ViewPreview { mask, vrs, rdm, far_field }
         })
         .collect();
-    let cuts = fov_cuts(headset, settings.views.fov_cut_margin_deg);
+    let cuts = fov_cuts(headset, settings.of::<ViewSettings>().fov_cut_margin_deg);
     Preview { width: w, height: h, views, split_m, split_px, cuts }
 }
 
@@ -369,9 +374,9 @@ pub fn report(headset: &Headset, settings: &Settings, p: &Preview, pngs: &dyn Fn
             })
         })
         .collect();
-    let rings = settings.foveation.rings;
+    let rings = settings.of::<FoveationSettings>().rings;
     // The upscale's sizes: what the app would be told, its pixels and the display's.
-    let up = &settings.upscale;
+    let up = &settings.of::<UpscaleSettings>();
     let told = crate::features::upscale::rules::render_size((p.width, p.height), (up.scale, up.scale), (u32::MAX, u32::MAX));
     let (rendered, display) = (told.0 as u64 * told.1 as u64, area);
     let upscale = json!({
@@ -388,19 +393,19 @@ pub fn report(headset: &Headset, settings: &Settings, p: &Preview, pngs: &dyn Fn
         "width": p.width,
         "height": p.height,
         "enabled": {
-            "mask": settings.mask.enabled,
-            "foveation": settings.foveation.enabled,
-            "far_field": settings.far_field.enabled,
-            "upscale": settings.upscale.enabled,
-            "fov_cut": settings.views.fov_cut,
+            "mask": settings.of::<MaskSettings>().enabled,
+            "foveation": settings.of::<FoveationSettings>().enabled,
+            "far_field": settings.of::<FarFieldSettings>().enabled,
+            "upscale": settings.of::<UpscaleSettings>().enabled,
+            "fov_cut": settings.of::<ViewSettings>().fov_cut,
         },
         "upscale": upscale,
         "foveation": { "inner_deg": rings.inner_deg, "middle_deg": rings.middle_deg, "center": "optical axis (fixed foveation)" },
         "far_field": {
             "split_px": p.split_px,
             "split_m": if p.split_m.is_finite() { json!(p.split_m) } else { json!(null) },
-            "shift": match settings.far_field.shift { Shift::Infinity => "infinity", Shift::Depth => "depth" },
-            "source_view": settings.far_field.source_view,
+            "shift": match settings.of::<FarFieldSettings>().shift { Shift::Infinity => "infinity", Shift::Depth => "depth" },
+            "source_view": settings.of::<FarFieldSettings>().source_view,
         },
         "legend": draw::legend_json(),
         "views": views,
@@ -481,7 +486,7 @@ mod tests {
             let f = v.mask.pixels_masked as f64 / rect.area() as f64;
             assert!((0.25..0.40).contains(&f), "{f}");
             // RDM equals the rule's own count.
-            let fovea = fovea_views(&[[0.0, 0.0]], s.foveation.rings)[0];
+            let fovea = fovea_views(&[[0.0, 0.0]], s.of::<FoveationSettings>().rings)[0];
             let n = RdmParams::new(&h.views[i].fov, &fovea, rect).unwrap().count(rect);
             let r = v.rdm.as_ref().unwrap();
             assert_eq!((r.quads_skipped, r.pixels_skipped), (n.quads_skipped, n.pixels_skipped));
@@ -512,7 +517,7 @@ mod tests {
         let p = compute(&h, &s, &Options { split_px: Some(4.0), vrs_texel: 8 });
         let v = &p.views[0];
         assert_eq!(v.mask.source, Some(MaskSource::Synthesized));
-        let (_, lens) = mask_source::from_settings(&s.mask);
+        let (_, lens) = mask_source::from_settings(&s.of::<MaskSettings>());
         let rect = PixelRect { x: 0, y: 0, width: 128, height: 128 };
         assert_eq!(v.mask.pixels_masked, mask_rules::masked_pixels(&lens.hidden_triangles(), &h.views[0].fov, rect));
         let base = compute(&h, &settings(&|_| None), &Options::default());

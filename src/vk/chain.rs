@@ -438,7 +438,7 @@ pub(super) unsafe extern "system" fn create_device(
             caps::from_create_info(device_version.min(inst.api_version), &enabled, features, fsr_attachment)
         };
         tracing::info!(?caps, "vulkan device capabilities the layer's objects are checked against");
-        let device_settings = Arc::new(crate::settings::Settings::from_config(&inst.config));
+        let device_settings = Arc::new(crate::plugin::settings::Settings::from_config(&inst.config));
         // SAFETY: the app's queue create infos, valid with their count during this call.
         let queue_infos = unsafe { convert::slice(ci_ref.p_queue_create_infos, ci_ref.queue_create_info_count) }
             .iter()

@@ -26,7 +26,7 @@ use super::DeviceState;
 use crate::core::config::KeySpec;
 use crate::core::pass::NotMasked;
 use crate::core::stats::FeatureStats;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::track::cmd::PassKind;
 use crate::track::eye_pass::TransferRegion;
 use ash::vk;

@@ -98,7 +98,7 @@ pub(crate) struct DeviceState {
     pub extension_decision: Decision,
     /// The settings resolved when the device was created (used until the OpenXR half publishes
     /// live ones).
-    pub settings: Arc<crate::settings::Settings>,
+    pub settings: Arc<crate::plugin::settings::Settings>,
     /// The loader's callback for dispatchable objects the layer creates itself.
     pub set_loader_data: Option<PfnSetDeviceLoaderData>,
     /// The physical device's memory types (for the layer's own allocations).
@@ -133,8 +133,8 @@ impl DeviceState {
             tracing::warn!("{kind}: {what} (repeats are counted, not logged)");
         }
     }
-    pub fn settings(&self) -> Arc<crate::settings::Settings> {
-        crate::settings::current().unwrap_or_else(|| self.settings.clone())
+    pub fn settings(&self) -> Arc<crate::plugin::settings::Settings> {
+        crate::plugin::settings::current().unwrap_or_else(|| self.settings.clone())
     }
 
     /// `debug.fail_in`: the layer logic of `call` fails on purpose (fault-injection tests).

@@ -14,7 +14,7 @@
 
 use super::session::Session;
 use super::Instance;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use openxr_sys as xr;
 use std::any::Any;
 

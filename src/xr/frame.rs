@@ -1,6 +1,10 @@
 //! Frame entry points. `xrEndFrame` is where the layer learns which swapchain shows which eye: the
 //! submitted projection views are read here and published for the Vulkan half.
 
+use crate::features::overlay::OverlaySettings;
+use crate::features::mask::MaskSettings;
+use crate::features::foveation::FoveationSettings;
+use crate::features::far_field::FarFieldSettings;
 use super::session;
 use crate::guard;
 use crate::bridge;
@@ -54,10 +58,10 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
     let record = crate::frame_stats::FrameRecord {
         frame,
         time: std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0.0, |d| d.as_secs_f64()),
-        mask_enabled: settings.mask.enabled,
-        foveation_enabled: settings.foveation.enabled,
-        far_field_enabled: settings.far_field.enabled,
-        overlay_enabled: settings.overlay.enabled,
+        mask_enabled: settings.of::<MaskSettings>().enabled,
+        foveation_enabled: settings.of::<FoveationSettings>().enabled,
+        far_field_enabled: settings.of::<FarFieldSettings>().enabled,
+        overlay_enabled: settings.of::<OverlaySettings>().enabled,
         stats,
         fovea,
         fovea_source,
@@ -113,7 +117,7 @@ fn reload_config(inst: &super::Instance) {
             f.config_reloaded(&s, &changed);
         }
     }
-    shared.set_config(std::sync::Arc::new(config));
+    super::publish_config(std::sync::Arc::new(config));
 }
 
 fn sub_image(s: &xr::SwapchainSubImage) -> SubImage {

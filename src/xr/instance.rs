@@ -34,7 +34,7 @@ impl Stats {
 
 /// Instance extensions the features use for themselves, if the runtime has them.
 fn wanted_extensions(config: &crate::core::config::Config) -> Vec<&'static str> {
-    let settings = crate::settings::Settings::from_config(config);
+    let settings = crate::plugin::settings::Settings::from_config(config);
     let mut v: Vec<&'static str> = Vec::new();
     for f in crate::registry::XR_FEATURES {
         let wanted = f.wanted_extensions(&settings);
@@ -196,7 +196,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
         let next = unsafe { Next::load(next_gipa, handle) };
         let config = Arc::new(config);
         let app_name_for_watch = app_name.clone();
-        crate::bridge::shared().set_config(config.clone());
+        super::publish_config(config.clone());
         tracing::info!(
             enabled = config.enabled(),
             exe,

@@ -210,8 +210,15 @@ pub(crate) struct XrState {
 
 /// The live settings (published with the config at instance creation and on every reload), else
 /// those of the instance's own config.
-pub(crate) fn settings(inst: &Instance) -> std::sync::Arc<crate::settings::Settings> {
-    crate::settings::current().unwrap_or_else(|| std::sync::Arc::new(crate::settings::Settings::from_config(&inst.config)))
+/// Makes `config` the process's live configuration, and its typed settings the live settings
+/// (`crate::plugin::settings::current`), in that order of publication.
+pub(crate) fn publish_config(config: Arc<Config>) {
+    crate::plugin::settings::publish(crate::plugin::settings::Settings::from_config(&config));
+    crate::bridge::shared().set_config(config);
+}
+
+pub(crate) fn settings(inst: &Instance) -> std::sync::Arc<crate::plugin::settings::Settings> {
+    crate::plugin::settings::current().unwrap_or_else(|| std::sync::Arc::new(crate::plugin::settings::Settings::from_config(&inst.config)))
 }
 
 pub(crate) fn state() -> &'static XrState {

@@ -10,9 +10,10 @@
 //! Anything that fails is logged once and the session goes on without the overlay. The objects
 //! die with the session (`destroy`, before `xrDestroySession` goes down).
 
+use crate::features::overlay::OverlaySettings;
 use super::session::Session;
 use crate::features::overlay::rules::{self, Window};
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::stats_summary::Second;
 use crate::vk::DeviceState;
 use ash::vk;
@@ -91,7 +92,7 @@ fn vk_err(what: &'static str) -> impl Fn(vk::Result) -> String {
 /// overlay is off, failed, or there is no room for another layer.
 pub(super) fn quad(s: &Session, settings: &Settings, app_layers: u32) -> Option<xr::CompositionLayerQuad> {
     let o = &s.overlay;
-    if !settings.overlay.enabled || o.off.load(Ordering::Relaxed) {
+    if !settings.of::<OverlaySettings>().enabled || o.off.load(Ordering::Relaxed) {
         return None;
     }
     let taken = lock(&o.live).take();
@@ -138,7 +139,7 @@ pub(super) fn quad(s: &Session, settings: &Settings, app_layers: u32) -> Option<
         }
     }
     let q = ov.released.then(|| {
-        let p = rules::placement(settings.overlay.position, settings.overlay.distance_m, settings.overlay.scale);
+        let p = rules::placement(settings.of::<OverlaySettings>().position, settings.of::<OverlaySettings>().distance_m, settings.of::<OverlaySettings>().scale);
         xr::CompositionLayerQuad {
             ty: xr::CompositionLayerQuad::TYPE,
             next: std::ptr::null(),
@@ -164,7 +165,7 @@ pub(super) fn quad(s: &Session, settings: &Settings, app_layers: u32) -> Option<
 /// A frame ended under `settings` with `record`: the stats window learns it, and the text is
 /// redrawn when a second completed or the features on changed.
 pub(super) fn frame_ended(s: &Session, settings: &Settings, record: &crate::frame_stats::FrameRecord, enabled: &[(&'static str, bool)]) {
-    if !settings.overlay.enabled || s.overlay.off.load(Ordering::Relaxed) {
+    if !settings.of::<OverlaySettings>().enabled || s.overlay.off.load(Ordering::Relaxed) {
         return;
     }
     let frame = crate::stats_summary::parse_line(&record.to_json());

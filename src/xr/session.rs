@@ -2,6 +2,8 @@
 //! are; the features' per-session state (`XrSessionFeatures`) is made here and their
 //! `views_located` event raised.
 
+use crate::features::mask::MaskSettings;
+use crate::features::foveation::FoveationSettings;
 use super::{state, Instance};
 use crate::guard;
 use crate::core::views::ViewFov;
@@ -143,7 +145,7 @@ pub(super) unsafe extern "system" fn create_session(
             None => tracing::warn!("session {:#x} has no Vulkan binding: nothing to do for it", handle.into_raw()),
         }
         let settings = super::settings(&inst);
-        if binding.is_some() && !vulkan_half && (settings.mask.enabled || settings.foveation.enabled) {
+        if binding.is_some() && !vulkan_half && (settings.of::<MaskSettings>().enabled || settings.of::<FoveationSettings>().enabled) {
             tracing::warn!(
                 "the hidden-area mask / foveation is enabled, but stereoshim's Vulkan layer is not in the app's Vulkan \
                  device, so nothing will be applied. Likely causes: the app created its VkInstance before asking the \

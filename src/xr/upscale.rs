@@ -16,6 +16,7 @@
 //! - Anything the layer cannot make falls back to the swapchain the app asked for (logged); the
 //!   runtime's own errors go to the app.
 
+use crate::features::foveation::FoveationSettings;
 use super::session::Session;
 use super::swapchain::Swapchain;
 use crate::core::rect::PixelRect;
@@ -26,7 +27,7 @@ use super::upscale_layers::{pixel_rect, rewrite, sub_images};
 use crate::features::upscale::lens::Tiles;
 use crate::features::upscale::vk::{format_refusal, Job, Output, Pipelines, Target, TargetDesc};
 use crate::features::upscale::UpscaleSettings;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::vk::DeviceState;
 use ash::vk;
 use ash::vk::Handle as _;
@@ -64,15 +65,15 @@ impl InstanceUpscale {
 pub(super) fn views_enumerated(inst: &super::Instance, settings: &Settings, views: &mut [xr::ViewConfigurationView]) {
     let mut latch = lock(&inst.upscale.latch);
     let l = latch.get_or_insert_with(|| {
-        if settings.upscale.enabled && !settings.upscale.mip_bias_valid {
+        if settings.of::<UpscaleSettings>().enabled && !settings.of::<UpscaleSettings>().mip_bias_valid {
             tracing::warn!("upscale: upscale.mip_bias is not auto, off or a number in -4..4; auto is used");
         }
-        Latch { settings: settings.upscale, views: Vec::new() }
+        Latch { settings: *settings.of::<UpscaleSettings>(), views: Vec::new() }
     });
     if !l.settings.enabled {
         return;
     }
-    if l.settings != settings.upscale {
+    if l.settings != *settings.of::<UpscaleSettings>() {
         tracing::info!("upscale: its settings changed; the sizes told stay as latched until the instance ends");
     }
     let runtime: Vec<_> = views
@@ -455,9 +456,9 @@ fn runtime_rect(i: &Interposed, app_extent: (u32, u32), rect: PixelRect, project
 /// Where EASU runs for a projection view's job (`upscale.fovea_only`): the foveation's inner
 /// region of the view (its fixed centre when foveation publishes none), else everywhere.
 fn fovea_of(settings: &Settings, view: Option<(u32, xr::Fovf)>, dst: PixelRect) -> [f32; 4] {
-    let (true, Some((index, fov))) = (settings.upscale.fovea_only, view) else { return [0.0; 4] };
+    let (true, Some((index, fov))) = (settings.of::<UpscaleSettings>().fovea_only, view) else { return [0.0; 4] };
     let published = crate::bridge::shared().foveation();
-    let (center, inner) = published.views.iter().find(|f| f.view == index).map_or(([0.0, 0.0], settings.foveation.rings.inner_deg), |f| (f.center, f.inner_deg));
+    let (center, inner) = published.views.iter().find(|f| f.view == index).map_or(([0.0, 0.0], settings.of::<FoveationSettings>().rings.inner_deg), |f| (f.center, f.inner_deg));
     let tan = [fov.angle_left.tan(), fov.angle_right.tan(), fov.angle_up.tan(), fov.angle_down.tan()];
     rules::fovea_ellipse(center, inner, tan, dst)
 }
@@ -635,7 +636,7 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
                     if let Some((src, dst)) = runtime_rect(i, (sc.desc.width, sc.desc.height), pixel_rect(&sub.image_rect), projection) {
                         let job = Job { layer: sub.image_array_index, src, dst };
                         if !jobs.iter().any(|(h, j, _, _, _)| *h == handle && *j == job) {
-                            let tiles = view.filter(|_| settings.upscale.skip_hidden).and_then(|(v, fov)| s.upscale.lens.tiles(s, v, &fov, dst));
+                            let tiles = view.filter(|_| settings.of::<UpscaleSettings>().skip_hidden).and_then(|(v, fov)| s.upscale.lens.tiles(s, v, &fov, dst));
                             jobs.push((handle, job, fovea_of(&settings, view, dst), view.map(|v| v.0), tiles));
                         }
                     }

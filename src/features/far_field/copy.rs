@@ -5,8 +5,9 @@
 //! filled by a compute pass (`super::compute`), which also reduces the depth to a range per tile
 //! for the reuse draw's culling; multisampled ones by image copies (their tiles stay unknown).
 
+use crate::features::far_field::FarFieldSettings;
 use crate::core::rect::PixelRect;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::track::cmd::{AttachmentUse, PassInstance};
 use crate::track::eye_pass::EyeDraw;
 use crate::vk::inject;
@@ -140,7 +141,7 @@ pub(super) struct PendingCopy {
 ///
 /// Returns why it could not, if so (then the slots keep what they had: no copy is noted).
 pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: PendingCopy, s: &Settings, copier: Option<&super::compute::Copier>) -> Result<(), &'static str> {
-    let sources: Vec<EyeDraw> = p.draws.iter().filter(|dr| s.far_field.alternate || dr.view == s.far_field.source_view).copied().collect();
+    let sources: Vec<EyeDraw> = p.draws.iter().filter(|dr| s.of::<FarFieldSettings>().alternate || dr.view == s.of::<FarFieldSettings>().source_view).copied().collect();
     if sources.is_empty() {
         return Ok(());
     }

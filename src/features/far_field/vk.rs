@@ -12,6 +12,7 @@
 //! layer records next to them. The app's images go to TRANSFER_SRC for the copy and back to the
 //! layout the pass left them in.
 
+use crate::features::far_field::FarFieldSettings;
 use super::count::Counter;
 use super::compute::Copier;
 use super::copy::{attachments, make_slots, AwaitPass, CopyOp, PendingCopy, Slots, NOT_REDUCED};
@@ -19,7 +20,7 @@ use super::rules::{self, InverseDepth, Stamp};
 use super::stats::FarFieldStats;
 use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::core::views::{FarFieldViews, ViewPose};
 use crate::track::cmd::{AttachmentUse, PassInstance};
@@ -167,7 +168,7 @@ impl Plugin for FarFieldDevice {
         Box::new(FarFieldStats::default())
     }
     fn enabled(s: &Settings, _frame: &crate::core::stats::FrameStats) -> bool {
-        s.far_field.enabled
+        s.of::<FarFieldSettings>().enabled
     }
 }
 
@@ -354,7 +355,7 @@ impl FarFieldDevice {
 
     /// Records the reuse draws of an eye pass and notes its copy for the pass's end.
     fn record(&self, d: &DeviceState, at: Target<'_>) -> Result<(), &'static str> {
-        let s = &at.settings.far_field;
+        let s = &at.settings.of::<FarFieldSettings>();
         // The depth convention from the clear (the depth range itself is only needed at
         // submission, when a pass recorded before the app's first frame end has it too).
         let reversed = at.plan.fail_depth == 1.0;
@@ -483,7 +484,7 @@ impl VkFeature for FarFieldDevice {
         })
     }
     fn injects(&self, s: &Settings) -> bool {
-        let on = self.layer_enabled && s.far_field.enabled;
+        let on = self.layer_enabled && s.of::<FarFieldSettings>().enabled;
         if on {
             self.used.store(true, Ordering::Relaxed);
         }
@@ -499,7 +500,7 @@ impl VkFeature for FarFieldDevice {
     }
     /// The source eye's depth is copied when its pass ends.
     fn keeps_depth(&self, s: &Settings) -> bool {
-        self.layer_enabled && s.far_field.enabled
+        self.layer_enabled && s.of::<FarFieldSettings>().enabled
     }
     fn inject(&self, d: &DeviceState, at: &Injection<'_>) {
         let t = Target { cb: at.cb, owner: at.owner, pass: at.pass, plan: at.plan, draws: at.plan.draws.clone(), settings: at.settings, bound_sets: &at.bound_sets, awaiting: None };
@@ -617,11 +618,11 @@ impl VkFeature for FarFieldDevice {
         let frame = views.current.as_ref().map_or(0, |c| c.0);
         let engine = d.engine.as_deref().and_then(rules::engine_depth);
         let inverse = |reversed| {
-            let (r, source) = rules::depth_range_with_engine(views.depth, s.far_field.configured_range, engine, reversed)?;
+            let (r, source) = rules::depth_range_with_engine(views.depth, s.of::<FarFieldSettings>().configured_range, engine, reversed)?;
             self.log_range_source(source);
             InverseDepth::of(&r)
         };
-        let on = self.layer_enabled && s.far_field.enabled;
+        let on = self.layer_enabled && s.of::<FarFieldSettings>().enabled;
         for &cb in cbs {
             let idle = !lifetime::in_flight(d, cb);
             lifetime::with_holds(d, cb, |holds| {

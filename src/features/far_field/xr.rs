@@ -3,7 +3,7 @@
 //! can map between the eyes of one frame and between frames; and SAMPLED + TRANSFER_SRC on eye swapchains,
 //! so the source eye can be copied.
 
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::core::views::ViewPose;
 use crate::xr::feature::XrFeature;

@@ -8,9 +8,10 @@
 //! locates the gaze each frame where the app locates its views. The app's own actions are
 //! untouched.
 
+use crate::features::foveation::FoveationSettings;
 use super::rules::{fovea_views, CenterSource, GazeFilter};
 use crate::core::fovea;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::xr::feature::XrFeature;
 use crate::xr::session::Session;
 use crate::xr::{settings, EYE_GAZE_EXT};
@@ -68,7 +69,7 @@ fn fixed<const N: usize>(s: &str) -> [c_char; N] {
 fn wanted(s: &Session) -> bool {
     let inst = &s.instance;
     let settings = settings(inst);
-    inst.layer_extensions.iter().any(|e| e == EYE_GAZE_EXT) && settings.foveation.enabled && settings.foveation.eye_tracking
+    inst.layer_extensions.iter().any(|e| e == EYE_GAZE_EXT) && settings.of::<FoveationSettings>().enabled && settings.of::<FoveationSettings>().eye_tracking
 }
 
 /// Creates the action set, the pose action, its binding suggestion and its space. Any failure
@@ -145,7 +146,7 @@ impl XrFeature for FoveationXr {
     }
     /// Whenever the layer is on and eye tracking is not off: foveation can be switched on live.
     fn wanted_extensions(&self, s: &Settings) -> Vec<&'static str> {
-        if s.enabled && s.foveation.eye_tracking {
+        if s.enabled && s.of::<FoveationSettings>().eye_tracking {
             vec![EYE_GAZE_EXT]
         } else {
             Vec::new()
@@ -157,7 +158,7 @@ impl XrFeature for FoveationXr {
     /// is on and the method is not pinned to VRS), since foveation can be switched on while the
     /// app runs; an extra usage bit changes nothing the app can see.
     fn swapchain_usage(&self, s: &Settings, usage: xr::SwapchainUsageFlags) -> xr::SwapchainUsageFlags {
-        let rdm_possible = s.enabled && s.foveation.method != super::Method::Vrs;
+        let rdm_possible = s.enabled && s.of::<FoveationSettings>().method != super::Method::Vrs;
         if rdm_possible && usage.contains(xr::SwapchainUsageFlags::COLOR_ATTACHMENT) {
             xr::SwapchainUsageFlags::TRANSFER_SRC | xr::SwapchainUsageFlags::TRANSFER_DST
         } else {
@@ -223,11 +224,11 @@ impl XrFeature for FoveationXr {
     fn frame_begun(&self, s: &Session) {
         let settings = settings(&s.instance);
         let shared = crate::bridge::shared();
-        if !settings.foveation.enabled {
+        if !settings.of::<FoveationSettings>().enabled {
             shared.update_foveation(Vec::new());
             return;
         }
-        let rings = settings.foveation.rings;
+        let rings = settings.of::<FoveationSettings>().rings;
         let centers = lock(&s.features.foveation.centers).clone();
         let centers = if centers.len() == STEREO_VIEWS { centers } else { vec![[0.0, 0.0]; STEREO_VIEWS] };
         if shared.update_foveation(fovea_views(&centers, rings)) {
@@ -241,7 +242,7 @@ impl XrFeature for FoveationXr {
 /// optical axis).
 fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
     let settings = settings(&s.instance);
-    let tracked = settings.foveation.enabled && settings.foveation.eye_tracking;
+    let tracked = settings.of::<FoveationSettings>().enabled && settings.of::<FoveationSettings>().eye_tracking;
     let space = lock(&s.features.foveation.gaze.actions).as_ref().map(|g| g.space);
     let direction = match (tracked, space, s.instance.next.locate_space) {
         (true, Some(space), Some(locate)) => {

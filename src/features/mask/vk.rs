@@ -8,11 +8,12 @@
 //! once and resubmitted keeps drawing the *current* mask: before each submission whose recording
 //! is idle, a buffer filled for an older mask generation is refilled (`before_submit`).
 
+use crate::features::mask::MaskSettings;
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
 use crate::features::mask::rules::{self, MaskFrameStats};
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::core::views::Views;
 use crate::track::cmd::PassInstance;
@@ -210,7 +211,7 @@ impl Plugin for MaskDevice {
         Box::new(MaskFrameStats::default())
     }
     fn enabled(s: &Settings, _frame: &crate::core::stats::FrameStats) -> bool {
-        s.mask.enabled
+        s.of::<MaskSettings>().enabled
     }
 }
 
@@ -297,7 +298,7 @@ impl MaskDevice {
         if g.ndc.is_empty() || plan.draws.iter().any(|dr| !g.ndc.contains_key(&dr.view)) {
             return Err(NotMasked::NoMask);
         }
-        let p = self.pipeline(d, at.pass, plan, at.settings.mask.debug)?;
+        let p = self.pipeline(d, at.pass, plan, at.settings.of::<MaskSettings>().debug)?;
         let multiview = plan.layout == EyeLayout::Multiview;
         let draws: Vec<EyeDraw> = if multiview { plan.draws.clone() } else { plan.draws.iter().filter(|dr| dr.scissor.area() > 0).copied().collect() };
         let recorded: Vec<EyeDraw> = if multiview { draws.iter().take(1).copied().collect() } else { draws.clone() };
@@ -346,7 +347,7 @@ impl VkFeature for MaskDevice {
         self.used.load(Ordering::Relaxed).then(|| lock(&self.books).total.summary())
     }
     fn injects(&self, s: &Settings) -> bool {
-        let on = self.layer_enabled && s.mask.enabled;
+        let on = self.layer_enabled && s.of::<MaskSettings>().enabled;
         if on {
             self.used.store(true, Ordering::Relaxed);
         }
@@ -391,7 +392,7 @@ impl VkFeature for MaskDevice {
         // Any plan with this pass's shape makes the same pipeline (render pass + subpass or
         // formats; multiview from the pass itself).
         let plan = inject::shape_only(at.pass, at.fail_depth);
-        let Ok(p) = self.pipeline(d, at.pass, &plan, at.settings.mask.debug) else { return };
+        let Ok(p) = self.pipeline(d, at.pass, &plan, at.settings.of::<MaskSettings>().debug) else { return };
         let Ok(data) = self.data(d, &g, Target::Awaiting { pass: Box::new(at.pass.clone()), fail_depth: at.fail_depth, area, walk: at.walk }, "swapchain") else { return };
         data.refresh(self, &g, None, None);
         let draw = inject::IndirectDraw { slot: 0, viewport: inject::fail_viewport(area, at.fail_depth), scissor: area };
@@ -406,7 +407,7 @@ impl VkFeature for MaskDevice {
     /// recording draws.
     fn before_submit(&self, d: &DeviceState, cbs: &[u64]) {
         let settings = d.settings();
-        let on = self.layer_enabled && settings.mask.enabled;
+        let on = self.layer_enabled && settings.of::<MaskSettings>().enabled;
         let mut g: Option<Arc<Geometry>> = None;
         for &cb in cbs {
             let idle = !lifetime::in_flight(d, cb);

@@ -3,8 +3,9 @@
 //! Vulkan half at `xrBeginFrame` whenever they are due: at the start, after the runtime says they
 //! changed, and after a config reload that touched `mask.*`.
 
+use crate::features::mask::MaskSettings;
 use super::source as mask_source;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::core::views::ViewMask;
 use crate::xr::feature::XrFeature;
 use crate::xr::session::Session;
@@ -111,10 +112,10 @@ pub(crate) fn runtime_mesh(s: &Session, view: u32, ty: xr::VisibilityMaskTypeKHR
 /// (Re)publishes the hidden-area masks of all views when they are due.
 fn refresh_masks(s: &Session) {
     let settings = settings(&s.instance);
-    if !settings.mask.enabled || !s.features.mask.dirty.swap(false, Ordering::AcqRel) {
+    if !settings.of::<MaskSettings>().enabled || !s.features.mask.dirty.swap(false, Ordering::AcqRel) {
         return;
     }
-    let (policy, lens) = mask_source::from_settings(&settings.mask);
+    let (policy, lens) = mask_source::from_settings(&settings.of::<MaskSettings>());
     let mut masks = Vec::new();
     for view in 0..STEREO_VIEWS {
         match mask_source::choose(policy, runtime_mask(s, view), &lens) {

@@ -14,7 +14,7 @@ use super::write::{self, Picture};
 use super::ScreenshotStats;
 use crate::core::config::KeySpec;
 use crate::core::stats::FeatureStats;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::core::views::ImageRect;
 use crate::vk::feature::{DeviceInit, Plugin, VkFeature};

@@ -6,9 +6,10 @@
 //! `xrBeginFrame` closes it (`vk::frame_begun`). The session announces itself with an instance
 //! file (`<pid>.json`) for the command to find, removed when the session ends.
 
+use crate::features::screenshot::ScreenshotSettings;
 use super::rules::{self, TouchWatch};
 use super::vk::{self as shot_vk, Request, Requested};
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::xr::feature::XrFeature;
 use crate::xr::session::Session;
 use openxr_sys as xr;
@@ -75,7 +76,7 @@ impl XrFeature for ScreenshotXr {
     /// The copy reads the swapchain image: TRANSFER_SRC on colour swapchains whenever screenshots
     /// may be asked for (an extra usage bit changes nothing the app can see).
     fn swapchain_usage(&self, s: &Settings, usage: xr::SwapchainUsageFlags) -> xr::SwapchainUsageFlags {
-        if s.enabled && s.screenshot.enabled && usage.contains(xr::SwapchainUsageFlags::COLOR_ATTACHMENT) {
+        if s.enabled && s.of::<ScreenshotSettings>().enabled && usage.contains(xr::SwapchainUsageFlags::COLOR_ATTACHMENT) {
             xr::SwapchainUsageFlags::TRANSFER_SRC
         } else {
             xr::SwapchainUsageFlags::EMPTY
@@ -90,7 +91,7 @@ impl XrFeature for ScreenshotXr {
             w.armed = shot_vk::frame_begun(binding.device_key, frame);
         }
         let settings = crate::xr::settings(&s.instance);
-        if !(settings.enabled && settings.screenshot.enabled) {
+        if !(settings.enabled && settings.of::<ScreenshotSettings>().enabled) {
             return;
         }
         let now = now_ns();
@@ -106,7 +107,7 @@ impl XrFeature for ScreenshotXr {
         let pid = std::process::id();
         let file = w.folder.as_ref().map(|f| rules::trigger_file(f, pid));
         let mut ask: Option<(u64, Option<PathBuf>)> = file.and_then(|f| std::fs::read_to_string(&f).ok().map(|t| (rules::request_number(&t), Some(f))));
-        if !settings.screenshot.trigger.is_empty() && w.touch.fired(mtime_ns(&settings.screenshot.trigger)) {
+        if !settings.of::<ScreenshotSettings>().trigger.is_empty() && w.touch.fired(mtime_ns(&settings.of::<ScreenshotSettings>().trigger)) {
             w.touch_pending = true;
         }
         if ask.is_none() && w.touch_pending {
@@ -177,5 +178,5 @@ fn register(w: &mut Watch, app: &str) {
 /// `screenshot.dir`, else the XDG pictures folder (read when a screenshot is asked for).
 fn output_folder(s: &Settings) -> Option<PathBuf> {
     let user_dirs = rules::user_dirs_file(&env).and_then(|p| std::fs::read_to_string(p).ok());
-    rules::output_folder(&s.screenshot.dir, &env, user_dirs.as_deref())
+    rules::output_folder(&s.of::<ScreenshotSettings>().dir, &env, user_dirs.as_deref())
 }

@@ -18,12 +18,13 @@
 //! another density). The padding symmetric and parallel views add beyond the runtime's FOV is
 //! hidden by the mask (`mask::reframe`), which comes on with them (`Settings`).
 
+use crate::features::views::ViewSettings;
 use super::rules::{self, Cut, Fov, Symmetric};
 use super::source::{Lens, lens_from_profile, lens_from_runtime, profile_for, session_of, system_name, tangents, turns_from_profile};
 use crate::features::mask::reframe;
 use crate::features::mask::rules::hidden_pixels;
 use crate::features::mask::xr::runtime_mask;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use glam::DQuat;
 use crate::xr::feature::{AmendedFrameEnd, XrFeature};
 use crate::xr::session::Session;
@@ -141,7 +142,7 @@ fn fov_of(v: &xr::View) -> Fov {
 /// cannot be known yet (no session whose runtime meshes tell them, no HMD profile): apps such as
 /// hello_xr enumerate once to log before their session and again to size their swapchains.
 fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::ViewConfigurationView]) -> Option<Latched> {
-    let margin = s.views.fov_cut_margin_deg;
+    let margin = s.of::<ViewSettings>().fov_cut_margin_deg;
     let sizes: Vec<(u32, u32)> = views.iter().map(|v| (v.recommended_image_rect_width, v.recommended_image_rect_height)).collect();
     let session = session_of(inst).filter(|_| inst.has_extension(VISIBILITY_MASK_EXT));
     let name = system_name(inst, system).unwrap_or_default();
@@ -156,7 +157,7 @@ fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::View
         (None, None) => (None, ""),
     };
     let mut latched = Latched { runtime_sizes: sizes.clone(), views: vec![None; sizes.len()], widened: None };
-    if s.views.fov_cut {
+    if s.of::<ViewSettings>().fov_cut {
         // One size for every view (apps render them at one size), or no cut when a view has none.
         match lenses.as_ref().and_then(|l| rules::cuts(l, margin)) {
             Some(cuts) => {
@@ -179,7 +180,7 @@ fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::View
             None => tracing::warn!("view.fov_cut: no lens known for {name:?} (no runtime mesh of a session, no HMD profile matching it); the views are not cut"),
         }
     }
-    if s.views.widens() {
+    if s.of::<ViewSettings>().widens() {
         let max = views.iter().map(|v| (v.max_image_rect_width, v.max_image_rect_height)).fold((u32::MAX, u32::MAX), |a, m| (a.0.min(m.0), a.1.min(m.1)));
         latched.widened = widen(s, &name, profile, lenses.as_deref(), &latched, max, source);
     }
@@ -191,7 +192,7 @@ fn decide(inst: &Instance, system: xr::SystemId, s: &Settings, views: &[xr::View
 /// so neither eye loses density). None (logged) when the views' FOVs are not known.
 #[allow(clippy::too_many_arguments)]
 fn widen(s: &Settings, name: &str, profile: Option<&hmd_profiles::profile::HmdProfile>, lenses: Option<&[Lens]>, latched: &Latched, max: (u32, u32), source: &str) -> Option<Widened> {
-    let (symmetric, parallel) = (s.views.symmetric, s.views.parallel);
+    let (symmetric, parallel) = (s.of::<ViewSettings>().symmetric, s.of::<ViewSettings>().parallel);
     let Some(lenses) = lenses.filter(|l| l.len() == STEREO_VIEWS) else {
         tracing::warn!("view.symmetric / view.parallel: the views of {name:?} are not known before they are located (no runtime mesh of a session, no HMD profile matching it); the views are not widened");
         return None;
@@ -279,7 +280,7 @@ impl XrFeature for ViewsXr {
         // Decided once per instance: the app sizes its swapchains from the first answer. Decided
         // with no lock held (it asks the runtime), kept by the first call to finish.
         if lock(&inst.features.views.latch).is_none() {
-            let decided = if s.views.fov_cut || s.views.widens() { decide(inst, system, s, views) } else { Some(Latched::default()) };
+            let decided = if s.of::<ViewSettings>().fov_cut || s.of::<ViewSettings>().widens() { decide(inst, system, s, views) } else { Some(Latched::default()) };
             match decided {
                 Some(d) => {
                     lock(&inst.features.views.latch).get_or_insert(d);

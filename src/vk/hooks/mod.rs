@@ -8,6 +8,7 @@
 //! `feature::VkFeature` over the registry (`DeviceFeatures::all()`), and the injection triggers of
 //! `inject`. `record` holds the command-recording hooks, `submit` the queue submissions.
 
+use crate::features::upscale::UpscaleSettings;
 use super::feature::{Destroyed, RenderPassInfo};
 use super::{convert, device_of, lifetime, DeviceState};
 use crate::guard::{self, Fault};
@@ -200,7 +201,7 @@ pub(super) unsafe extern "system" fn create_sampler(
         device,
         vk::Result::ERROR_INITIALIZATION_FAILED,
         // SAFETY: the app's create info, valid during its call (null goes down unchanged).
-        |d| d.settings().upscale.sampler_bias().and_then(|bias| unsafe { ci.as_ref() }.map(|ci| crate::features::upscale::rules::biased(ci.mip_lod_bias, bias))),
+        |d| d.settings().of::<UpscaleSettings>().sampler_bias().and_then(|bias| unsafe { ci.as_ref() }.map(|ci| crate::features::upscale::rules::biased(ci.mip_lod_bias, bias))),
         |d, decided| match decided {
             Some(Some(bias)) => {
                 // SAFETY: the app's create info (non-null: the decision read it), valid for the call.

@@ -19,7 +19,7 @@ pub(crate) mod trigger;
 use super::DeviceState;
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::track::cmd::{AttachmentUse, PassInstance, StateCmd};
 use crate::track::eye_pass::{self, EyeDraw, EyeSource, Eyes, Learned, MaskPlan};

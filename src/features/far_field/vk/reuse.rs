@@ -2,10 +2,11 @@
 //! (where the source eye's pixels map, the split depth, the tiles) for this frame's poses and the
 //! source copy that is fresh, or no draw where there is none (`FarFieldDevice::refresh`).
 
+use crate::features::far_field::FarFieldSettings;
 use super::{lock, pose_of, FarFieldDevice, ReuseOp, ReuseView};
 use crate::features::far_field::rules::{self, InverseDepth, NoSource, PixelMap, ViewGeometry};
 use crate::core::rect::PixelRect;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::core::views::FarFieldViews;
 use crate::vk::inject;
 use crate::vk::DeviceState;
@@ -33,7 +34,7 @@ pub(super) struct Instance {
 impl FarFieldDevice {
     /// Fills a reuse op's draws for this submission.
     pub(super) fn refresh(&self, d: &DeviceState, op: &ReuseOp, s: &Settings, views: &FarFieldViews, inverse: Option<InverseDepth>) {
-        let f = &s.far_field;
+        let f = &s.of::<FarFieldSettings>();
         let frame = views.current.as_ref().map_or(0, |c| c.0);
         let copied = *lock(&op.slots.copied);
         let mut args = vec![vk::DrawIndirectCommand::default(); op.views.len()];

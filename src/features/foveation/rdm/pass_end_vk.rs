@@ -11,6 +11,7 @@
 //! (`Link::frozen`). When the fovea or the views move on, or the fill could not be recorded,
 //! both draw nothing — a pass is foveated and reconstructed, or left whole, never holed.
 
+use crate::features::foveation::FoveationSettings;
 use super::fill::{color_range, fill_objects_for, layout_barrier, make_temp, record_fill, FillDraws, FillSource, FillTarget, FillVertex, Temp, EYES_PER_LAYER};
 use super::pass_end::{self, PassEndTarget};
 use super::pass_end_compute::{self, EyesAt, LinkCompute};
@@ -258,7 +259,7 @@ pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd:
     if layer_list.is_empty() || layer_list.iter().any(|&l| l >= layers) {
         return Err(NotApplied::TargetUsage);
     }
-    let compute = if d.settings().foveation.rdm_reconstruction == crate::features::foveation::Reconstruction::Fill {
+    let compute = if d.settings().of::<FoveationSettings>().rdm_reconstruction == crate::features::foveation::Reconstruction::Fill {
         Err("foveation.rdm_reconstruction = fill".to_string())
     } else {
         pass_end_compute::prepare(me, d, (format, image.usage, (width, height)), at)
@@ -268,7 +269,7 @@ pub(super) fn prepare(me: &RdmDevice, d: &DeviceState, pass: &crate::track::cmd:
         // The fill at a pass's end costs more than the checkerboard saves at moderate loads on
         // the GPUs measured (docs/benchmarks.md, "RDM behind post chains": 11.5 → 14.7 ms where
         // the compute pass gives 8.8), so `foveation.method = auto` leaves such passes whole.
-        Err(why) if d.settings().foveation.method != crate::features::foveation::Method::Rdm => {
+        Err(why) if d.settings().of::<FoveationSettings>().method != crate::features::foveation::Method::Rdm => {
             log_once(me, format!("pass end auto {why}"), || {
                 tracing::info!("radial density masking leaves eye passes into {:#x} (behind a post chain) whole with foveation.method = auto: only the fragment fill could reconstruct them ({why}), which costs more than it saves at moderate loads; foveation.method = \"rdm\" applies it", image.handle)
             });
@@ -387,7 +388,7 @@ pub(super) fn destroy(me: &RdmDevice, d: &DeviceState) {
 /// be restored (the fill is then not recorded, and the checkerboard stays off).
 pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool {
     let key = cb.as_raw();
-    if d.settings().foveation.rdm_reconstruction == crate::features::foveation::Reconstruction::Off {
+    if d.settings().of::<FoveationSettings>().rdm_reconstruction == crate::features::foveation::Reconstruction::Off {
         // `foveation.rdm_reconstruction = off` (a measurement setting): the holes stay, as at
         // the release.
         job.link.recorded.store(true, Ordering::Release);

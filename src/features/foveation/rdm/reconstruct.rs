@@ -5,6 +5,7 @@
 //! the full-screen fragment fill (`fill`), counted by reason. The slots (command buffer, fence,
 //! descriptor pool, temp images) are kept here, up to `MAX_SLOTS` in flight.
 
+use crate::features::foveation::FoveationSettings;
 use super::compute;
 use super::fill::{destroy_fill, destroy_temp, fill_objects, record_and_submit, FillObjects, Temp};
 use super::rules::{compute_path, NotApplied, Pending};
@@ -83,7 +84,7 @@ pub(super) fn before_release(me: &RdmDevice, d: &DeviceState, queue_family: u32,
     if pending.is_empty() {
         return;
     }
-    let how = d.settings().foveation.rdm_reconstruction;
+    let how = d.settings().of::<FoveationSettings>().rdm_reconstruction;
     if how == Reconstruction::Off {
         log_once(me, "reconstruction off".into(), || tracing::warn!("radial density masking: foveation.rdm_reconstruction = off: skipped quads are left as holes"));
         return;

@@ -6,10 +6,11 @@
 //! target into the swapchain image, so a command buffer recorded once and resubmitted hands its
 //! skipped quads to `reconstruct` every frame.
 
+use crate::features::foveation::FoveationSettings;
 use super::rules::{hand_off, HandOff, NotApplied, Pending, RdmFrameStats, RdmParams, SkipCount};
 use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan, TransferRegion};
 use crate::vk::feature::{Destroyed, DeviceInit, Plugin, VkFeature};
@@ -112,7 +113,7 @@ impl Plugin for RdmDevice {
     /// acted this frame.
     fn enabled(s: &Settings, frame: &crate::core::stats::FrameStats) -> bool {
         let vrs_active = frame.iter().any(|f| f.group() == Some("foveation") && f.id() != "rdm" && !f.is_empty());
-        s.foveation.enabled && (s.foveation.method == crate::features::foveation::Method::Rdm || (s.foveation.method == crate::features::foveation::Method::Auto && !vrs_active))
+        s.of::<FoveationSettings>().enabled && (s.of::<FoveationSettings>().method == crate::features::foveation::Method::Rdm || (s.of::<FoveationSettings>().method == crate::features::foveation::Method::Auto && !vrs_active))
     }
 }
 
@@ -300,11 +301,11 @@ impl VkFeature for RdmDevice {
         })
     }
     fn injects(&self, s: &Settings) -> bool {
-        let method = s.foveation.method.resolve(self.fsr_attachment, self.software);
-        let on = self.layer_enabled && s.foveation.enabled && method == Some(crate::features::foveation::Method::Rdm);
+        let method = s.of::<FoveationSettings>().method.resolve(self.fsr_attachment, self.software);
+        let on = self.layer_enabled && s.of::<FoveationSettings>().enabled && method == Some(crate::features::foveation::Method::Rdm);
         if on {
             self.used.store(true, Ordering::Relaxed);
-        } else if self.layer_enabled && s.foveation.enabled && method.is_none() {
+        } else if self.layer_enabled && s.of::<FoveationSettings>().enabled && method.is_none() {
             log_once(self, "auto declined".into(), || {
                 tracing::warn!("foveation.method = auto: no foveation on this CPU Vulkan implementation (RDM's own passes cost more than they save for most apps here: docs/benchmarks.md); set foveation.method = \"rdm\" to force it")
             });
@@ -526,12 +527,12 @@ fn drawn(me: &RdmDevice, d: &DeviceState, target: Target) -> Result<Arc<Drawn>, 
 /// whole (counted `layer_error`, logged once) rather than handed to the runtime with holes.
 fn reconstruction_ready(me: &RdmDevice, d: &DeviceState, cb: vk::CommandBuffer, s: &Settings) -> Result<(), NotApplied> {
     use crate::features::foveation::Reconstruction;
-    if s.foveation.rdm_reconstruction == Reconstruction::Off {
+    if s.of::<FoveationSettings>().rdm_reconstruction == Reconstruction::Off {
         return Ok(());
     }
     let family = d.track.command_buffers.get(ash::vk::Handle::as_raw(cb)).and_then(|c| d.track.pools.get(c.pool)).map(|p| p.queue_family_index);
     let Some(family) = family else { return Ok(()) };
-    super::reconstruct::ready(d, family, s.foveation.rdm_reconstruction != Reconstruction::Fill).map_err(|(why, e)| {
+    super::reconstruct::ready(d, family, s.of::<FoveationSettings>().rdm_reconstruction != Reconstruction::Fill).map_err(|(why, e)| {
         log_once(me, format!("not ready {e}"), || tracing::warn!("radial density masking skipped for a pass: its reconstruction could not be prepared ({e})"));
         why
     })

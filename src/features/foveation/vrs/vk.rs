@@ -19,6 +19,7 @@
 //! are held by the recordings that use them (`vk::lifetime`); the caches keep only the current
 //! generations'.
 
+use crate::features::foveation::FoveationSettings;
 use super::rules::{self as rule, DeviceRates, EyeRates, NotApplied, VrsFrameStats};
 use super::submission;
 use crate::vk::inject::When;
@@ -26,7 +27,7 @@ use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
 use crate::features::foveation::Method;
-use crate::settings::Settings;
+use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::track::cmd::{PassInstance, PassKind};
 use crate::track::eye_pass::{self, Facts};
@@ -154,7 +155,7 @@ impl Plugin for VrsDevice {
     /// On with VRS as the method in effect: `vrs`, or `auto` where VRS acted this frame.
     fn enabled(s: &Settings, frame: &crate::core::stats::FrameStats) -> bool {
         let active = frame.get::<VrsFrameStats>().is_some_and(|v| v.passes > 0 || !v.not_applied.is_empty());
-        s.foveation.enabled && (s.foveation.method == Method::Vrs || (s.foveation.method == Method::Auto && active))
+        s.of::<FoveationSettings>().enabled && (s.of::<FoveationSettings>().method == Method::Vrs || (s.of::<FoveationSettings>().method == Method::Auto && active))
     }
 }
 
@@ -165,11 +166,11 @@ impl VrsDevice {
     }
 
     pub(super) fn mode(&self, s: &Settings) -> Mode {
-        if !self.layer_enabled || !s.foveation.enabled {
+        if !self.layer_enabled || !s.of::<FoveationSettings>().enabled {
             return Mode::Off;
         }
         // VRS does not depend on the device type: `software` only turns auto's RDM off.
-        match s.foveation.method.resolve(self.rates.is_some(), false) {
+        match s.of::<FoveationSettings>().method.resolve(self.rates.is_some(), false) {
             Some(Method::Vrs) if self.rates.is_some() => Mode::On,
             Some(Method::Vrs) => Mode::Unsupported,
             _ => Mode::Off,

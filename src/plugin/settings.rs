@@ -8,10 +8,7 @@
 #![forbid(unsafe_code)]
 
 use crate::core::config::Config;
-use crate::features::far_field::FarFieldSettings;
-use crate::features::foveation::FoveationSettings;
-use crate::features::mask::MaskSettings;
-use crate::features::screenshot::ScreenshotSettings;
+use crate::core::parts::{Part, Parts};
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, RwLock};
@@ -36,26 +33,19 @@ pub struct Settings {
     /// `eyes.fallback = size` with its `eyes.fallback_order`; None when off.
     pub eyes_fallback: Option<crate::track::fallback::Order>,
     pub fragment_shading_rate: FsrSetting,
-    pub mask: MaskSettings,
-    pub foveation: FoveationSettings,
-    pub far_field: FarFieldSettings,
-    /// `overlay.*`: the in-headset stats panel.
-    pub overlay: crate::features::overlay::OverlaySettings,
-    pub screenshot: ScreenshotSettings,
-    /// `upscale.*`: the app renders smaller, the layer upscales into the runtime's swapchain.
-    pub upscale: crate::features::upscale::UpscaleSettings,
-    /// `view.*`: the view tricks.
-    pub views: crate::features::views::ViewSettings,
     pub stats_file: String,
     /// `stats.gpu_time`: the submit hooks bracket submissions with timestamps (`vk::gpu_time`).
     pub stats_gpu_time: bool,
     /// `debug.fail_in`, split.
     pub fail_in: Vec<String>,
+    /// Every feature's own settings, by type (`crate::registry` adds one per feature).
+    pub features: Parts,
 }
 
 impl Settings {
-    pub fn from_config(c: &Config) -> Settings {
-        let views = crate::features::views::ViewSettings::from_config(c);
+    /// The chassis' settings from `c`, with no feature's: `crate::registry` adds those
+    /// (`Settings::from_config`).
+    pub fn chassis(c: &Config) -> Settings {
         Settings {
             enabled: c.enabled(),
             intermediate: c.choice("mask.intermediate") != "off",
@@ -72,22 +62,17 @@ impl Settings {
                 "off" => FsrSetting::Off,
                 _ => FsrSetting::Auto,
             },
-            // Symmetric and parallel views pad the app's views beyond what the runtime shows: the
-            // mask hides the padding, so it comes on with them (docs/views.md).
-            mask: {
-                let mask = MaskSettings::from_config(c);
-                MaskSettings { enabled: mask.enabled || views.widens(), ..mask }
-            },
-            foveation: FoveationSettings::from_config(c),
-            far_field: FarFieldSettings::from_config(c),
-            overlay: crate::features::overlay::OverlaySettings::from_config(c),
-            screenshot: ScreenshotSettings::from_config(c),
-            upscale: crate::features::upscale::UpscaleSettings::from_config(c),
-            views,
             stats_file: c.text("stats.file").to_string(),
             stats_gpu_time: c.bool("stats.gpu_time"),
             fail_in: c.text("debug.fail_in").split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),
+            features: Parts::default(),
         }
+    }
+
+    /// A feature's own settings. `Settings::from_config` (the registry) adds every registered
+    /// feature's, so a missing one is a registry error (its unit test checks every feature).
+    pub fn of<T: Part>(&self) -> &T {
+        self.features.get::<T>().unwrap_or_else(|| panic!("no {} in the settings: the feature is not registered", std::any::type_name::<T>()))
     }
 
     /// `debug.fail_in` names `call`.
@@ -129,23 +114,6 @@ pub fn current() -> Option<Arc<Settings>> {
 mod tests {
     use super::*;
     use crate::core::config::Inputs;
-
-    #[test]
-    fn parsed_once_from_the_config() {
-        let env = |k: &str| match k {
-            "STEREOSHIM_MASK_ENABLED" => Some("true".to_string()),
-            "STEREOSHIM_MASK_INTERMEDIATE" => Some("off".to_string()),
-            "STEREOSHIM_FOVEATION_METHOD" => Some("rdm".to_string()),
-            "STEREOSHIM_DEBUG_FAIL_IN" => Some("vkCmdDraw, xrEndFrame".to_string()),
-            _ => None,
-        };
-        let (c, d) = Config::resolve(&Inputs { keys: crate::registry::keys(), file: None, app_names: &[], env: &env });
-        assert!(d.is_empty(), "{d:?}");
-        let s = Settings::from_config(&c);
-        assert!(s.mask.enabled && !s.intermediate && !s.foveation.enabled);
-        assert_eq!(s.foveation.method, crate::features::foveation::Method::Rdm);
-        assert!(s.fails_in("xrEndFrame") && !s.fails_in("xrBeginFrame"));
-    }
 
     #[test]
     fn publish_reaches_every_thread() {

@@ -1,0 +1,5 @@
+//! The plug-in contracts: what a feature may see and do. The typed settings (the chassis' own and,
+//! by type, each feature's), the Vulkan and OpenXR feature traits with the context they are
+//! given, and the shared GPU helpers. Nothing here names a feature: `crate::registry` does.
+
+pub mod settings;
