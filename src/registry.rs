@@ -9,6 +9,7 @@
 use crate::features::{far_field, foveation, mask, overlay, screenshot, upscale, views};
 use crate::core::config::{self, Config, KeySpec};
 use crate::plugin::settings::Settings;
+use crate::plugin::vk::feature::{DeviceFeatures, DeviceInit, Plugin};
 use crate::core::stats::FrameStats;
 
 /// Declares the registered features: `field: Type` per feature, where `Type` implements
@@ -33,33 +34,23 @@ macro_rules! registry {
             $(pub(crate) $xfield: $xinstance,)*
         }
 
-        /// One device's feature objects, in registry order.
-        pub(crate) struct DeviceFeatures {
-            $(pub(crate) $field: $ty,)*
-        }
-
-        impl DeviceFeatures {
-            pub(crate) fn new(init: &crate::vk::feature::DeviceInit<'_>) -> DeviceFeatures {
-                DeviceFeatures { $($field: <$ty as crate::vk::feature::Plugin>::new(init),)* }
-            }
-            /// Every feature, in registry order (the chassis dispatches events over this).
-            pub(crate) fn all(&self) -> [&dyn crate::vk::feature::VkFeature; registry!(@count $($field)*)] {
-                [$(&self.$field,)*]
-            }
+        /// One new device's feature objects, in registry order.
+        pub(crate) fn device_features(init: &DeviceInit<'_>) -> DeviceFeatures {
+            DeviceFeatures::new(vec![$(Box::new(<$ty as Plugin>::new(init)),)*])
         }
 
         /// Every feature's config keys, in registry order.
-        pub const KEYS: &[&[KeySpec]] = &[$(<$ty as crate::vk::feature::Plugin>::KEYS,)*];
+        pub const KEYS: &[&[KeySpec]] = &[$(<$ty as Plugin>::KEYS,)*];
 
         /// A frame's statistics with every feature present (and empty).
         pub fn empty_stats() -> FrameStats {
-            FrameStats::new(vec![$(<$ty as crate::vk::feature::Plugin>::empty_stats(),)*])
+            FrameStats::new(vec![$(<$ty as Plugin>::empty_stats(),)*])
         }
 
         /// (feature id, whether the user has it on) for a frame recorded under `s`.
         pub fn enabled(s: &crate::plugin::settings::Settings, frame: &FrameStats) -> Vec<(&'static str, bool)> {
             let ids = empty_stats();
-            let on = [$(<$ty as crate::vk::feature::Plugin>::enabled(s, frame),)*];
+            let on = [$(<$ty as Plugin>::enabled(s, frame),)*];
             ids.iter().map(|f| f.id()).zip(on).collect()
         }
     };

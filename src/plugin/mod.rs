@@ -3,3 +3,4 @@
 //! given, and the shared GPU helpers. Nothing here names a feature: `crate::registry` does.
 
 pub mod settings;
+pub mod vk;

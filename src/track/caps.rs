@@ -113,3 +113,13 @@ mod tests {
         assert_eq!(missing(&full, &n), None);
     }
 }
+
+/// `VkPhysicalDeviceFragmentShadingRatePropertiesKHR`, the parts the map needs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct DeviceRates {
+    /// `minFragmentShadingRateAttachmentTexelSize`: the finest map the device takes.
+    pub texel_width: u32,
+    pub texel_height: u32,
+    /// `layeredShadingRateAttachments`: multiview passes can read one layer per view.
+    pub layered: bool,
+}

@@ -5,7 +5,8 @@
 //! what it depends on), retried exactly as the app asked if the driver refuses them; the device's
 //! capabilities (`track::caps`) are recorded for every object the layer later creates on it.
 
-use super::{check_fault, convert, dispatch_key, instance_of, layer, loader, DeviceState, ExtFns, InstanceState};
+use super::{check_fault, instance_of, layer, loader, InstanceState};
+use crate::plugin::vk::{convert, dispatch_key, DeviceState, ExtFns};
 use crate::guard::{self, PassThrough};
 use crate::track::{caps, device_ext};
 use ash::vk;
@@ -36,7 +37,7 @@ unsafe fn link_info<T>(mut p_next: *const c_void, s_type: vk::StructureType, fun
 ///
 /// # Safety
 /// `p_next` must be a valid structure chain.
-unsafe fn loader_data_callback(mut p_next: *const c_void) -> Option<super::PfnSetDeviceLoaderData> {
+unsafe fn loader_data_callback(mut p_next: *const c_void) -> Option<crate::plugin::vk::PfnSetDeviceLoaderData> {
     while !p_next.is_null() {
         // SAFETY: every struct in a valid chain starts with sType, pNext.
         let base = unsafe { &*(p_next as *const vk::BaseInStructure<'_>) };
@@ -46,7 +47,7 @@ unsafe fn loader_data_callback(mut p_next: *const c_void) -> Option<super::PfnSe
             let info = unsafe { &*(p_next as *const loader::LayerDeviceCreateInfo) };
             if info.function == loader::LayerFunction::LOADER_DATA_CALLBACK && !info.p_layer_info.is_null() {
                 // SAFETY: the union member is `PFN_vkSetDeviceLoaderData` for this function value.
-                return Some(unsafe { std::mem::transmute::<*mut loader::LayerDeviceLink, super::PfnSetDeviceLoaderData>(info.p_layer_info) });
+                return Some(unsafe { std::mem::transmute::<*mut loader::LayerDeviceLink, crate::plugin::vk::PfnSetDeviceLoaderData>(info.p_layer_info) });
             }
         }
         p_next = base.p_next as *const c_void;
@@ -151,8 +152,8 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: vk::Instance, al
         tracing::info!(
             "vulkan layer tables: instances={} devices={} own_tables={}",
             layer().instances.len(),
-            layer().devices.len(),
-            super::own::registered()
+            crate::plugin::vk::devices().len(),
+            crate::plugin::vk::own::registered()
         );
     })
 }
@@ -410,9 +411,9 @@ pub(super) unsafe extern "system" fn create_device(
         // SAFETY: on success the driver wrote the device.
         let device = unsafe { *p_device };
         // SAFETY: the next layer's gdpa for the device it just created.
-        let next = unsafe { ash::Device::load_with(|n| super::device_proc(next_gdpa, device, n), device) };
+        let next = unsafe { ash::Device::load_with(|n| crate::plugin::vk::device_proc(next_gdpa, device, n), device) };
         // SAFETY: as above.
-        let (fns, own) = unsafe { super::own::register(device, &next, next_gdpa) };
+        let (fns, own) = unsafe { crate::plugin::vk::own::register(device, &next, next_gdpa) };
         let ext = load_ext(next_gdpa, device);
         // SAFETY: a physical device of this instance; the next layer's instance functions.
         let memory = unsafe { inst.fns.get_physical_device_memory_properties(pd) };
@@ -457,17 +458,17 @@ pub(super) unsafe extern "system" fn create_device(
             pass_through: inst.pass_through.clone(),
             track: Default::default(),
             extension_decision: decision,
-            features: crate::registry::DeviceFeatures::new(&super::feature::DeviceInit { settings: &device_settings, memory, rates, set_loader_data, software }),
+            features: crate::registry::device_features(&crate::plugin::vk::feature::DeviceInit { settings: &device_settings, memory, rates, set_loader_data, software }),
             settings: device_settings.clone(),
             set_loader_data,
             memory,
             inject: Default::default(),
             lifetime: Default::default(),
             secondary: Default::default(),
-            gpu_time: super::gpu_time::GpuTimeDevice::new(inst.fns.clone(), pd, queue_infos),
+            gpu_time: crate::plugin::vk::gpu_time::GpuTimeDevice::new(inst.fns.clone(), pd, queue_infos),
             repeats: Default::default(),
         };
-        layer().devices.insert(state.key, Arc::new(state));
+        crate::plugin::vk::devices().insert(state.key, Arc::new(state));
         super::device_stats::log_at_exit();
         r
     })
@@ -475,14 +476,14 @@ pub(super) unsafe extern "system" fn create_device(
 
 /// `VkPhysicalDeviceFragmentShadingRatePropertiesKHR`: the finest rate-map texel and whether
 /// multiview passes can have one layer per view. None when the instance cannot query it.
-fn fsr_rates(inst: &InstanceState, pd: vk::PhysicalDevice) -> Option<crate::features::foveation::vrs::rules::DeviceRates> {
+fn fsr_rates(inst: &InstanceState, pd: vk::PhysicalDevice) -> Option<crate::track::caps::DeviceRates> {
     let (_, properties2) = properties2_fns(inst, pd)?;
     let mut fsr = vk::PhysicalDeviceFragmentShadingRatePropertiesKHR::default();
     let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut fsr);
     // SAFETY: a physical device of this instance; a correctly chained output struct.
     unsafe { properties2(pd, &mut p2) };
     let t = fsr.min_fragment_shading_rate_attachment_texel_size;
-    (t.width > 0 && t.height > 0).then_some(crate::features::foveation::vrs::rules::DeviceRates {
+    (t.width > 0 && t.height > 0).then_some(crate::track::caps::DeviceRates {
         texel_width: t.width,
         texel_height: t.height,
         layered: fsr.layered_shading_rate_attachments != 0,
@@ -538,10 +539,10 @@ fn load_ext(gdpa: vk::PFN_vkGetDeviceProcAddr, device: vk::Device) -> ExtFns {
 pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocator: *const vk::AllocationCallbacks<'_>) {
     guard::catch("vkDestroyDevice", (), || {
         let key = dispatch_key(device);
-        let Some(dev) = layer().devices.get(key) else { return };
+        let Some(dev) = crate::plugin::vk::devices().get(key) else { return };
         // The app waited for the device to go idle: every recording's holds go now, so what
         // they counted on completion (e.g. the far field's reused pixels) is in the stats line.
-        super::lifetime::release_holds(&dev);
+        crate::plugin::vk::lifetime::release_holds(&dev);
         let line = super::device_stats::line(&dev);
         tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {line}");
         let repeats = dev.repeats.summary();
@@ -553,10 +554,10 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
         for f in dev.features.all() {
             f.destroy(&dev);
         }
-        super::inject::pipeline::destroy(&dev);
-        super::secondary::destroy(&dev);
-        super::gpu_time::destroy(&dev);
-        super::lifetime::destroy(&dev);
+        crate::plugin::vk::inject::pipeline::destroy(&dev);
+        crate::plugin::vk::secondary::destroy(&dev);
+        crate::plugin::vk::gpu_time::destroy(&dev);
+        crate::plugin::vk::lifetime::destroy(&dev);
         let alive = dev.own.alive();
         if !alive.is_empty() {
             tracing::warn!(device = ?dev.handle, "the layer's own objects still alive after it destroyed everything: {alive:?}");
@@ -564,8 +565,8 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
         // SAFETY: forwarding the app's arguments.
         unsafe { (dev.next.fp_v1_0().destroy_device)(device, allocator) };
         // From here `device` is freed memory: only the key read above is used.
-        layer().devices.remove(key);
-        super::own::unregister(key);
+        crate::plugin::vk::devices().remove(key);
+        crate::plugin::vk::own::unregister(key);
     })
 }
 

@@ -2,7 +2,7 @@
 //! destroys the device, and also at `xrDestroySession` and at process exit, because some apps
 //! (wgpu: Bevy) never call `vkDestroyDevice` and would otherwise leave no line at all.
 
-use super::{layer, DeviceState};
+use crate::plugin::vk::DeviceState;
 use std::sync::Once;
 
 /// `key=value` pairs of everything the layer counted on `dev` (tests parse them).
@@ -12,7 +12,7 @@ pub(crate) fn line(dev: &DeviceState) -> String {
         line.push(' ');
         line.push_str(&summary);
     }
-    if let Some(summary) = super::gpu_time::summary(dev) {
+    if let Some(summary) = crate::plugin::vk::gpu_time::summary(dev) {
         line.push(' ');
         line.push_str(&summary);
     }
@@ -66,7 +66,7 @@ extern "C" fn at_exit() {
     // Never unwind into libc. No `tracing` here: at exit the subscriber's thread-locals may be
     // gone already (seen with Bevy on an H100), and touching them panics.
     let _ = std::panic::catch_unwind(|| {
-        for (_, dev) in layer().devices.values() {
+        for (_, dev) in crate::plugin::vk::devices().values() {
             crate::log::append_at_exit("stereoshim::vk::device_stats", &format!("vulkan device still live at exit; its stats so far: {}", line(&dev)));
         }
     });

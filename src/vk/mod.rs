@@ -6,18 +6,11 @@
 //! handle, which the loader shares between an instance and its physical devices, and between a
 //! device and its queues and command buffers), so any handle finds its instance or device state.
 
-pub(crate) mod convert;
 mod chain;
+pub(crate) mod chassis;
 mod device_stats;
-pub(crate) mod feature;
-pub(crate) mod gpu_time;
 mod hooks;
-pub(crate) mod inject;
-mod keep_depth;
-pub(crate) mod lifetime;
 pub mod loader;
-pub(crate) mod secondary;
-mod own;
 pub mod probe;
 #[cfg(test)]
 pub(crate) mod test_chain;
@@ -25,11 +18,10 @@ pub(crate) mod test_chain;
 use crate::core::config::Config;
 use crate::guard::{self, PassThrough};
 use crate::core::handles::HandleMap;
-use crate::track::device_ext::Decision;
-use crate::track::DeviceTracker;
 use ash::vk::{self, Handle};
-use std::ffi::{c_char, c_void, CStr};
+use std::ffi::{c_char, CStr};
 use std::sync::{Arc, OnceLock};
+use crate::plugin::vk::{dispatch_key, gpu_time, lifetime, DeviceKey, DeviceState};
 
 pub use crate::vk_manifest::VK_LAYER_NAME;
 
@@ -50,102 +42,6 @@ pub(crate) struct InstanceState {
     pub engine: Option<String>,
 }
 
-/// Extension commands that are not core in any version, loaded by name (None when the device
-/// does not offer them; we then never hand out our hook for them either).
-#[derive(Default)]
-pub(crate) struct ExtFns {
-    pub cmd_set_line_stipple: Option<vk::PFN_vkCmdSetLineStippleKHR>,
-    pub cmd_set_color_write_enable: Option<vk::PFN_vkCmdSetColorWriteEnableEXT>,
-    pub cmd_set_logic_op: Option<vk::PFN_vkCmdSetLogicOpEXT>,
-    pub cmd_set_patch_control_points: Option<vk::PFN_vkCmdSetPatchControlPointsEXT>,
-    // Commands that veto injections (`hooks::record`).
-    pub cmd_set_fragment_shading_rate: Option<vk::PFN_vkCmdSetFragmentShadingRateKHR>,
-    pub cmd_bind_shaders: Option<vk::PFN_vkCmdBindShadersEXT>,
-    pub cmd_set_vertex_input: Option<vk::PFN_vkCmdSetVertexInputEXT>,
-    pub cmd_set_polygon_mode: Option<vk::PFN_vkCmdSetPolygonModeEXT>,
-    pub cmd_set_rasterization_samples: Option<vk::PFN_vkCmdSetRasterizationSamplesEXT>,
-    pub cmd_set_color_write_mask: Option<vk::PFN_vkCmdSetColorWriteMaskEXT>,
-    pub cmd_set_color_blend_enable: Option<vk::PFN_vkCmdSetColorBlendEnableEXT>,
-    pub cmd_set_depth_clamp_enable: Option<vk::PFN_vkCmdSetDepthClampEnableEXT>,
-    pub cmd_push_descriptor_set: Option<vk::PFN_vkCmdPushDescriptorSetKHR>,
-    pub cmd_push_descriptor_set_with_template: Option<vk::PFN_vkCmdPushDescriptorSetWithTemplateKHR>,
-    pub cmd_bind_descriptor_buffers: Option<vk::PFN_vkCmdBindDescriptorBuffersEXT>,
-}
-
-/// What the layer keeps per `VkDevice`.
-pub(crate) struct DeviceState {
-    pub handle: vk::Device,
-    /// `handle`'s dispatch key, read at creation: the key of this state in `Layer::devices`.
-    pub key: usize,
-    /// What the device was created with: every layer object is checked against it.
-    pub caps: crate::track::caps::DeviceCaps,
-    /// The instance's `VkApplicationInfo::pEngineName`.
-    pub engine: Option<String>,
-    pub next_gdpa: vk::PFN_vkGetDeviceProcAddr,
-    /// The device functions for everything the layer does itself: the next layer's (core names
-    /// falling back to their KHR/EXT aliases, so the table works on devices that offer a command
-    /// only as an extension), with the creation and destruction of its own objects counted
-    /// (`own`).
-    pub fns: ash::Device,
-    /// The next layer's functions as they are: where the app's own create and destroy calls go
-    /// down, uncounted.
-    pub next: ash::Device,
-    /// The layer's own live Vulkan objects, by kind (`own.*` in the device stats line).
-    pub own: Arc<own::Counted>,
-    pub ext: ExtFns,
-    pub pass_through: Arc<PassThrough>,
-    pub track: DeviceTracker,
-    pub extension_decision: Decision,
-    /// The settings resolved when the device was created (used until the OpenXR half publishes
-    /// live ones).
-    pub settings: Arc<crate::plugin::settings::Settings>,
-    /// The loader's callback for dispatchable objects the layer creates itself.
-    pub set_loader_data: Option<PfnSetDeviceLoaderData>,
-    /// The physical device's memory types (for the layer's own allocations).
-    pub memory: vk::PhysicalDeviceMemoryProperties,
-    /// Every registered feature's per-device object (`crate::features`).
-    pub features: crate::registry::DeviceFeatures,
-    /// The injection chassis: triggers, pipeline cache.
-    pub inject: inject::InjectDevice,
-    /// Holds of recorded command buffers and their submissions.
-    pub lifetime: lifetime::LifetimeDevice,
-    /// The layer's secondary command buffers for eye passes with secondary contents.
-    pub secondary: secondary::SecondaryDevice,
-    /// The GPU frame timer (`stats.gpu_time`).
-    pub gpu_time: gpu_time::GpuTimeDevice,
-    /// Failures of the layer's own objects that repeat: logged once per kind, counted
-    /// (`DeviceState::warn_repeated`).
-    pub repeats: crate::log::Repeats,
-}
-
-/// The loader's `PFN_vkSetDeviceLoaderData`: a layer must call it on dispatchable objects it
-/// creates itself (our command buffers) so the layers below find their dispatch tables.
-pub(crate) type PfnSetDeviceLoaderData = unsafe extern "system" fn(vk::Device, *mut c_void) -> vk::Result;
-
-impl DeviceState {
-    /// The live settings (the OpenXR half re-reads a changed config file between frames), else
-    /// the device's own.
-    /// A failure of the layer's own object of `kind` (`what` says what failed): WARN the first
-    /// time on this device, then only counted (the feature tries again at its next use, which
-    /// under a persistent failure is every pass).
-    pub fn warn_repeated(&self, kind: &'static str, what: impl std::fmt::Display) {
-        if self.repeats.first(kind) {
-            tracing::warn!("{kind}: {what} (repeats are counted, not logged)");
-        }
-    }
-    pub fn settings(&self) -> Arc<crate::plugin::settings::Settings> {
-        crate::plugin::settings::current().unwrap_or_else(|| self.settings.clone())
-    }
-
-    /// `debug.fail_in`: the layer logic of `call` fails on purpose (fault-injection tests).
-    pub fn check(&self, call: &'static str) -> Result<(), guard::Fault> {
-        if self.settings.fails_in(call) {
-            return Err(guard::Fault(format!("{call}: failing on purpose (debug.fail_in)")));
-        }
-        Ok(())
-    }
-}
-
 pub(crate) fn check_fault(config: &Config, call: &'static str) -> Result<(), guard::Fault> {
     if config.fails_in(call) {
         return Err(guard::Fault(format!("{call}: failing on purpose (debug.fail_in)")));
@@ -156,7 +52,6 @@ pub(crate) fn check_fault(config: &Config, call: &'static str) -> Result<(), gua
 #[derive(Default)]
 pub(crate) struct Layer {
     pub instances: HandleMap<usize, InstanceState>,
-    pub devices: HandleMap<usize, DeviceState>,
 }
 
 pub(crate) fn layer() -> &'static Layer {
@@ -164,37 +59,17 @@ pub(crate) fn layer() -> &'static Layer {
     LAYER.get_or_init(Layer::default)
 }
 
-/// The loader's dispatch key of a dispatchable handle; 0 for a null handle.
-pub(crate) fn dispatch_key<H: Handle>(handle: H) -> usize {
-    let raw = handle.as_raw();
-    if raw == 0 {
-        return 0;
-    }
-    // SAFETY: every dispatchable Vulkan handle the loader hands to a layer points to an object
-    // whose first word is the loader's dispatch table pointer (LoaderLayerInterface.md, "Dispatch
-    // table"); the app guarantees the handle is valid for the call it passed it to.
-    unsafe { *(raw as usize as *const usize) }
-}
-
 pub(crate) fn instance_of<H: Handle>(handle: H) -> Option<Arc<InstanceState>> {
     layer().instances.get(dispatch_key(handle))
 }
 
 pub(crate) fn device_of<H: Handle>(handle: H) -> Option<Arc<DeviceState>> {
-    let state = layer().devices.get(dispatch_key(handle));
+    let state = crate::plugin::vk::devices().get(dispatch_key(handle));
     if state.is_none() {
         report_unknown_handle();
     }
     state
 }
-
-/// A `VkDevice` as the OpenXR half holds it: its dispatch key, read once at `xrCreateSession`,
-/// when the runtime has just accepted the device in the session's graphics binding. Every later
-/// lookup from the OpenXR half (each `xrBeginFrame`, `xrReleaseSwapchainImage`) goes by this key
-/// and never reads the app's handle again, so a device the app destroyed out of order (before its
-/// session) is a missed lookup, not a read of freed memory (issue 23).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct DeviceKey(usize);
 
 /// Logs the stats line of the session's device, still live (`at` says when).
 pub(crate) fn log_device_stats(device: DeviceKey, at: &str) {
@@ -211,37 +86,12 @@ pub(crate) fn session_ended(device: DeviceKey) {
     }
 }
 
-impl DeviceKey {
-    /// Reads the key of `device`, which must be a live `VkDevice` (the runtime validated it).
-    pub(crate) fn of_live(device: u64) -> DeviceKey {
-        DeviceKey(dispatch_key(vk::Device::from_raw(device)))
-    }
-    /// The device's state, while the Vulkan half tracks it.
-    pub(crate) fn state(self) -> Option<Arc<DeviceState>> {
-        layer().devices.get(self.0)
-    }
-}
-
-/// Whether the Vulkan half created the state of this device (the OpenXR half asks, to log
-/// whether the session's device is one the layer can act on).
-pub(crate) fn device_is_tracked(device: DeviceKey) -> bool {
-    device.state().is_some()
-}
-
-/// Whether `state` is still the state of a live device: the app has not destroyed the device
-/// since (which removes the state; a later device under the same key has a new one). Whoever
-/// holds a device's state past a call of the app's (the OpenXR half's overlay) checks it before
-/// touching the device again, never the app's handle.
-pub(crate) fn device_is_live(state: &Arc<DeviceState>) -> bool {
-    layer().devices.get(state.key).is_some_and(|d| Arc::ptr_eq(&d, state))
-}
-
 /// Every feature's statistics of the frame that just ended, summed over devices (each device
 /// starts its next frame). The OpenXR half calls this once per `xrEndFrame`; it is also where
 /// completed submissions release what they held.
 pub fn take_frame_stats() -> crate::core::stats::FrameStats {
     let mut all = crate::registry::empty_stats();
-    for (_, d) in layer().devices.values() {
+    for (_, d) in crate::plugin::vk::devices().values() {
         lifetime::poll(&d);
         d.inject.new_frame();
         let device = crate::core::stats::FrameStats::new(d.features.all().iter().map(|f| f.take_frame()).collect());
@@ -254,14 +104,14 @@ pub fn take_frame_stats() -> crate::core::stats::FrameStats {
 /// close belong to it. Returns the frames whose GPU times are complete now, summed over devices
 /// (usually earlier frames: results are read back without waiting).
 pub fn end_gpu_frame(frame: u64) -> Vec<(u64, crate::core::gpu_time::GpuFrameTime)> {
-    merge_gpu_times(layer().devices.values().into_iter().flat_map(|(_, d)| gpu_time::end_frame(&d, frame)))
+    merge_gpu_times(crate::plugin::vk::devices().values().into_iter().flat_map(|(_, d)| gpu_time::end_frame(&d, frame)))
         .into_iter()
         .collect()
 }
 
 /// The frames whose GPU times completed since the last frame end (at the end of a session).
 pub fn completed_gpu_frames() -> Vec<(u64, crate::core::gpu_time::GpuFrameTime)> {
-    merge_gpu_times(layer().devices.values().into_iter().flat_map(|(_, d)| gpu_time::complete(&d))).into_iter().collect()
+    merge_gpu_times(crate::plugin::vk::devices().values().into_iter().flat_map(|(_, d)| gpu_time::complete(&d))).into_iter().collect()
 }
 
 fn merge_gpu_times(times: impl Iterator<Item = (u64, crate::core::gpu_time::GpuFrameTime)>) -> std::collections::BTreeMap<u64, crate::core::gpu_time::GpuFrameTime> {
@@ -556,27 +406,6 @@ pub(crate) unsafe extern "system" fn get_device_proc_addr(device: vk::Device, p_
             _ => Some(next),
         }
     })
-}
-
-/// Looks a command up through `gdpa`, falling back to the KHR and EXT aliases of a core name, so
-/// ash's core-named tables resolve on devices that offer the command only as an extension.
-///
-/// # Safety
-/// `gdpa` must be a valid `vkGetDeviceProcAddr` for `device`.
-pub(crate) unsafe fn device_proc(gdpa: vk::PFN_vkGetDeviceProcAddr, device: vk::Device, name: &CStr) -> *const c_void {
-    let mut candidates = vec![name.to_owned()];
-    for suffix in ["KHR", "EXT"] {
-        let mut n = name.to_bytes().to_vec();
-        n.extend_from_slice(suffix.as_bytes());
-        candidates.extend(std::ffi::CString::new(n).ok());
-    }
-    for c in candidates {
-        // SAFETY: per this function's contract.
-        if let Some(f) = unsafe { gdpa(device, c.as_ptr()) } {
-            return f as *const c_void;
-        }
-    }
-    std::ptr::null()
 }
 
 #[cfg(test)]

@@ -277,7 +277,7 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
         };
         let with_overlay = quad.as_ref().zip(base).map(|(q, b)| {
             // SAFETY: the frame's layer pointers, valid for this call (non-null when counted, checked above).
-            let mut layers: Vec<*const xr::CompositionLayerBaseHeader> = unsafe { crate::vk::convert::slice(b.layers, b.layer_count) }.to_vec();
+            let mut layers: Vec<*const xr::CompositionLayerBaseHeader> = unsafe { crate::plugin::vk::convert::slice(b.layers, b.layer_count) }.to_vec();
             layers.push((q as *const xr::CompositionLayerQuad).cast());
             (layers, b)
         });

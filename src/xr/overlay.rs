@@ -15,7 +15,7 @@ use super::session::Session;
 use crate::features::overlay::rules::{self, Window};
 use crate::plugin::settings::Settings;
 use crate::stats_summary::Second;
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use ash::vk;
 use ash::vk::Handle as _;
 use openxr_sys as xr;
@@ -317,7 +317,7 @@ fn vulkan_objects(d: &DeviceState, family: u32, queue_index: u32, ov: &mut Overl
     // whatever was made before a failure is in `ov` and destroyed by the caller.
     unsafe {
         let host = vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
-        (ov.buffer, ov.memory, _) = crate::vk::lifetime::bound_buffer(&d.fns, &d.memory, size, vk::BufferUsageFlags::TRANSFER_SRC, &[host])?;
+        (ov.buffer, ov.memory, _) = crate::plugin::vk::lifetime::bound_buffer(&d.fns, &d.memory, size, vk::BufferUsageFlags::TRANSFER_SRC, &[host])?;
         ov.mapped = d.fns.map_memory(ov.memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()).map_err(vk_err("vkMapMemory"))? as usize;
         ov.pool = d
             .fns
@@ -418,14 +418,14 @@ fn record_and_submit(ov: &Overlay, image: vk::Image) -> Result<(), String> {
         d.fns.cmd_pipeline_barrier(ov.cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &[to_release]);
         d.fns.end_command_buffer(ov.cb).map_err(vk_err("vkEndCommandBuffer"))?;
         // `stats.gpu_time`: the layer's own work is timed in the frame it is submitted in.
-        let bracket = crate::vk::gpu_time::start(d, ov.queue, 1, true);
+        let bracket = crate::plugin::vk::gpu_time::start(d, ov.queue, 1, true);
         let cbs = match &bracket {
             Some(b) => vec![b.begin, ov.cb, b.end],
             None => vec![ov.cb],
         };
         let r = d.fns.queue_submit(ov.queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], ov.fence);
         if let Some(b) = bracket {
-            crate::vk::gpu_time::submitted(d, b, ov.queue, r.is_ok());
+            crate::plugin::vk::gpu_time::submitted(d, b, ov.queue, r.is_ok());
         }
         r.map_err(vk_err("vkQueueSubmit"))
     }
@@ -437,7 +437,7 @@ fn destroy_objects(s: &Session, ov: Overlay) {
     let d = &ov.device;
     // The spec has the device outlive the session; an app that destroyed it first took the
     // overlay's Vulkan objects with it (vkDestroyDevice), and the device must not be touched.
-    if !crate::vk::device_is_live(d) {
+    if !crate::plugin::vk::device_is_live(d) {
         tracing::warn!("overlay: the app destroyed the session's VkDevice before the session; its Vulkan objects went with the device");
     } else {
         // SAFETY: our objects on the session's device, checked live just above; the fence wait

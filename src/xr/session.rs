@@ -20,7 +20,7 @@ pub(crate) struct VulkanBinding {
     pub device: u64,
     /// `device`'s dispatch key, read once here: every later lookup of the device's state uses
     /// it, never the app's handle again.
-    pub device_key: crate::vk::DeviceKey,
+    pub device_key: crate::plugin::vk::DeviceKey,
     pub queue_family_index: u32,
     pub queue_index: u32,
 }
@@ -96,7 +96,7 @@ unsafe fn vulkan_binding(mut next: *const xr::BaseInStructure) -> Option<VulkanB
                     instance: b.instance as u64,
                     physical_device: b.physical_device as u64,
                     device: b.device as u64,
-                    device_key: crate::vk::DeviceKey::of_live(b.device as u64),
+                    device_key: crate::plugin::vk::DeviceKey::of_live(b.device as u64),
                     queue_family_index: b.queue_family_index,
                     queue_index: b.queue_index,
                 });
@@ -132,7 +132,7 @@ pub(super) unsafe extern "system" fn create_session(
         let system_id = unsafe { create_info.as_ref() }.map_or(xr::SystemId::NULL, |ci| ci.system_id);
         // SAFETY: success means the runtime wrote the new handle.
         let handle = unsafe { *session };
-        let vulkan_half = binding.as_ref().is_some_and(|b| crate::vk::device_is_tracked(b.device_key));
+        let vulkan_half = binding.as_ref().is_some_and(|b| crate::plugin::vk::device_is_tracked(b.device_key));
         match &binding {
             Some(b) => tracing::info!(
                 "session {:#x} renders on VkDevice {:#x} (queue family {}, index {}); the Vulkan half {}",

@@ -28,7 +28,7 @@ use crate::features::upscale::lens::Tiles;
 use crate::features::upscale::vk::{format_refusal, Job, Output, Pipelines, Target, TargetDesc};
 use crate::features::upscale::UpscaleSettings;
 use crate::plugin::settings::Settings;
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use ash::vk;
 use ash::vk::Handle as _;
 use openxr_sys as xr;
@@ -246,7 +246,7 @@ pub(super) fn create_swapchain(
         sample_count: ci.sample_count,
         face_count: ci.face_count,
         mip_count: ci.mip_count,
-        depth: ci.usage_flags.contains(xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT) || !crate::vk::convert::format_aspects(format).contains(vk::ImageAspectFlags::COLOR),
+        depth: ci.usage_flags.contains(xr::SwapchainUsageFlags::DEPTH_STENCIL_ATTACHMENT) || !crate::plugin::vk::convert::format_aspects(format).contains(vk::ImageAspectFlags::COLOR),
         protected: ci.create_flags.contains(xr::SwapchainCreateFlags::PROTECTED_CONTENT),
     };
     let plan = match rules::plan(&ask, &latch.views) {
@@ -583,14 +583,14 @@ fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
     // SAFETY: the recorded command buffer and its fence (unsignalled); the session's queue, used
     // inside xrEndFrame / xrReleaseSwapchainImage as the binding allows.
     let r = unsafe {
-        let bracket = crate::vk::gpu_time::start(&d, queue, 1, true);
+        let bracket = crate::plugin::vk::gpu_time::start(&d, queue, 1, true);
         let cbs = match &bracket {
             Some(b) => vec![b.begin, cb, b.end],
             None => vec![cb],
         };
         let r = d.fns.queue_submit(queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], fence);
         if let Some(b) = bracket {
-            crate::vk::gpu_time::submitted(&d, b, queue, r.is_ok());
+            crate::plugin::vk::gpu_time::submitted(&d, b, queue, r.is_ok());
         }
         r.map_err(|e| format!("vkQueueSubmit: {e}"))
     };
@@ -618,7 +618,7 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
         return None;
     }
     // SAFETY: the frame's layer pointers, valid for this call (non-null when counted: checked).
-    let layers: Vec<*const xr::CompositionLayerBaseHeader> = if info.layer_count > 0 && info.layers.is_null() { Vec::new() } else { unsafe { crate::vk::convert::slice(info.layers, info.layer_count) }.to_vec() };
+    let layers: Vec<*const xr::CompositionLayerBaseHeader> = if info.layer_count > 0 && info.layers.is_null() { Vec::new() } else { unsafe { crate::plugin::vk::convert::slice(info.layers, info.layer_count) }.to_vec() };
     let find = |h: xr::Swapchain| scs.iter().find(|(handle, _)| *handle == h.into_raw()).map(|(_, sc)| sc);
     // The jobs each interposed swapchain's latest held image gets from this frame, with where
     // EASU runs.
@@ -688,7 +688,7 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
 pub(super) fn destroy(s: &Session, i: &Interposed) {
     let g = lock(&s.upscale.gpu);
     let Some(g) = g.as_ref() else { return };
-    if !crate::vk::device_is_live(&g.device) {
+    if !crate::plugin::vk::device_is_live(&g.device) {
         return;
     }
     g.slots.wait_all(&g.device);
@@ -699,7 +699,7 @@ pub(super) fn destroy(s: &Session, i: &Interposed) {
 /// The session ends: the GPU objects go (its swapchains went first).
 pub(super) fn session_destroyed(s: &Session) {
     let Some(mut g) = lock(&s.upscale.gpu).take() else { return };
-    if !crate::vk::device_is_live(&g.device) {
+    if !crate::plugin::vk::device_is_live(&g.device) {
         tracing::warn!("upscale: the app destroyed the session's VkDevice before the session; its Vulkan objects went with the device");
         return;
     }

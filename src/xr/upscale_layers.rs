@@ -31,7 +31,7 @@ pub(super) unsafe fn sub_images(layer: *const xr::CompositionLayerBaseHeader) ->
         Some(match base.ty {
             xr::StructureType::COMPOSITION_LAYER_PROJECTION => {
                 let p = &*(layer as *const xr::CompositionLayerProjection);
-                (true, crate::vk::convert::slice(p.views, p.view_count).iter().enumerate().map(|(i, v)| (v.sub_image, Some((i as u32, v.fov)))).collect())
+                (true, crate::plugin::vk::convert::slice(p.views, p.view_count).iter().enumerate().map(|(i, v)| (v.sub_image, Some((i as u32, v.fov)))).collect())
             }
             xr::StructureType::COMPOSITION_LAYER_QUAD => (false, one((*(layer as *const xr::CompositionLayerQuad)).sub_image)),
             xr::StructureType::COMPOSITION_LAYER_CYLINDER_KHR => (false, one((*(layer as *const xr::CompositionLayerCylinderKHR)).sub_image)),
@@ -68,7 +68,7 @@ pub(super) fn rewrite(info: &xr::FrameEndInfo, layers: &[*const xr::CompositionL
             match l.as_ref().map(|b| b.ty) {
                 Some(xr::StructureType::COMPOSITION_LAYER_PROJECTION) => {
                     let mut p = Box::new(*(l as *const xr::CompositionLayerProjection));
-                    let mut views = crate::vk::convert::slice(p.views, p.view_count).to_vec();
+                    let mut views = crate::plugin::vk::convert::slice(p.views, p.view_count).to_vec();
                     for v in &mut views {
                         map(&mut v.sub_image, true);
                     }

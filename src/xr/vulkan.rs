@@ -141,7 +141,7 @@ pub(super) unsafe extern "system" fn create_vulkan_instance(
         // A Vulkan 1.0 app: the instance extension shading rate depends on, when it may be wanted.
         // SAFETY: the app's names are valid for this call; `gipa` is the app's loader entry point.
         let (app_extensions, available) = unsafe {
-            (crate::vk::convert::names(vk_ci.pp_enabled_extension_names, vk_ci.enabled_extension_count), instance_extensions(gipa))
+            (crate::plugin::vk::convert::names(vk_ci.pp_enabled_extension_names, vk_ci.enabled_extension_count), instance_extensions(gipa))
         };
         // SAFETY: the app's application info, valid for this call, or null.
         let api_version = unsafe { vk_ci.p_application_info.as_ref() }.map_or(vk::API_VERSION_1_0, |a| a.api_version);
@@ -152,7 +152,7 @@ pub(super) unsafe extern "system" fn create_vulkan_instance(
             .filter_map(|e| CString::new(e).ok())
             .collect();
         // SAFETY: as above.
-        let mut extensions: Vec<*const c_char> = unsafe { crate::vk::convert::slice(vk_ci.pp_enabled_extension_names, vk_ci.enabled_extension_count) }.to_vec();
+        let mut extensions: Vec<*const c_char> = unsafe { crate::plugin::vk::convert::slice(vk_ci.pp_enabled_extension_names, vk_ci.enabled_extension_count) }.to_vec();
         extensions.extend(added.iter().map(|e| e.as_ptr()));
         if !added.is_empty() {
             tracing::info!("adding {added:?} to the app's Vulkan 1.0 instance (fragment shading rate depends on it)");

@@ -12,8 +12,8 @@
 
 use super::copy::{copy_barriers, source_layers, PendingCopy};
 use crate::track::eye_pass::EyeDraw;
-use crate::vk::lifetime::{self, Garbage, PooledBuffer};
-use crate::vk::DeviceState;
+use crate::plugin::vk::lifetime::{self, Garbage, PooledBuffer};
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::sync::{Arc, Mutex};
 
@@ -147,7 +147,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: &PendingCopy, so
     unsafe {
         (fns.cmd_pipeline_barrier)(cb, attachment_stages | readers, vk::PipelineStageFlags::COMPUTE_SHADER, vk::DependencyFlags::empty(), 0, std::ptr::null(), 0, std::ptr::null(), before.len() as u32, before.as_ptr());
         {
-            let _restore = crate::vk::inject::restore::RestoreCompute::new(d, cb, compute);
+            let _restore = crate::plugin::vk::inject::restore::RestoreCompute::new(d, cb, compute);
             (fns.cmd_bind_pipeline)(cb, vk::PipelineBindPoint::COMPUTE, c.pipeline);
             for (dr, set) in sources.iter().zip(&objects.1) {
                 (fns.cmd_bind_descriptor_sets)(cb, vk::PipelineBindPoint::COMPUTE, c.layout, 0, 1, set, 0, std::ptr::null());

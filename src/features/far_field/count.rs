@@ -8,8 +8,8 @@
 //! readback (or never used them), so the next counter takes them as they are; only new pools need
 //! the one-time reset ahead of their first submission, recorded when the pool is made.
 
-use crate::vk::lifetime::PooledBuffer;
-use crate::vk::DeviceState;
+use crate::plugin::vk::lifetime::PooledBuffer;
+use crate::plugin::vk::DeviceState;
 use ash::vk;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -62,7 +62,7 @@ impl Counter {
                 let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::OCCLUSION).query_count(queries);
                 // SAFETY: a valid create info; the pool is ours until the device goes (`destroy`).
                 let pool = unsafe { d.fns.create_query_pool(&info, None) }.map_err(|e| e.to_string())?;
-                let reset = crate::vk::secondary::prepare_once(d, family, |cb| {
+                let reset = crate::plugin::vk::secondary::prepare_once(d, family, |cb| {
                     // SAFETY: our one-time command buffer, recording, outside any pass; our new
                     // pool, which no submission has used yet.
                     unsafe { (d.fns.fp_v1_0().cmd_reset_query_pool)(cb, pool, 0, queries) }

@@ -25,10 +25,10 @@ use crate::bridge::shared;
 use crate::core::views::{FarFieldViews, ViewPose};
 use crate::track::cmd::{AttachmentUse, PassInstance};
 use crate::track::eye_pass::{EyeDraw, EyeLayout};
-use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
-use crate::vk::inject::{self, pipeline, Injection};
-use crate::vk::lifetime::{self, PooledBuffer};
-use crate::vk::DeviceState;
+use crate::plugin::vk::feature::{DeviceInit, Plugin, VkFeature};
+use crate::plugin::vk::inject::{self, pipeline, Injection};
+use crate::plugin::vk::lifetime::{self, PooledBuffer};
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -304,7 +304,7 @@ impl FarFieldDevice {
         let family = family.ok_or("the command buffer's queue family is unknown: the slots' layouts cannot be set up")?;
         let slots = Arc::new(make_slots(d, &self.memory, extent, (color_format, depth_format, samples), set_layout, linear, nearest)?);
         // On failure the new slots are dropped, which hands their objects to the trash.
-        let init = crate::vk::secondary::prepare_once(d, family, |cb| record_slot_init(d, cb, &slots)).map_err(|e| format!("slot layouts: {e}"))?;
+        let init = crate::plugin::vk::secondary::prepare_once(d, family, |cb| record_slot_init(d, cb, &slots)).map_err(|e| format!("slot layouts: {e}"))?;
         tracing::info!(width = extent.width, height = extent.height, ?color_format, ?depth_format, samples = samples.as_raw(), "far field source slots created");
         let mut o = lock(&self.objects);
         o.slots = Some(slots.clone());

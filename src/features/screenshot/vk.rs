@@ -17,8 +17,8 @@ use crate::core::stats::FeatureStats;
 use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::core::views::ImageRect;
-use crate::vk::feature::{DeviceInit, Plugin, VkFeature};
-use crate::vk::DeviceState;
+use crate::plugin::vk::feature::{DeviceInit, Plugin, VkFeature};
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::collections::HashSet;
 use std::path::PathBuf;
@@ -133,7 +133,7 @@ struct Jobs {
 /// The screenshot feature of one device.
 pub(crate) struct ScreenshotDevice {
     memory: vk::PhysicalDeviceMemoryProperties,
-    set_loader_data: Option<crate::vk::PfnSetDeviceLoaderData>,
+    set_loader_data: Option<crate::plugin::vk::PfnSetDeviceLoaderData>,
     jobs: Arc<Jobs>,
     /// Whether a frame is armed: the only thing a release looks at otherwise.
     armed: AtomicBool,
@@ -185,9 +185,9 @@ impl ScreenshotDevice {
 }
 
 /// Arms `frame` on `device` for `request` (the OpenXR side, at `xrBeginFrame`).
-pub(crate) fn request(device: crate::vk::DeviceKey, frame: u64, request: Request) -> Requested {
+pub(crate) fn request(device: crate::plugin::vk::DeviceKey, frame: u64, request: Request) -> Requested {
     let Some(d) = device.state() else { return Requested::NoDevice };
-    let me = &d.features.screenshot;
+    let me = &d.features.get::<crate::features::screenshot::vk::ScreenshotDevice>();
     let mut st = lock(&me.jobs.state);
     if st.busy || st.handoff.is_some() || st.armed.is_some() || st.closed {
         return Requested::Busy;
@@ -246,7 +246,7 @@ fn prepare(fns: &ash::Device, memory: &vk::PhysicalDeviceMemoryProperties, jobs:
 /// A host-visible buffer of `size` bytes (cached memory where there is some: it is read by the CPU).
 fn make_staging(fns: &ash::Device, memory: &vk::PhysicalDeviceMemoryProperties, swapchain: u64, size: u64) -> Result<Staging, String> {
     let host = vk::MemoryPropertyFlags::HOST_VISIBLE;
-    let (buffer, memory, flags) = crate::vk::lifetime::bound_buffer(fns, memory, size, vk::BufferUsageFlags::TRANSFER_DST, &[host | vk::MemoryPropertyFlags::HOST_CACHED, host])?;
+    let (buffer, memory, flags) = crate::plugin::vk::lifetime::bound_buffer(fns, memory, size, vk::BufferUsageFlags::TRANSFER_DST, &[host | vk::MemoryPropertyFlags::HOST_CACHED, host])?;
     Ok(Staging { swapchain, buffer, memory, coherent: flags.contains(vk::MemoryPropertyFlags::HOST_COHERENT), size })
 }
 
@@ -264,9 +264,9 @@ unsafe fn destroy_staging(fns: &ash::Device, s: &Staging) {
 /// thread; an armed frame that copied nothing (no image was tied to a view yet: the first frame)
 /// stays armed for this one, up to `MAX_EMPTY_FRAMES` (then the thread answers with an error).
 /// Returns whether a frame is still armed.
-pub(crate) fn frame_begun(device: crate::vk::DeviceKey, frame: u64) -> bool {
+pub(crate) fn frame_begun(device: crate::plugin::vk::DeviceKey, frame: u64) -> bool {
     let Some(d) = device.state() else { return false };
-    let me = &d.features.screenshot;
+    let me = &d.features.get::<crate::features::screenshot::vk::ScreenshotDevice>();
     let mut st = lock(&me.jobs.state);
     let preparing = st.preparing;
     match st.armed.as_mut() {
@@ -618,14 +618,14 @@ fn copy(me: &ScreenshotDevice, d: &DeviceState, image: u64, desc: &crate::core::
             f.end_command_buffer(cb).map_err(e("end"))?;
             let queue = f.get_device_queue(family, queue_index);
             // `stats.gpu_time`: the layer's own work is timed like the app's.
-            let bracket = crate::vk::gpu_time::start(d, queue, 1, true);
+            let bracket = crate::plugin::vk::gpu_time::start(d, queue, 1, true);
             let cbs = match &bracket {
                 Some(b) => vec![b.begin, cb, b.end],
                 None => vec![cb],
             };
             let r = f.queue_submit(queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], c.fence);
             if let Some(b) = bracket {
-                crate::vk::gpu_time::submitted(d, b, queue, r.is_ok());
+                crate::plugin::vk::gpu_time::submitted(d, b, queue, r.is_ok());
             }
             r.map_err(e("vkQueueSubmit"))
         })()

@@ -14,7 +14,7 @@ use super::lens::Tiles;
 use std::sync::Arc;
 use super::vk::{image_barrier, rect4, Job, Output, Pipelines, Prep, Target, PUSH_STAGES};
 use super::Method;
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use ash::vk;
 
 /// One swapchain's upscale in a frame.

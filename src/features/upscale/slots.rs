@@ -1,7 +1,7 @@
 //! The command buffers of a session's upscales (`Slots`): a small ring reused once each fence
 //! signalled, with the timestamps that give `stats.file` the upscale's own GPU time and phases.
 
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use ash::vk;
 use ash::vk::Handle as _;
 

@@ -19,7 +19,7 @@ use super::lens::Tiles;
 use super::Method;
 use std::sync::Arc;
 use crate::core::rect::PixelRect;
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use ash::vk;
 
 /// How a frame finds a target's intermediates (`Target::record_tile_uploads`).
@@ -269,7 +269,7 @@ pub(crate) struct Target {
 
 /// A memory type of `props` among `bits` with `flags`.
 fn memory_type(props: &vk::PhysicalDeviceMemoryProperties, bits: u32, flags: vk::MemoryPropertyFlags) -> Result<u32, String> {
-    crate::vk::lifetime::memory_type(props, bits, flags).ok_or_else(|| format!("no memory type of {bits:#x} with {flags:?}"))
+    crate::plugin::vk::lifetime::memory_type(props, bits, flags).ok_or_else(|| format!("no memory type of {bits:#x} with {flags:?}"))
 }
 
 impl Target {

@@ -403,7 +403,7 @@ impl XrFeature for ViewsXr {
             }
         };
         // SAFETY: the app's layers, valid for this call (non-null, counted).
-        let layers = unsafe { crate::vk::convert::slice(info.layers, info.layer_count) };
+        let layers = unsafe { crate::plugin::vk::convert::slice(info.layers, info.layer_count) };
         for &layer in layers {
             // SAFETY: the app's layer; its type tells its layout.
             let Some(base) = (unsafe { layer.as_ref() }) else { continue };
@@ -413,7 +413,7 @@ impl XrFeature for ViewsXr {
             // SAFETY: a projection layer (its type says so), valid for this call.
             let p = unsafe { &*(layer as *const xr::CompositionLayerProjection) };
             // SAFETY: its views array as counted, valid for this call.
-            let views = unsafe { crate::vk::convert::slice(p.views, p.view_count) };
+            let views = unsafe { crate::plugin::vk::convert::slice(p.views, p.view_count) };
             for (i, (v, g)) in views.iter().zip(&given.angles).enumerate() {
                 let a = [v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down];
                 if a.iter().zip(g).any(|(a, g)| (a - g).abs() > ANGLE_TOLERANCE) {

@@ -3,7 +3,7 @@
 //! what each compute dispatch reads and writes. Every call goes down unchanged; only image
 //! descriptors are recorded (`track::descriptors`).
 
-use super::super::{convert, DeviceState};
+use crate::plugin::vk::{convert, DeviceState};
 use super::{cmd, hook};
 use crate::track::descriptors::{self, LayoutBinding, SetLayout, TemplateEntry, UpdateTemplate, Write};
 use ash::vk::{self, Handle};

@@ -1,11 +1,10 @@
 //! Draw hooks: only so an armed eye pass gets its waiting features' draws in front of its first
-//! depth-tested draw (`inject::before_draw`). Every draw command the app can record into a pass
+//! depth-tested draw (`crate::vk::chassis::before_draw`). Every draw command the app can record into a pass
 //! is hooked — one the layer missed could be drawn before an injection that then paints over it.
 //! Draw commands of extensions the layer does not forward (mesh shaders, multi-draw, transform
 //! feedback) veto injections instead (`record::veto_hook`).
 
 use super::hook_decided;
-use crate::vk::inject;
 use ash::vk::{self, Handle};
 
 /// Hooks a draw: `before_draw` first, then the app's call unchanged.
@@ -19,7 +18,7 @@ macro_rules! draw_hook {
                 |d| {
                     // What the draw reads, for the data-flow walk; then the armed injection.
                     d.track.with_cb($cb.as_raw(), |s| s.flow_draw());
-                    inject::before_draw(d, $cb)
+                    crate::vk::chassis::before_draw(d, $cb)
                 },
                 // SAFETY: forwarding the app's arguments unchanged to the next layer's command.
                 |$d, _| unsafe { $next },

@@ -9,8 +9,9 @@
 //! `inject`. `record` holds the command-recording hooks, `submit` the queue submissions.
 
 use crate::features::upscale::UpscaleSettings;
-use super::feature::{Destroyed, RenderPassInfo};
-use super::{convert, device_of, lifetime, DeviceState};
+use crate::plugin::vk::feature::{Destroyed, RenderPassInfo};
+use super::device_of;
+use crate::plugin::vk::{convert, lifetime, DeviceState};
 use crate::guard::{self, Fault};
 use crate::track::cmd::StateCmd;
 use ash::vk::{self, Handle};
@@ -287,7 +288,7 @@ pub(super) unsafe extern "system" fn create_render_pass(
     out: *mut vk::RenderPass,
 ) -> vk::Result {
     // SAFETY: the app's create info, valid during its call (which outlives `kept`).
-    let kept = if device_of(device).is_some_and(|d| super::keep_depth::wanted(&d)) { unsafe { super::keep_depth::render_pass(ci) } } else { None };
+    let kept = if device_of(device).is_some_and(|d| crate::plugin::vk::keep_depth::wanted(&d)) { unsafe { crate::plugin::vk::keep_depth::render_pass(ci) } } else { None };
     let ci = kept.as_ref().map_or(ci, |k| &k.info as *const _);
     create_render_pass_common(
         "vkCreateRenderPass",
@@ -309,7 +310,7 @@ pub(super) unsafe extern "system" fn create_render_pass2(
     out: *mut vk::RenderPass,
 ) -> vk::Result {
     // SAFETY: the app's create info, valid during its call (which outlives `kept`).
-    let kept = if device_of(device).is_some_and(|d| super::keep_depth::wanted(&d)) { unsafe { super::keep_depth::render_pass2(ci) } } else { None };
+    let kept = if device_of(device).is_some_and(|d| crate::plugin::vk::keep_depth::wanted(&d)) { unsafe { crate::plugin::vk::keep_depth::render_pass2(ci) } } else { None };
     let ci = kept.as_ref().map_or(ci, |k| &k.info as *const _);
     create_render_pass_common(
         "vkCreateRenderPass2",
@@ -326,7 +327,7 @@ pub(super) unsafe extern "system" fn create_render_pass2(
 
 destroy_hook!(destroy_render_pass, "vkDestroyRenderPass", vk::RenderPass, fp_v1_0.destroy_render_pass, |d, h| {
     d.track.render_passes.remove(h);
-    super::inject::pipeline::forget_render_pass(d, h)
+    crate::plugin::vk::inject::pipeline::forget_render_pass(d, h)
 });
 /// `vkCreateFramebuffer`: a feature may amend the framebuffer (e.g. append its own attachment for
 /// a render pass it amended); tracked as the app described it.
@@ -383,7 +384,7 @@ create_hook!(create_command_pool, "vkCreateCommandPool", vk::CommandPoolCreateIn
 });
 destroy_hook!(destroy_command_pool, "vkDestroyCommandPool", vk::CommandPool, fp_v1_0.destroy_command_pool, |d, h| {
     let buffers = d.track.buffers_of_pool(h);
-    super::secondary::release(d, &buffers);
+    crate::plugin::vk::secondary::release(d, &buffers);
     lifetime::close(d, &buffers);
     d.track.destroy_pool(h)
 });
@@ -442,7 +443,7 @@ pub(super) unsafe extern "system" fn reset_command_pool(device: vk::Device, pool
         |d, r| {
             if r == vk::Result::SUCCESS {
                 let buffers = d.track.buffers_of_pool(pool.as_raw());
-                super::secondary::release(d, &buffers);
+                crate::plugin::vk::secondary::release(d, &buffers);
                 lifetime::close(d, &buffers);
                 d.track.reset_pool(pool.as_raw());
             }
@@ -488,7 +489,7 @@ pub(super) unsafe extern "system" fn free_command_buffers(device: vk::Device, po
         |d, _| {
             // SAFETY: `count` handles (some may be null, which match nothing).
             let handles: Vec<u64> = unsafe { convert::slice(cbs, count) }.iter().map(|c| c.as_raw()).collect();
-            super::secondary::release(d, &handles);
+            crate::plugin::vk::secondary::release(d, &handles);
             lifetime::close(d, &handles);
             d.track.free_command_buffers(&handles);
             Ok(())

@@ -4,8 +4,8 @@
 //! the commands whose state the layer cannot restore (they veto injections into their command
 //! buffer: `CmdState::veto`).
 
-use super::super::inject::{self, Trigger};
-use super::super::{convert, lifetime, DeviceState};
+use crate::plugin::vk::inject::Trigger;
+use crate::plugin::vk::{convert, lifetime, DeviceState};
 use super::{cmd, hook, hook_decided, state};
 use crate::core::rect::PixelRect;
 use crate::track::cmd::{PassKind, StateCmd};
@@ -23,10 +23,10 @@ pub(in crate::vk) unsafe extern "system" fn begin_command_buffer(cb: vk::Command
             if r == vk::Result::SUCCESS {
                 // Not pending (re-recording requires it): the layer's secondaries in it are free,
                 // and its previous recording's holds go once its submissions are known complete.
-                super::super::secondary::release(d, &[cb.as_raw()]);
+                crate::plugin::vk::secondary::release(d, &[cb.as_raw()]);
                 lifetime::close(d, &[cb.as_raw()]);
                 // The data-flow walk is fed while anything injects (decided per recording).
-                let flow = inject::any_injects(d, &d.settings());
+                let flow = crate::vk::chassis::any_injects(d, &d.settings());
                 // SAFETY: a valid begin info.
                 d.track.begin_command_buffer(cb.as_raw(), unsafe { (*info).flags }, flow);
             }
@@ -44,7 +44,7 @@ pub(in crate::vk) unsafe extern "system" fn reset_command_buffer(cb: vk::Command
         |d| unsafe { (d.fns.fp_v1_0().reset_command_buffer)(cb, flags) },
         |d, r| {
             if r == vk::Result::SUCCESS {
-                super::super::secondary::release(d, &[cb.as_raw()]);
+                crate::plugin::vk::secondary::release(d, &[cb.as_raw()]);
                 lifetime::close(d, &[cb.as_raw()]);
                 d.track.with_cb(cb.as_raw(), |s| s.reset());
             }
@@ -59,7 +59,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_execute_commands(cb: vk::Command
         cb,
         (),
         // An eye pass with secondary contents: the layer's draws, in its own secondary.
-        |d| inject::on_execute_commands(d, cb),
+        |d| crate::vk::chassis::on_execute_commands(d, cb),
         |d, ours| {
             let execute = d.fns.fp_v1_0().cmd_execute_commands;
             if let Some(Some(ours)) = ours {
@@ -273,7 +273,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_begin_render_pass(cb: vk::Comman
         |d, _| {
             begin_pass(d, cb.as_raw(), PassKind::RenderPass, info);
             pass_begun(d, cb, secondary);
-            inject::on_trigger(d, cb, Trigger::Begin { secondary });
+            crate::vk::chassis::on_trigger(d, cb, Trigger::Begin { secondary });
             Ok(())
         },
     )
@@ -283,7 +283,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_next_subpass(cb: vk::CommandBuff
     // SAFETY: forwarding the app's arguments unchanged.
     cmd("vkCmdNextSubpass", cb, (), |d| unsafe { (d.fns.fp_v1_0().cmd_next_subpass)(cb, contents) }, |d, raw| {
         d.track.next_subpass(raw);
-        inject::on_trigger(d, cb, Trigger::NextSubpass { secondary: contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS });
+        crate::vk::chassis::on_trigger(d, cb, Trigger::NextSubpass { secondary: contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS });
     })
 }
 
@@ -315,7 +315,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_begin_render_pass2(
         |d, _| {
             begin_pass(d, cb.as_raw(), PassKind::RenderPass2, info);
             pass_begun(d, cb, secondary_contents(subpass_info));
-            inject::on_trigger(d, cb, Trigger::Begin { secondary: secondary_contents(subpass_info) });
+            crate::vk::chassis::on_trigger(d, cb, Trigger::Begin { secondary: secondary_contents(subpass_info) });
             Ok(())
         },
     )
@@ -325,7 +325,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_next_subpass2(cb: vk::CommandBuf
     // SAFETY: forwarding the app's arguments unchanged.
     cmd("vkCmdNextSubpass2", cb, (), |d| unsafe { (d.fns.fp_v1_2().cmd_next_subpass2)(cb, begin, end) }, |d, raw| {
         d.track.next_subpass(raw);
-        inject::on_trigger(d, cb, Trigger::NextSubpass { secondary: secondary_contents(begin) });
+        crate::vk::chassis::on_trigger(d, cb, Trigger::NextSubpass { secondary: secondary_contents(begin) });
     })
 }
 
@@ -336,7 +336,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_end_render_pass2(cb: vk::Command
 
 pub(in crate::vk) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandBuffer, info: *const vk::RenderingInfo<'_>) {
     // SAFETY: the app's rendering info, valid during its call (which outlives `kept`).
-    let kept = if super::super::device_of(cb).is_some_and(|d| super::super::keep_depth::wanted(&d)) { unsafe { super::super::keep_depth::rendering(info) } } else { None };
+    let kept = if super::super::device_of(cb).is_some_and(|d| crate::plugin::vk::keep_depth::wanted(&d)) { unsafe { crate::plugin::vk::keep_depth::rendering(info) } } else { None };
     let info = kept.as_ref().map_or(info, |k| &k.info as *const _);
     hook_decided(
         "vkCmdBeginRendering",
@@ -359,7 +359,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_begin_rendering(cb: vk::CommandB
             let (area, rendering) = unsafe { convert::rendering(&d.track, &*info) };
             let secondary = rendering.flags.contains(vk::RenderingFlags::CONTENTS_SECONDARY_COMMAND_BUFFERS);
             d.track.begin_rendering(raw, area, rendering);
-            inject::on_trigger(d, cb, Trigger::Begin { secondary });
+            crate::vk::chassis::on_trigger(d, cb, Trigger::Begin { secondary });
             Ok(())
         },
     )
@@ -413,7 +413,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_bind_vertex_buffers2(
 /// A copy / resolve / blit: learned for intermediate eye targets while anything injects, and
 /// raised to the features.
 fn transfer(d: &DeviceState, cb: vk::CommandBuffer, src: vk::Image, dst: vk::Image, regions: Vec<crate::track::eye_pass::TransferRegion>) {
-    if inject::any_injects(d, &d.settings()) {
+    if crate::vk::chassis::any_injects(d, &d.settings()) {
         d.track.record_transfer(crate::bridge::shared(), src.as_raw(), dst.as_raw(), &regions);
     }
     d.track.flow_transfer(cb.as_raw(), src.as_raw(), dst.as_raw(), &regions);
@@ -426,7 +426,7 @@ fn transfer(d: &DeviceState, cb: vk::CommandBuffer, src: vk::Image, dst: vk::Ima
 /// pass closed and `pass_ended`.
 fn end_pass(call: &'static str, cb: vk::CommandBuffer, next: impl Fn(&DeviceState)) {
     hook_decided(call, cb, (), |d| pass_ending(d, cb), |d, _| next(d), |d, ()| {
-        inject::on_trigger(d, cb, Trigger::End);
+        crate::vk::chassis::on_trigger(d, cb, Trigger::End);
         d.track.end_pass(cb.as_raw());
         pass_ended(d, cb);
         Ok(())
@@ -581,7 +581,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_clear_attachments(
         // SAFETY: forwarding the app's arguments unchanged.
         |d| unsafe { (d.fns.fp_v1_0().cmd_clear_attachments)(cb, n, attachments, rect_count, rects) },
         |d, _| {
-            if !inject::any_injects(d, &d.settings()) {
+            if !crate::vk::chassis::any_injects(d, &d.settings()) {
                 return;
             }
             // SAFETY: arrays valid with their counts during the app's call.
@@ -592,7 +592,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_clear_attachments(
                 // SAFETY: a depth clear's value is the depthStencil member.
                 let value = unsafe { a.clear_value.depth_stencil.depth };
                 let rects = rects.iter().map(|r| PixelRect { x: r.rect.offset.x, y: r.rect.offset.y, width: r.rect.extent.width, height: r.rect.extent.height }).collect();
-                inject::on_trigger(d, cb, Trigger::Clear { depth: value, rects });
+                crate::vk::chassis::on_trigger(d, cb, Trigger::Clear { depth: value, rects });
             }
         },
     )
@@ -613,7 +613,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_clear_depth_stencil_image(
         // SAFETY: forwarding the app's arguments unchanged.
         |d| unsafe { (d.fns.fp_v1_0().cmd_clear_depth_stencil_image)(cb, image, layout, value, n, ranges) },
         |d, raw| {
-            if !inject::any_injects(d, &d.settings()) {
+            if !crate::vk::chassis::any_injects(d, &d.settings()) {
                 return;
             }
             // SAFETY: valid pointers during the app's call.

@@ -7,8 +7,8 @@
 //! the GPU timer's two command buffers first in the first batch and last in the last
 //! (`vk::gpu_time`).
 
-use super::super::gpu_time::{self, Bracket};
-use super::super::{convert, lifetime, secondary, DeviceState};
+use crate::plugin::vk::gpu_time::{self, Bracket};
+use crate::plugin::vk::{convert, lifetime, secondary, DeviceState};
 use super::hook_decided;
 use ash::vk::{self, Handle};
 use std::cell::RefCell;
@@ -37,7 +37,7 @@ impl SetUps {
 /// for `after`. Returns the features' set-up work for this submission.
 fn before(d: &DeviceState, cbs: Vec<u64>, keep: &RefCell<Vec<u64>>) -> SetUps {
     lifetime::poll(d);
-    super::super::inject::walk_submitted(d, &cbs);
+    crate::vk::chassis::walk_submitted(d, &cbs);
     let family = cbs.first().and_then(|cb| d.track.command_buffers.get(*cb)).and_then(|c| d.track.pools.get(c.pool)).map(|p| p.queue_family_index);
     let mut set_ups = SetUps::default();
     if let Some(family) = family {

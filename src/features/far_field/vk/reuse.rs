@@ -8,8 +8,8 @@ use crate::features::far_field::rules::{self, InverseDepth, NoSource, PixelMap, 
 use crate::core::rect::PixelRect;
 use crate::plugin::settings::Settings;
 use crate::core::views::FarFieldViews;
-use crate::vk::inject;
-use crate::vk::DeviceState;
+use crate::plugin::vk::inject;
+use crate::plugin::vk::DeviceState;
 use ash::vk;
 
 /// One destination view's draw parameters (instance attributes, `far_field.vert`).

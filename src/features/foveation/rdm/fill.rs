@@ -8,7 +8,7 @@ use super::reconstruct::{layer_error, submit, Failure, Slot};
 use super::rules::{NotApplied, Pending};
 use crate::core::rect::PixelRect;
 use super::vk::lock;
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::collections::HashMap;
 
@@ -145,9 +145,9 @@ pub(super) fn make_temp(d: &DeviceState, format: vk::Format, usage: vk::ImageUsa
     unsafe {
         let image = d.fns.create_image(&info, None).map_err(layer_error("temp image"))?;
         let req = d.fns.get_image_memory_requirements(image);
-        let mem = &d.features.rdm.reconstruct.memory;
-        let index = crate::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
-            .or_else(|| crate::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
+        let mem = &d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.memory;
+        let index = crate::plugin::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
+            .or_else(|| crate::plugin::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
         let Some(index) = index else {
             d.fns.destroy_image(image, None);
             return Err((NotApplied::LayerError, "no memory type for the temp image".into()));
@@ -345,7 +345,7 @@ pub(super) unsafe fn record_fill(
                 FillDraws::FromBuffer { area, .. } => Some(area.intersect(&whole)),
             };
             let Some(area) = area.filter(|a| a.area() > 0) else { continue };
-            d.fns.cmd_begin_render_pass(cb, &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(*fb).render_area(crate::vk::inject::rect2d(area)), vk::SubpassContents::INLINE);
+            d.fns.cmd_begin_render_pass(cb, &vk::RenderPassBeginInfo::default().render_pass(render_pass).framebuffer(*fb).render_area(crate::plugin::vk::inject::rect2d(area)), vk::SubpassContents::INLINE);
             d.fns.cmd_bind_pipeline(cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
             d.fns.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::GRAPHICS, layout, 0, &[set], &[]);
             match &draws {
@@ -354,10 +354,10 @@ pub(super) unsafe fn record_fill(
                         let r = e.params.rect;
                         let vp = vk::Viewport { x: r.x as f32, y: r.y as f32, width: r.width as f32, height: r.height as f32, min_depth: 0.0, max_depth: 1.0 };
                         d.fns.cmd_set_viewport(cb, 0, &[vp]);
-                        d.fns.cmd_set_scissor(cb, 0, &[crate::vk::inject::rect2d(r.intersect(&whole))]);
+                        d.fns.cmd_set_scissor(cb, 0, &[crate::plugin::vk::inject::rect2d(r.intersect(&whole))]);
                         d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, FillParams::of(e).bytes());
                         match args {
-                            Some(buffer) => d.fns.cmd_draw_indirect(cb, *buffer, crate::vk::inject::DRAW_ARGS * i as u64, 1, crate::vk::inject::DRAW_ARGS as u32),
+                            Some(buffer) => d.fns.cmd_draw_indirect(cb, *buffer, crate::plugin::vk::inject::DRAW_ARGS * i as u64, 1, crate::plugin::vk::inject::DRAW_ARGS as u32),
                             None => d.fns.cmd_draw(cb, 3, 1, 0, 0),
                         }
                     }
@@ -366,10 +366,10 @@ pub(super) unsafe fn record_fill(
                     d.fns.cmd_bind_vertex_buffers(cb, 0, &[*buffer], &[*vertex_offset]);
                     let vp = vk::Viewport { x: 0.0, y: 0.0, width: whole.width as f32, height: whole.height as f32, min_depth: 0.0, max_depth: 1.0 };
                     d.fns.cmd_set_viewport(cb, 0, &[vp]);
-                    d.fns.cmd_set_scissor(cb, 0, &[crate::vk::inject::rect2d(area)]);
+                    d.fns.cmd_set_scissor(cb, 0, &[crate::plugin::vk::inject::rect2d(area)]);
                     d.fns.cmd_push_constants(cb, layout, vk::ShaderStageFlags::FRAGMENT, 0, &(*layer as i32).to_ne_bytes());
                     for slot in 0..EYES_PER_LAYER {
-                        d.fns.cmd_draw_indirect(cb, *buffer, crate::vk::inject::DRAW_ARGS * (li * EYES_PER_LAYER + slot) as u64, 1, crate::vk::inject::DRAW_ARGS as u32);
+                        d.fns.cmd_draw_indirect(cb, *buffer, crate::plugin::vk::inject::DRAW_ARGS * (li * EYES_PER_LAYER + slot) as u64, 1, crate::plugin::vk::inject::DRAW_ARGS as u32);
                     }
                 }
             }
@@ -388,7 +388,7 @@ pub(super) fn fill_objects_for(d: &DeviceState, key: (vk::Format, FillSource)) -
     let format = key.0;
     // Objects are made with no lock held: the calls go down the chain, and what is below may
     // call back into the layer. A thread that loses a race to another destroys its own.
-    let fill = &d.features.rdm.reconstruct.fill;
+    let fill = &d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.fill;
     let have = lock(fill).as_ref().map(|f| (f.shared(), f.passes.get(&key).copied()));
     let common = match have {
         Some((f, Some((rp, p)))) => return Ok((f.layout, f.set_layout, rp, p, f.sampler)),

@@ -19,9 +19,9 @@ use super::compute::{self, ReconParams, Shader};
 use super::rules::{ComputeStorage, Pending};
 use super::vk::{lock, RdmDevice};
 use crate::core::rect::PixelRect;
-use crate::vk::inject::restore::RestoreCompute;
-use crate::vk::lifetime::{Garbage, PooledBuffer};
-use crate::vk::DeviceState;
+use crate::plugin::vk::inject::restore::RestoreCompute;
+use crate::plugin::vk::lifetime::{Garbage, PooledBuffer};
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::sync::{Arc, Mutex};
 
@@ -324,7 +324,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: &Prepared, image
         let last = barrier((vk::ImageLayout::TRANSFER_DST_OPTIMAL, before), (vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE));
         fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &last);
     }
-    crate::vk::lifetime::hold(d, cb.as_raw(), p.pixels.clone());
+    crate::plugin::vk::lifetime::hold(d, cb.as_raw(), p.pixels.clone());
     true
 }
 

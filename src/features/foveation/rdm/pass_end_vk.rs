@@ -20,9 +20,9 @@ use super::vk::{lock, log_once, RdmDevice};
 use crate::core::rect::PixelRect;
 use crate::track::eye_pass::EyeDraw;
 use crate::track::resources::ImageView;
-use crate::vk::inject::{self, restore};
-use crate::vk::lifetime::{Garbage, PooledBuffer};
-use crate::vk::DeviceState;
+use crate::plugin::vk::inject::{self, restore};
+use crate::plugin::vk::lifetime::{Garbage, PooledBuffer};
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -438,7 +438,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
             d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &last);
         }
     }
-    crate::vk::lifetime::hold(d, key, temp.clone());
+    crate::plugin::vk::lifetime::hold(d, key, temp.clone());
     job.link.recorded.store(true, Ordering::Release);
     true
 }

@@ -14,7 +14,7 @@ use crate::core::rect::PixelRect;
 use crate::features::foveation::Reconstruction;
 use crate::bridge::{self, shared};
 
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::collections::VecDeque;
 use std::sync::atomic::Ordering;
@@ -31,7 +31,7 @@ const SLOT_WAIT_NS: u64 = 2_000_000_000;
 
 /// The reconstruction's objects of one device. Locks guard bookkeeping only.
 pub(crate) struct Reconstruct {
-    set_loader_data: Option<crate::vk::PfnSetDeviceLoaderData>,
+    set_loader_data: Option<crate::plugin::vk::PfnSetDeviceLoaderData>,
     pub(super) memory: vk::PhysicalDeviceMemoryProperties,
     pub(super) fill: Mutex<Option<FillObjects>>,
     slots: Mutex<VecDeque<Slot>>,
@@ -46,7 +46,7 @@ pub(crate) struct Reconstruct {
 }
 
 impl Reconstruct {
-    pub(crate) fn new(memory: vk::PhysicalDeviceMemoryProperties, set_loader_data: Option<crate::vk::PfnSetDeviceLoaderData>) -> Reconstruct {
+    pub(crate) fn new(memory: vk::PhysicalDeviceMemoryProperties, set_loader_data: Option<crate::plugin::vk::PfnSetDeviceLoaderData>) -> Reconstruct {
         Reconstruct { set_loader_data, memory, fill: Mutex::default(), slots: Mutex::default(), slot_count: Default::default(), release_waits: Default::default(), failed: Default::default(), compute: Default::default() }
     }
     /// At vkDestroyDevice (the device is idle).
@@ -150,14 +150,14 @@ fn reconstruct(d: &DeviceState, sc: &bridge::Swapchain, image: u64, pending: &[P
                 Ok(tiles) => return Ok(How::Compute(tiles)),
                 // Nothing was submitted: the fill may still do it.
                 Err(e) => {
-                    log_once(&d.features.rdm, "compute failure".into(), || tracing::warn!("radial density masking: compute reconstruction failed ({}), using the fill", e.1));
+                    log_once(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>(), "compute failure".into(), || tracing::warn!("radial density masking: compute reconstruction failed ({}), using the fill", e.1));
                     super::rules::FillFallback::LayerError
                 }
             }
         }
         Err(why) => why,
     };
-    log_once(&d.features.rdm, format!("fill {}", fallback.name()), || {
+    log_once(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>(), format!("fill {}", fallback.name()), || {
         tracing::info!(?format, ?usage, "radial density masking: reconstruction by the full-screen fill, not the compute pass: {}", fallback.name())
     });
     if !has(vk::ImageUsageFlags::COLOR_ATTACHMENT) {
@@ -175,7 +175,7 @@ fn reconstruct(d: &DeviceState, sc: &bridge::Swapchain, image: u64, pending: &[P
 /// on failure the pass gets no checkerboard (and so no holes to fill at the image's release).
 /// `with_compute`: the compute pass is wanted (not `rdm_reconstruction = fill`).
 pub(super) fn ready(d: &DeviceState, family: u32, with_compute: bool) -> Result<(), Failure> {
-    let r = &d.features.rdm.reconstruct;
+    let r = &d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct;
     if r.failed.load(Ordering::Relaxed) {
         return Err((NotApplied::LayerError, "an earlier reconstruction failed".into()));
     }
@@ -202,11 +202,11 @@ pub(super) fn ready(d: &DeviceState, family: u32, with_compute: bool) -> Result<
 /// submitted, so its fence (reset) would never signal: it is destroyed instead.
 fn give_back(d: &DeviceState, slot: Slot, submitted: bool) {
     if submitted {
-        lock(&d.features.rdm.reconstruct.slots).push_back(slot);
+        lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).push_back(slot);
     } else {
         // SAFETY: nothing of the slot was submitted since its fence last signalled.
         unsafe { destroy_slot(d, slot) };
-        d.features.rdm.reconstruct.slot_count.fetch_sub(1, Ordering::Relaxed);
+        d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slot_count.fetch_sub(1, Ordering::Relaxed);
     }
 }
 
@@ -240,7 +240,7 @@ pub(super) fn submit(d: &DeviceState, slot: &Slot, family: u32, queue_index: u32
         let queue = d.fns.get_device_queue(family, queue_index);
         // `stats.gpu_time`: the layer's own work is timed like the app's, in the frame it is
         // submitted in.
-        let bracket = crate::vk::gpu_time::start(d, queue, 1, true);
+        let bracket = crate::plugin::vk::gpu_time::start(d, queue, 1, true);
         let cbs = match &bracket {
             Some(b) => vec![b.begin, slot.cb, b.end],
             None => vec![slot.cb],
@@ -248,7 +248,7 @@ pub(super) fn submit(d: &DeviceState, slot: &Slot, family: u32, queue_index: u32
         let submit = vk::SubmitInfo::default().command_buffers(&cbs);
         let r = d.fns.queue_submit(queue, &[submit], slot.fence);
         if let Some(b) = bracket {
-            crate::vk::gpu_time::submitted(d, b, queue, r.is_ok());
+            crate::plugin::vk::gpu_time::submitted(d, b, queue, r.is_ok());
         }
         r.map_err(layer_error("vkQueueSubmit"))
     }
@@ -256,35 +256,35 @@ pub(super) fn submit(d: &DeviceState, slot: &Slot, family: u32, queue_index: u32
 
 /// A free slot (waiting for the oldest if all are in flight), reset for recording.
 fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
-    let mut front = lock(&d.features.rdm.reconstruct.slots).pop_front();
+    let mut front = lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).pop_front();
     // A slot made for another queue family (a command buffer of another pool) cannot record for
     // this queue: it goes back, and this release gets its own.
     if let Some(s) = front.take_if(|s| s.family != family) {
-        lock(&d.features.rdm.reconstruct.slots).push_back(s);
+        lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).push_back(s);
     }
     // SAFETY: our fence.
     let done = front.as_ref().map(|s| unsafe { d.fns.get_fence_status(s.fence) }.unwrap_or(false));
-    let count = d.features.rdm.reconstruct.slot_count.load(Ordering::Relaxed);
+    let count = d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slot_count.load(Ordering::Relaxed);
     let slot = match (super::rules::slot_choice(done, count, MAX_SLOTS), front) {
         (super::rules::SlotChoice::New, front) => match (new_slot(d, family), front) {
             (Ok(made), front) => {
                 if let Some(s) = front {
-                    lock(&d.features.rdm.reconstruct.slots).push_back(s);
+                    lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).push_back(s);
                 }
                 made
             }
             // No new slot can be made: the oldest one, once its work is done, is better than
             // leaving this image's holes (`ready` made sure one exists before the checkerboard).
             (Err(e), Some(s)) => {
-                log_once(&d.features.rdm, "slot fallback".into(), || tracing::warn!("radial density masking: no new reconstruction slot ({}); reusing the oldest", e.1));
+                log_once(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>(), "slot fallback".into(), || tracing::warn!("radial density masking: no new reconstruction slot ({}); reusing the oldest", e.1));
                 s
             }
             (Err(e), None) => return Err(e),
         },
         (choice, Some(s)) => {
             if choice == super::rules::SlotChoice::WaitOldest {
-                d.features.rdm.reconstruct.release_waits.fetch_add(1, Ordering::Relaxed);
-                log_once(&d.features.rdm, "release wait".into(), || {
+                d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.release_waits.fetch_add(1, Ordering::Relaxed);
+                log_once(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>(), "release wait".into(), || {
                     tracing::warn!("radial density masking: xrReleaseSwapchainImage waits for an earlier reconstruction ({MAX_SLOTS} in flight: the GPU is that many behind)")
                 });
             }
@@ -296,7 +296,7 @@ fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
     // with everything the slot's last submission used.
     unsafe {
         if let Err(e) = d.fns.wait_for_fences(&[slot.fence], true, SLOT_WAIT_NS) {
-            lock(&d.features.rdm.reconstruct.slots).push_back(slot);
+            lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).push_back(slot);
             return Err((NotApplied::LayerError, format!("waiting for an earlier reconstruction: {e}")));
         }
         let mut slot = slot;
@@ -306,7 +306,7 @@ fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
         }
         let reset = d.fns.reset_fences(&[slot.fence]).and_then(|_| d.fns.reset_command_pool(slot.pool, vk::CommandPoolResetFlags::empty()));
         if let Err(e) = reset {
-            lock(&d.features.rdm.reconstruct.slots).push_back(slot);
+            lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).push_back(slot);
             return Err((NotApplied::LayerError, format!("reset: {e}")));
         }
         Ok(slot)
@@ -314,7 +314,7 @@ fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
 }
 
 fn new_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
-    let Some(set_loader_data) = d.features.rdm.reconstruct.set_loader_data else {
+    let Some(set_loader_data) = d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.set_loader_data else {
         return Err((NotApplied::LayerError, "the loader gave no vkSetDeviceLoaderData".into()));
     };
     // SAFETY: valid create infos on our device; every object made here is destroyed on failure
@@ -357,7 +357,7 @@ fn new_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
             destroy_slot(d, slot);
             return Err(e);
         }
-        d.features.rdm.reconstruct.slot_count.fetch_add(1, Ordering::Relaxed);
+        d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slot_count.fetch_add(1, Ordering::Relaxed);
         Ok(slot)
     }
 }

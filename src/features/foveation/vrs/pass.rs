@@ -23,7 +23,7 @@
 
 use super::rules as rule;
 use super::vk::{image_objects, lock, MapKey, RateImage};
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::ffi::c_void;
 
@@ -59,7 +59,7 @@ unsafe fn leave_alone(ci: &vk::GraphicsPipelineCreateInfo<'_>) -> bool {
     use vk::StructureType as S;
     let in_chain = |t: S| {
         // SAFETY: a valid chain (the caller's contract).
-        unsafe { crate::vk::convert::find_in_chain::<vk::BaseInStructure<'_>>(ci.p_next, t) }.is_some()
+        unsafe { crate::plugin::vk::convert::find_in_chain::<vk::BaseInStructure<'_>>(ci.p_next, t) }.is_some()
     };
     if in_chain(S::PIPELINE_FRAGMENT_SHADING_RATE_STATE_CREATE_INFO_KHR)
         || in_chain(S::GRAPHICS_PIPELINE_LIBRARY_CREATE_INFO_EXT)
@@ -69,7 +69,7 @@ unsafe fn leave_alone(ci: &vk::GraphicsPipelineCreateInfo<'_>) -> bool {
         return true;
     }
     // SAFETY: null or a valid dynamic state info with its array.
-    let dynamic = unsafe { ci.p_dynamic_state.as_ref() }.map_or(&[][..], |ds| unsafe { crate::vk::convert::slice(ds.p_dynamic_states, ds.dynamic_state_count) });
+    let dynamic = unsafe { ci.p_dynamic_state.as_ref() }.map_or(&[][..], |ds| unsafe { crate::plugin::vk::convert::slice(ds.p_dynamic_states, ds.dynamic_state_count) });
     dynamic.contains(&vk::DynamicState::FRAGMENT_SHADING_RATE_KHR)
 }
 
@@ -79,11 +79,11 @@ unsafe fn leave_alone(ci: &vk::GraphicsPipelineCreateInfo<'_>) -> bool {
 /// # Safety
 /// `infos` must be `count` valid create infos, alive while the result is used.
 pub(super) unsafe fn pipeline_infos(d: &DeviceState, infos: *const vk::GraphicsPipelineCreateInfo<'_>, count: u32) -> Option<PipelineInfos> {
-    if !d.features.vrs.enabled() {
+    if !d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().enabled() {
         return None;
     }
     // SAFETY: the caller's contract.
-    Some(unsafe { with_rate_state(crate::vk::convert::slice(infos, count)) })
+    Some(unsafe { with_rate_state(crate::plugin::vk::convert::slice(infos, count)) })
 }
 
 /// Copies of `app` with the shading-rate state at the head of each chain (and the rendering flag
@@ -165,7 +165,7 @@ unsafe fn owned_from_v1(ci: &vk::RenderPassCreateInfo<'_>) -> Option<Owned2> {
                 vk::StructureType::RENDER_PASS_MULTIVIEW_CREATE_INFO => multiview = Some(&*(p as *const vk::RenderPassMultiviewCreateInfo<'_>)),
                 vk::StructureType::RENDER_PASS_INPUT_ATTACHMENT_ASPECT_CREATE_INFO => {
                     let a = &*(p as *const vk::RenderPassInputAttachmentAspectCreateInfo<'_>);
-                    aspects = crate::vk::convert::slice(a.p_aspect_references, a.aspect_reference_count);
+                    aspects = crate::plugin::vk::convert::slice(a.p_aspect_references, a.aspect_reference_count);
                 }
                 _ => return None,
             }
@@ -175,17 +175,17 @@ unsafe fn owned_from_v1(ci: &vk::RenderPassCreateInfo<'_>) -> Option<Owned2> {
     // SAFETY: arrays valid with their counts (the caller's contract).
     let (atts, subs, deps) = unsafe {
         (
-            crate::vk::convert::slice(ci.p_attachments, ci.attachment_count),
-            crate::vk::convert::slice(ci.p_subpasses, ci.subpass_count),
-            crate::vk::convert::slice(ci.p_dependencies, ci.dependency_count),
+            crate::plugin::vk::convert::slice(ci.p_attachments, ci.attachment_count),
+            crate::plugin::vk::convert::slice(ci.p_subpasses, ci.subpass_count),
+            crate::plugin::vk::convert::slice(ci.p_dependencies, ci.dependency_count),
         )
     };
     // SAFETY: the multiview struct's arrays, valid with their counts.
     let (view_masks, view_offsets, correlation) = multiview.map_or((&[][..], &[][..], &[][..]), |m| unsafe {
         (
-            crate::vk::convert::slice(m.p_view_masks, m.subpass_count),
-            crate::vk::convert::slice(m.p_view_offsets, m.dependency_count),
-            crate::vk::convert::slice(m.p_correlation_masks, m.correlation_mask_count),
+            crate::plugin::vk::convert::slice(m.p_view_masks, m.subpass_count),
+            crate::plugin::vk::convert::slice(m.p_view_offsets, m.dependency_count),
+            crate::plugin::vk::convert::slice(m.p_correlation_masks, m.correlation_mask_count),
         )
     });
     let attachments: Vec<vk::AttachmentDescription2<'static>> = atts
@@ -211,9 +211,9 @@ unsafe fn owned_from_v1(ci: &vk::RenderPassCreateInfo<'_>) -> Option<Owned2> {
         // SAFETY: the subpass's arrays are valid with its counts; resolve has color_count entries.
         let (input, color, resolve, depth) = unsafe {
             (
-                crate::vk::convert::slice(s.p_input_attachments, s.input_attachment_count),
-                crate::vk::convert::slice(s.p_color_attachments, s.color_attachment_count),
-                crate::vk::convert::slice(s.p_resolve_attachments, s.color_attachment_count),
+                crate::plugin::vk::convert::slice(s.p_input_attachments, s.input_attachment_count),
+                crate::plugin::vk::convert::slice(s.p_color_attachments, s.color_attachment_count),
+                crate::plugin::vk::convert::slice(s.p_resolve_attachments, s.color_attachment_count),
                 s.p_depth_stencil_attachment.as_ref(),
             )
         };
@@ -228,7 +228,7 @@ unsafe fn owned_from_v1(ci: &vk::RenderPassCreateInfo<'_>) -> Option<Owned2> {
                         .iter()
                         .find(|a| a.subpass as usize == i && a.input_attachment_index as usize == j)
                         .map(|a| a.aspect_mask)
-                        .unwrap_or_else(|| atts.get(r.attachment as usize).map_or(vk::ImageAspectFlags::COLOR, |a| crate::vk::convert::format_aspects(a.format)))
+                        .unwrap_or_else(|| atts.get(r.attachment as usize).map_or(vk::ImageAspectFlags::COLOR, |a| crate::plugin::vk::convert::format_aspects(a.format)))
                 };
                 r2(r, aspect)
             })
@@ -289,11 +289,11 @@ unsafe fn owned_from_v2(ci: &vk::RenderPassCreateInfo2<'_>) -> Owned2 {
         Owned2 {
             flags: ci.flags,
             p_next: ci.p_next,
-            attachments: crate::vk::convert::slice(ci.p_attachments, ci.attachment_count).iter().map(|a| std::mem::transmute_copy(a)).collect(),
-            subpasses: crate::vk::convert::slice(ci.p_subpasses, ci.subpass_count).iter().map(|s| std::mem::transmute_copy(s)).collect(),
+            attachments: crate::plugin::vk::convert::slice(ci.p_attachments, ci.attachment_count).iter().map(|a| std::mem::transmute_copy(a)).collect(),
+            subpasses: crate::plugin::vk::convert::slice(ci.p_subpasses, ci.subpass_count).iter().map(|s| std::mem::transmute_copy(s)).collect(),
             _refs: Vec::new(),
-            dependencies: crate::vk::convert::slice(ci.p_dependencies, ci.dependency_count).iter().map(|d| std::mem::transmute_copy(d)).collect(),
-            correlation: crate::vk::convert::slice(ci.p_correlated_view_masks, ci.correlated_view_mask_count).to_vec(),
+            dependencies: crate::plugin::vk::convert::slice(ci.p_dependencies, ci.dependency_count).iter().map(|d| std::mem::transmute_copy(d)).collect(),
+            correlation: crate::plugin::vk::convert::slice(ci.p_correlated_view_masks, ci.correlated_view_mask_count).to_vec(),
         }
     }
 }
@@ -305,7 +305,7 @@ unsafe fn owned_from_v2(ci: &vk::RenderPassCreateInfo2<'_>) -> Owned2 {
 unsafe fn v2_leave_alone(o: &Owned2) -> bool {
     use vk::StructureType as S;
     // SAFETY: valid chains.
-    let in_chain = |p: *const c_void, t: S| unsafe { crate::vk::convert::find_in_chain::<vk::BaseInStructure<'_>>(p, t) }.is_some();
+    let in_chain = |p: *const c_void, t: S| unsafe { crate::plugin::vk::convert::find_in_chain::<vk::BaseInStructure<'_>>(p, t) }.is_some();
     in_chain(o.p_next, S::RENDER_PASS_FRAGMENT_DENSITY_MAP_CREATE_INFO_EXT) || o.subpasses.iter().any(|s| in_chain(s.p_next, S::FRAGMENT_SHADING_RATE_ATTACHMENT_INFO_KHR))
 }
 
@@ -354,12 +354,12 @@ fn with_rate(mut o: Owned2, texel: vk::Extent2D) -> RatePass {
 }
 
 fn texel(d: &DeviceState) -> Option<vk::Extent2D> {
-    d.features.vrs.rates.filter(|_| d.features.vrs.enabled()).map(|r| vk::Extent2D { width: r.texel_width, height: r.texel_height })
+    d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates.filter(|_| d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().enabled()).map(|r| vk::Extent2D { width: r.texel_width, height: r.texel_height })
 }
 
 fn adds(d: &DeviceState, o: &Owned2, app_fsr_or_fdm: bool) -> bool {
     let graphics = o.subpasses.iter().filter(|s| s.pipeline_bind_point == vk::PipelineBindPoint::GRAPHICS).count();
-    rule::adds_rate_attachment(d.features.vrs.enabled(), app_fsr_or_fdm, false, graphics)
+    rule::adds_rate_attachment(d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().enabled(), app_fsr_or_fdm, false, graphics)
 }
 
 /// `vkCreateRenderPass`: the app's pass as `vkCreateRenderPass2` info with the rate attachment;
@@ -409,7 +409,7 @@ pub(super) unsafe fn framebuffer_info(d: &DeviceState, ci: *const vk::Framebuffe
     // SAFETY: the caller's contract.
     let app = unsafe { &*ci };
     let Some(rp) = d.track.render_passes.get(app.render_pass.as_raw()) else { return Ok(None) };
-    let (Some(index), Some(rates)) = (rp.layer_rate_attachment, d.features.vrs.rates) else { return Ok(None) };
+    let (Some(index), Some(rates)) = (rp.layer_rate_attachment, d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates) else { return Ok(None) };
     let masks: Vec<u32> = rp.subpasses.iter().map(|s| s.view_mask).collect();
     let (width, height, layers) = rule::pass_rate_extent(app.width, app.height, &masks, rates);
     let imageless = app.flags.contains(vk::FramebufferCreateFlags::IMAGELESS);
@@ -430,7 +430,7 @@ pub(super) unsafe fn framebuffer_info(d: &DeviceState, ci: *const vk::Framebuffe
         // SAFETY: the sType names this struct; its array is valid with its count.
         let a = unsafe { &*(app.p_next as *const vk::FramebufferAttachmentsCreateInfo<'static>) };
         // SAFETY: as above; lifetimes erased (used only during the app's call).
-        out._image_infos = unsafe { crate::vk::convert::slice(a.p_attachment_image_infos, a.attachment_image_info_count) }.iter().map(|i| unsafe { std::mem::transmute_copy(i) }).collect();
+        out._image_infos = unsafe { crate::plugin::vk::convert::slice(a.p_attachment_image_infos, a.attachment_image_info_count) }.iter().map(|i| unsafe { std::mem::transmute_copy(i) }).collect();
         out._image_infos.push(vk::FramebufferAttachmentImageInfo {
             usage: vk::ImageUsageFlags::FRAGMENT_SHADING_RATE_ATTACHMENT_KHR | vk::ImageUsageFlags::TRANSFER_DST,
             width,
@@ -448,7 +448,7 @@ pub(super) unsafe fn framebuffer_info(d: &DeviceState, ci: *const vk::Framebuffe
         out._attachments = Some(copy);
     } else {
         // SAFETY: valid with its count.
-        out._views = unsafe { crate::vk::convert::slice(app.p_attachments, app.attachment_count) }.to_vec();
+        out._views = unsafe { crate::plugin::vk::convert::slice(app.p_attachments, app.attachment_count) }.to_vec();
         out._views.push(img.view);
         info.p_attachments = out._views.as_ptr();
         info.attachment_count = out._views.len() as u32;
@@ -464,7 +464,7 @@ pub(super) unsafe fn framebuffer_info(d: &DeviceState, ci: *const vk::Framebuffe
 pub(super) fn framebuffer_created(d: &DeviceState, fb: Option<vk::Framebuffer>, pending: PendingRate) {
     match fb {
         Some(fb) => {
-            lock(&d.features.vrs.framebuffers).insert(fb.as_raw(), pending.0);
+            lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().framebuffers).insert(fb.as_raw(), pending.0);
         }
         None => destroy_fb_rate(d, &pending.0),
     }
@@ -481,7 +481,7 @@ pub(super) fn destroy_fb_rate(d: &DeviceState, r: &FbRate) {
 
 /// `vkDestroyFramebuffer` (after it went down).
 pub(super) fn forget_framebuffer(d: &DeviceState, fb: u64) {
-    let r = lock(&d.features.vrs.framebuffers).remove(&fb);
+    let r = lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().framebuffers).remove(&fb);
     if let Some(r) = r {
         destroy_fb_rate(d, &r);
     }
@@ -502,7 +502,7 @@ mod tests {
     /// Reads a v2 subpass's array (test helper over the rewrite's own pointers).
     fn refs(p: *const vk::AttachmentReference2<'_>, n: u32) -> Vec<(u32, vk::ImageLayout, vk::ImageAspectFlags)> {
         // SAFETY: the rewrite's arrays, alive with it.
-        unsafe { crate::vk::convert::slice(p, n) }.iter().map(|r| (r.attachment, r.layout, r.aspect_mask)).collect()
+        unsafe { crate::plugin::vk::convert::slice(p, n) }.iter().map(|r| (r.attachment, r.layout, r.aspect_mask)).collect()
     }
 
     #[test]
@@ -535,10 +535,10 @@ mod tests {
         // SAFETY: the rewrite's arrays.
         let (a, s, dep, c) = unsafe {
             (
-                crate::vk::convert::slice(i.p_attachments, i.attachment_count),
-                crate::vk::convert::slice(i.p_subpasses, i.subpass_count),
-                crate::vk::convert::slice(i.p_dependencies, i.dependency_count),
-                crate::vk::convert::slice(i.p_correlated_view_masks, i.correlated_view_mask_count),
+                crate::plugin::vk::convert::slice(i.p_attachments, i.attachment_count),
+                crate::plugin::vk::convert::slice(i.p_subpasses, i.subpass_count),
+                crate::plugin::vk::convert::slice(i.p_dependencies, i.dependency_count),
+                crate::plugin::vk::convert::slice(i.p_correlated_view_masks, i.correlated_view_mask_count),
             )
         };
         assert_eq!(a[0].format, vk::Format::R8G8B8A8_SRGB);
@@ -557,7 +557,7 @@ mod tests {
         assert_eq!(c, &[0b11]);
         for sub in s {
             // SAFETY: the chain the rewrite built.
-            let f = unsafe { crate::vk::convert::find_in_chain::<vk::FragmentShadingRateAttachmentInfoKHR<'_>>(sub.p_next, vk::StructureType::FRAGMENT_SHADING_RATE_ATTACHMENT_INFO_KHR) }.expect("every graphics subpass");
+            let f = unsafe { crate::plugin::vk::convert::find_in_chain::<vk::FragmentShadingRateAttachmentInfoKHR<'_>>(sub.p_next, vk::StructureType::FRAGMENT_SHADING_RATE_ATTACHMENT_INFO_KHR) }.expect("every graphics subpass");
             // SAFETY: as above.
             let f = unsafe { &*f };
             assert_eq!(f.shading_rate_attachment_texel_size, vk::Extent2D { width: 16, height: 16 });
@@ -592,7 +592,7 @@ mod tests {
         let rp = with_rate(o, vk::Extent2D { width: 8, height: 8 });
         assert_eq!(rp.index, 1);
         // SAFETY: the rewrite's arrays.
-        let s = unsafe { crate::vk::convert::slice(rp.info.p_subpasses, rp.info.subpass_count) };
+        let s = unsafe { crate::plugin::vk::convert::slice(rp.info.p_subpasses, rp.info.subpass_count) };
         // SAFETY: the chain the rewrite built: ours first, then the app's.
         let first = unsafe { &*(s[0].p_next as *const vk::BaseInStructure<'_>) };
         assert_eq!(first.s_type, vk::StructureType::FRAGMENT_SHADING_RATE_ATTACHMENT_INFO_KHR);
@@ -610,7 +610,7 @@ mod tests {
 
     #[test]
     fn input_aspects_by_format() {
-        use crate::vk::convert::format_aspects;
+        use crate::plugin::vk::convert::format_aspects;
         assert_eq!(format_aspects(vk::Format::D32_SFLOAT), vk::ImageAspectFlags::DEPTH);
         assert_eq!(format_aspects(vk::Format::S8_UINT), vk::ImageAspectFlags::STENCIL);
         assert_eq!(format_aspects(vk::Format::R16G16B16A16_SFLOAT), vk::ImageAspectFlags::COLOR);

@@ -147,7 +147,7 @@ proptest! {
         prop_assert_eq!(rp.index as usize, attachments);
         prop_assert_eq!(rp.info.attachment_count as usize, attachments + 1);
         // SAFETY: the rewrite's arrays, alive with it.
-        let (new_atts, new_subs) = unsafe { (crate::vk::convert::slice(rp.info.p_attachments, rp.info.attachment_count), crate::vk::convert::slice(rp.info.p_subpasses, rp.info.subpass_count)) };
+        let (new_atts, new_subs) = unsafe { (crate::plugin::vk::convert::slice(rp.info.p_attachments, rp.info.attachment_count), crate::plugin::vk::convert::slice(rp.info.p_subpasses, rp.info.subpass_count)) };
         for (a, b) in atts.iter().zip(new_atts) {
             prop_assert_eq!((a.format, a.load_op, a.samples), (b.format, b.load_op, b.samples));
         }
@@ -224,7 +224,7 @@ proptest! {
         let rp = with_rate(owned, texel);
         prop_assert!(rp.info.p_next.is_null());
         // SAFETY: the rewrite's arrays, alive with it.
-        let new_subs = unsafe { crate::vk::convert::slice(rp.info.p_subpasses, rp.info.subpass_count) };
+        let new_subs = unsafe { crate::plugin::vk::convert::slice(rp.info.p_subpasses, rp.info.subpass_count) };
         for (i, (s, app)) in new_subs.iter().zip(&subs).enumerate() {
             prop_assert_eq!(s.color_attachment_count, app.color_attachment_count);
             prop_assert_eq!(s.input_attachment_count, app.input_attachment_count);

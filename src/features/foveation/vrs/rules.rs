@@ -17,6 +17,7 @@
 //! rate (nothing is saved there, nothing can go wrong).
 #![forbid(unsafe_code)]
 
+use crate::track::caps::DeviceRates;
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
 use crate::track::eye_pass::EyeSource;
@@ -66,15 +67,6 @@ pub fn method_is_vrs(method: &str, fsr_enabled: bool) -> bool {
     }
 }
 
-/// `VkPhysicalDeviceFragmentShadingRatePropertiesKHR`, the parts the map needs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct DeviceRates {
-    /// `minFragmentShadingRateAttachmentTexelSize`: the finest map the device takes.
-    pub texel_width: u32,
-    pub texel_height: u32,
-    /// `layeredShadingRateAttachments`: multiview passes can read one layer per view.
-    pub layered: bool,
-}
 
 /// One eye as the rate map sees it: the image rect that shows `fov`, foveated by `fovea`.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -20,9 +20,10 @@
 //! generations'.
 
 use crate::features::foveation::FoveationSettings;
-use super::rules::{self as rule, DeviceRates, EyeRates, NotApplied, VrsFrameStats};
+use super::rules::{self as rule, EyeRates, NotApplied, VrsFrameStats};
+use crate::track::caps::DeviceRates;
 use super::submission;
-use crate::vk::inject::When;
+use crate::plugin::vk::inject::When;
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
@@ -31,9 +32,9 @@ use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::track::cmd::{PassInstance, PassKind};
 use crate::track::eye_pass::{self, Facts};
-use crate::vk::feature::{Amended, AmendedRenderPass, Destroyed, DeviceInit, Plugin, RenderPassInfo, VkFeature};
-use crate::vk::lifetime::{self, Garbage};
-use crate::vk::DeviceState;
+use crate::plugin::vk::feature::{Amended, AmendedRenderPass, Destroyed, DeviceInit, Plugin, RenderPassInfo, VkFeature};
+use crate::plugin::vk::lifetime::{self, Garbage};
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::any::Any;
 use std::collections::{HashMap, HashSet};
@@ -179,7 +180,7 @@ impl VrsDevice {
 }
 
 pub(super) fn count(d: &DeviceState, f: impl Fn(&mut VrsFrameStats)) {
-    let me = &d.features.vrs;
+    let me = &d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>();
     me.used.store(true, Ordering::Relaxed);
     let mut b = lock(&me.books);
     f(&mut b.frame);
@@ -188,7 +189,7 @@ pub(super) fn count(d: &DeviceState, f: impl Fn(&mut VrsFrameStats)) {
 
 pub(super) fn not_applied(d: &DeviceState, why: NotApplied, kind: PassKind) {
     count(d, |s| s.count_not_applied(why));
-    if lock(&d.features.vrs.books).logged_reasons.insert(why) {
+    if lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().books).logged_reasons.insert(why) {
         match why {
             NotApplied::Unsupported => tracing::warn!("vrs unsupported on this device (no attachmentFragmentShadingRate enabled by the layer): foveation.method = vrs does nothing here; auto would use rdm"),
             _ => tracing::info!(?kind, "vrs not applied to an eye pass: {} (logged once per reason)", why.name()),
@@ -210,14 +211,14 @@ struct Rendering {
 /// `info` must be the app's valid rendering info, alive while the result is used; `cb` recording
 /// outside a render pass instance.
 unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info: *const vk::RenderingInfo<'_>) -> Option<Rendering> {
-    let mode = d.features.vrs.mode(&d.settings());
+    let mode = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().mode(&d.settings());
     if mode == Mode::Off {
         return None;
     }
     // SAFETY: the caller's contract.
     let app = unsafe { &*info };
     // SAFETY: as above.
-    let (area, rendering) = unsafe { crate::vk::convert::rendering(&d.track, app) };
+    let (area, rendering) = unsafe { crate::plugin::vk::convert::rendering(&d.track, app) };
     let resuming = rendering.resuming();
     let pass = PassInstance {
         kind: PassKind::Dynamic,
@@ -232,7 +233,7 @@ unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info: *const vk:
     let secondary = app.flags.contains(vk::RenderingFlags::CONTENTS_SECONDARY_COMMAND_BUFFERS);
     let app_fsr = || {
         // SAFETY: a valid chain.
-        unsafe { crate::vk::convert::find_in_chain::<vk::BaseInStructure<'_>>(app.p_next, vk::StructureType::RENDERING_FRAGMENT_SHADING_RATE_ATTACHMENT_INFO_KHR) }.is_some()
+        unsafe { crate::plugin::vk::convert::find_in_chain::<vk::BaseInStructure<'_>>(app.p_next, vk::StructureType::RENDERING_FRAGMENT_SHADING_RATE_ATTACHMENT_INFO_KHR) }.is_some()
     };
     let r = plan(d, mode, &pass, secondary, app_fsr, When::Recording);
     // The view of the rate image, and the map to log (None: filled at each submission).
@@ -293,7 +294,7 @@ unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info: *const vk:
 /// A rendering whose eyes each submission's walk gives: a rate image and staging buffer of the
 /// recording's own (`submission::SubmissionMap`), its upload recorded into `cb` now.
 fn submission_rendering(d: &DeviceState, cb: vk::CommandBuffer, pass: &PassInstance) -> Result<Result<(vk::ImageView, DeviceRates), String>, NotApplied> {
-    let rates = d.features.vrs.rates.ok_or(NotApplied::Unsupported)?;
+    let rates = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates.ok_or(NotApplied::Unsupported)?;
     let layers = submission::layers(d, pass)?;
     let color = pass.rendering.as_ref().and_then(|r| r.color.first()).and_then(|c| c.attachment.image_view.as_ref());
     let image = color.and_then(|v| d.track.images.get(v.image)).map(|i| (i.extent.width, i.extent.height));
@@ -324,7 +325,7 @@ fn submission_rendering(d: &DeviceState, cb: vk::CommandBuffer, pass: &PassInsta
 }
 
 fn log_submission_once(d: &DeviceState, kind: PassKind, key: &MapKey) {
-    if lock(&d.features.vrs.books).logged_submission.insert(kind) {
+    if lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().books).logged_submission.insert(kind) {
         tracing::info!("vrs on {kind:?} passes whose eyes are known only at each submission (recorded before the data-flow walk knew their target, or dynamic resolution): rate attachment {}x{} texels x {} layer(s), its map written at every submission", key.width, key.height, key.layers);
     }
 }
@@ -332,7 +333,7 @@ fn log_submission_once(d: &DeviceState, kind: PassKind, key: &MapKey) {
 /// `vkCmdBeginRenderPass(2)` (after it went down, the pass tracked) of a pass without the
 /// layer's rate attachment: counts an eye pass VRS would apply to as not applied.
 fn on_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, secondary: bool) {
-    let mode = d.features.vrs.mode(&d.settings());
+    let mode = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().mode(&d.settings());
     if mode == Mode::Off {
         return;
     }
@@ -355,7 +356,7 @@ type Plan = (MapKey, Vec<EyeRates>, DeviceRates, eye_pass::Via);
 /// as known while it is recorded, or at a submission (`submission`).
 pub(super) fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: bool, app_fsr: impl Fn() -> bool, when: When) -> Result<Option<Plan>, NotApplied> {
     let intermediate = d.settings().intermediate;
-    let eyes_fn = |a: &crate::track::cmd::AttachmentUse| crate::vk::inject::eyes_at(d, a, intermediate, when);
+    let eyes_fn = |a: &crate::track::cmd::AttachmentUse| crate::plugin::vk::inject::eyes_at(d, a, intermediate, when);
     let facts = Facts { secondary_contents: false, intermediate_enabled: intermediate, eyes: &eyes_fn, explicit_clear: None };
     let (att, sources, via) = match eye_pass::find_eyes(pass, &facts) {
         Ok(f) => f,
@@ -370,7 +371,7 @@ pub(super) fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: 
     if secondary {
         return Err(NotApplied::Secondary);
     }
-    let rates = d.features.vrs.rates.ok_or(NotApplied::Unsupported)?;
+    let rates = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates.ok_or(NotApplied::Unsupported)?;
     let (views, fovea) = (shared().views(), shared().foveation());
     let shape = rule::PassShape {
         base_layer: att.image_view.as_ref().map_or(0, |v| v.range.base_array_layer),
@@ -395,7 +396,7 @@ pub(super) fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: 
 }
 
 fn log_kind_once(d: &DeviceState, kind: PassKind, multiview: bool, key: &MapKey) {
-    if lock(&d.features.vrs.books).logged_kinds.insert((kind, multiview)) {
+    if lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().books).logged_kinds.insert((kind, multiview)) {
         tracing::info!(
             "vrs on {kind:?}{} pass: rate attachment {}x{} texels x {} layer(s), eyes (layer, view, rect) {:?}",
             if multiview { " multiview" } else { "" },
@@ -420,7 +421,7 @@ fn image_for(d: &DeviceState, cb: vk::CommandBuffer, key: &MapKey, eyes: &[EyeRa
 /// The cached rate image (`with_image`) or staging buffer alone holding `key`'s map, made when
 /// first needed. The cache keeps the current generations' maps only (at most 16).
 fn cached_map(d: &DeviceState, key: &MapKey, eyes: &[EyeRates], rates: DeviceRates, with_image: bool) -> Result<Arc<RateImage>, String> {
-    let me = &d.features.vrs;
+    let me = &d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>();
     let mut cache_key = key.clone();
     if !with_image {
         // Staging-only maps (render pass objects) are told apart from images of the same shape.
@@ -456,7 +457,7 @@ fn cached_map(d: &DeviceState, key: &MapKey, eyes: &[EyeRates], rates: DeviceRat
 }
 
 fn memory_type(d: &DeviceState, bits: u32, wanted: vk::MemoryPropertyFlags) -> Option<u32> {
-    lifetime::memory_type(&d.features.vrs.memory, bits, wanted)
+    lifetime::memory_type(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().memory, bits, wanted)
 }
 
 /// The rate image (`key`'s extent and layers) and its view, into `img`.
@@ -528,19 +529,19 @@ struct RateBegin {
 /// `info` must be the app's valid begin info, alive while the result is used; `cb` recording
 /// outside a render pass instance.
 unsafe fn for_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, kind: PassKind, info: *const vk::RenderPassBeginInfo<'_>) -> Option<RateBegin> {
-    if !d.features.vrs.enabled() {
+    if !d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().enabled() {
         return None;
     }
     // SAFETY: the caller's contract.
     let app = unsafe { &*info };
     let rp = d.track.render_passes.get(app.render_pass.as_raw())?;
     rp.layer_rate_attachment?;
-    let fb = lock(&d.features.vrs.framebuffers).get(&app.framebuffer.as_raw()).cloned()?;
-    let rates = d.features.vrs.rates?;
+    let fb = lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().framebuffers).get(&app.framebuffer.as_raw()).cloned()?;
+    let rates = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates?;
     // SAFETY: as above.
-    let begin = unsafe { crate::vk::convert::render_pass_begin(app) };
+    let begin = unsafe { crate::plugin::vk::convert::render_pass_begin(app) };
     let imageless_views = begin.attachment_views.clone();
-    let mode = d.features.vrs.mode(&d.settings());
+    let mode = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().mode(&d.settings());
     let mut submitted = false;
     // Every begin records the framebuffer's rate content it needs (never "already there": another
     // command buffer may run in between, or this one may be resubmitted after others).

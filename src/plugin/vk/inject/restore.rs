@@ -7,7 +7,7 @@
 //! `RestoreCompute` does the same for the compute bind point around the layer's dispatches.
 
 use crate::track::cmd::StateCmd;
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 
 /// Replays the app's state into `cb` when dropped.

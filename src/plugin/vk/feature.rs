@@ -23,6 +23,7 @@
 
 use super::inject::{Awaiting, Injection};
 use super::DeviceState;
+use std::any::TypeId;
 use crate::core::config::KeySpec;
 use crate::core::pass::NotMasked;
 use crate::core::stats::FeatureStats;
@@ -37,11 +38,45 @@ pub(crate) struct DeviceInit<'a> {
     pub settings: &'a Settings,
     pub memory: vk::PhysicalDeviceMemoryProperties,
     /// The device's attachment shading rates, when the layer enabled them.
-    pub rates: Option<crate::features::foveation::vrs::rules::DeviceRates>,
+    pub rates: Option<crate::track::caps::DeviceRates>,
     pub set_loader_data: Option<super::PfnSetDeviceLoaderData>,
     /// The device is a CPU implementation (`VK_PHYSICAL_DEVICE_TYPE_CPU`: lavapipe, SwiftShader),
     /// where `foveation.method = auto` does not pick RDM (`Method::resolve`).
     pub software: bool,
+}
+
+/// One device's feature objects, in registry order: the chassis dispatches events over `all`, and
+/// a feature finds its own object (from code that is handed only the device) with `get`.
+pub(crate) struct DeviceFeatures(Vec<Box<dyn VkFeature>>);
+
+impl DeviceFeatures {
+    /// The registry's objects for a new device, in dispatch order.
+    pub(crate) fn new(all: Vec<Box<dyn VkFeature>>) -> DeviceFeatures {
+        DeviceFeatures(all)
+    }
+    /// Every feature, in registry order.
+    pub(crate) fn all(&self) -> &[Box<dyn VkFeature>] {
+        &self.0
+    }
+    /// The object of feature type `T`. Every registered feature has one on every device, so a
+    /// missing one is a registry error.
+    pub(crate) fn get<T: VkFeature + 'static>(&self) -> &T {
+        self.0
+            .iter()
+            .find_map(|f| (f.as_any().type_id() == TypeId::of::<T>()).then(|| f.as_any().downcast_ref::<T>()).flatten())
+            .unwrap_or_else(|| panic!("no {} on the device: the feature is not registered", std::any::type_name::<T>()))
+    }
+}
+
+/// `Any` for every feature object, so `DeviceFeatures::get` can find one by type.
+pub(crate) trait AsAny {
+    fn as_any(&self) -> &dyn Any;
+}
+
+impl<T: Any> AsAny for T {
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
 }
 
 /// How a feature is registered.
@@ -89,7 +124,7 @@ pub(crate) enum Destroyed {
 ///
 /// The `unsafe fn`s receive the app's create / begin infos: they must be valid for the duration
 /// of the call (the app's contract with the hook that raises the event).
-pub(crate) trait VkFeature: Send + Sync {
+pub(crate) trait VkFeature: AsAny + Send + Sync {
     /// The registry id (`stats.file`, logs, pipeline cache keys).
     fn id(&self) -> &'static str;
     /// This feature's statistics of the frame that just ended; resets them.

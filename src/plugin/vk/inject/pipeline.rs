@@ -8,7 +8,7 @@
 use crate::track::caps;
 use crate::track::cmd::{AttachmentUse, PassInstance};
 use crate::track::eye_pass::{EyeLayout, MaskPlan};
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 use std::collections::HashMap;
 use std::sync::{Mutex, MutexGuard};

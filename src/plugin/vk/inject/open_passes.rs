@@ -6,7 +6,7 @@
 //! depth-tested draw came.
 
 use super::lock;
-use crate::vk::DeviceState;
+use crate::plugin::vk::DeviceState;
 use std::collections::HashMap;
 use std::sync::Mutex;
 
