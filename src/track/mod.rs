@@ -7,6 +7,7 @@ pub mod cmd;
 pub mod descriptors;
 pub mod device_ext;
 pub mod eye_pass;
+pub mod eyes;
 pub mod fallback;
 pub mod flow;
 pub mod resources;
@@ -99,6 +100,8 @@ pub struct DeviceTracker {
     pub descriptors: descriptors::Descriptors,
     /// What the data-flow walk learned (`traced`).
     pub traced: traced::Traced,
+    /// What the eye decision logged, and the size fallback's order (`eyes`).
+    pub eye_books: Mutex<eyes::EyeBooks>,
 }
 
 /// One recorded transfer region into a swapchain image.

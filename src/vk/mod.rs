@@ -93,7 +93,7 @@ pub fn take_frame_stats() -> crate::core::stats::FrameStats {
     let mut all = crate::registry::empty_stats();
     for (_, d) in crate::plugin::vk::devices().values() {
         lifetime::poll(&d);
-        d.inject.new_frame();
+        d.track.eyes_new_frame();
         let device = crate::core::stats::FrameStats::new(d.features.all().iter().map(|f| f.take_frame()).collect());
         all.add(&device);
     }

@@ -19,7 +19,9 @@ use crate::core::rect::PixelRect;
 use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::track::cmd::{AttachmentUse, PassInstance, StateCmd};
-use crate::track::eye_pass::{self, EyeDraw, EyeSource, Eyes, Learned, MaskPlan};
+use crate::track::eye_pass::{self, EyeDraw, EyeSource, Eyes, MaskPlan};
+pub(crate) use crate::track::eyes::When;
+use crate::track::eyes::Asked;
 use ash::vk;
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::AtomicUsize;
@@ -137,25 +139,15 @@ pub(crate) struct Books {
     pub(crate) deferred: HashSet<u64>,
     /// Primaries whose open eye pass has its contents in secondaries.
     pub(crate) pending: HashMap<u64, Pending>,
-    pub(crate) logged_targets: HashSet<u64>,
     pub(crate) logged_reasons: HashSet<NotMasked>,
     pub(crate) logged_vetoes: HashSet<&'static str>,
     /// Injections vetoed, by reason (the command the layer cannot restore after).
     pub(crate) vetoed: HashMap<&'static str, u64>,
     /// Command buffer → its armed open pass.
     pub(crate) armed: HashMap<u64, Armed>,
-    /// `eyes.fallback = size`: the eye-sized images of this frame in the order their passes
-    /// came (the eye by order), and the decisions already logged.
-    pub(crate) fallback_frame: Vec<u64>,
-    pub(crate) logged_fallback: HashSet<String>,
 }
 
 impl InjectDevice {
-    /// A frame ended (`xrEndFrame`): the size fallback's order starts again.
-    pub(crate) fn new_frame(&self) {
-        lock(&self.books).fallback_frame.clear();
-    }
-
     /// Injections vetoed so far, by reason (for the device's stats line).
     pub(crate) fn vetoed(&self) -> Vec<(&'static str, u64)> {
         let mut v: Vec<_> = lock(&self.books).vetoed.iter().map(|(k, v)| (*k, *v)).collect();
@@ -206,118 +198,11 @@ pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) ->
     eyes_at(d, a, intermediate, When::Recording)
 }
 
-/// When a pass's eyes are asked for.
-#[derive(Clone, Copy, PartialEq, Eq)]
-pub(crate) enum When {
-    /// While the app records the pass: what the walk learned describes earlier frames.
-    Recording,
-    /// At a submission of its recording, after that submission's walk: what the walk found in it
-    /// describes this very frame.
-    Submission,
-}
-
-/// The eyes an attachment shows (`eyes_of`), asked at recording or at submission.
+/// The eyes an attachment shows (`eyes_of`), asked at recording or at submission: the trackers'
+/// decision (`track::eyes`) under the live settings.
 pub(crate) fn eyes_at(d: &DeviceState, a: &AttachmentUse, intermediate: bool, when: When) -> Eyes {
-    let image = a.image_view.as_ref().map(|v| v.image);
-    if let Some(sc) = &a.swapchain {
-        if image.is_some_and(|i| d.track.traced.is_post(i, Some(sc.swapchain.handle))) {
-            return Eyes::Post;
-        }
-        return Eyes::Swapchain(sc.swapchain.uses().iter().map(EyeSource::from_use).collect());
-    }
-    let Some(image) = image else { return Eyes::Unknown };
-    let traced = || match d.track.traced.eyes(image) {
-        // Confirmed by the walk of the submission being made: right for this frame, whatever
-        // the rect did before.
-        Some(t) if when == When::Submission && d.track.traced.fresh(&t) => Eyes::Traced(t.eyes),
-        // A rect that has changed may change again at any frame: never applied from memory.
-        Some(t) if t.dynamic => Eyes::Changing,
-        Some(t) => Eyes::Traced(t.eyes),
-        None if d.track.traced.is_post(image, None) => Eyes::Post,
-        None if d.track.traced.has_eyes() => Eyes::NotEye,
-        None => match fallback(d, a, image) {
-            Eyes::Unknown if d.settings().eyes_walk => Eyes::Untraced,
-            e => e,
-        },
-    };
-    // What the walk saw last wins over what transfers alone say (a 1:1 copy of a post target
-    // does not make it an eye pass's).
-    if d.track.traced.is_post(image, None) {
-        return Eyes::Post;
-    }
-    match d.track.intermediate_eyes(shared(), image) {
-        None => traced(),
-        Some(learned) => {
-            let first = lock(&d.inject.books).logged_targets.insert(image);
-            match learned {
-                Learned::Eyes(e) => {
-                    if first {
-                        tracing::info!(
-                            image = format_args!("{image:#x}"),
-                            "intermediate eye target: image is transferred 1:1 into a swapchain image; eyes {:?}{}",
-                            e,
-                            if intermediate { "" } else { " (mask.intermediate = off: not masked)" }
-                        );
-                    }
-                    Eyes::Intermediate(e)
-                }
-                Learned::Rejected(why) => {
-                    let t = traced();
-                    if first && matches!(t, Eyes::Unknown | Eyes::Untraced) {
-                        tracing::info!(image = format_args!("{image:#x}"), "not an intermediate eye target: {why}");
-                    }
-                    t
-                }
-            }
-        }
-    }
-}
-
-/// `eyes.fallback = size`: an image nothing ties to an eye, taken as one by its size and the
-/// order of such passes in the frame; every decision logged once (per image and outcome).
-fn fallback(d: &DeviceState, a: &AttachmentUse, image: u64) -> Eyes {
-    let Some(order) = d.settings().eyes_fallback else { return Eyes::Unknown };
-    let Some(view) = a.image_view.as_ref() else { return Eyes::Unknown };
-    if view.range.aspect_mask.intersects(vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL) {
-        return Eyes::Unknown;
-    }
-    let Some(img) = d.track.images.get(image) else { return Eyes::Unknown };
-    let eye = shared().swapchains.values().into_iter().flat_map(|(_, s)| s.uses()).find(|u| !u.depth).map(|u| (u.image_rect.width.max(0) as u32, u.image_rect.height.max(0) as u32));
-    let Some(eye) = eye else { return Eyes::Unknown };
-    let layers = view.range.layers_of(img.array_layers);
-    let nth = {
-        let mut b = lock(&d.inject.books);
-        match b.fallback_frame.iter().position(|i| *i == image) {
-            Some(n) => n,
-            None => {
-                b.fallback_frame.push(image);
-                b.fallback_frame.len() - 1
-            }
-        }
-    };
-    let decided = crate::track::fallback::eyes_by_size((img.extent.width, img.extent.height), layers, layers >= 2, eye, nth, order);
-    let key = match &decided {
-        Ok(e) => format!("{image:#x} {:?}", e.iter().map(|s| s.view).collect::<Vec<_>>()),
-        Err(_) => format!("{image:#x} refused"),
-    };
-    let first = {
-        let mut b = lock(&d.inject.books);
-        b.logged_fallback.len() < 256 && b.logged_fallback.insert(key)
-    };
-    match decided {
-        Ok(eyes) => {
-            if first {
-                tracing::info!("eyes.fallback = size: an untraced pass's target {image:#x} taken as an eye target by size and order ({order:?}, pass {nth} of the frame): {}", eye_pass::describe(&eyes));
-            }
-            Eyes::Fallback(eyes)
-        }
-        Err(why) => {
-            if first {
-                tracing::info!("eyes.fallback = size: {image:#x} is not an eye target: {why}");
-            }
-            Eyes::Unknown
-        }
-    }
+    let s = d.settings();
+    d.track.eyes_at(shared(), a, &Asked { intermediate, when, walk: s.eyes_walk, fallback: s.eyes_fallback })
 }
 
 /// One indirect draw of a feature's: its arguments' slot in the recording's buffer, and where.
