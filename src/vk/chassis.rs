@@ -8,6 +8,7 @@
 //! `plugin::vk::inject::trigger::decide`.
 
 use crate::plugin::vk::inject::*;
+use crate::plugin::vk::feature::VkFeature;
 use crate::plugin::vk::DeviceState;
 use crate::core::pass::NotMasked;
 use crate::plugin::settings::Settings;
@@ -17,15 +18,59 @@ use crate::track::eye_pass::{self, MaskPlan};
 use ash::vk::{self, Handle};
 use std::sync::atomic::Ordering;
 
+/// The features that draw at the injection point under one trigger's settings, asked once per
+/// trigger: those that draw right after the depth clear (`now`) and those that wait for the pass's
+/// first depth-tested draw (`at_depth_test`), as bits of their registry positions.
+#[derive(Clone, Copy)]
+struct Injectors {
+    now: u32,
+    at_depth_test: u32,
+}
+
+impl Injectors {
+    fn of(d: &DeviceState, s: &Settings) -> Injectors {
+        let (mut now, mut at_depth_test) = (0, 0);
+        for (i, f) in d.features.all().iter().enumerate() {
+            if f.injects(s) {
+                if f.injects_before_depth_test() {
+                    at_depth_test |= 1 << i;
+                } else {
+                    now |= 1 << i;
+                }
+            }
+        }
+        Injectors { now, at_depth_test }
+    }
+    fn any(self) -> bool {
+        self.now | self.at_depth_test != 0
+    }
+    fn pick(d: &DeviceState, bits: u32) -> impl Iterator<Item = &dyn VkFeature> {
+        d.features.all().iter().enumerate().filter(move |(i, _)| bits & (1 << i) != 0).map(|(_, f)| f.as_ref())
+    }
+    /// Every injecting feature.
+    fn all(self, d: &DeviceState) -> impl Iterator<Item = &dyn VkFeature> {
+        Injectors::pick(d, self.now | self.at_depth_test)
+    }
+    /// Those that draw right after the depth clear.
+    fn now(self, d: &DeviceState) -> impl Iterator<Item = &dyn VkFeature> {
+        Injectors::pick(d, self.now)
+    }
+    /// Those that wait for the pass's first depth-tested draw.
+    fn at_depth_test(self, d: &DeviceState) -> impl Iterator<Item = &dyn VkFeature> {
+        Injectors::pick(d, self.at_depth_test)
+    }
+}
+
 /// Whether any feature draws at the injection point under these settings.
 pub(crate) fn any_injects(d: &DeviceState, s: &Settings) -> bool {
-    d.features.all().iter().any(|f| f.injects(s))
+    Injectors::of(d, s).any()
 }
 
 /// Entry from the hooks, after the triggering command went down successfully.
 pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigger) {
     let settings = d.settings();
-    if !any_injects(d, &settings) {
+    let inj = Injectors::of(d, &settings);
+    if !inj.any() {
         return;
     }
     let key = cb.as_raw();
@@ -90,14 +135,12 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
                 // Features that fill their draws at submission count the pass there (applied, or
                 // why not); the others count it now.
                 if decision.counts {
-                    for f in d.features.all() {
-                        if f.injects(&settings) && !f.fills_at_submission() {
-                            f.not_injected(d, &settings, why);
-                        }
+                    for f in inj.all(d).filter(|f| !f.fills_at_submission()) {
+                        f.not_injected(d, &settings, why);
                     }
                 }
             } else {
-                count_not_injected(d, &settings, decision.counts, why, &snap.pass);
+                count_not_injected(d, inj, &settings, decision.counts, why, &snap.pass);
             }
             let swapchain = || (awaits && why == NotMasked::EyeUnknown).then(|| eye_pass::awaiting_eyes(&snap.pass, &facts)).flatten().map(|f| (f, false));
             if let Some((fail_depth, walk)) = walk.or_else(swapchain) {
@@ -106,7 +149,7 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
                     lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: false, awaiting: Some(walk) });
                     return;
                 }
-                inject_awaiting(d, cb, key, &snap, (fail_depth, walk), &settings, true);
+                inject_awaiting(d, inj, cb, key, &snap, (fail_depth, walk), &settings, true);
             }
             return;
         }
@@ -126,14 +169,14 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
         }
     }
     if let Some(reason) = snap.veto {
-        veto(d, &settings, decision.counts, reason, &snap.pass);
+        veto(d, inj, &settings, decision.counts, reason, &snap.pass);
         return;
     }
     if trigger.secondary_contents() && !snap.secondary_level {
         lock(&d.inject.books).pending.insert(key, Pending { snap, plan, counts: decision.counts, awaiting: None });
         return;
     }
-    inject(d, cb, key, &snap, &plan, &settings, decision.counts, true);
+    inject(d, inj, cb, key, &snap, &plan, &settings, decision.counts, true);
 }
 
 /// The app executes secondaries in `cb`: if its open eye pass awaits the layer's draws, they are
@@ -141,11 +184,12 @@ pub(crate) fn on_trigger(d: &DeviceState, cb: vk::CommandBuffer, trigger: Trigge
 pub(crate) fn on_execute_commands(d: &DeviceState, cb: vk::CommandBuffer) -> Option<vk::CommandBuffer> {
     let Pending { snap, plan, counts, awaiting } = lock(&d.inject.books).pending.remove(&cb.as_raw())?;
     let settings = d.settings();
+    let inj = Injectors::of(d, &settings);
     let formats;
     let inherit = match (&snap.pass.rendering, &snap.pass.render_pass, &snap.pass.framebuffer) {
         (Some(r), _, _) => {
             let Some(pipeline::PassKey::Dynamic { colors, depth, stencil, samples, .. }) = pipeline::pass_key(d, &snap.pass, &plan) else {
-                count_not_injected(d, &settings, counts, NotMasked::Unsupported, &snap.pass);
+                count_not_injected(d, inj, &settings, counts, NotMasked::Unsupported, &snap.pass);
                 return None;
             };
             formats = colors;
@@ -153,36 +197,34 @@ pub(crate) fn on_execute_commands(d: &DeviceState, cb: vk::CommandBuffer) -> Opt
         }
         (None, Some(rp), Some(fb)) => crate::plugin::vk::secondary::Inherit::RenderPass { render_pass: rp.handle, subpass: snap.pass.subpass, framebuffer: fb.handle },
         _ => {
-            count_not_injected(d, &settings, counts, NotMasked::Unsupported, &snap.pass);
+            count_not_injected(d, inj, &settings, counts, NotMasked::Unsupported, &snap.pass);
             return None;
         }
     };
     let recorded = crate::plugin::vk::secondary::record(d, cb.as_raw(), &inherit, |ours| {
         if let Some(walk) = awaiting {
-            inject_awaiting(d, ours, cb.as_raw(), &snap, (plan.fail_depth, walk), &settings, false)
+            inject_awaiting(d, inj, ours, cb.as_raw(), &snap, (plan.fail_depth, walk), &settings, false)
         } else {
-            inject(d, ours, cb.as_raw(), &snap, &plan, &settings, counts, false)
+            inject(d, inj, ours, cb.as_raw(), &snap, &plan, &settings, counts, false)
         }
     });
     match recorded {
         Ok(ours) => Some(ours),
         Err(e) => {
             d.warn_repeated("layer secondary command buffer", &e);
-            count_not_injected(d, &settings, counts, NotMasked::LayerError, &snap.pass);
+            count_not_injected(d, inj, &settings, counts, NotMasked::LayerError, &snap.pass);
             None
         }
     }
 }
 
 /// Counts (and logs once) a pass the injecting features leave alone.
-fn count_not_injected(d: &DeviceState, settings: &Settings, counts: bool, why: NotMasked, pass: &PassInstance) {
+fn count_not_injected(d: &DeviceState, inj: Injectors, settings: &Settings, counts: bool, why: NotMasked, pass: &PassInstance) {
     if !counts {
         return;
     }
-    for f in d.features.all() {
-        if f.injects(settings) {
-            f.not_injected(d, settings, why);
-        }
+    for f in inj.all(d) {
+        f.not_injected(d, settings, why);
     }
     if why != NotMasked::NotEyePass && lock(&d.inject.books).logged_reasons.insert(why) {
         tracing::info!(kind = ?pass.kind, "pass not masked: {} (logged once per reason)", why.name());
@@ -190,7 +232,7 @@ fn count_not_injected(d: &DeviceState, settings: &Settings, counts: bool, why: N
 }
 
 /// The command buffer uses state the layer cannot restore: no injection, never wrong output.
-fn veto(d: &DeviceState, settings: &Settings, counts: bool, reason: &'static str, pass: &PassInstance) {
+fn veto(d: &DeviceState, inj: Injectors, settings: &Settings, counts: bool, reason: &'static str, pass: &PassInstance) {
     let first = {
         let mut books = lock(&d.inject.books);
         *books.vetoed.entry(reason).or_insert(0) += 1;
@@ -200,10 +242,8 @@ fn veto(d: &DeviceState, settings: &Settings, counts: bool, reason: &'static str
         tracing::warn!(kind = ?pass.kind, "injection vetoed: the command buffer uses {reason}, state the layer cannot restore after its draws; such passes are left alone (logged once per reason)");
     }
     if counts {
-        for f in d.features.all() {
-            if f.injects(settings) {
-                f.not_injected(d, settings, NotMasked::Unsupported);
-            }
+        for f in inj.all(d) {
+            f.not_injected(d, settings, NotMasked::Unsupported);
         }
     }
 }
@@ -214,24 +254,21 @@ fn veto(d: &DeviceState, settings: &Settings, counts: bool, reason: &'static str
 /// armed instead (only in the app's own command buffer: the layer's secondary runs ahead of all
 /// of the app's draws, so it cannot wait for one).
 #[allow(clippy::too_many_arguments)]
-fn inject(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, plan: &MaskPlan, settings: &Settings, counts: bool, restore: bool) {
+fn inject(d: &DeviceState, inj: Injectors, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, plan: &MaskPlan, settings: &Settings, counts: bool, restore: bool) {
     let at = Injection { cb, pass: &snap.pass, plan, settings, counts, owner, bound_sets: Default::default() };
     {
         // Dropped here: the app's state goes back after every feature's draws.
         let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore, &snap.sets, &at.bound_sets));
-        for f in d.features.all() {
-            if f.injects(settings) && !f.injects_before_depth_test() {
-                f.inject(d, &at);
-            }
+        for f in inj.now(d) {
+            f.inject(d, &at);
         }
     }
-    let waiting: Vec<_> = d.features.all().into_iter().filter(|f| f.injects(settings) && f.injects_before_depth_test()).collect();
-    if waiting.is_empty() {
+    if inj.at_depth_test == 0 {
         return;
     }
     if !restore {
-        for f in waiting {
-            if counts {
+        if counts {
+            for f in inj.at_depth_test(d) {
                 f.not_injected(d, settings, NotMasked::Secondary);
             }
         }
@@ -249,10 +286,8 @@ fn arm(d: &DeviceState, owner: u64, armed: Armed) {
 /// Counts a veto met by an armed pass for the waiting features only.
 fn veto_waiting(d: &DeviceState, settings: &Settings, reason: &'static str) {
     *lock(&d.inject.books).vetoed.entry(reason).or_insert(0) += 1;
-    for f in d.features.all() {
-        if f.injects(settings) && f.injects_before_depth_test() {
-            f.not_injected(d, settings, NotMasked::Unsupported);
-        }
+    for f in Injectors::of(d, settings).at_depth_test(d) {
+        f.not_injected(d, settings, NotMasked::Unsupported);
     }
 }
 
@@ -292,41 +327,35 @@ pub(crate) fn before_draw(d: &DeviceState, cb: vk::CommandBuffer) {
     let Some(armed) = lock(&d.inject.books).armed.remove(&key) else { return };
     d.inject.armed_count.fetch_sub(1, Ordering::AcqRel);
     let settings = d.settings();
+    let waiting = Injectors::of(d, &settings);
     if let Some((fail_depth, walk)) = armed.awaiting {
         let at = Awaiting { cb, owner: key, pass: &armed.pass, fail_depth, settings: &settings, bound_sets: Default::default(), walk };
         let _restore = restore::Restore::new(d, cb, &restore, &sets, &at.bound_sets);
-        for f in d.features.all() {
-            if f.injects(&settings) && f.injects_before_depth_test() {
-                f.inject_awaiting(d, &at);
-            }
+        for f in waiting.at_depth_test(d) {
+            f.inject_awaiting(d, &at);
         }
         return;
     }
     let at = Injection { cb, pass: &armed.pass, plan: &armed.plan, settings: &settings, counts: armed.counts, owner: key, bound_sets: Default::default() };
     let _restore = restore::Restore::new(d, cb, &restore, &sets, &at.bound_sets);
-    for f in d.features.all() {
-        if f.injects(&settings) && f.injects_before_depth_test() {
-            f.inject(d, &at);
-        }
+    for f in waiting.at_depth_test(d) {
+        f.inject(d, &at);
     }
 }
 
 /// Records every injecting feature's draws for a pass awaiting its eyes (`Awaiting`), then the
 /// app's state when `cb` is the app's own.
 #[allow(clippy::too_many_arguments)]
-fn inject_awaiting(d: &DeviceState, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, (fail_depth, walk): (f32, bool), settings: &Settings, restore: bool) {
+fn inject_awaiting(d: &DeviceState, inj: Injectors, cb: vk::CommandBuffer, owner: u64, snap: &Snapshot, (fail_depth, walk): (f32, bool), settings: &Settings, restore: bool) {
     let at = Awaiting { cb, owner, pass: &snap.pass, fail_depth, settings, bound_sets: Default::default(), walk };
     {
         let _restore = restore.then(|| restore::Restore::new(d, cb, &snap.restore, &snap.sets, &at.bound_sets));
-        for f in d.features.all() {
-            if f.injects(settings) && !f.injects_before_depth_test() {
-                f.inject_awaiting(d, &at);
-            }
+        for f in inj.now(d) {
+            f.inject_awaiting(d, &at);
         }
     }
-    let waiting = d.features.all().into_iter().any(|f| f.injects(settings) && f.injects_before_depth_test());
     // Only the app's own command buffer can wait for a draw (see `inject`).
-    if waiting && restore {
+    if inj.at_depth_test != 0 && restore {
         arm(d, owner, Armed { pass: snap.pass.clone(), plan: shape_only(&snap.pass, fail_depth), counts: false, awaiting: Some((fail_depth, walk)) });
     }
 }
