@@ -253,30 +253,38 @@ fn begin_pass(d: &DeviceState, cb: u64, kind: PassKind, info: *const vk::RenderP
     d.track.begin_render_pass(crate::bridge::shared(), cb, kind, begin);
 }
 
-pub(in crate::vk) unsafe extern "system" fn cmd_begin_render_pass(cb: vk::CommandBuffer, info: *const vk::RenderPassBeginInfo<'_>, contents: vk::SubpassContents) {
-    let secondary = contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS;
+/// `vkCmdBeginRenderPass` and `vkCmdBeginRenderPass2` alike: the features may amend the app's
+/// begin info (the first that amends wins); `down` makes the call with the info it is given (the
+/// amended copy, or the app's own), and the pass is tracked and triggers the chassis after it.
+///
+/// # Safety
+/// `info` is the app's valid begin info and `cb` is recording outside a pass (it is about to
+/// begin one), for the duration of the call.
+unsafe fn begin_render_pass(call: &'static str, cb: vk::CommandBuffer, info: *const vk::RenderPassBeginInfo<'_>, kind: PassKind, secondary: bool, down: impl Fn(&DeviceState, *const vk::RenderPassBeginInfo<'_>)) {
     hook_decided(
-        "vkCmdBeginRenderPass",
+        call,
         cb,
         (),
-        // SAFETY: the app's valid info; `cb` is recording outside a pass (it is about to begin one).
-        |d| d.features.all().iter().find_map(|f| unsafe { f.amend_render_pass_begin(d, cb, PassKind::RenderPass, info) }),
-        |d, decided| {
-            let begin = d.fns.fp_v1_0().cmd_begin_render_pass;
-            match decided {
-                // SAFETY: the app's info with only the feature's additions.
-                Some(Some(v)) => unsafe { begin(cb, &v.info, contents) },
-                // SAFETY: forwarding the app's arguments unchanged.
-                _ => unsafe { begin(cb, info, contents) },
-            }
+        // SAFETY: per this function's contract.
+        |d| d.features.all().iter().find_map(|f| unsafe { f.amend_render_pass_begin(d, cb, kind, info) }),
+        |d, decided| match decided {
+            Some(Some(v)) => down(d, &v.info),
+            _ => down(d, info),
         },
         |d, _| {
-            begin_pass(d, cb.as_raw(), PassKind::RenderPass, info);
+            begin_pass(d, cb.as_raw(), kind, info);
             pass_begun(d, cb, secondary);
             crate::vk::chassis::on_trigger(d, cb, Trigger::Begin { secondary });
             Ok(())
         },
     )
+}
+
+pub(in crate::vk) unsafe extern "system" fn cmd_begin_render_pass(cb: vk::CommandBuffer, info: *const vk::RenderPassBeginInfo<'_>, contents: vk::SubpassContents) {
+    let secondary = contents == vk::SubpassContents::SECONDARY_COMMAND_BUFFERS;
+    // SAFETY: the app's arguments, valid during its call; `down` passes the app's info or the
+    // feature's amended copy of it, with the app's other arguments unchanged.
+    unsafe { begin_render_pass("vkCmdBeginRenderPass", cb, info, PassKind::RenderPass, secondary, |d, i| (d.fns.fp_v1_0().cmd_begin_render_pass)(cb, i, contents)) }
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_next_subpass(cb: vk::CommandBuffer, contents: vk::SubpassContents) {
@@ -297,28 +305,10 @@ pub(in crate::vk) unsafe extern "system" fn cmd_begin_render_pass2(
     info: *const vk::RenderPassBeginInfo<'_>,
     subpass_info: *const vk::SubpassBeginInfo<'_>,
 ) {
-    hook_decided(
-        "vkCmdBeginRenderPass2",
-        cb,
-        (),
-        // SAFETY: the app's valid info; `cb` is recording outside a pass (it is about to begin one).
-        |d| d.features.all().iter().find_map(|f| unsafe { f.amend_render_pass_begin(d, cb, PassKind::RenderPass2, info) }),
-        |d, decided| {
-            let begin = d.fns.fp_v1_2().cmd_begin_render_pass2;
-            match decided {
-                // SAFETY: the app's info with only the feature's additions.
-                Some(Some(v)) => unsafe { begin(cb, &v.info, subpass_info) },
-                // SAFETY: forwarding the app's arguments unchanged.
-                _ => unsafe { begin(cb, info, subpass_info) },
-            }
-        },
-        |d, _| {
-            begin_pass(d, cb.as_raw(), PassKind::RenderPass2, info);
-            pass_begun(d, cb, secondary_contents(subpass_info));
-            crate::vk::chassis::on_trigger(d, cb, Trigger::Begin { secondary: secondary_contents(subpass_info) });
-            Ok(())
-        },
-    )
+    // SAFETY: as `cmd_begin_render_pass`; the subpass begin info goes down unchanged.
+    unsafe {
+        begin_render_pass("vkCmdBeginRenderPass2", cb, info, PassKind::RenderPass2, secondary_contents(subpass_info), |d, i| (d.fns.fp_v1_2().cmd_begin_render_pass2)(cb, i, subpass_info))
+    }
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_next_subpass2(cb: vk::CommandBuffer, begin: *const vk::SubpassBeginInfo<'_>, end: *const vk::SubpassEndInfo<'_>) {

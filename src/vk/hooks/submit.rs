@@ -125,59 +125,129 @@ unsafe fn closed_chain(p_next: *const std::ffi::c_void) -> bool {
     }
 }
 
-/// The app's `vkQueueSubmit` batches with the layer's command buffers added; the arrays the
-/// copies point into live here, as long as the call down.
-struct Amended1<'a> {
-    infos: Vec<vk::SubmitInfo<'a>>,
-    _cbs: Vec<Vec<vk::CommandBuffer>>,
+/// What differs between `VkSubmitInfo` and `VkSubmitInfo2` for the submit hooks: how a batch
+/// lists its command buffers, and whether the layer may add to it.
+trait Batch<'a>: Copy + 'a {
+    /// An entry of the batch's command buffer array.
+    type Entry: Copy + 'a;
+    /// # Safety
+    /// `self` is one of the app's valid submit infos.
+    unsafe fn entries(&self) -> &'a [Self::Entry];
+    fn command_buffer(e: &Self::Entry) -> vk::CommandBuffer;
+    fn entry(cb: vk::CommandBuffer) -> Self::Entry;
+    /// Points the batch at `list` (which outlives the call down).
+    fn set_entries(&mut self, list: &[Self::Entry]);
+    /// The batch ties itself to its command buffers (one device mask each) or is protected: the
+    /// layer must not add command buffers to it.
+    ///
+    /// # Safety
+    /// As `entries`.
+    unsafe fn closed(&self) -> bool;
 }
 
+impl<'a> Batch<'a> for vk::SubmitInfo<'a> {
+    type Entry = vk::CommandBuffer;
+    unsafe fn entries(&self) -> &'a [vk::CommandBuffer] {
+        // SAFETY: per the contract.
+        unsafe { convert::slice(self.p_command_buffers, self.command_buffer_count) }
+    }
+    fn command_buffer(e: &vk::CommandBuffer) -> vk::CommandBuffer {
+        *e
+    }
+    fn entry(cb: vk::CommandBuffer) -> vk::CommandBuffer {
+        cb
+    }
+    fn set_entries(&mut self, list: &[vk::CommandBuffer]) {
+        self.command_buffer_count = list.len() as u32;
+        self.p_command_buffers = list.as_ptr();
+    }
+    unsafe fn closed(&self) -> bool {
+        // SAFETY: the app's valid pNext chain (the contract).
+        unsafe { closed_chain(self.p_next) }
+    }
+}
+
+impl<'a> Batch<'a> for vk::SubmitInfo2<'a> {
+    type Entry = vk::CommandBufferSubmitInfo<'a>;
+    unsafe fn entries(&self) -> &'a [vk::CommandBufferSubmitInfo<'a>] {
+        // SAFETY: per the contract.
+        unsafe { convert::slice(self.p_command_buffer_infos, self.command_buffer_info_count) }
+    }
+    fn command_buffer(e: &vk::CommandBufferSubmitInfo<'a>) -> vk::CommandBuffer {
+        e.command_buffer
+    }
+    /// Device mask 0: the command buffer runs on every device of the group, as the app's would
+    /// with its default.
+    fn entry(cb: vk::CommandBuffer) -> vk::CommandBufferSubmitInfo<'a> {
+        vk::CommandBufferSubmitInfo::default().command_buffer(cb)
+    }
+    fn set_entries(&mut self, list: &[vk::CommandBufferSubmitInfo<'a>]) {
+        self.command_buffer_info_count = list.len() as u32;
+        self.p_command_buffer_infos = list.as_ptr();
+    }
+    unsafe fn closed(&self) -> bool {
+        self.flags.contains(vk::SubmitFlags::PROTECTED)
+    }
+}
+
+/// The app's batches with the layer's command buffers added; the arrays the copies point into
+/// live here, as long as the call down.
+struct Amended<'a, B: Batch<'a>> {
+    infos: Vec<B>,
+    _cbs: Vec<Vec<B::Entry>>,
+}
+
+/// The app's batches with `head` in front of the first's command buffers and `tail` after the
+/// last's.
+///
 /// # Safety
-/// `submits` must be `count` (≥ 1) valid submit infos.
-unsafe fn amend_submit<'a>(submits: *const vk::SubmitInfo<'a>, count: u32, head: &[vk::CommandBuffer], tail: Option<vk::CommandBuffer>) -> Amended1<'a> {
-    // SAFETY: per the contract.
-    let app = unsafe { convert::slice(submits, count) };
+/// `app` must be the app's (≥ 1) valid submit infos.
+unsafe fn amend<'a, B: Batch<'a>>(app: &[B], head: &[vk::CommandBuffer], tail: Option<vk::CommandBuffer>) -> Amended<'a, B> {
     let mut infos = app.to_vec();
     let mut cbs = Vec::new();
     let last = infos.len() - 1;
     for (i, info) in infos.iter_mut().enumerate().filter(|(i, _)| *i == 0 || *i == last) {
-        let mut list = Vec::with_capacity(info.command_buffer_count as usize + head.len() + 1);
-        if i == 0 {
-            list.extend_from_slice(head);
-        }
         // SAFETY: the app's command buffer array of this batch.
-        list.extend_from_slice(unsafe { convert::slice(info.p_command_buffers, info.command_buffer_count) });
-        if i == last {
-            list.extend(tail);
+        let own = unsafe { info.entries() };
+        let mut list = Vec::with_capacity(own.len() + head.len() + 1);
+        if i == 0 {
+            list.extend(head.iter().copied().map(B::entry));
         }
-        info.command_buffer_count = list.len() as u32;
+        list.extend_from_slice(own);
+        if i == last {
+            list.extend(tail.map(B::entry));
+        }
         // The Vec's heap buffer does not move when the Vec moves into `cbs`.
-        info.p_command_buffers = list.as_ptr();
+        info.set_entries(&list);
         cbs.push(list);
     }
-    Amended1 { infos, _cbs: cbs }
+    Amended { infos, _cbs: cbs }
 }
 
-pub(in crate::vk) unsafe extern "system" fn queue_submit(queue: vk::Queue, count: u32, submits: *const vk::SubmitInfo<'_>, fence: vk::Fence) -> vk::Result {
+/// `vkQueueSubmit` and `vkQueueSubmit2` alike: the features refresh what the submitted
+/// recordings read, the layer's set-up and timing command buffers go at the head and tail of the
+/// app's batches, and `down` makes the call with the batches it is given (the amended copies or
+/// the app's own).
+///
+/// # Safety
+/// `submits` must be `count` valid submit infos of the app's, valid during the call.
+unsafe fn queue_submit_any<'a, B: Batch<'a>>(call: &'static str, queue: vk::Queue, count: u32, submits: *const B, down: impl Fn(&DeviceState, *const B) -> vk::Result) -> vk::Result {
     let keep = Default::default();
     let added = RefCell::new(Added::default());
     hook_decided(
-        "vkQueueSubmit",
+        call,
         queue,
         vk::Result::ERROR_INITIALIZATION_FAILED,
         |d| {
             // SAFETY: `count` valid submit infos, each with its command buffer array.
             let infos = unsafe { convert::slice(submits, count) };
-            let cbs: Vec<u64> = infos
-                .iter()
-                // SAFETY: as above.
-                .flat_map(|s| unsafe { convert::slice(s.p_command_buffers, s.command_buffer_count) }.iter().map(|c| c.as_raw()))
-                .collect();
+            // SAFETY: as above.
+            let cbs: Vec<u64> = infos.iter().flat_map(|s| unsafe { s.entries() }.iter().map(|e| B::command_buffer(e).as_raw())).collect();
             // Semaphore-only submissions carry no work to time and need no set-up.
             let batches = if cbs.is_empty() { 0 } else { count };
             let set_ups = before(d, cbs, &keep);
             // SAFETY: the app's valid pNext chains.
-            let open = !infos.iter().any(|s| unsafe { closed_chain(s.p_next) });
+            let open = !infos.iter().any(|s| unsafe { s.closed() });
             let a = add(d, queue, batches, open, set_ups);
             if a.is_empty() {
                 return None;
@@ -186,15 +256,14 @@ pub(in crate::vk) unsafe extern "system" fn queue_submit(queue: vk::Queue, count
             *added.borrow_mut() = a;
             // SAFETY: `count` ≥ 1 valid submit infos (nothing is added to a submission without
             // command buffers).
-            Some(unsafe { amend_submit(submits, count, &head, tail) })
+            Some(unsafe { amend(infos, &head, tail) })
         },
         |d, amended| match amended.and_then(|t| t.as_ref()) {
-            // SAFETY: the app's batches, copied with only the layer's command buffers added
-            // (executable, of the batch's queue family); every array they point to lives until
-            // the call returns.
-            Some(t) => unsafe { (d.fns.fp_v1_0().queue_submit)(queue, count, t.infos.as_ptr(), fence) },
-            // SAFETY: forwarding the app's arguments unchanged.
-            None => unsafe { (d.fns.fp_v1_0().queue_submit)(queue, count, submits, fence) },
+            // The app's batches, copied with only the layer's command buffers added (executable,
+            // of the batch's queue family); every array they point to lives until the call
+            // returns.
+            Some(t) => down(d, t.infos.as_ptr()),
+            None => down(d, submits),
         },
         |d, r| {
             after(d, queue, &keep, &added, r);
@@ -203,79 +272,13 @@ pub(in crate::vk) unsafe extern "system" fn queue_submit(queue: vk::Queue, count
     )
 }
 
-/// The app's `vkQueueSubmit2` batches with the layer's command buffers added.
-struct Amended2<'a> {
-    infos: Vec<vk::SubmitInfo2<'a>>,
-    _cbs: Vec<Vec<vk::CommandBufferSubmitInfo<'a>>>,
-}
-
-/// # Safety
-/// `submits` must be `count` (≥ 1) valid submit infos.
-unsafe fn amend_submit2<'a>(submits: *const vk::SubmitInfo2<'a>, count: u32, head: &[vk::CommandBuffer], tail: Option<vk::CommandBuffer>) -> Amended2<'a> {
-    // SAFETY: per the contract.
-    let app = unsafe { convert::slice(submits, count) };
-    let mut infos = app.to_vec();
-    let mut cbs = Vec::new();
-    let last = infos.len() - 1;
-    // Device mask 0: the command buffer runs on every device of the group, as the app's would
-    // with its default.
-    let ours = |cb| vk::CommandBufferSubmitInfo::default().command_buffer(cb);
-    for (i, info) in infos.iter_mut().enumerate().filter(|(i, _)| *i == 0 || *i == last) {
-        let mut list = Vec::with_capacity(info.command_buffer_info_count as usize + head.len() + 1);
-        if i == 0 {
-            list.extend(head.iter().copied().map(ours));
-        }
-        // SAFETY: the app's command buffer info array of this batch.
-        list.extend_from_slice(unsafe { convert::slice(info.p_command_buffer_infos, info.command_buffer_info_count) });
-        if i == last {
-            list.extend(tail.map(ours));
-        }
-        info.command_buffer_info_count = list.len() as u32;
-        info.p_command_buffer_infos = list.as_ptr();
-        cbs.push(list);
-    }
-    Amended2 { infos, _cbs: cbs }
+pub(in crate::vk) unsafe extern "system" fn queue_submit(queue: vk::Queue, count: u32, submits: *const vk::SubmitInfo<'_>, fence: vk::Fence) -> vk::Result {
+    // SAFETY: the app's arguments, valid during its call; `down` passes the app's batches or
+    // their amended copies, with the app's other arguments unchanged.
+    unsafe { queue_submit_any("vkQueueSubmit", queue, count, submits, |d, s| (d.fns.fp_v1_0().queue_submit)(queue, count, s, fence)) }
 }
 
 pub(in crate::vk) unsafe extern "system" fn queue_submit2(queue: vk::Queue, count: u32, submits: *const vk::SubmitInfo2<'_>, fence: vk::Fence) -> vk::Result {
-    let keep = Default::default();
-    let added = RefCell::new(Added::default());
-    hook_decided(
-        "vkQueueSubmit2",
-        queue,
-        vk::Result::ERROR_INITIALIZATION_FAILED,
-        |d| {
-            // SAFETY: `count` valid submit infos, each with its command buffer info array.
-            let infos = unsafe { convert::slice(submits, count) };
-            let cbs: Vec<u64> = infos
-                .iter()
-                // SAFETY: as above.
-                .flat_map(|s| unsafe { convert::slice(s.p_command_buffer_infos, s.command_buffer_info_count) }.iter().map(|c| c.command_buffer.as_raw()))
-                .collect();
-            // Semaphore-only submissions carry no work to time and need no set-up.
-            let batches = if cbs.is_empty() { 0 } else { count };
-            let set_ups = before(d, cbs, &keep);
-            let open = !infos.iter().any(|s| s.flags.contains(vk::SubmitFlags::PROTECTED));
-            let a = add(d, queue, batches, open, set_ups);
-            if a.is_empty() {
-                return None;
-            }
-            let (head, tail) = a.head_tail();
-            *added.borrow_mut() = a;
-            // SAFETY: `count` ≥ 1 valid submit infos (nothing is added to a submission without
-            // command buffers).
-            Some(unsafe { amend_submit2(submits, count, &head, tail) })
-        },
-        |d, amended| match amended.and_then(|t| t.as_ref()) {
-            // SAFETY: the app's batches, copied with only the layer's command buffers added;
-            // every array they point to lives until the call returns.
-            Some(t) => unsafe { (d.fns.fp_v1_3().queue_submit2)(queue, count, t.infos.as_ptr(), fence) },
-            // SAFETY: forwarding the app's arguments unchanged.
-            None => unsafe { (d.fns.fp_v1_3().queue_submit2)(queue, count, submits, fence) },
-        },
-        |d, r| {
-            after(d, queue, &keep, &added, r);
-            Ok(())
-        },
-    )
+    // SAFETY: as `queue_submit`.
+    unsafe { queue_submit_any("vkQueueSubmit2", queue, count, submits, |d, s| (d.fns.fp_v1_3().queue_submit2)(queue, count, s, fence)) }
 }
