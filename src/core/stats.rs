@@ -84,20 +84,73 @@ impl FrameStats {
     }
 }
 
-/// The `Any` plumbing of a `FeatureStats` implementation (inside its `impl` block).
-#[macro_export]
-macro_rules! feature_stats_any {
-    () => {
-        fn clone_box(&self) -> Box<dyn $crate::core::stats::FeatureStats> {
-            Box::new(self.clone())
+/// What a feature's statistics type says of itself. Every such type is a `FeatureStats` (the
+/// type-erased form the frame record, the device line and the notices handle) through the one
+/// implementation below, so a feature writes only what is its own.
+pub trait Counters: Clone + Debug + Default + PartialEq + Send + Sync + 'static {
+    /// The feature's registry id.
+    const ID: &'static str;
+    /// What the user calls the feature in warnings.
+    const LABEL: &'static str;
+    /// The group of alternatives the feature belongs to (`FeatureStats::group`).
+    const GROUP: Option<&'static str> = None;
+    /// Adds another frame's (or device's) counters of the feature.
+    fn merge(&mut self, other: &Self);
+    /// Passes the feature applied to.
+    fn applied(&self) -> u64;
+    /// Passes (or images) it left alone, by reason name.
+    fn left_alone(&self) -> Vec<(&'static str, u64)>;
+    /// What the user can do about `reason`; the reasons every feature may give are answered by
+    /// `common_hint`.
+    fn hint_for(&self, reason: &str) -> &'static str;
+    /// `key=value` pairs for the `vulkan device stats:` line.
+    fn line(&self) -> String;
+    /// Writes the feature's fields into the frame's JSON record.
+    fn json(&self, record: &mut serde_json::Map<String, serde_json::Value>);
+}
+
+impl<T: Counters> FeatureStats for T {
+    fn id(&self) -> &'static str {
+        T::ID
+    }
+    fn label(&self) -> &'static str {
+        T::LABEL
+    }
+    fn group(&self) -> Option<&'static str> {
+        T::GROUP
+    }
+    fn add(&mut self, other: &dyn FeatureStats) {
+        if let Some(o) = other.as_any().downcast_ref::<T>() {
+            self.merge(o);
         }
-        fn as_any(&self) -> &dyn std::any::Any {
-            self
-        }
-        fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
-            self
-        }
-    };
+    }
+    fn is_empty(&self) -> bool {
+        *self == T::default()
+    }
+    fn passes(&self) -> u64 {
+        self.applied()
+    }
+    fn not_applied(&self) -> Vec<(&'static str, u64)> {
+        self.left_alone()
+    }
+    fn hint(&self, reason: &str) -> &'static str {
+        self.hint_for(reason)
+    }
+    fn summary(&self) -> String {
+        self.line()
+    }
+    fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+        self.json(record)
+    }
+    fn clone_box(&self) -> Box<dyn FeatureStats> {
+        Box::new(self.clone())
+    }
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
 }
 
 /// What the user can do about a reason any feature may report (names as in `stats.file`); a
@@ -137,44 +190,26 @@ mod tests {
         passes: u64,
     }
 
-    impl FeatureStats for Demo {
-        fn id(&self) -> &'static str {
-            "demo"
+    impl Counters for Demo {
+        const ID: &'static str = "demo";
+        const LABEL: &'static str = "demo feature";
+        fn merge(&mut self, o: &Self) {
+            self.passes += o.passes;
         }
-        fn label(&self) -> &'static str {
-            "demo feature"
-        }
-        fn add(&mut self, other: &dyn FeatureStats) {
-            if let Some(o) = other.as_any().downcast_ref::<Demo>() {
-                self.passes += o.passes;
-            }
-        }
-        fn is_empty(&self) -> bool {
-            self.passes == 0
-        }
-        fn passes(&self) -> u64 {
+        fn applied(&self) -> u64 {
             self.passes
         }
-        fn not_applied(&self) -> Vec<(&'static str, u64)> {
+        fn left_alone(&self) -> Vec<(&'static str, u64)> {
             Vec::new()
         }
-        fn hint(&self, _: &str) -> &'static str {
+        fn hint_for(&self, _: &str) -> &'static str {
             ""
         }
-        fn summary(&self) -> String {
+        fn line(&self) -> String {
             format!("demo_passes={}", self.passes)
         }
-        fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+        fn json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
             record.insert("demo".into(), self.passes.into());
-        }
-        fn clone_box(&self) -> Box<dyn FeatureStats> {
-            Box::new(self.clone())
-        }
-        fn as_any(&self) -> &dyn Any {
-            self
-        }
-        fn as_any_mut(&mut self) -> &mut dyn Any {
-            self
         }
     }
 

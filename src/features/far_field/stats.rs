@@ -1,7 +1,7 @@
 //! The far field's per-frame counters (`stats.file`, the device's stats line).
 #![forbid(unsafe_code)]
 
-use crate::core::stats::{json_counts, FeatureStats};
+use crate::core::stats::{json_counts, Counters};
 use std::collections::BTreeMap;
 
 /// Counted per submission: a command buffer recorded once counts every time it runs.
@@ -25,15 +25,10 @@ impl FarFieldStats {
     }
 }
 
-impl FeatureStats for FarFieldStats {
-    fn id(&self) -> &'static str {
-        "far_field"
-    }
-    fn label(&self) -> &'static str {
-        "monoscopic far field"
-    }
-    fn add(&mut self, other: &dyn FeatureStats) {
-        let Some(o) = other.as_any().downcast_ref::<FarFieldStats>() else { return };
+impl Counters for FarFieldStats {
+    const ID: &'static str = "far_field";
+    const LABEL: &'static str = "monoscopic far field";
+    fn merge(&mut self, o: &Self) {
         for (k, v) in &o.views_reused {
             *self.views_reused.entry(*k).or_insert(0) += v;
         }
@@ -44,16 +39,13 @@ impl FeatureStats for FarFieldStats {
         self.no_fresh_source += o.no_fresh_source;
         self.pixels_reused += o.pixels_reused;
     }
-    fn is_empty(&self) -> bool {
-        *self == FarFieldStats::default()
-    }
-    fn passes(&self) -> u64 {
+    fn applied(&self) -> u64 {
         self.views_reused.values().sum()
     }
-    fn not_applied(&self) -> Vec<(&'static str, u64)> {
+    fn left_alone(&self) -> Vec<(&'static str, u64)> {
         self.not_applied.iter().map(|(k, v)| (*k, *v)).collect()
     }
-    fn hint(&self, reason: &str) -> &'static str {
+    fn hint_for(&self, reason: &str) -> &'static str {
         match reason {
             "no_depth_range" => "the app submits no XrCompositionLayerDepthInfoKHR and its engine (VkApplicationInfo::pEngineName) has no documented default: set far_field.near_z and far_field.far_z to its projection range",
             "several_colour_attachments" => "the pass writes several colour attachments (a G-buffer): the far field only reuses a lit eye image",
@@ -67,17 +59,17 @@ impl FeatureStats for FarFieldStats {
             _ => crate::core::stats::common_hint(reason),
         }
     }
-    fn summary(&self) -> String {
+    fn line(&self) -> String {
         format!(
             "far_field_views_reused={} far_field_pixels_reused={} far_field_copies={} far_field_no_fresh_source={} far_field_not_applied={:?}",
-            self.passes(),
+            self.applied(),
             self.pixels_reused,
             self.copies,
             self.no_fresh_source,
             self.not_applied
         )
     }
-    fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+    fn json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
         let mut o = serde_json::Map::new();
         o.insert("views_reused".into(), json_counts(self.views_reused.iter().map(|(k, v)| (*k, *v))));
         o.insert("copies".into(), self.copies.into());
@@ -86,12 +78,12 @@ impl FeatureStats for FarFieldStats {
         o.insert("not_applied".into(), json_counts(self.not_applied.iter().map(|(k, v)| (*k, *v))));
         record.insert("far_field".into(), o.into());
     }
-    crate::feature_stats_any!();
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::core::stats::FeatureStats;
 
     #[test]
     fn adds_and_writes() {

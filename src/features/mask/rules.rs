@@ -6,7 +6,7 @@
 
 use crate::core::rect::{PixelRect, ViewportRect};
 use crate::core::pass::NotMasked;
-use crate::core::stats::{json_counts, FeatureStats};
+use crate::core::stats::{json_counts, Counters};
 use crate::core::views::ViewFov;
 use std::collections::BTreeMap;
 
@@ -196,44 +196,34 @@ impl MaskFrameStats {
     }
 }
 
-impl FeatureStats for MaskFrameStats {
-    fn id(&self) -> &'static str {
-        "mask"
+impl Counters for MaskFrameStats {
+    const ID: &'static str = "mask";
+    const LABEL: &'static str = "hidden-area mask";
+    fn merge(&mut self, o: &Self) {
+        MaskFrameStats::add(self, o);
     }
-    fn label(&self) -> &'static str {
-        "hidden-area mask"
-    }
-    fn add(&mut self, other: &dyn FeatureStats) {
-        if let Some(o) = other.as_any().downcast_ref::<MaskFrameStats>() {
-            MaskFrameStats::add(self, o);
-        }
-    }
-    fn is_empty(&self) -> bool {
-        *self == MaskFrameStats::default()
-    }
-    fn passes(&self) -> u64 {
+    fn applied(&self) -> u64 {
         self.passes_masked
     }
-    fn not_applied(&self) -> Vec<(&'static str, u64)> {
+    fn left_alone(&self) -> Vec<(&'static str, u64)> {
         self.not_masked.iter().map(|(k, v)| (*k, *v)).collect()
     }
-    fn hint(&self, reason: &str) -> &'static str {
+    fn hint_for(&self, reason: &str) -> &'static str {
         match reason {
             "no_mask" => "the runtime offers no visibility mask for the view: set mask.source = \"synthesized\" (or \"auto\")",
             _ => crate::core::stats::common_hint(reason),
         }
     }
-    fn summary(&self) -> String {
+    fn line(&self) -> String {
         MaskFrameStats::summary(self)
     }
     /// The mask's fields sit at the top level of the record (the first feature, kept as it was).
-    fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+    fn json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
         record.insert("passes_masked".into(), self.passes_masked.into());
         record.insert("mask_by_source".into(), json_counts(self.by_source.iter().map(|(k, v)| (*k, *v))));
         record.insert("not_masked".into(), json_counts(self.not_masked.iter().map(|(k, v)| (*k, *v))));
         record.insert("pixels_masked".into(), json_counts(self.pixels_masked.iter().map(|(k, v)| (*k, *v))));
     }
-    crate::feature_stats_any!();
 }
 
 #[cfg(test)]

@@ -12,7 +12,7 @@ mod write;
 pub(crate) mod xr;
 
 use crate::core::config::{Config, Kind, KeySpec};
-use crate::core::stats::{json_counts, FeatureStats};
+use crate::core::stats::{json_counts, Counters};
 use std::collections::BTreeMap;
 
 /// Screenshot keys.
@@ -48,30 +48,22 @@ pub struct ScreenshotStats {
     pub not_applied: BTreeMap<&'static str, u64>,
 }
 
-impl FeatureStats for ScreenshotStats {
-    fn id(&self) -> &'static str {
-        "screenshot"
-    }
-    fn label(&self) -> &'static str {
-        "screenshot"
-    }
-    fn add(&mut self, other: &dyn FeatureStats) {
-        let Some(o) = other.as_any().downcast_ref::<ScreenshotStats>() else { return };
+impl Counters for ScreenshotStats {
+    const ID: &'static str = "screenshot";
+    const LABEL: &'static str = "screenshot";
+    fn merge(&mut self, o: &Self) {
         self.views += o.views;
         for (k, v) in &o.not_applied {
             *self.not_applied.entry(*k).or_insert(0) += v;
         }
     }
-    fn is_empty(&self) -> bool {
-        *self == ScreenshotStats::default()
-    }
-    fn passes(&self) -> u64 {
+    fn applied(&self) -> u64 {
         self.views
     }
-    fn not_applied(&self) -> Vec<(&'static str, u64)> {
+    fn left_alone(&self) -> Vec<(&'static str, u64)> {
         self.not_applied.iter().map(|(k, v)| (*k, *v)).collect()
     }
-    fn hint(&self, reason: &str) -> &'static str {
+    fn hint_for(&self, reason: &str) -> &'static str {
         match reason {
             "format" => "the swapchain's format is not one the layer converts (8-bit RGBA/BGRA, A2B10G10R10, RGBA16F)",
             "usage" => "the app's swapchain image lacks TRANSFER_SRC usage",
@@ -79,12 +71,12 @@ impl FeatureStats for ScreenshotStats {
             _ => crate::core::stats::common_hint(reason),
         }
     }
-    fn summary(&self) -> String {
+    fn line(&self) -> String {
         format!("screenshot.views={}", self.views)
     }
     /// Only frames that had a screenshot get the field: stats files stay as they were otherwise.
-    fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
-        if self.is_empty() {
+    fn json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+        if *self == ScreenshotStats::default() {
             return;
         }
         let mut o = serde_json::Map::new();
@@ -92,5 +84,4 @@ impl FeatureStats for ScreenshotStats {
         o.insert("not_applied".into(), json_counts(self.not_applied.iter().map(|(k, v)| (*k, *v))));
         record.insert("screenshot".into(), o.into());
     }
-    crate::feature_stats_any!();
 }

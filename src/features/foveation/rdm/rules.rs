@@ -8,7 +8,7 @@
 pub use crate::core::fovea::Ring;
 use crate::core::rect::PixelRect;
 use crate::track::eye_pass::TransferRegion;
-use crate::core::stats::{json_counts, FeatureStats};
+use crate::core::stats::{json_counts, Counters};
 use crate::core::views::{FoveaView, ViewFov};
 use std::collections::BTreeMap;
 
@@ -402,31 +402,20 @@ impl RdmFrameStats {
     }
 }
 
-impl FeatureStats for RdmFrameStats {
-    fn id(&self) -> &'static str {
-        "rdm"
+impl Counters for RdmFrameStats {
+    const ID: &'static str = "rdm";
+    const LABEL: &'static str = "foveation (radial density masking)";
+    const GROUP: Option<&'static str> = Some("foveation");
+    fn merge(&mut self, o: &Self) {
+        RdmFrameStats::add(self, o);
     }
-    fn label(&self) -> &'static str {
-        "foveation (radial density masking)"
-    }
-    fn group(&self) -> Option<&'static str> {
-        Some("foveation")
-    }
-    fn add(&mut self, other: &dyn FeatureStats) {
-        if let Some(o) = other.as_any().downcast_ref::<RdmFrameStats>() {
-            RdmFrameStats::add(self, o);
-        }
-    }
-    fn is_empty(&self) -> bool {
-        RdmFrameStats::is_empty(self)
-    }
-    fn passes(&self) -> u64 {
+    fn applied(&self) -> u64 {
         self.passes
     }
-    fn not_applied(&self) -> Vec<(&'static str, u64)> {
+    fn left_alone(&self) -> Vec<(&'static str, u64)> {
         self.not_applied.iter().map(|(k, v)| (*k, *v)).collect()
     }
-    fn hint(&self, reason: &str) -> &'static str {
+    fn hint_for(&self, reason: &str) -> &'static str {
         match reason {
             "no_fovea" => "no fovea yet for the view (the first frame): nothing to do unless it persists",
             "post_chain" => "the eye pass renders into a target a post-process chain reads: with foveation.method = auto RDM leaves it whole, since its reconstruction there (the fragment fill at the pass's end) costs more than it saves at moderate loads; foveation.method = \"rdm\" applies it",
@@ -438,10 +427,10 @@ impl FeatureStats for RdmFrameStats {
             _ => crate::core::stats::common_hint(reason),
         }
     }
-    fn summary(&self) -> String {
+    fn line(&self) -> String {
         RdmFrameStats::summary(self)
     }
-    fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+    fn json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
         let per_view = |m: &BTreeMap<u32, u64>| json_counts(m.iter().map(|(k, v)| (*k, *v)));
         record.insert(
             "rdm".into(),
@@ -457,7 +446,6 @@ impl FeatureStats for RdmFrameStats {
             }),
         );
     }
-    crate::feature_stats_any!();
 }
 
 /// One eye of an image whose skipped quads await reconstruction.

@@ -21,7 +21,7 @@ use crate::track::caps::DeviceRates;
 use crate::core::pass::NotMasked;
 use crate::core::rect::PixelRect;
 use crate::track::eye_pass::EyeSource;
-use crate::core::stats::{json_counts, FeatureStats};
+use crate::core::stats::{json_counts, Counters};
 use crate::core::views::{FoveaView, ViewFov};
 use std::collections::BTreeMap;
 
@@ -351,31 +351,20 @@ impl VrsFrameStats {
     }
 }
 
-impl FeatureStats for VrsFrameStats {
-    fn id(&self) -> &'static str {
-        "vrs"
+impl Counters for VrsFrameStats {
+    const ID: &'static str = "vrs";
+    const LABEL: &'static str = "foveation (variable-rate shading)";
+    const GROUP: Option<&'static str> = Some("foveation");
+    fn merge(&mut self, o: &Self) {
+        VrsFrameStats::add(self, o);
     }
-    fn label(&self) -> &'static str {
-        "foveation (variable-rate shading)"
-    }
-    fn group(&self) -> Option<&'static str> {
-        Some("foveation")
-    }
-    fn add(&mut self, other: &dyn FeatureStats) {
-        if let Some(o) = other.as_any().downcast_ref::<VrsFrameStats>() {
-            VrsFrameStats::add(self, o);
-        }
-    }
-    fn is_empty(&self) -> bool {
-        VrsFrameStats::is_empty(self)
-    }
-    fn passes(&self) -> u64 {
+    fn applied(&self) -> u64 {
         self.passes
     }
-    fn not_applied(&self) -> Vec<(&'static str, u64)> {
+    fn left_alone(&self) -> Vec<(&'static str, u64)> {
         self.not_applied.iter().map(|(k, v)| (*k, *v)).collect()
     }
-    fn hint(&self, reason: &str) -> &'static str {
+    fn hint_for(&self, reason: &str) -> &'static str {
         match reason {
             "unsupported" => {
                 "the device has no attachment fragment shading rate enabled by the layer (the GPU lacks it, or the layer could not \
@@ -390,10 +379,10 @@ impl FeatureStats for VrsFrameStats {
             _ => crate::core::stats::common_hint(reason),
         }
     }
-    fn summary(&self) -> String {
+    fn line(&self) -> String {
         VrsFrameStats::summary(self)
     }
-    fn write_json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
+    fn json(&self, record: &mut serde_json::Map<String, serde_json::Value>) {
         record.insert(
             "vrs".into(),
             serde_json::json!({
@@ -403,7 +392,6 @@ impl FeatureStats for VrsFrameStats {
             }),
         );
     }
-    crate::feature_stats_any!();
 }
 
 #[cfg(test)]
