@@ -82,7 +82,7 @@ impl LensCache {
         let mesh = lock(&self.inner).meshes.get(view as usize).cloned().flatten();
         // Classified with no lock held (a few milliseconds for an Index eye).
         let tiles = mesh
-            .and_then(|m| lens::tiles(&crate::features::mask::reframe::in_app_view(&m, &runtime, turn, &fov_tan), &fov_tan, (dst.width, dst.height), gpu::GROUP))
+            .and_then(|m| lens::tiles(&crate::core::reframe::in_app_view(&m, &runtime, turn, &fov_tan), &fov_tan, (dst.width, dst.height), gpu::GROUP))
             .map(Arc::new);
         if let Some(t) = &tiles {
             tracing::info!(

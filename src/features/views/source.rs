@@ -4,7 +4,7 @@
 //! system name names (the mock's exactly, real headsets by product).
 
 use super::rules::Fov;
-use crate::features::mask::rules::hidden_pixels;
+use crate::core::lens::hidden_pixels;
 use crate::features::mask::xr::runtime_mask;
 use crate::core::views::ViewFov;
 use crate::xr::session::Session;

@@ -16,13 +16,13 @@
 //! and for parallel views their relative turn): any failing turns the tricks off for the session
 //! (logged), and the app then gets the runtime's own views (its images, already made, show them at
 //! another density). The padding symmetric and parallel views add beyond the runtime's FOV is
-//! hidden by the mask (`mask::reframe`), which comes on with them (`Settings`).
+//! hidden by the mask (`core::reframe`), which comes on with them (`Settings`).
 
 use crate::features::views::ViewSettings;
 use super::rules::{self, Cut, Fov, Symmetric};
 use super::source::{Lens, lens_from_profile, lens_from_runtime, profile_for, session_of, system_name, tangents, turns_from_profile};
-use crate::features::mask::reframe;
-use crate::features::mask::rules::hidden_pixels;
+use crate::core::reframe;
+use crate::core::lens::hidden_pixels;
 use crate::features::mask::xr::runtime_mask;
 use crate::plugin::settings::Settings;
 use glam::DQuat;
