@@ -13,25 +13,33 @@ use crate::plugin::vk::feature::{DeviceFeatures, DeviceInit, Plugin};
 use crate::core::stats::FrameStats;
 
 /// Declares the registered features: `field: Type` per feature, where `Type` implements
-/// `VkFeature` and `Plugin`. Generates the per-device feature set, the config keys and the empty
-/// statistics of a frame.
+/// `VkFeature` and `Plugin`, and the OpenXR features with their state types. Generates the
+/// per-device feature set, the OpenXR feature list and the per-session and per-instance states,
+/// the config keys and the empty statistics of a frame.
 macro_rules! registry {
-    (vulkan { $($field:ident: $ty:ty,)* } openxr { $($xfield:ident: $xty:path => $xsession:ty, $xinstance:ty,)* }) => {
+    (
+        vulkan { $($field:ident: $ty:ty,)* }
+        openxr { $($xfield:ident: $xty:path => $xsession:ty, $xinstance:ty,)* }
+        xr_states { $($sfield:ident => $ssession:ty, $sinstance:ty,)* }
+    ) => {
         /// Every OpenXR feature object, in registry order.
-        pub(crate) static XR_FEATURES: &[&dyn crate::xr::feature::XrFeature] = &[$(&$xty,)*];
+        pub(crate) static XR_FEATURES: &[&dyn crate::plugin::xr::XrFeature] = &[$(&$xty,)*];
 
-        /// One session's per-feature state (OpenXR side).
-        #[derive(Debug, Default)]
-        pub(crate) struct XrSessionFeatures {
-            $(pub(crate) $xfield: $xsession,)*
+        /// One session's per-feature state (OpenXR side), one value per type: each feature's, then
+        /// those of the OpenXR features that are no plug-ins (`xr_states`). A feature reads its own
+        /// with `Session::feature`.
+        pub(crate) fn xr_session_states() -> crate::core::parts::States {
+            crate::core::parts::States::default()
+                $(.with(<$xsession>::default()))*
+                $(.with(<$ssession>::default()))*
         }
 
         /// One XR instance's per-feature state (what is decided before any session exists); `()`
-        /// for a feature without any.
-        #[derive(Debug, Default)]
-        #[allow(dead_code)]
-        pub(crate) struct XrInstanceFeatures {
-            $(pub(crate) $xfield: $xinstance,)*
+        /// for a feature without any. Read with `Instance::feature`.
+        pub(crate) fn xr_instance_states() -> crate::core::parts::States {
+            crate::core::parts::States::default()
+                $(.with(<$xinstance>::default()))*
+                $(.with(<$sinstance>::default()))*
         }
 
         /// One new device's feature objects, in registry order.
@@ -77,6 +85,12 @@ registry! {
         far_field: far_field::xr::FarFieldXr => far_field::xr::FarFieldSession, (),
         screenshot: screenshot::xr::ScreenshotXr => screenshot::xr::ScreenshotSession, (),
     }
+    // OpenXR features that are no plug-ins (the shell calls them at their places): only their
+    // per-session and per-instance state, `field => session state, instance state,`.
+    xr_states {
+        upscale => upscale::xr::SessionUpscale, upscale::xr::InstanceUpscale,
+        overlay => overlay::xr::OverlaySession, (),
+    }
 }
 
 /// Every feature's settings type, each parsed from the configuration by its own `from_config`.
@@ -89,6 +103,10 @@ macro_rules! feature_settings {
                 $(s.features = s.features.with(<$ty>::from_config(c));)*
                 // Symmetric and parallel views pad the app's views beyond what the runtime shows:
                 // the mask hides the padding, so it comes on with them (docs/views.md).
+                // The upscale's `fovea_only` runs EASU in the foveation's inner ring when foveation
+                // publishes no fovea.
+                let upscale = upscale::UpscaleSettings { fovea_inner_deg: s.of::<foveation::FoveationSettings>().rings.inner_deg, ..*s.of::<upscale::UpscaleSettings>() };
+                s.features = s.features.with(upscale);
                 if s.of::<views::ViewSettings>().widens() {
                     let mask = mask::MaskSettings { enabled: true, ..s.of::<mask::MaskSettings>().clone() };
                     s.features = s.features.with(mask);
@@ -144,6 +162,35 @@ mod tests {
         assert!(s.of::<mask::MaskSettings>().enabled && !s.intermediate && !s.of::<foveation::FoveationSettings>().enabled);
         assert_eq!(s.of::<foveation::FoveationSettings>().method, crate::features::foveation::Method::Rdm);
         assert!(s.fails_in("xrEndFrame") && !s.fails_in("xrBeginFrame"));
+        assert_eq!(s.of::<upscale::UpscaleSettings>().fovea_inner_deg, s.of::<foveation::FoveationSettings>().rings.inner_deg);
+    }
+
+    /// Here rather than in `plugin::settings`: what is published must be whole (every feature's
+    /// settings), since other tests of the process read the live settings meanwhile.
+    #[test]
+    fn publish_reaches_every_thread() {
+        use crate::plugin::settings::{current, publish};
+        let (c, _) = Config::resolve(&Inputs { keys: crate::registry::keys(), file: None, app_names: &[], env: &|_| None });
+        let mut s = Settings::from_config(&c);
+        s.stats_file = "first".into();
+        publish(s.clone());
+        assert_eq!(current().unwrap().stats_file, "first");
+        s.stats_file = "second".into();
+        publish(s);
+        assert_eq!(std::thread::spawn(|| current().unwrap().stats_file.clone()).join().unwrap(), "second");
+        assert_eq!(current().unwrap().stats_file, "second");
+    }
+
+    /// Every OpenXR feature's and OpenXR-only feature's state is made with each session and
+    /// instance, so `Session::feature` / `Instance::feature` never miss one.
+    #[test]
+    fn every_xr_state_is_made() {
+        let (s, i) = (xr_session_states(), xr_instance_states());
+        assert!(s.get::<views::xr::ViewsSession>().is_some() && s.get::<mask::xr::MaskSession>().is_some());
+        assert!(s.get::<foveation::xr::FoveationSession>().is_some() && s.get::<far_field::xr::FarFieldSession>().is_some());
+        assert!(s.get::<screenshot::xr::ScreenshotSession>().is_some());
+        assert!(s.get::<upscale::xr::SessionUpscale>().is_some() && s.get::<overlay::xr::OverlaySession>().is_some());
+        assert!(i.get::<views::xr::ViewsInstance>().is_some() && i.get::<upscale::xr::InstanceUpscale>().is_some());
     }
 
 }

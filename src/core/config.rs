@@ -34,7 +34,7 @@ impl KeySpec {
 }
 
 /// The chassis' own keys; each feature declares its own, and the registry lists them all
-/// (`crate::registry::keys`): this module is given the list, it names no feature.
+/// (the registry's `keys`): this module is given the list, it names no feature.
 pub const CORE_KEYS: &[KeySpec] = &[
     KeySpec {
         key: "enabled",
@@ -159,7 +159,7 @@ pub struct Config {
 /// What the resolution is given; the environment is a function so tests need not touch the
 /// process environment.
 pub struct Inputs<'a> {
-    /// Every key there is (`crate::registry::keys`); anything else is reported unknown.
+    /// Every key there is (the registry's `keys`); anything else is reported unknown.
     pub keys: &'static [KeySpec],
     /// The config file's path and text, if one exists.
     pub file: Option<(&'a Path, &'a str)>,
@@ -549,7 +549,7 @@ mod watch_tests {
         assert_eq!(parse_value(&spec, &RawValue::Text(" 12.5 ".into())), Ok(Value::Float(12.5)));
     }
 
-    /// The one key the test writes (the registry's full list is tested in `crate::registry`).
+    /// The one key the test writes (the registry's full list is tested in the registry).
     const KEYS: &[KeySpec] = &[KeySpec { key: "mask.enabled", kind: Kind::Bool, default: "false", doc: "" }];
 
     #[test]

@@ -1,6 +1,8 @@
-//! A set of values keyed by their type: how the base holds what each feature owns (its settings,
-//! its per-session state) without naming any feature. The registry fills one per feature; a
-//! feature reads its own part by type.
+//! Sets of values keyed by their type: how the base holds what each feature owns without naming
+//! any feature. `Parts` holds values compared and cloned through the set (each feature's
+//! settings); `States` holds live state shared behind an `Arc` (each feature's per-session and
+//! per-instance state, with its own locks). The registry fills one per feature; a feature reads
+//! its own by type.
 #![forbid(unsafe_code)]
 
 use std::any::{Any, TypeId};
@@ -60,6 +62,30 @@ impl fmt::Debug for Parts {
     }
 }
 
+/// Live state, at most one value per type, in the order added: filled once (by the registry, when
+/// the session or instance is made) and only read after that, each value guarding its own
+/// mutable parts.
+#[derive(Default)]
+pub struct States(Vec<(TypeId, Box<dyn Any + Send + Sync>)>);
+
+impl States {
+    /// Adds `state`, replacing a value of its type.
+    pub fn with<T: Any + Send + Sync>(mut self, state: T) -> States {
+        self.0.retain(|(t, _)| *t != TypeId::of::<T>());
+        self.0.push((TypeId::of::<T>(), Box::new(state)));
+        self
+    }
+    pub fn get<T: Any>(&self) -> Option<&T> {
+        self.0.iter().find(|(t, _)| *t == TypeId::of::<T>()).and_then(|(_, s)| s.downcast_ref())
+    }
+}
+
+impl fmt::Debug for States {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "States({} values)", self.0.len())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -79,5 +105,13 @@ mod tests {
         assert_eq!(p, q);
         assert_ne!(p, q.with(B("c")));
         assert_ne!(Parts::default().with(A(1)), Parts::default().with(A(1)).with(B("b")));
+    }
+
+    #[test]
+    fn one_state_per_type() {
+        let s = States::default().with(std::sync::Mutex::new(1u32)).with(B("b")).with(std::sync::Mutex::new(2u32));
+        assert_eq!(*s.get::<std::sync::Mutex<u32>>().unwrap().lock().unwrap(), 2);
+        assert_eq!(s.get::<B>(), Some(&B("b")));
+        assert!(s.get::<A>().is_none());
     }
 }

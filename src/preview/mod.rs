@@ -180,7 +180,7 @@ impl Default for Options {
 pub fn compute(headset: &Headset, settings: &Settings, options: &Options) -> Preview {
     let (w, h) = (headset.width, headset.height);
     let rect = PixelRect { x: 0, y: 0, width: w, height: h };
-    let (policy, lens) = mask_source::from_settings(&settings.of::<MaskSettings>());
+    let (policy, lens) = mask_source::from_settings(settings.of::<MaskSettings>());
     // Fixed foveation (no gaze in a preview): every centre on the optical axis.
     let foveae = fovea_views(&vec![[0.0, 0.0]; headset.views.len()], settings.of::<FoveationSettings>().rings);
     let ff = &settings.of::<FarFieldSettings>();
@@ -517,7 +517,7 @@ mod tests {
         let p = compute(&h, &s, &Options { split_px: Some(4.0), vrs_texel: 8 });
         let v = &p.views[0];
         assert_eq!(v.mask.source, Some(MaskSource::Synthesized));
-        let (_, lens) = mask_source::from_settings(&s.of::<MaskSettings>());
+        let (_, lens) = mask_source::from_settings(s.of::<MaskSettings>());
         let rect = PixelRect { x: 0, y: 0, width: 128, height: 128 };
         assert_eq!(v.mask.pixels_masked, mask_rules::masked_pixels(&lens.hidden_triangles(), &h.views[0].fov, rect));
         let base = compute(&h, &settings(&|_| None), &Options::default());

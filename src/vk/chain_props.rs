@@ -8,7 +8,7 @@
 //! shading-rate features.
 
 use super::*;
-use crate::vk::test_chain::{has_duplicates, walk, Chain};
+use crate::plugin::vk::test_chain::{has_duplicates, walk, Chain};
 use proptest::prelude::*;
 use vk::StructureType as S;
 

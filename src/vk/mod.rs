@@ -12,8 +12,6 @@ mod device_stats;
 mod hooks;
 pub mod loader;
 pub mod probe;
-#[cfg(test)]
-pub(crate) mod test_chain;
 
 use crate::core::config::Config;
 use crate::guard::{self, PassThrough};
@@ -120,32 +118,6 @@ fn merge_gpu_times(times: impl Iterator<Item = (u64, crate::core::gpu_time::GpuF
         all.entry(frame).and_modify(|a: &mut crate::core::gpu_time::GpuFrameTime| a.add(&t)).or_insert(t);
     }
     all
-}
-
-/// `xrReleaseSwapchainImage` of `index` of `swapchain` is about to go down: the features act on
-/// the released image (`binding`: the session's device, queue family and queue index).
-pub(crate) fn before_release(binding: Option<(DeviceKey, u32, u32)>, swapchain: u64, index: Option<u32>) {
-    let (Some((device, family, queue)), Some(index)) = (binding, index) else { return };
-    let Some(d) = device.state() else { return };
-    if d.pass_through.is_on() {
-        return;
-    }
-    for f in d.features.all() {
-        f.before_release(&d, family, queue, swapchain, index);
-    }
-}
-
-/// The upscale wrote `views` (view, rect, layer) of the runtime's image `image` behind `display`
-/// (described at the runtime's size): the features act on it before the runtime gets it back.
-pub(crate) fn display_ready(binding: Option<(DeviceKey, u32, u32)>, display: &crate::bridge::Swapchain, image: u64, views: &[(u32, crate::core::views::ImageRect, u32)]) {
-    let Some((device, family, queue)) = binding else { return };
-    let Some(d) = device.state() else { return };
-    if d.pass_through.is_on() || views.is_empty() {
-        return;
-    }
-    for f in d.features.all() {
-        f.display_ready(&d, family, queue, display, image, views);
-    }
 }
 
 /// A handle whose dispatch key we never saw means a broken chain; logged once, never per call.

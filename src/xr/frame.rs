@@ -46,11 +46,10 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
     let fovea_source = if fovea.is_empty() {
         None
     } else {
-        super::state()
-            .sessions
+        session::sessions()
             .values()
             .into_iter()
-            .find_map(|(_, s)| *s.features.foveation.gaze.source.lock().unwrap_or_else(|e| e.into_inner()))
+            .find_map(|(_, s)| *s.feature::<crate::features::foveation::xr::FoveationSession>().gaze.source.lock().unwrap_or_else(|e| e.into_inner()))
             .or(Some(crate::features::foveation::rules::CenterSource::Fixed))
             .map(|src| format!("{src:?}"))
     };
@@ -112,7 +111,7 @@ fn reload_config(inst: &super::Instance) {
         return;
     }
     tracing::info!("config reloaded, changed: {changed:?} (features apply from the next frame; `enabled` and `log.level` only at start)");
-    for (_, s) in super::state().sessions.values() {
+    for (_, s) in session::sessions().values() {
         for f in crate::registry::XR_FEATURES {
             f.config_reloaded(&s, &changed);
         }
@@ -261,18 +260,25 @@ pub(super) unsafe extern "system" fn end_frame(session: xr::Session, frame_end_i
         // The upscale: held images upscaled and released, interposed rects in display pixels
         // (over the features' amendment, which it keeps alive).
         let upscaled = match (session::lookup(session), amended.as_ref().map(|a| a.info).or(app_info.copied())) {
-            (Ok(s), Some(info)) => super::upscale::frame_end(&s, &info),
+            (Ok(s), Some(info)) => {
+                let scs = super::swapchain::interposed_of(&s);
+                let scs: Vec<_> = scs.iter().filter_map(|(handle, sc)| sc.upscale.as_ref().map(|i| super::upscale::Interposing { handle: *handle, desc: &sc.desc, i })).collect();
+                super::upscale::frame_end(&s, &info, &scs)
+            }
             _ => None,
         };
         let amended = match upscaled {
-            Some(u) => Some(super::feature::AmendedFrameEnd { info: u.info, _keep: Box::new((u._keep, amended.map(|a| a._keep))) }),
+            Some(u) => Some(crate::plugin::xr::AmendedFrameEnd { info: u.info, _keep: Box::new((u._keep, amended.map(|a| a._keep))) }),
             None => amended,
         };
         // The overlay's quad goes after the app's (or the amended) layers, in a new array: the
         // app's own is never changed.
         let base = amended.as_ref().map(|a| a.info).or(app_info.copied());
         let quad = match (session::lookup(session), base) {
-            (Ok(s), Some(b)) if b.layer_count == 0 || !b.layers.is_null() => super::overlay::quad(&s, &super::settings(&inst), b.layer_count),
+            (Ok(s), Some(b)) if b.layer_count == 0 || !b.layers.is_null() => {
+                let settings = super::settings(&inst);
+                super::overlay::quad(&s, &settings, b.layer_count, &|| crate::registry::enabled(&settings, &crate::registry::empty_stats()))
+            }
             _ => None,
         };
         let with_overlay = quad.as_ref().zip(base).map(|(q, b)| {

@@ -85,7 +85,7 @@ pub fn runtime_headset() -> Result<Headset, ProbeError> {
             let hidden = exts.khr_visibility_mask.then(|| {
                 session.get_visibility_mask_khr(stereo, i as u32, oxr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH).ok().map(|m| {
                     let vertices: Vec<[f32; 2]> = m.vertices.iter().map(|p| [p.x, p.y]).collect();
-                    crate::features::mask::source::expand(&vertices, &m.indices)
+                    crate::core::lens::expand(&vertices, &m.indices)
                 })
             });
             let f = v.fov;

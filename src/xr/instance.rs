@@ -1,36 +1,14 @@
 //! Instance-level entry points: creating the layer's instance state (configuration, logging, the
 //! next layer's dispatch), tearing it down, and the instance calls whose results later features use.
 
+use super::session::sessions;
 use super::{state, Instance, Next};
+use crate::plugin::xr::Stats;
 use crate::guard::{self, PassThrough};
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::ffi::{c_char, CStr, CString};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
-
-/// Counters that show, in the log, that the layer really saw the app's traffic.
-#[derive(Debug, Default)]
-pub(crate) struct Stats {
-    pub frames_ended: AtomicU64,
-    pub swapchains_created: AtomicU64,
-    pub swapchain_images: AtomicU64,
-    pub eye_use_changes: AtomicU64,
-    pub visibility_mask_events: AtomicU64,
-}
-
-impl Stats {
-    fn line(&self) -> String {
-        format!(
-            "frames_ended={} swapchains_created={} swapchain_images={} eye_use_changes={} visibility_mask_events={}",
-            self.frames_ended.load(Ordering::Relaxed),
-            self.swapchains_created.load(Ordering::Relaxed),
-            self.swapchain_images.load(Ordering::Relaxed),
-            self.eye_use_changes.load(Ordering::Relaxed),
-            self.visibility_mask_events.load(Ordering::Relaxed),
-        )
-    }
-}
 
 /// Instance extensions the features use for themselves, if the runtime has them.
 fn wanted_extensions(config: &crate::core::config::Config) -> Vec<&'static str> {
@@ -220,8 +198,8 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             app_extensions,
             layer_extensions: added,
             watch: crate::core::config::Watch::new(crate::registry::keys(), &[app_name_for_watch.as_str(), exe.as_str()], std::time::Duration::from_millis(100)),
-            upscale: Default::default(),
-            features: Default::default(),
+            told_sizes: Default::default(),
+            features: crate::registry::xr_instance_states(),
         };
         state().instances.insert(handle.into_raw(), Arc::new(inst));
         Ok(r)
@@ -243,7 +221,7 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: xr::Instance) ->
         let _span = tracing::debug_span!("xrDestroyInstance").entered();
         // Sessions the app did not destroy take the overlay's objects with them: its Vulkan
         // objects are the layer's to destroy, while the session's device is still alive.
-        for (_, s) in state().sessions.values().into_iter().filter(|(_, s)| s.instance.handle == instance) {
+        for s in inst.sessions() {
             super::overlay::destroy(&s);
         }
         let r = down.call(plain);
@@ -262,7 +240,7 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: xr::Instance) ->
                 crate::bridge::shared().remove_swapchain(handle);
             }
             st.swapchains.retain(|_, s| s.session.instance.handle != instance);
-            st.sessions.retain(|_, s| s.instance.handle != instance);
+            sessions().retain(|_, s| s.instance.handle != instance);
             st.instances.remove(instance.into_raw());
             tracing::info!("openxr stats: {} (app {:?})", inst.stats.line(), inst.app_name);
             // What the layer still keys by handle after the instance went with its children: 0
@@ -270,7 +248,7 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: xr::Instance) ->
             tracing::info!(
                 "openxr layer tables: instances={} sessions={} swapchains={} shared_swapchains={}",
                 st.instances.len(),
-                st.sessions.len(),
+                sessions().len(),
                 st.swapchains.len(),
                 crate::bridge::shared().swapchains.len()
             );

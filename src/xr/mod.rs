@@ -1,91 +1,57 @@
-//! OpenXR API-layer shell: the loader negotiation, `xrCreateApiLayerInstance`, and the one table of
-//! intercepted calls. Everything unsafe about the OpenXR side lives under `src/xr/`; what the hooks
-//! decide is in the safe modules of the crate.
+//! OpenXR API-layer shell: the loader negotiation, `xrCreateApiLayerInstance`, and the hook lookup
+//! over the contract's one list of calls (`crate::plugin::xr::xr_calls!`). The unsafe FFI of the
+//! OpenXR side lives here, in the contract (`crate::plugin::xr`) and in the features' OpenXR
+//! halves that call the runtime; what the hooks decide is in the safe modules of the crate.
 
 mod actions;
-pub(crate) mod feature;
 mod frame;
 pub mod headless;
 mod instance;
-mod overlay;
 pub(crate) mod session;
 mod swapchain;
-pub(crate) mod upscale;
-mod upscale_layers;
-mod upscale_lens;
 pub mod probe;
 mod vulkan;
 
 use crate::core::config::Config;
-use crate::guard::PassThrough;
 use crate::core::handles::HandleMap;
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::ffi::{c_char, CStr};
 use std::sync::{Arc, OnceLock};
 
-/// Declares every intercepted call once: the name, the field of the next layer's dispatch table,
-/// its type, and the hook. `Next` and the proc-addr lookup are both generated from this list, so a
-/// hook can never be handed out without the dispatch entry it calls.
-macro_rules! intercepts {
+// What features see of an instance, and the dispatch table, are the contract's
+// (`crate::plugin::xr`); the shell makes and keeps them. The upscale and the overlay are OpenXR
+// features that are no plug-ins: the shell calls them at their places.
+use crate::features::overlay::xr as overlay;
+use crate::features::upscale::xr as upscale;
+pub(crate) use crate::plugin::xr::{settings, Instance, Next, VISIBILITY_MASK_EXT};
+
+/// The hooks, by the field name the call list (`crate::plugin::xr::xr_calls!`) gives each
+/// intercepted call: a hook missing here is a compile error in `hook`.
+mod hooks {
+    pub(super) use super::actions::{attach_session_action_sets, sync_actions};
+    pub(super) use super::frame::{begin_frame, end_frame};
+    pub(super) use super::instance::{destroy_instance, enumerate_view_configuration_views, poll_event};
+    pub(super) use super::session::{create_session, destroy_session, get_visibility_mask, locate_views};
+    pub(super) use super::swapchain::{acquire_swapchain_image, create_swapchain, destroy_swapchain, enumerate_swapchain_images, release_swapchain_image, wait_swapchain_image};
+    pub(super) use super::vulkan::{create_vulkan_device, create_vulkan_instance, get_vulkan_device_extensions, get_vulkan_instance_extensions};
+}
+
+/// The shell's half of the one call list: the hook lookup and the names of the intercepted calls.
+macro_rules! hook_lookup {
     (
-        hooks { $($name:literal => $field:ident: $pfn:ident = $hook:path,)* }
-        calls { $($cname:literal => $cfield:ident: $cpfn:ident,)* }
+        hooks { $($name:literal => $field:ident: $pfn:ident,)* }
+        calls { $($calls:tt)* }
     ) => {
-        /// The next layer's (or the runtime's) functions for one instance: those we intercept and
-        /// those the layer calls for its own purposes (`calls`).
-        #[derive(Clone, Copy)]
-        pub(crate) struct Next {
-            pub get_instance_proc_addr: xr::pfn::GetInstanceProcAddr,
-            $(pub $field: Option<xr::pfn::$pfn>,)*
-            $(pub $cfield: Option<xr::pfn::$cpfn>,)*
-        }
-
-        impl Next {
-            /// # Safety
-            /// `gipa` must be the next layer's `xrGetInstanceProcAddr` and `instance` a live
-            /// instance created through it.
-            unsafe fn load(gipa: xr::pfn::GetInstanceProcAddr, instance: xr::Instance) -> Next {
-                Next {
-                    get_instance_proc_addr: gipa,
-                    $($field: {
-                        let mut f: Option<xr::pfn::VoidFunction> = None;
-                        // SAFETY: the name is a NUL-terminated literal and `f` a valid out pointer;
-                        // the function returned for this name has the type `$pfn` by the spec.
-                        unsafe {
-                            let r = gipa(instance, concat!($name, "\0").as_ptr().cast(), &mut f);
-                            if r == xr::Result::SUCCESS {
-                                f.map(|f| std::mem::transmute::<xr::pfn::VoidFunction, xr::pfn::$pfn>(f))
-                            } else {
-                                None
-                            }
-                        }
-                    },)*
-                    $($cfield: {
-                        let mut f: Option<xr::pfn::VoidFunction> = None;
-                        // SAFETY: as above, for the functions the layer calls itself.
-                        unsafe {
-                            let r = gipa(instance, concat!($cname, "\0").as_ptr().cast(), &mut f);
-                            if r == xr::Result::SUCCESS {
-                                f.map(|f| std::mem::transmute::<xr::pfn::VoidFunction, xr::pfn::$cpfn>(f))
-                            } else {
-                                None
-                            }
-                        }
-                    },)*
-                }
-            }
-
-            /// Our hook for `name`, if we intercept it and the next layer has it.
-            fn hook(&self, name: &str) -> Option<xr::pfn::VoidFunction> {
-                match name {
-                    // SAFETY: transmuting between function pointer types; the loader casts the
-                    // pointer back to the type the spec gives `name`, which is `$pfn`.
-                    $($name => self.$field.map(|_| unsafe {
-                        std::mem::transmute::<xr::pfn::$pfn, xr::pfn::VoidFunction>($hook as xr::pfn::$pfn)
-                    }),)*
-                    _ => None,
-                }
+        /// Our hook for `name`, if we intercept it and the next layer has it.
+        fn hook(next: &Next, name: &str) -> Option<xr::pfn::VoidFunction> {
+            match name {
+                // SAFETY: transmuting between function pointer types; the loader casts the
+                // pointer back to the type the spec gives `name`, which is `$pfn`.
+                $($name => next.$field.map(|_| unsafe {
+                    std::mem::transmute::<xr::pfn::$pfn, xr::pfn::VoidFunction>(hooks::$field as xr::pfn::$pfn)
+                }),)*
+                _ => None,
             }
         }
 
@@ -94,84 +60,7 @@ macro_rules! intercepts {
     };
 }
 
-intercepts! {
-    hooks {
-    "xrDestroyInstance" => destroy_instance: DestroyInstance = instance::destroy_instance,
-    "xrEnumerateViewConfigurationViews" => enumerate_view_configuration_views: EnumerateViewConfigurationViews = instance::enumerate_view_configuration_views,
-    "xrPollEvent" => poll_event: PollEvent = instance::poll_event,
-    "xrCreateSession" => create_session: CreateSession = session::create_session,
-    "xrDestroySession" => destroy_session: DestroySession = session::destroy_session,
-    "xrLocateViews" => locate_views: LocateViews = session::locate_views,
-    "xrGetVisibilityMaskKHR" => get_visibility_mask: GetVisibilityMaskKHR = session::get_visibility_mask,
-    "xrBeginFrame" => begin_frame: BeginFrame = frame::begin_frame,
-    "xrEndFrame" => end_frame: EndFrame = frame::end_frame,
-    "xrCreateSwapchain" => create_swapchain: CreateSwapchain = swapchain::create_swapchain,
-    "xrDestroySwapchain" => destroy_swapchain: DestroySwapchain = swapchain::destroy_swapchain,
-    "xrEnumerateSwapchainImages" => enumerate_swapchain_images: EnumerateSwapchainImages = swapchain::enumerate_swapchain_images,
-    "xrAcquireSwapchainImage" => acquire_swapchain_image: AcquireSwapchainImage = swapchain::acquire_swapchain_image,
-    "xrWaitSwapchainImage" => wait_swapchain_image: WaitSwapchainImage = swapchain::wait_swapchain_image,
-    "xrReleaseSwapchainImage" => release_swapchain_image: ReleaseSwapchainImage = swapchain::release_swapchain_image,
-    "xrCreateVulkanInstanceKHR" => create_vulkan_instance: CreateVulkanInstanceKHR = vulkan::create_vulkan_instance,
-    "xrCreateVulkanDeviceKHR" => create_vulkan_device: CreateVulkanDeviceKHR = vulkan::create_vulkan_device,
-    "xrGetVulkanInstanceExtensionsKHR" => get_vulkan_instance_extensions: GetVulkanInstanceExtensionsKHR = vulkan::get_vulkan_instance_extensions,
-    "xrGetVulkanDeviceExtensionsKHR" => get_vulkan_device_extensions: GetVulkanDeviceExtensionsKHR = vulkan::get_vulkan_device_extensions,
-    "xrAttachSessionActionSets" => attach_session_action_sets: AttachSessionActionSets = actions::attach_session_action_sets,
-    "xrSyncActions" => sync_actions: SyncActions = actions::sync_actions,
-    }
-    calls {
-    "xrStringToPath" => string_to_path: StringToPath,
-    "xrCreateActionSet" => create_action_set: CreateActionSet,
-    "xrDestroyActionSet" => destroy_action_set: DestroyActionSet,
-    "xrCreateAction" => create_action: CreateAction,
-    "xrSuggestInteractionProfileBindings" => suggest_interaction_profile_bindings: SuggestInteractionProfileBindings,
-    "xrCreateActionSpace" => create_action_space: CreateActionSpace,
-    "xrLocateSpace" => locate_space: LocateSpace,
-    "xrEnumerateSwapchainFormats" => enumerate_swapchain_formats: EnumerateSwapchainFormats,
-    "xrCreateReferenceSpace" => create_reference_space: CreateReferenceSpace,
-    "xrDestroySpace" => destroy_space: DestroySpace,
-    "xrGetSystemProperties" => get_system_properties: GetSystemProperties,
-    }
-}
-
-/// Per-instance state; creation data is immutable.
-pub(crate) struct Instance {
-    pub handle: xr::Instance,
-    pub next: Next,
-    /// The configuration at instance creation: decides what cannot change later (the master
-    /// switch: hooks are handed out once; extensions). Features read the live one,
-    /// `shared().config()`.
-    pub config: Arc<Config>,
-    pub pass_through: PassThrough,
-    pub app_name: String,
-    pub stats: instance::Stats,
-    /// Extensions the app enabled.
-    pub app_extensions: Vec<String>,
-    /// Extensions the layer enabled for itself; their functions and events stay hidden from the app.
-    pub layer_extensions: Vec<String>,
-    /// The config file, re-read when it changes; feature settings then apply from the next frame.
-    pub watch: crate::core::config::Watch,
-    /// The upscale's latched sizes (`xrEnumerateViewConfigurationViews`).
-    pub upscale: upscale::InstanceUpscale,
-    /// The features' per-instance state (made by the registry).
-    pub features: crate::registry::XrInstanceFeatures,
-}
-
-pub(crate) const VISIBILITY_MASK_EXT: &str = "XR_KHR_visibility_mask";
-
-/// An `XrVisibilityMaskKHR` asking for the counts only (the two-call idiom's first call).
-pub(crate) fn empty_visibility_mask() -> xr::VisibilityMaskKHR {
-    xr::VisibilityMaskKHR {
-        ty: xr::VisibilityMaskKHR::TYPE,
-        next: std::ptr::null_mut(),
-        vertex_capacity_input: 0,
-        vertex_count_output: 0,
-        vertices: std::ptr::null_mut(),
-        index_capacity_input: 0,
-        index_count_output: 0,
-        indices: std::ptr::null_mut(),
-    }
-}
-pub(crate) const EYE_GAZE_EXT: &str = "XR_EXT_eye_gaze_interaction";
+crate::plugin::xr::xr_calls!(hook_lookup);
 
 /// The extension an extension function belongs to, for those the layer may enable for itself.
 fn extension_of(function: &str) -> Option<&'static str> {
@@ -181,44 +70,19 @@ fn extension_of(function: &str) -> Option<&'static str> {
     }
 }
 
-impl Instance {
-    /// Whether the app (not only the layer) enabled `ext`.
-    pub fn app_enabled(&self, ext: &str) -> bool {
-        self.app_extensions.iter().any(|e| e == ext)
-    }
-    /// Whether the layer enabled `ext` for itself or the app did.
-    pub fn has_extension(&self, ext: &str) -> bool {
-        self.app_enabled(ext) || self.layer_extensions.iter().any(|e| e == ext)
-    }
-
-    /// Layer logic of `call` fails on purpose when the config says so (`debug.fail_in`), to prove
-    /// the fallback to pass-through end to end.
-    fn check_fault(&self, call: &str) -> Result<(), crate::guard::Fault> {
-        if self.config.fails_in(call) {
-            return Err(crate::guard::Fault(format!("forced by debug.fail_in for {call}")));
-        }
-        Ok(())
-    }
-}
-
+/// The shell's tables; the live sessions are the contract's (`crate::plugin::xr::sessions`), where
+/// features reach them.
 #[derive(Default)]
 pub(crate) struct XrState {
     pub instances: HandleMap<u64, Instance>,
-    pub sessions: HandleMap<u64, session::Session>,
     pub swapchains: HandleMap<u64, swapchain::Swapchain>,
 }
 
-/// The live settings (published with the config at instance creation and on every reload), else
-/// those of the instance's own config.
 /// Makes `config` the process's live configuration, and its typed settings the live settings
 /// (`crate::plugin::settings::current`), in that order of publication.
 pub(crate) fn publish_config(config: Arc<Config>) {
     crate::plugin::settings::publish(crate::plugin::settings::Settings::from_config(&config));
     crate::bridge::shared().set_config(config);
-}
-
-pub(crate) fn settings(inst: &Instance) -> std::sync::Arc<crate::plugin::settings::Settings> {
-    crate::plugin::settings::current().unwrap_or_else(|| std::sync::Arc::new(crate::plugin::settings::Settings::from_config(&inst.config)))
 }
 
 pub(crate) fn state() -> &'static XrState {
@@ -310,7 +174,7 @@ unsafe extern "system" fn get_instance_proc_addr(
         // SAFETY: forwarding the caller's valid arguments to the next layer.
         let r = unsafe { (inst.next.get_instance_proc_addr)(instance, name, function) };
         if r == xr::Result::SUCCESS && inst.config.enabled() {
-            if let Some(hook) = inst.next.hook(name_str) {
+            if let Some(hook) = hook(&inst.next, name_str) {
                 // SAFETY: `function` checked non-null above.
                 unsafe { *function = Some(hook) };
             }

@@ -1,10 +1,10 @@
 //! Session-level entry points: which Vulkan device a session renders with and where its views
-//! are; the features' per-session state (`XrSessionFeatures`) is made here and their
-//! `views_located` event raised.
+//! are; the features' per-session state (the registry's `xr_session_states`) is made here and
+//! their `views_located` event raised.
 
 use crate::features::mask::MaskSettings;
 use crate::features::foveation::FoveationSettings;
-use super::{state, Instance};
+use super::Instance;
 use crate::guard;
 use crate::core::views::ViewFov;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -12,48 +12,9 @@ use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::sync::{Arc, Mutex};
 
-/// The Vulkan objects of `XrGraphicsBindingVulkanKHR`, as handle values.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct VulkanBinding {
-    pub instance: u64,
-    pub physical_device: u64,
-    pub device: u64,
-    /// `device`'s dispatch key, read once here: every later lookup of the device's state uses
-    /// it, never the app's handle again.
-    pub device_key: crate::plugin::vk::DeviceKey,
-    pub queue_family_index: u32,
-    pub queue_index: u32,
-}
-
-/// A view as last located by the app.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct LocatedView {
-    pub pose: xr::Posef,
-    pub fov: xr::Fovf,
-}
-
-pub(crate) struct Session {
-    pub handle: xr::Session,
-    pub instance: Arc<Instance>,
-    pub binding: Option<VulkanBinding>,
-    pub views: Mutex<Vec<LocatedView>>,
-    /// FOVs come from submitted frames once there are any (what the app really rendered with),
-    /// before that from located views.
-    pub fov_submitted: AtomicBool,
-    /// Every feature's per-session state.
-    pub features: crate::registry::XrSessionFeatures,
-    /// Whether the Vulkan half tracks the session's device (it can act on nothing otherwise).
-    pub vulkan_half: bool,
-    /// What the enabled features did over the session (`notices`): warnings once per reason, and a
-    /// summary when the session ends.
-    pub summary: Mutex<crate::notices::Summary>,
-    /// The system the session was created for (the overlay asks for its `maxLayerCount`).
-    pub system_id: xr::SystemId,
-    /// The in-headset stats overlay's objects and text (`overlay.enabled`).
-    pub overlay: super::overlay::OverlaySession,
-    /// The upscale's GPU objects (`upscale.enabled`).
-    pub upscale: super::upscale::SessionUpscale,
-}
+// What features see of a session is the contract's; the shell makes it and keeps it in the
+// contract's map of live sessions.
+pub(crate) use crate::plugin::xr::{fov_tangents, sessions, LocatedView, Session, VulkanBinding};
 
 /// The runtime view's orientation `runtime` in the frame of the view the app was given (`given`),
 /// rounded so that tracking's float noise does not count as a change; None when they look the
@@ -67,18 +28,9 @@ fn runtime_turn(runtime: &xr::Quaternionf, given: &xr::Quaternionf) -> Option<[f
     (rel.is_finite() && t != [0.0, 0.0, 0.0, 1.0]).then_some(t)
 }
 
-pub(crate) fn fov_tangents(fov: &xr::Fovf) -> ViewFov {
-    ViewFov {
-        tan_left: fov.angle_left.tan(),
-        tan_right: fov.angle_right.tan(),
-        tan_up: fov.angle_up.tan(),
-        tan_down: fov.angle_down.tan(),
-    }
-}
-
 /// Finds the session's state, or the instance to forward an unknown handle through.
 pub(super) fn lookup(session: xr::Session) -> Result<Arc<Session>, Option<Arc<Instance>>> {
-    state().sessions.get(session.into_raw()).ok_or_else(super::sole_instance)
+    sessions().get(session.into_raw()).ok_or_else(super::sole_instance)
 }
 
 /// Finds `XrGraphicsBindingVulkanKHR` in a session create info's chain.
@@ -160,14 +112,12 @@ pub(super) unsafe extern "system" fn create_session(
             binding,
             views: Mutex::new(Vec::new()),
             fov_submitted: AtomicBool::new(false),
-            features: Default::default(),
+            features: crate::registry::xr_session_states(),
             vulkan_half,
             summary: Default::default(),
             system_id,
-            overlay: Default::default(),
-            upscale: Default::default(),
         };
-        state().sessions.insert(handle.into_raw(), Arc::new(s));
+        sessions().insert(handle.into_raw(), Arc::new(s));
         Ok(r)
     }, plain)
 }
@@ -188,7 +138,7 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
             super::overlay::destroy(&s);
             // Interposed swapchains the app did not destroy: their images go while the device is
             // sure to be alive, then the session's upscale objects.
-            for (_, sc) in state().swapchains.values() {
+            for (_, sc) in super::state().swapchains.values() {
                 if let (true, Some(i)) = (sc.session.handle == session, sc.upscale.as_ref()) {
                     super::upscale::destroy(&s, i);
                 }
@@ -197,8 +147,8 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
         }
         let r = down.call(plain);
         if r == xr::Result::SUCCESS && known {
-            let st = state();
-            if let Some(s) = st.sessions.get(session.into_raw()) {
+            let st = super::state();
+            if let Some(s) = sessions().get(session.into_raw()) {
                 tracing::info!("session {:#x} destroyed (binding {:?})", session.into_raw(), s.binding);
                 if let Some(b) = &s.binding {
                     crate::vk::log_device_stats(b.device_key, "xrDestroySession");
@@ -216,7 +166,7 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
                 crate::bridge::shared().remove_swapchain(handle);
             }
             st.swapchains.retain(|_, s| s.session.handle != session);
-            st.sessions.remove(session.into_raw());
+            sessions().remove(session.into_raw());
             // The app has waited for its GPU work by now (it may not destroy a session whose
             // images are in use): the last frames' GPU times are in, and every waiting
             // `stats.file` line is written.
@@ -363,7 +313,7 @@ mod tests {
     #[test]
     fn an_amended_mask_follows_the_two_call_idiom() {
         let points = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
-        let mut m = crate::xr::empty_visibility_mask();
+        let mut m = crate::plugin::xr::empty_visibility_mask();
         // SAFETY: a local struct with no arrays (capacities 0).
         assert_eq!(unsafe { write_visibility_mask(&points, &mut m) }, xr::Result::SUCCESS);
         assert_eq!((m.vertex_count_output, m.index_count_output), (3, 3));

@@ -27,6 +27,11 @@ pub(crate) struct Swapchain {
     pub upscale: Option<super::upscale::Interposed>,
 }
 
+/// The frame's interposed swapchains of session `s` (the upscale's, handed to it at `xrEndFrame`).
+pub(super) fn interposed_of(s: &Session) -> Vec<(u64, Arc<Swapchain>)> {
+    state().swapchains.values().into_iter().filter(|(_, sc)| sc.session.handle == s.handle && sc.upscale.is_some()).collect()
+}
+
 /// The swapchain's state, or the instance to forward an unknown handle through.
 fn lookup(swapchain: xr::Swapchain) -> Result<Arc<Swapchain>, Option<Arc<Instance>>> {
     state().swapchains.get(swapchain.into_raw()).ok_or_else(super::sole_instance)
@@ -245,8 +250,8 @@ pub(super) unsafe extern "system" fn release_swapchain_image(
             // checked here as the runtime would.
             let index = sc.acquired.lock().unwrap_or_else(|e| e.into_inner()).front().copied();
             let Some(index) = index.filter(|_| u.waited.load(Ordering::Acquire)) else { return Ok(xr::Result::ERROR_CALL_ORDER_INVALID) };
-            crate::vk::before_release(sc.session.binding.map(|b| (b.device_key, b.queue_family_index, b.queue_index)), swapchain.into_raw(), Some(index));
-            let r = super::upscale::release(&sc.session, swapchain.into_raw(), sc, u, index);
+            crate::plugin::vk::before_release(sc.session.binding.map(|b| (b.device_key, b.queue_family_index, b.queue_index)), swapchain.into_raw(), Some(index));
+            let r = super::upscale::release(&sc.session, super::upscale::Interposing { handle: swapchain.into_raw(), desc: &sc.desc, i: u }, index);
             if r.into_raw() >= 0 {
                 sc.acquired.lock().unwrap_or_else(|e| e.into_inner()).pop_front();
             }
@@ -256,7 +261,7 @@ pub(super) unsafe extern "system" fn release_swapchain_image(
             // Radial density masking: fill the skipped quads before the runtime sees the image
             // (the oldest acquired one is the one going back).
             let index = sc.acquired.lock().unwrap_or_else(|e| e.into_inner()).front().copied();
-            crate::vk::before_release(sc.session.binding.map(|b| (b.device_key, b.queue_family_index, b.queue_index)), swapchain.into_raw(), index);
+            crate::plugin::vk::before_release(sc.session.binding.map(|b| (b.device_key, b.queue_family_index, b.queue_index)), swapchain.into_raw(), index);
         }
         let r = down.call(plain);
         if let (Some(sc), xr::Result::SUCCESS) = (sc.as_ref(), r) {

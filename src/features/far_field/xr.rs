@@ -6,8 +6,7 @@
 use crate::plugin::settings::Settings;
 use crate::bridge::shared;
 use crate::core::views::ViewPose;
-use crate::xr::feature::XrFeature;
-use crate::xr::session::Session;
+use crate::plugin::xr::{Session, XrFeature};
 use openxr_sys as xr;
 
 /// The far field's OpenXR feature object.
@@ -39,11 +38,11 @@ impl XrFeature for FarFieldXr {
             .iter()
             .map(|v| {
                 let (o, p) = (v.pose.orientation, v.pose.position);
-                ViewPose { orientation: [o.x, o.y, o.z, o.w], position: [p.x, p.y, p.z], fov: crate::xr::session::fov_tangents(&v.fov) }
+                ViewPose { orientation: [o.x, o.y, o.z, o.w], position: [p.x, p.y, p.z], fov: crate::plugin::xr::fov_tangents(&v.fov) }
             })
             .collect();
         let time = info.display_time.as_nanos();
-        let new_frame = s.features.far_field.last_display_time.swap(time, std::sync::atomic::Ordering::AcqRel) != time;
+        let new_frame = s.feature::<FarFieldSession>().last_display_time.swap(time, std::sync::atomic::Ordering::AcqRel) != time;
         shared().update_far_field(|f| {
             // The first located frame is frame 0.
             if new_frame && f.current.is_some() {

@@ -108,14 +108,16 @@ mod tests {
 
     #[test]
     fn presets_and_overrides() {
-        let (c, _) = Config::resolve(&Inputs { keys: crate::registry::keys(), file: None, app_names: &[], env: &|_| None });
+        // The chassis' keys and the foveation's own: the test needs no other feature's.
+        let keys: &'static [crate::core::config::KeySpec] = Box::leak(crate::core::config::join_keys(&[crate::core::config::CORE_KEYS, crate::features::foveation::KEYS]).into_boxed_slice());
+        let (c, _) = Config::resolve(&Inputs { keys, file: None, app_names: &[], env: &|_| None });
         assert_eq!(Rings::from_config(&c), Rings { inner_deg: 20.0, middle_deg: 35.0 });
         let env = |k: &str| match k {
             "STEREOSHIM_FOVEATION_PRESET" => Some("aggressive".to_string()),
             "STEREOSHIM_FOVEATION_INNER_DEG" => Some("30".to_string()),
             _ => None,
         };
-        let (c, d) = Config::resolve(&Inputs { keys: crate::registry::keys(), file: None, app_names: &[], env: &env });
+        let (c, d) = Config::resolve(&Inputs { keys, file: None, app_names: &[], env: &env });
         assert!(d.is_empty());
         // The explicit inner radius wins and the middle ring grows to stay outside it.
         assert_eq!(Rings::from_config(&c), Rings { inner_deg: 30.0, middle_deg: 30.0 });

@@ -12,9 +12,7 @@ use crate::features::foveation::FoveationSettings;
 use super::rules::{fovea_views, CenterSource, GazeFilter};
 use crate::core::fovea;
 use crate::plugin::settings::Settings;
-use crate::xr::feature::XrFeature;
-use crate::xr::session::Session;
-use crate::xr::{settings, EYE_GAZE_EXT};
+use crate::plugin::xr::{settings, Session, XrFeature, EYE_GAZE_EXT};
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::ffi::c_char;
@@ -171,7 +169,7 @@ impl XrFeature for FoveationXr {
         }
         match create_actions(s) {
             Ok((set, action)) => {
-                *lock(&s.features.foveation.attaching) = Some((set, action));
+                *lock(&s.feature::<FoveationSession>().attaching) = Some((set, action));
                 vec![set]
             }
             Err(e) => {
@@ -181,7 +179,7 @@ impl XrFeature for FoveationXr {
         }
     }
     fn action_sets_attached(&self, s: &Session, r: xr::Result) {
-        let Some((set, action)) = lock(&s.features.foveation.attaching).take() else { return };
+        let Some((set, action)) = lock(&s.feature::<FoveationSession>().attaching).take() else { return };
         let inst = &s.instance;
         if r != xr::Result::SUCCESS {
             // The app's own attach failed (or ours made it fail): never leave anything behind.
@@ -207,13 +205,13 @@ impl XrFeature for FoveationXr {
         };
         if made {
             tracing::info!("eye tracking: the layer's gaze action set is attached to session {:#x}", s.handle.into_raw());
-            *lock(&s.features.foveation.gaze.actions) = Some(GazeActions { action_set: set, space });
+            *lock(&s.feature::<FoveationSession>().gaze.actions) = Some(GazeActions { action_set: set, space });
         } else {
             tracing::warn!("eye tracking: could not create the gaze space; foveation stays fixed");
         }
     }
     fn active_action_sets(&self, s: &Session) -> Vec<xr::ActiveActionSet> {
-        lock(&s.features.foveation.gaze.actions).as_ref().map(|g| xr::ActiveActionSet { action_set: g.action_set, subaction_path: xr::Path::NULL }).into_iter().collect()
+        lock(&s.feature::<FoveationSession>().gaze.actions).as_ref().map(|g| xr::ActiveActionSet { action_set: g.action_set, subaction_path: xr::Path::NULL }).into_iter().collect()
     }
     fn views_located(&self, s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
         sample(s, info, views);
@@ -229,7 +227,7 @@ impl XrFeature for FoveationXr {
             return;
         }
         let rings = settings.of::<FoveationSettings>().rings;
-        let centers = lock(&s.features.foveation.centers).clone();
+        let centers = lock(&s.feature::<FoveationSession>().centers).clone();
         let centers = if centers.len() == STEREO_VIEWS { centers } else { vec![[0.0, 0.0]; STEREO_VIEWS] };
         if shared.update_foveation(fovea_views(&centers, rings)) {
             tracing::debug!("foveation: centres {centers:?}, rings {rings:?}");
@@ -243,7 +241,7 @@ impl XrFeature for FoveationXr {
 fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
     let settings = settings(&s.instance);
     let tracked = settings.of::<FoveationSettings>().enabled && settings.of::<FoveationSettings>().eye_tracking;
-    let space = lock(&s.features.foveation.gaze.actions).as_ref().map(|g| g.space);
+    let space = lock(&s.feature::<FoveationSession>().gaze.actions).as_ref().map(|g| g.space);
     let direction = match (tracked, space, s.instance.next.locate_space) {
         (true, Some(space), Some(locate)) => {
             let mut loc = xr::SpaceLocation {
@@ -262,7 +260,7 @@ fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
         }
         _ => None,
     };
-    let mut filters = lock(&s.features.foveation.gaze.filters);
+    let mut filters = lock(&s.feature::<FoveationSession>().gaze.filters);
     filters.resize_with(views.len(), GazeFilter::default);
     let mut source = CenterSource::Fixed;
     // The lens's axis in each view the app was given: the runtime view's, which parallel views
@@ -282,10 +280,10 @@ fn sample(s: &Session, info: &xr::ViewLocateInfo, views: &[xr::View]) {
         })
         .collect();
     drop(filters);
-    let mut last = lock(&s.features.foveation.gaze.source);
+    let mut last = lock(&s.feature::<FoveationSession>().gaze.source);
     if *last != Some(source) {
         tracing::info!("foveation centre now from {source:?}");
         *last = Some(source);
     }
-    *lock(&s.features.foveation.centers) = centers;
+    *lock(&s.feature::<FoveationSession>().centers) = centers;
 }

@@ -1,7 +1,6 @@
 //! The hidden-area mask: pixels the lens never shows are rejected by early depth test. `rules` is
 //! the pure geometry and statistics; `vk` draws the mask's depth at the chassis' injection point.
 
-pub mod reframe;
 pub mod rules;
 pub mod source;
 pub(crate) mod vk;

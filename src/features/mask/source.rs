@@ -4,6 +4,9 @@
 #![forbid(unsafe_code)]
 
 use crate::core::views::MaskSource;
+/// The runtime mesh's expansion is the base's (`core::lens`), shared with the OpenXR contract's
+/// fetch; re-exported for the tests and the preview.
+pub use crate::core::lens::expand;
 use std::f64::consts::PI;
 
 /// The configured lens: visible where the direction's angle from the optical axis, split into its
@@ -105,16 +108,6 @@ pub fn choose(policy: SourcePolicy, runtime: Option<Vec<[f32; 2]>>, lens: &LensS
     }
 }
 
-/// Expands an indexed mesh (as `xrGetVisibilityMaskKHR` returns it) into a triangle list; indices
-/// out of range drop their triangle (a malformed runtime mesh must not take the app down).
-pub fn expand(vertices: &[[f32; 2]], indices: &[u32]) -> Vec<[f32; 2]> {
-    indices
-        .chunks_exact(3)
-        .filter(|tri| tri.iter().all(|&i| (i as usize) < vertices.len()))
-        .flat_map(|tri| tri.iter().map(|&i| vertices[i as usize]))
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -180,11 +173,5 @@ mod tests {
         m.source = super::super::SourceSetting::Auto;
         m.synthesized_aspect = 0.5;
         assert_eq!(from_settings(&m), (SourcePolicy::Auto, LensShape { horizontal_deg: 60.0, vertical_deg: 30.0 }));
-    }
-
-    #[test]
-    fn expand_drops_bad_indices() {
-        let v = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
-        assert_eq!(expand(&v, &[0, 1, 2, 0, 1, 7, 2]), vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
     }
 }

@@ -60,7 +60,7 @@ impl Geometry {
             // with what lies outside the runtime's FOV hidden too.
             let runtime = views.runtime_fovs.get(m.view as usize).unwrap_or(fov);
             let turn = views.runtime_turns.get(m.view as usize).copied().flatten();
-            let t = rules::triangles_to_ndc(&super::reframe::in_app_view(&m.triangles, runtime, turn, fov), fov);
+            let t = rules::triangles_to_ndc(&crate::core::reframe::in_app_view(&m.triangles, runtime, turn, fov), fov);
             if !t.is_empty() {
                 ndc.insert(m.view, t);
             }

@@ -7,11 +7,8 @@ use crate::features::mask::MaskSettings;
 use super::source as mask_source;
 use crate::plugin::settings::Settings;
 use crate::core::views::ViewMask;
-use crate::xr::feature::XrFeature;
-use crate::xr::session::Session;
-use crate::xr::{settings, state, Instance, VISIBILITY_MASK_EXT};
+use crate::plugin::xr::{settings, Instance, Session, XrFeature, VISIBILITY_MASK_EXT};
 use openxr_sys as xr;
-use openxr_sys::Handle as _;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Views of `XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO`, the only configuration masks are kept for.
@@ -59,66 +56,28 @@ impl XrFeature for MaskXr {
         let e = unsafe { &*(event as *const xr::EventDataBuffer as *const xr::EventDataVisibilityMaskChangedKHR) };
         inst.stats.visibility_mask_events.fetch_add(1, Ordering::Relaxed);
         tracing::info!("visibility mask of view {} changed", e.view_index);
-        if let Some(s) = state().sessions.get(e.session.into_raw()) {
-            s.features.mask.dirty.store(true, Ordering::Release);
+        if let Some(s) = Session::find(e.session) {
+            s.feature::<MaskSession>().dirty.store(true, Ordering::Release);
         }
         !inst.app_enabled(VISIBILITY_MASK_EXT)
     }
     fn config_reloaded(&self, s: &Session, changed: &[&'static str]) {
         if changed.iter().any(|k| k.starts_with("mask.")) {
-            s.features.mask.dirty.store(true, Ordering::Release);
+            s.feature::<MaskSession>().dirty.store(true, Ordering::Release);
         }
     }
-}
-
-/// Fetches one view's hidden triangle mesh from the runtime (two-call idiom). None when the runtime
-/// offers no visibility mask or the call fails (logged).
-pub(crate) fn runtime_mask(s: &Session, view: u32) -> Option<Vec<[f32; 2]>> {
-    runtime_mesh(s, view, xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH)
-}
-
-/// One view's triangle mesh of type `ty` (hidden or visible), three points per triangle.
-pub(crate) fn runtime_mesh(s: &Session, view: u32, ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
-    if !s.instance.has_extension(VISIBILITY_MASK_EXT) {
-        return None;
-    }
-    let f = s.instance.next.get_visibility_mask?;
-    let config = xr::ViewConfigurationType::PRIMARY_STEREO;
-    let mut mask = crate::xr::empty_visibility_mask();
-    // SAFETY: the two-call idiom: counts first, then arrays of the reported sizes.
-    let r = unsafe { f(s.handle, config, view, ty, &mut mask) };
-    if r != xr::Result::SUCCESS {
-        tracing::warn!(?r, "xrGetVisibilityMaskKHR(view {view}) failed");
-        return None;
-    }
-    let mut vertices = vec![xr::Vector2f { x: 0.0, y: 0.0 }; mask.vertex_count_output as usize];
-    let mut indices = vec![0u32; mask.index_count_output as usize];
-    mask.vertex_capacity_input = vertices.len() as u32;
-    mask.index_capacity_input = indices.len() as u32;
-    mask.vertices = vertices.as_mut_ptr();
-    mask.indices = indices.as_mut_ptr();
-    // SAFETY: the arrays hold the capacities given.
-    let r = unsafe { f(s.handle, config, view, ty, &mut mask) };
-    if r != xr::Result::SUCCESS {
-        tracing::warn!(?r, "xrGetVisibilityMaskKHR(view {view}) failed");
-        return None;
-    }
-    vertices.truncate(mask.vertex_count_output as usize);
-    indices.truncate(mask.index_count_output as usize);
-    let v: Vec<[f32; 2]> = vertices.iter().map(|p| [p.x, p.y]).collect();
-    Some(mask_source::expand(&v, &indices))
 }
 
 /// (Re)publishes the hidden-area masks of all views when they are due.
 fn refresh_masks(s: &Session) {
     let settings = settings(&s.instance);
-    if !settings.of::<MaskSettings>().enabled || !s.features.mask.dirty.swap(false, Ordering::AcqRel) {
+    if !settings.of::<MaskSettings>().enabled || !s.feature::<MaskSession>().dirty.swap(false, Ordering::AcqRel) {
         return;
     }
-    let (policy, lens) = mask_source::from_settings(&settings.of::<MaskSettings>());
+    let (policy, lens) = mask_source::from_settings(settings.of::<MaskSettings>());
     let mut masks = Vec::new();
     for view in 0..STEREO_VIEWS {
-        match mask_source::choose(policy, runtime_mask(s, view), &lens) {
+        match mask_source::choose(policy, s.runtime_mask(view), &lens) {
             Some((source, triangles)) => {
                 tracing::info!("view {view}: hidden-area mask from {source:?}, {} triangles", triangles.len() / 3);
                 masks.push(ViewMask { view, source, triangles });

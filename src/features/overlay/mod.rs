@@ -1,9 +1,11 @@
 //! The in-headset stats overlay (`overlay.enabled`): a small head-locked quad the layer submits
 //! after the app's layers at `xrEndFrame`, saying which features are on and what they saved in
 //! the last second. Not a Vulkan plug-in (it never touches the app's passes): its settings and
-//! pure rules live here, its OpenXR/Vulkan shell in `crate::xr::overlay`.
+//! pure rules live here, its OpenXR/Vulkan half in `xr` (called by the shell at `xrEndFrame` and when
+//! sessions end).
 
 pub mod rules;
+pub(crate) mod xr;
 
 use crate::core::config::{Config, Kind, KeySpec};
 

@@ -10,8 +10,7 @@ use crate::features::screenshot::ScreenshotSettings;
 use super::rules::{self, TouchWatch};
 use super::vk::{self as shot_vk, Request, Requested};
 use crate::plugin::settings::Settings;
-use crate::xr::feature::XrFeature;
-use crate::xr::session::Session;
+use crate::plugin::xr::{Session, XrFeature};
 use openxr_sys as xr;
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -86,11 +85,11 @@ impl XrFeature for ScreenshotXr {
         let Some(binding) = s.binding else { return };
         // The frame being begun is the one the next xrEndFrame submits: the runtime's count.
         let frame = s.instance.stats.frames_ended.load(Ordering::Relaxed);
-        let mut w = s.features.screenshot.watch.lock().unwrap_or_else(|e| e.into_inner());
+        let mut w = s.feature::<ScreenshotSession>().watch.lock().unwrap_or_else(|e| e.into_inner());
         if w.armed {
             w.armed = shot_vk::frame_begun(binding.device_key, frame);
         }
-        let settings = crate::xr::settings(&s.instance);
+        let settings = crate::plugin::xr::settings(&s.instance);
         if !(settings.enabled && settings.of::<ScreenshotSettings>().enabled) {
             return;
         }

@@ -1,6 +1,6 @@
 //! Which of the upscale's workgroup tiles the lens never shows (`upscale.skip_hidden`): from the
 //! runtime's hidden-area mesh (`XR_KHR_visibility_mask`), rasterized into the view's display-size
-//! rect the way the GPU rasterizes the mask (`mask::rules::coverage_bitmap`), each 16×16 tile of a
+//! rect the way the GPU rasterizes the mask (`core::lens::coverage_bitmap`), each 16×16 tile of a
 //! job is classified for the two passes. Pure; the shell fetches the mesh and the Vulkan half
 //! uploads the classes, which the shaders read per workgroup.
 //!
@@ -13,7 +13,7 @@
 //! runtime's image is the same every frame there (what an app that masks its hidden area shows).
 #![forbid(unsafe_code)]
 
-use crate::features::mask::rules::hidden_pixels;
+use crate::core::lens::hidden_pixels;
 use crate::core::views::ViewFov;
 
 /// A tile's class: both passes run.

@@ -4,8 +4,9 @@
 //! `imageRect`s. Not a registry plug-in: it changes no app pass. Its parts: the filters on the CPU
 //! (`filter`: the reference and the quality measures), the GPU passes (`gpu`: SPIR-V and push
 //! constants), the geometry and the interposition decisions (`rules`, pure), the Vulkan work
-//! (`vk`: pipelines, per-swapchain images and descriptors, the recorded upscale) and its shell
-//! in `crate::xr::upscale` (the swapchain calls).
+//! (`vk`: pipelines, per-swapchain images and descriptors, the recorded upscale) and its OpenXR
+//! half (`xr`: the swapchain calls and the frame's upscale, which the shell calls at its places;
+//! `xr_layers`: a frame's composition layers; `xr_lens`: the runtime's lens for skipped tiles).
 
 pub mod filter;
 pub mod gpu;
@@ -14,6 +15,9 @@ pub(crate) mod record;
 pub mod rules;
 pub(crate) mod slots;
 pub(crate) mod vk;
+pub(crate) mod xr;
+mod xr_layers;
+mod xr_lens;
 
 use crate::core::config::{Config, KeySpec, Kind};
 
@@ -104,6 +108,10 @@ pub struct UpscaleSettings {
     pub mip_bias_valid: bool,
     pub fovea_only: bool,
     pub skip_hidden: bool,
+    /// The foveation's inner ring (degrees), where `fovea_only` runs EASU around the fixed centre
+    /// when foveation publishes no fovea. The foveation's setting, given by the registry
+    /// (`Settings::from_config`): a feature reads no other feature's settings.
+    pub fovea_inner_deg: f32,
 }
 
 impl UpscaleSettings {
@@ -122,7 +130,15 @@ impl UpscaleSettings {
             mip_bias_valid: parsed.is_some(),
             fovea_only: c.bool("upscale.fovea_only"),
             skip_hidden: c.bool("upscale.skip_hidden"),
+            // The registry puts the foveation's ring here; 0 only where no registry built these.
+            fovea_inner_deg: 0.0,
         }
+    }
+
+    /// Whether `self` differs from `latched` in what the upscale latches for an instance (the
+    /// foveation's ring is read live, every frame).
+    pub fn changed_from(&self, latched: &UpscaleSettings) -> bool {
+        UpscaleSettings { fovea_inner_deg: latched.fovea_inner_deg, ..*self } != *latched
     }
 
     /// The LOD bias the app's samplers get: none when the upscale is off.

@@ -4,11 +4,9 @@
 //! system name names (the mock's exactly, real headsets by product).
 
 use super::rules::Fov;
-use crate::features::mask::rules::hidden_pixels;
-use crate::features::mask::xr::runtime_mask;
+use crate::core::lens::hidden_pixels;
 use crate::core::views::ViewFov;
-use crate::xr::session::Session;
-use crate::xr::Instance;
+use crate::plugin::xr::{Instance, Session};
 use openxr_sys as xr;
 
 /// One view's lens on a pixel grid: its FOV, the grid's size, and which of the grid's pixels the
@@ -46,14 +44,14 @@ pub(crate) fn profile_for(name: &str) -> Option<&'static hmd_profiles::profile::
 
 /// A live session of `inst`, whose runtime meshes can be asked for.
 pub(crate) fn session_of(inst: &Instance) -> Option<std::sync::Arc<Session>> {
-    crate::xr::state().sessions.values().into_iter().map(|(_, s)| s).find(|s| s.instance.handle == inst.handle)
+    inst.sessions().into_iter().next()
 }
 
 /// One view's FOV and hidden pixels on a `size` grid from the runtime's meshes (a session
 /// exists): the FOV is the box of the hidden and visible meshes together (they tile it).
 pub(crate) fn lens_from_runtime(s: &Session, view: u32, size: (u32, u32)) -> Option<Lens> {
-    let hidden = runtime_mask(s, view)?;
-    let visible = crate::features::mask::xr::runtime_mesh(s, view, xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH)?;
+    let hidden = s.runtime_mask(view)?;
+    let visible = s.runtime_mesh(view, xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH)?;
     let fov = hidden.iter().chain(&visible).fold(None, |acc: Option<Fov>, p| {
         let q = Fov { left: p[0] as f64, right: p[0] as f64, up: p[1] as f64, down: p[1] as f64 };
         Some(acc.map_or(q, |a| a.union(&q)))

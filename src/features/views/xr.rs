@@ -16,19 +16,16 @@
 //! and for parallel views their relative turn): any failing turns the tricks off for the session
 //! (logged), and the app then gets the runtime's own views (its images, already made, show them at
 //! another density). The padding symmetric and parallel views add beyond the runtime's FOV is
-//! hidden by the mask (`mask::reframe`), which comes on with them (`Settings`).
+//! hidden by the mask (`core::reframe`), which comes on with them (`Settings`).
 
 use crate::features::views::ViewSettings;
 use super::rules::{self, Cut, Fov, Symmetric};
 use super::source::{Lens, lens_from_profile, lens_from_runtime, profile_for, session_of, system_name, tangents, turns_from_profile};
-use crate::features::mask::reframe;
-use crate::features::mask::rules::hidden_pixels;
-use crate::features::mask::xr::runtime_mask;
+use crate::core::reframe;
+use crate::core::lens::hidden_pixels;
 use crate::plugin::settings::Settings;
 use glam::DQuat;
-use crate::xr::feature::{AmendedFrameEnd, XrFeature};
-use crate::xr::session::Session;
-use crate::xr::{Instance, VISIBILITY_MASK_EXT};
+use crate::plugin::xr::{AmendedFrameEnd, Instance, Session, XrFeature, VISIBILITY_MASK_EXT};
 use openxr_sys as xr;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard};
@@ -235,12 +232,12 @@ fn widen(s: &Settings, name: &str, profile: Option<&hmd_profiles::profile::HmdPr
 
 impl ViewsXr {
     fn latched(s: &Session) -> Option<Latched> {
-        lock(&s.instance.features.views.latch).clone().filter(|l| l.views.iter().any(Option::is_some) || l.widened.is_some())
+        lock(&s.instance.feature::<ViewsInstance>().latch).clone().filter(|l| l.views.iter().any(Option::is_some) || l.widened.is_some())
     }
 
     /// Turns the tricks off for session `s`, saying why (once).
     fn turn_off(s: &Session, l: &Latched, why: &str) {
-        if !s.features.views.off.swap(true, Ordering::AcqRel) {
+        if !s.feature::<ViewsSession>().off.swap(true, Ordering::AcqRel) {
             let names = l.names();
             let verb = if names.contains(" and ") { "are" } else { "is" };
             tracing::warn!("view tricks: {why}; {names} {verb} off for this session (the app gets the runtime's views)");
@@ -255,7 +252,7 @@ impl ViewsXr {
         }
         for (i, ((c, &size), v)) in l.views.iter().zip(&l.runtime_sizes).zip(views).enumerate() {
             let Some(c) = c else { continue };
-            let Some(hidden) = runtime_mask(s, i as u32) else { continue };
+            let Some(hidden) = s.runtime_mask(i as u32) else { continue };
             let Some(bits) = hidden_pixels(&hidden, &tangents(&fov_of(v)), size) else { continue };
             let w = size.0 as usize;
             let inside = |k: usize| (c.x0..c.x1).contains(&((k % w) as u32)) && (c.y0..c.y1).contains(&((k / w) as u32));
@@ -279,17 +276,17 @@ impl XrFeature for ViewsXr {
         }
         // Decided once per instance: the app sizes its swapchains from the first answer. Decided
         // with no lock held (it asks the runtime), kept by the first call to finish.
-        if lock(&inst.features.views.latch).is_none() {
+        if lock(&inst.feature::<ViewsInstance>().latch).is_none() {
             let decided = if s.of::<ViewSettings>().fov_cut || s.of::<ViewSettings>().widens() { decide(inst, system, s, views) } else { Some(Latched::default()) };
             match decided {
                 Some(d) => {
-                    lock(&inst.features.views.latch).get_or_insert(d);
+                    lock(&inst.feature::<ViewsInstance>().latch).get_or_insert(d);
                 }
                 // Not yet: this answer goes to the app unchanged.
                 None => return,
             }
         }
-        let latch = lock(&inst.features.views.latch);
+        let latch = lock(&inst.feature::<ViewsInstance>().latch);
         let Some(l) = latch.as_ref() else { return };
         for (i, v) in views.iter_mut().enumerate() {
             // Only where the runtime still answers the size the tricks were decided on.
@@ -305,10 +302,10 @@ impl XrFeature for ViewsXr {
             return;
         }
         let Some(l) = Self::latched(s) else { return };
-        if !s.features.views.checked.swap(true, Ordering::AcqRel) {
+        if !s.feature::<ViewsSession>().checked.swap(true, Ordering::AcqRel) {
             Self::check_runtime_mesh(s, &l, views);
         }
-        if s.features.views.off.load(Ordering::Acquire) {
+        if s.feature::<ViewsSession>().off.load(Ordering::Acquire) {
             return;
         }
         let located: Vec<xr::View> = views.to_vec();
@@ -346,14 +343,14 @@ impl XrFeature for ViewsXr {
             }
         }
         let angles = views.iter().map(|v| [v.fov.angle_left, v.fov.angle_right, v.fov.angle_up, v.fov.angle_down]).collect();
-        *lock(&s.features.views.given) = Given { angles, turn };
+        *lock(&s.feature::<ViewsSession>().given) = Given { angles, turn };
     }
 
     /// Symmetric and parallel views: the runtime's mesh as the app's views see it (a hidden mesh
     /// with the padding outside the runtime's views added; visible meshes and line loops turned
     /// with parallel views). From this frame's views once located, else the latched ones.
     fn amend_visibility_mask(&self, s: &Session, view: u32, ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
-        if s.features.views.off.load(Ordering::Acquire) {
+        if s.feature::<ViewsSession>().off.load(Ordering::Acquire) {
             return None;
         }
         let w = Self::latched(s)?.widened?;
@@ -367,7 +364,7 @@ impl XrFeature for ViewsXr {
             (Some(r), Some(a)) => (*r, *a, shared.runtime_turns.get(i).copied().flatten()),
             _ => (tangents(&w.runtime[i]), tangents(&w.app[i]), w.turns[i].map(q)),
         };
-        let mesh = crate::features::mask::xr::runtime_mesh(s, view, ty)?;
+        let mesh = s.runtime_mesh(view, ty)?;
         match ty {
             xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH => Some(reframe::in_app_view(&mesh, &runtime, turn, &app)),
             // What the runtime shows stays where it is: only a turn moves it.
@@ -380,7 +377,7 @@ impl XrFeature for ViewsXr {
     /// `view_fov_cut`, `view_symmetric`, `view_parallel`: which tricks the session's views have
     /// (`examples/bench --feature fov_cut` switches on the first).
     fn frame_stats(&self, s: &Session) -> Vec<(&'static str, serde_json::Value)> {
-        let l = Self::latched(s).filter(|_| !s.features.views.off.load(Ordering::Acquire));
+        let l = Self::latched(s).filter(|_| !s.feature::<ViewsSession>().off.load(Ordering::Acquire));
         let cut = l.as_ref().is_some_and(|l| l.views.iter().any(Option::is_some));
         let w = l.and_then(|l| l.widened);
         let symmetric = w.as_ref().map_or("off", |w| w.symmetric.name());
@@ -389,16 +386,16 @@ impl XrFeature for ViewsXr {
 
     /// Checks the frame's projection views against the views and sizes given (never amends).
     fn amend_frame_end(&self, s: &Session, info: &xr::FrameEndInfo) -> Option<AmendedFrameEnd> {
-        if s.features.views.off.load(Ordering::Acquire) || info.layer_count == 0 || info.layers.is_null() {
+        if s.feature::<ViewsSession>().off.load(Ordering::Acquire) || info.layer_count == 0 || info.layers.is_null() {
             return None;
         }
         let l = Self::latched(s)?;
-        let given = lock(&s.features.views.given).clone();
+        let given = lock(&s.feature::<ViewsSession>().given).clone();
         // The size each view was told: the tricks', or the upscale's share of it.
-        let upscale = s.instance.upscale.latched().filter(|u| u.settings.enabled);
+        let upscale = lock(&s.instance.told_sizes).clone();
         let told = |i: usize| -> Option<(u32, u32)> {
             match &upscale {
-                Some(u) => u.views.get(i).map(|v| v.render),
+                Some(u) => u.get(i).copied(),
                 None => l.told(i),
             }
         };

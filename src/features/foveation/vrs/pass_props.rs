@@ -8,7 +8,7 @@
 //! (the GPU machine); these are the structural checks it makes.
 
 use super::*;
-use crate::vk::test_chain::{has_duplicates, walk, Chain};
+use crate::plugin::vk::test_chain::{has_duplicates, walk, Chain};
 use proptest::prelude::*;
 use vk::StructureType as S;
 

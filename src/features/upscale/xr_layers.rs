@@ -4,6 +4,7 @@
 //! written).
 
 use crate::core::rect::PixelRect;
+use crate::plugin::xr::AmendedFrameEnd;
 use openxr_sys as xr;
 
 /// An OpenXR rect as pixels (a negative extent as empty).
@@ -44,7 +45,7 @@ pub(super) unsafe fn sub_images(layer: *const xr::CompositionLayerBaseHeader) ->
 
 /// The frame with every interposed sub-image's rect mapped to the runtime's image.
 /// `rect_of(swapchain, rect, projection)` is a sub-image's new rect (None: unchanged).
-pub(super) fn rewrite(info: &xr::FrameEndInfo, layers: &[*const xr::CompositionLayerBaseHeader], rect_of: &dyn Fn(xr::Swapchain, PixelRect, bool) -> Option<PixelRect>) -> super::feature::AmendedFrameEnd {
+pub(super) fn rewrite(info: &xr::FrameEndInfo, layers: &[*const xr::CompositionLayerBaseHeader], rect_of: &dyn Fn(xr::Swapchain, PixelRect, bool) -> Option<PixelRect>) -> AmendedFrameEnd {
     // Boxed: the pointers handed down must not move while later layers are pushed.
     #[allow(clippy::vec_box)]
     struct Keep {
@@ -113,5 +114,5 @@ pub(super) fn rewrite(info: &xr::FrameEndInfo, layers: &[*const xr::CompositionL
     }
     let keep = Box::new(keep);
     let info = xr::FrameEndInfo { layer_count: keep.layers.len() as u32, layers: if keep.layers.is_empty() { info.layers } else { keep.layers.as_ptr() }, ..*info };
-    super::feature::AmendedFrameEnd { info, _keep: keep }
+    AmendedFrameEnd { info, _keep: keep }
 }

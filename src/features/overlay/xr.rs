@@ -1,5 +1,6 @@
-//! The in-headset stats overlay's shell (`overlay.enabled`; the text and placement rules are in
-//! `features::overlay::rules`). At a session's first frame with the overlay on, the layer makes
+//! The in-headset stats overlay's OpenXR half (`overlay.enabled`; the text and placement rules are
+//! in `rules`), called by the OpenXR shell at `xrEndFrame` and when sessions end; its state is the
+//! session's `OverlaySession` (made by the registry). At a session's first frame with the overlay on, the layer makes
 //! its own objects down the chain — a small colour swapchain, a VIEW reference space (the panel
 //! is head-locked) and, on the session's Vulkan device, a staging buffer, a command buffer and a
 //! fence — and from then on appends one quad layer after the app's layers at every `xrEndFrame`.
@@ -10,9 +11,9 @@
 //! Anything that fails is logged once and the session goes on without the overlay. The objects
 //! die with the session (`destroy`, before `xrDestroySession` goes down).
 
-use crate::features::overlay::OverlaySettings;
-use super::session::Session;
-use crate::features::overlay::rules::{self, Window};
+use super::OverlaySettings;
+use super::rules::{self, Window};
+use crate::plugin::xr::Session;
 use crate::plugin::settings::Settings;
 use crate::stats_summary::Second;
 use crate::plugin::vk::DeviceState;
@@ -87,11 +88,17 @@ fn vk_err(what: &'static str) -> impl Fn(vk::Result) -> String {
     move |e| format!("{what}: {e}")
 }
 
+/// The session's overlay state (the registry makes it with the session).
+fn state(s: &Session) -> &OverlaySession {
+    s.feature::<OverlaySession>()
+}
+
 /// The quad to append to this frame's layers (`app_layers`: how many the app submits), with the
 /// overlay's objects made on first use and its image refreshed when the text changed. None: the
-/// overlay is off, failed, or there is no room for another layer.
-pub(super) fn quad(s: &Session, settings: &Settings, app_layers: u32) -> Option<xr::CompositionLayerQuad> {
-    let o = &s.overlay;
+/// overlay is off, failed, or there is no room for another layer. `enabled_now`: the features on
+/// under `settings` (the registry's list), for the first image, before any frame told them.
+pub(crate) fn quad(s: &Session, settings: &Settings, app_layers: u32, enabled_now: &dyn Fn() -> Vec<(&'static str, bool)>) -> Option<xr::CompositionLayerQuad> {
+    let o = state(s);
     if !settings.of::<OverlaySettings>().enabled || o.off.load(Ordering::Relaxed) {
         return None;
     }
@@ -123,7 +130,7 @@ pub(super) fn quad(s: &Session, settings: &Settings, app_layers: u32) -> Option<
         let mut t = lock(&o.text);
         if std::mem::take(&mut t.dirty) || !ov.released {
             if t.enabled.is_empty() {
-                t.enabled = crate::registry::enabled(settings, &crate::registry::empty_stats());
+                t.enabled = enabled_now();
             }
             Some(rules::lines(&t.enabled, t.last.as_ref()))
         } else {
@@ -164,12 +171,12 @@ pub(super) fn quad(s: &Session, settings: &Settings, app_layers: u32) -> Option<
 
 /// A frame ended under `settings` with `record`: the stats window learns it, and the text is
 /// redrawn when a second completed or the features on changed.
-pub(super) fn frame_ended(s: &Session, settings: &Settings, record: &crate::frame_stats::FrameRecord, enabled: &[(&'static str, bool)]) {
-    if !settings.of::<OverlaySettings>().enabled || s.overlay.off.load(Ordering::Relaxed) {
+pub(crate) fn frame_ended(s: &Session, settings: &Settings, record: &crate::frame_stats::FrameRecord, enabled: &[(&'static str, bool)]) {
+    if !settings.of::<OverlaySettings>().enabled || state(s).off.load(Ordering::Relaxed) {
         return;
     }
     let frame = crate::stats_summary::parse_line(&record.to_json());
-    let mut t = lock(&s.overlay.text);
+    let mut t = lock(&state(s).text);
     if t.enabled != enabled {
         t.enabled = enabled.to_vec();
         t.dirty = true;
@@ -184,8 +191,8 @@ pub(super) fn frame_ended(s: &Session, settings: &Settings, record: &crate::fram
 
 /// The runtime refused a frame with the overlay's quad (`r`): no overlay for the rest of the
 /// session (the frame then went down without it).
-pub(super) fn refused(s: &Session, r: xr::Result) {
-    if !s.overlay.off.swap(true, Ordering::Relaxed) {
+pub(crate) fn refused(s: &Session, r: xr::Result) {
+    if !state(s).off.swap(true, Ordering::Relaxed) {
         tracing::warn!("overlay: the runtime refused the frame with the overlay's layer ({r:?}); the app's frame went down without it, and the overlay stays off");
     }
 }
@@ -472,8 +479,8 @@ fn destroy_objects(s: &Session, ov: Overlay) {
 }
 
 /// The session is about to be destroyed: the overlay's objects go first.
-pub(super) fn destroy(s: &Session) {
-    if let Some(ov) = lock(&s.overlay.live).take() {
+pub(crate) fn destroy(s: &Session) {
+    if let Some(ov) = lock(&state(s).live).take() {
         destroy_objects(s, *ov);
         tracing::info!("overlay: objects of session {:#x} destroyed", s.handle.into_raw());
     }

@@ -2,7 +2,7 @@
 //! tricks (docs/views.md) hand the app other angles than the runtime's (symmetric views), or
 //! another orientation (parallel views), and what the app's image shows outside the runtime's
 //! FOV is never displayed, so it is hidden too. Used by the mask (what it draws), the upscale
-//! (which tiles it skips) and the tests.
+//! (which tiles it skips), the view tricks and the tests: base, so no feature imports another.
 #![forbid(unsafe_code)]
 
 use crate::core::views::ViewFov;
@@ -112,7 +112,7 @@ fn outside(region: &[DVec2], hole: &[DVec2]) -> Vec<Vec<DVec2>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::features::mask::rules::hidden_pixels;
+    use crate::core::lens::hidden_pixels;
     use proptest::prelude::*;
 
     fn fov(l: f32, r: f32, u: f32, d: f32) -> ViewFov {

@@ -1,13 +1,13 @@
 //! The upscale's knowledge of the lens (`upscale.skip_hidden`): each view's hidden-area mesh from
 //! the runtime (`XR_KHR_visibility_mask`, fetched when a session first needs it and again after
 //! the runtime says it changed), and per projection view's display-size rect and angles the tile
-//! classes `features::upscale::lens` computes, kept while they apply. Only the runtime's own mesh
+//! classes `lens` computes, kept while they apply. Only the runtime's own mesh
 //! counts: it is what the runtime says the lens never shows (a mesh synthesized from config is a
 //! guess, and the mask feature's business).
 
-use super::session::Session;
+use crate::plugin::xr::{fov_tangents, Session};
 use crate::core::rect::PixelRect;
-use crate::features::upscale::{gpu, lens};
+use super::{gpu, lens};
 use openxr_sys as xr;
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -53,7 +53,7 @@ impl LensCache {
             return None;
         }
         let events = s.instance.stats.visibility_mask_events.load(Ordering::Relaxed);
-        let fov_tan = super::session::fov_tangents(fov);
+        let fov_tan = fov_tangents(fov);
         // The runtime's own view, where the app's differs from it (view tricks: docs/views.md).
         let shared = crate::bridge::shared().views();
         let runtime = shared.runtime_fovs.get(view as usize).copied().unwrap_or(fov_tan);
@@ -75,14 +75,14 @@ impl LensCache {
         };
         if stale {
             // Fetched with no lock of the layer's held: the call goes down to the runtime.
-            let meshes: Vec<_> = (0..VIEWS).map(|v| crate::features::mask::xr::runtime_mask(s, v).map(Arc::new)).collect();
+            let meshes: Vec<_> = (0..VIEWS).map(|v| s.runtime_mask(v).map(Arc::new)).collect();
             let mut g = lock(&self.inner);
             *g = Inner { events: Some(events), meshes, tiles: Vec::new(), given_up: false };
         }
         let mesh = lock(&self.inner).meshes.get(view as usize).cloned().flatten();
         // Classified with no lock held (a few milliseconds for an Index eye).
         let tiles = mesh
-            .and_then(|m| lens::tiles(&crate::features::mask::reframe::in_app_view(&m, &runtime, turn, &fov_tan), &fov_tan, (dst.width, dst.height), gpu::GROUP))
+            .and_then(|m| lens::tiles(&crate::core::reframe::in_app_view(&m, &runtime, turn, &fov_tan), &fov_tan, (dst.width, dst.height), gpu::GROUP))
             .map(Arc::new);
         if let Some(t) = &tiles {
             tracing::info!(

@@ -1,5 +1,8 @@
-//! The upscale's shell (`upscale.enabled`; geometry and decisions in
-//! `features::upscale::rules`, the GPU work in `features::upscale::vk`).
+//! The upscale's OpenXR half (`upscale.enabled`; geometry and decisions in `rules`, the GPU work
+//! in `vk`), called by the OpenXR shell at its places: the swapchain calls, `xrEndFrame`, the
+//! session's end. Its state is the session's and the instance's (`SessionUpscale`,
+//! `InstanceUpscale`, made by the registry); the shell hands it the session's interposed
+//! swapchains (`Interposing`).
 //!
 //! - `xrEnumerateViewConfigurationViews` answers the recommended sizes times `upscale.scale`,
 //!   latched from the first answer for the instance's life: engines ask once per instance (or
@@ -16,14 +19,13 @@
 //! - Anything the layer cannot make falls back to the swapchain the app asked for (logged); the
 //!   runtime's own errors go to the app.
 
-use crate::features::foveation::FoveationSettings;
-use super::session::Session;
-use super::swapchain::Swapchain;
+use crate::plugin::xr::{AmendedFrameEnd, Instance, Session, VulkanBinding};
 use crate::core::rect::PixelRect;
+use crate::core::views::SwapchainDesc;
 use crate::features::upscale::rules::{self, Ask, Plan, ViewSizes};
 use crate::features::upscale::record::{record_frame, Work};
 use crate::features::upscale::slots::{Slots, MARKS};
-use super::upscale_layers::{pixel_rect, rewrite, sub_images};
+use super::xr_layers::{pixel_rect, rewrite, sub_images};
 use crate::features::upscale::lens::Tiles;
 use crate::features::upscale::vk::{format_refusal, Job, Output, Pipelines, Target, TargetDesc};
 use crate::features::upscale::UpscaleSettings;
@@ -62,8 +64,8 @@ impl InstanceUpscale {
 
 /// `xrEnumerateViewConfigurationViews` answered `views`: told sizes replace the recommended ones
 /// while the upscale is on (latched on the first answer).
-pub(super) fn views_enumerated(inst: &super::Instance, settings: &Settings, views: &mut [xr::ViewConfigurationView]) {
-    let mut latch = lock(&inst.upscale.latch);
+pub(crate) fn views_enumerated(inst: &Instance, settings: &Settings, views: &mut [xr::ViewConfigurationView]) {
+    let mut latch = lock(&inst.feature::<InstanceUpscale>().latch);
     let l = latch.get_or_insert_with(|| {
         if settings.of::<UpscaleSettings>().enabled && !settings.of::<UpscaleSettings>().mip_bias_valid {
             tracing::warn!("upscale: upscale.mip_bias is not auto, off or a number in -4..4; auto is used");
@@ -73,7 +75,7 @@ pub(super) fn views_enumerated(inst: &super::Instance, settings: &Settings, view
     if !l.settings.enabled {
         return;
     }
-    if l.settings != *settings.of::<UpscaleSettings>() {
+    if settings.of::<UpscaleSettings>().changed_from(&l.settings) {
         tracing::info!("upscale: its settings changed; the sizes told stay as latched until the instance ends");
     }
     let runtime: Vec<_> = views
@@ -87,6 +89,8 @@ pub(super) fn views_enumerated(inst: &super::Instance, settings: &Settings, view
         v.recommended_image_rect_width = t.render.0;
         v.recommended_image_rect_height = t.render.1;
     }
+    // What the view features check the submitted sizes against.
+    *lock(&inst.told_sizes) = Some(l.views.iter().map(|t| t.render).collect());
     tracing::info!("upscale: told the app {:?} for display sizes {:?} (scale {})", l.views.iter().map(|t| t.render).collect::<Vec<_>>(), l.views.iter().map(|t| t.display).collect::<Vec<_>>(), l.settings.scale);
 }
 
@@ -119,7 +123,7 @@ pub(crate) struct SessionUpscale {
     failures_logged: AtomicBool,
     unknown_layer_logged: AtomicBool,
     /// The lens's hidden area and the tiles it skips (`upscale.skip_hidden`).
-    lens: super::upscale_lens::LensCache,
+    lens: super::xr_lens::LensCache,
 }
 
 impl std::fmt::Debug for SessionUpscale {
@@ -162,7 +166,7 @@ fn xr_ok(what: &str, r: xr::Result) -> Result<(), String> {
 
 /// # Safety
 /// The binding's handles are live (the session exists).
-unsafe fn top_level(b: &super::session::VulkanBinding) -> Result<TopLevel, String> {
+unsafe fn top_level(b: &VulkanBinding) -> Result<TopLevel, String> {
     // SAFETY: loading the system Vulkan loader, which the app's process has loaded already (its
     // instance was created through it); the handles are the app's live instance and device.
     unsafe {
@@ -173,8 +177,13 @@ unsafe fn top_level(b: &super::session::VulkanBinding) -> Result<TopLevel, Strin
     }
 }
 
+/// The session's upscale state (the registry makes it with the session).
+fn up(s: &Session) -> &SessionUpscale {
+    s.feature::<SessionUpscale>()
+}
+
 fn gpu_for(s: &Session) -> Result<(), String> {
-    let mut g = lock(&s.upscale.gpu);
+    let mut g = lock(&up(s).gpu);
     if g.is_some() {
         return Ok(());
     }
@@ -202,7 +211,7 @@ fn gpu_for(s: &Session) -> Result<(), String> {
 }
 
 /// What `xrCreateSwapchain` does for an interposed swapchain.
-pub(super) enum Created {
+pub(crate) enum Created {
     /// Not interposed: create as the app asked.
     No,
     /// Interposed: the runtime's result, and the state (on success).
@@ -228,15 +237,15 @@ fn usage_to_vk(u: xr::SwapchainUsageFlags) -> vk::ImageUsageFlags {
 
 /// Decides and, when interposing, creates the runtime's swapchain at the display size
 /// (`create` calls down with a create info) and the app's images.
-pub(super) fn create_swapchain(
+pub(crate) fn create_swapchain(
     s: &Session,
     ci: &xr::SwapchainCreateInfo,
     features_usage: xr::SwapchainUsageFlags,
     create: &mut dyn FnMut(&xr::SwapchainCreateInfo) -> xr::Result,
     handle: &dyn Fn() -> xr::Swapchain,
 ) -> Created {
-    let Some(latch) = s.instance.upscale.latched() else { return Created::No };
-    if !latch.settings.enabled || s.upscale.off.load(Ordering::Relaxed) {
+    let Some(latch) = s.instance.feature::<InstanceUpscale>().latched() else { return Created::No };
+    if !latch.settings.enabled || up(s).off.load(Ordering::Relaxed) {
         return Created::No;
     }
     let format = i32::try_from(ci.format).map(vk::Format::from_raw).unwrap_or(vk::Format::UNDEFINED);
@@ -258,11 +267,11 @@ pub(super) fn create_swapchain(
     };
     if let Err(e) = gpu_for(s) {
         tracing::warn!("upscale: cannot run on this session ({e}); its swapchains are left as the app asks");
-        s.upscale.off.store(true, Ordering::Relaxed);
+        up(s).off.store(true, Ordering::Relaxed);
         return Created::No;
     }
     let refusal = {
-        let g = lock(&s.upscale.gpu);
+        let g = lock(&up(s).gpu);
         let g = g.as_ref().expect("made above");
         // SAFETY: the session's live physical device, at the app's level.
         let props = unsafe { g.top.instance.get_physical_device_format_properties(g.top.physical, format) };
@@ -368,7 +377,7 @@ fn make_target(
         method: settings.method,
         output,
     };
-    let g = lock(&s.upscale.gpu);
+    let g = lock(&up(s).gpu);
     let g = g.as_ref().ok_or("no GPU objects")?;
     let capture = |f: &mut dyn FnMut()| -> Option<vk::Image> {
         let ((), c) = crate::bridge::swapchain_images::capture(f);
@@ -389,13 +398,13 @@ fn make_target(
 
 /// The app's first acquire of an interposed swapchain: its images get the layout the binding
 /// promises at acquire, on the session's queue, through the app's level (so layers above see it).
-pub(super) fn acquired(s: &Session, i: &Interposed) {
+pub(crate) fn acquired(s: &Session, i: &Interposed) {
     if i.first_layouts.swap(true, Ordering::AcqRel) {
         return;
     }
     // What is needed is taken under the locks; the submission and its wait go without them.
     let (device, family, queue_index, barriers) = {
-        let g = lock(&s.upscale.gpu);
+        let g = lock(&up(s).gpu);
         let Some(g) = g.as_ref() else { return };
         (g.top.device.clone(), g.top.family, g.top.queue_index, lock(&i.target).first_layout_barriers())
     };
@@ -430,8 +439,8 @@ pub(super) fn acquired(s: &Session, i: &Interposed) {
 /// One held image's upscale for a frame: its jobs, and per job where EASU runs.
 struct Held<'a> {
     handle: u64,
-    /// The app's swapchain (its description at the app's size).
-    sc: &'a Swapchain,
+    /// The app's swapchain's description (at the app's size).
+    desc: &'a SwapchainDesc,
     i: &'a Interposed,
     index: u32,
     jobs: Vec<Job>,
@@ -458,14 +467,18 @@ fn runtime_rect(i: &Interposed, app_extent: (u32, u32), rect: PixelRect, project
 fn fovea_of(settings: &Settings, view: Option<(u32, xr::Fovf)>, dst: PixelRect) -> [f32; 4] {
     let (true, Some((index, fov))) = (settings.of::<UpscaleSettings>().fovea_only, view) else { return [0.0; 4] };
     let published = crate::bridge::shared().foveation();
-    let (center, inner) = published.views.iter().find(|f| f.view == index).map_or(([0.0, 0.0], settings.of::<FoveationSettings>().rings.inner_deg), |f| (f.center, f.inner_deg));
+    let (center, inner) = published.views.iter().find(|f| f.view == index).map_or(([0.0, 0.0], settings.of::<UpscaleSettings>().fovea_inner_deg), |f| (f.center, f.inner_deg));
     let tan = [fov.angle_left.tan(), fov.angle_right.tan(), fov.angle_up.tan(), fov.angle_down.tan()];
     rules::fovea_ellipse(center, inner, tan, dst)
 }
 
-/// The frame's interposed swapchains of session `s`.
-fn interposed_of(s: &Session) -> Vec<(u64, Arc<Swapchain>)> {
-    super::state().swapchains.values().into_iter().filter(|(_, sc)| sc.session.handle == s.handle && sc.upscale.is_some()).collect()
+/// An interposed swapchain of a session, as the shell keeps it: its handle, its description at
+/// the app's size, and the upscale's state of it.
+#[derive(Clone, Copy)]
+pub(crate) struct Interposing<'a> {
+    pub handle: u64,
+    pub desc: &'a SwapchainDesc,
+    pub i: &'a Interposed,
 }
 
 /// Jobs of a whole image (an image released without being submitted in a frame).
@@ -477,11 +490,12 @@ fn whole_jobs(i: &Interposed, extent: (u32, u32), layers: u32) -> Vec<Job> {
 
 /// `xrReleaseSwapchainImage` of an interposed swapchain: held until the frame ends. An image
 /// still held from before goes first (upscaled whole: no frame named its rects).
-pub(super) fn release(s: &Session, handle: u64, sc: &Swapchain, i: &Interposed, index: u32) -> xr::Result {
+pub(crate) fn release(s: &Session, sc: Interposing<'_>, index: u32) -> xr::Result {
+    let Interposing { handle, desc, i } = sc;
     let older: Vec<u32> = lock(&i.pending).drain(..).collect();
     if !older.is_empty() {
-        let (extent, layers) = ((sc.desc.width, sc.desc.height), sc.desc.array_size);
-        let work: Vec<Held<'_>> = older.iter().map(|&index| Held { handle, sc, i, index, jobs: whole_jobs(i, extent, layers), fovea: Vec::new(), views: Vec::new(), tiles: Vec::new() }).collect();
+        let (extent, layers) = ((desc.width, desc.height), desc.array_size);
+        let work: Vec<Held<'_>> = older.iter().map(|&index| Held { handle, desc, i, index, jobs: whole_jobs(i, extent, layers), fovea: Vec::new(), views: Vec::new(), tiles: Vec::new() }).collect();
         let r = run_and_release(s, &work);
         if r.into_raw() < 0 {
             return r;
@@ -497,7 +511,7 @@ pub(super) fn release(s: &Session, handle: u64, sc: &Swapchain, i: &Interposed, 
 fn run_and_release(s: &Session, work: &[Held<'_>]) -> xr::Result {
     match submit(s, work) {
         Err(e) => {
-            if !s.upscale.failures_logged.swap(true, Ordering::Relaxed) {
+            if !up(s).failures_logged.swap(true, Ordering::Relaxed) {
                 tracing::warn!("upscale: an upscale could not be submitted ({e}); the runtime's image keeps its old pixels this frame");
             }
         }
@@ -531,9 +545,9 @@ fn display_ready(s: &Session, work: &[Held<'_>]) {
         if views.is_empty() {
             continue;
         }
-        let desc = crate::core::views::SwapchainDesc { width: w.i.plan.runtime.0, height: w.i.plan.runtime.1, ..w.sc.desc.clone() };
+        let desc = crate::core::views::SwapchainDesc { width: w.i.plan.runtime.0, height: w.i.plan.runtime.1, ..w.desc.clone() };
         let display = crate::bridge::Swapchain::new(w.handle, desc, vec![image.as_raw()]);
-        crate::vk::display_ready(binding, &display, image.as_raw(), &views);
+        crate::plugin::vk::display_ready(binding, &display, image.as_raw(), &views);
     }
 }
 
@@ -543,14 +557,14 @@ fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
         return Ok(());
     }
     // A full slot ring's oldest upscale is waited for with no lock held.
-    let due = lock(&s.upscale.gpu).as_ref().and_then(|g| g.slots.due(&g.device).map(|f| (g.device.clone(), f)));
+    let due = lock(&up(s).gpu).as_ref().and_then(|g| g.slots.due(&g.device).map(|f| (g.device.clone(), f)));
     if let Some((d, fence)) = due {
         crate::features::upscale::slots::wait(&d, fence);
     }
     // Recorded under the session's lock; submitted after it is let go (no lock of the layer's is
     // held while the submission goes down the chain).
     let (d, queue, cb, fence, gpu_ms, phases_ms) = {
-        let mut g = lock(&s.upscale.gpu);
+        let mut g = lock(&up(s).gpu);
         let g = g.as_mut().ok_or("no GPU objects")?;
         let d = g.device.clone();
         // Locked in the frame's swapchain order; no other code holds two targets at once.
@@ -595,7 +609,7 @@ fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
         r.map_err(|e| format!("vkQueueSubmit: {e}"))
     };
     if r.is_err() {
-        if let Some(g) = lock(&s.upscale.gpu).as_mut() {
+        if let Some(g) = lock(&up(s).gpu).as_mut() {
             g.slots.abandon(&d, cb);
         }
         // The tile uploads it recorded never ran.
@@ -610,19 +624,18 @@ fn submit(s: &Session, work: &[Held<'_>]) -> Result<(), String> {
 }
 
 /// `xrEndFrame` of session `s` with the (possibly amended) `info`: upscales and releases the held
-/// images, and returns the frame with every interposed sub-image's rect in display pixels (None:
-/// nothing of the frame is interposed).
-pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::feature::AmendedFrameEnd> {
-    let scs = interposed_of(s);
+/// images of the session's interposed swapchains (`scs`), and returns the frame with every
+/// interposed sub-image's rect in display pixels (None: nothing of the frame is interposed).
+pub(crate) fn frame_end(s: &Session, info: &xr::FrameEndInfo, scs: &[Interposing<'_>]) -> Option<AmendedFrameEnd> {
     if scs.is_empty() {
         return None;
     }
     // SAFETY: the frame's layer pointers, valid for this call (non-null when counted: checked).
     let layers: Vec<*const xr::CompositionLayerBaseHeader> = if info.layer_count > 0 && info.layers.is_null() { Vec::new() } else { unsafe { crate::plugin::vk::convert::slice(info.layers, info.layer_count) }.to_vec() };
-    let find = |h: xr::Swapchain| scs.iter().find(|(handle, _)| *handle == h.into_raw()).map(|(_, sc)| sc);
+    let find = |h: xr::Swapchain| scs.iter().find(|sc| sc.handle == h.into_raw());
     // The jobs each interposed swapchain's latest held image gets from this frame, with where
     // EASU runs.
-    let settings = super::settings(&s.instance);
+    let settings = crate::plugin::xr::settings(&s.instance);
     let mut jobs: Vec<FrameJob> = Vec::new();
     let mut unknown = false;
     for &l in &layers {
@@ -632,11 +645,11 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
                 for (sub, view) in subs {
                     let Some(sc) = find(sub.swapchain) else { continue };
                     let handle = sub.swapchain.into_raw();
-                    let i = sc.upscale.as_ref().expect("filtered");
+                    let i = sc.i;
                     if let Some((src, dst)) = runtime_rect(i, (sc.desc.width, sc.desc.height), pixel_rect(&sub.image_rect), projection) {
                         let job = Job { layer: sub.image_array_index, src, dst };
                         if !jobs.iter().any(|(h, j, _, _, _)| *h == handle && *j == job) {
-                            let tiles = view.filter(|_| settings.of::<UpscaleSettings>().skip_hidden).and_then(|(v, fov)| s.upscale.lens.tiles(s, v, &fov, dst));
+                            let tiles = view.filter(|_| settings.of::<UpscaleSettings>().skip_hidden).and_then(|(v, fov)| up(s).lens.tiles(s, v, &fov, dst));
                             jobs.push((handle, job, fovea_of(&settings, view, dst), view.map(|v| v.0), tiles));
                         }
                     }
@@ -645,13 +658,12 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
             None => unknown = true,
         }
     }
-    if unknown && !s.upscale.unknown_layer_logged.swap(true, Ordering::Relaxed) {
+    if unknown && !up(s).unknown_layer_logged.swap(true, Ordering::Relaxed) {
         tracing::warn!("upscale: the frame has a composition layer of a type the layer does not read; if it shows an interposed swapchain, its rect is in the app's pixels");
     }
     let mut work = Vec::new();
-    for (handle, sc) in &scs {
-        let handle = *handle;
-        let i = sc.upscale.as_ref().expect("filtered");
+    for sc in scs {
+        let (handle, desc, i) = (sc.handle, sc.desc, sc.i);
         let held: Vec<u32> = lock(&i.pending).drain(..).collect();
         let n = held.len();
         for (k, index) in held.into_iter().enumerate() {
@@ -660,7 +672,7 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
             let held = if k + 1 == n && !mine.is_empty() {
                 Held {
                     handle,
-                    sc,
+                    desc,
                     i,
                     index,
                     jobs: mine.iter().map(|m| m.1).collect(),
@@ -669,7 +681,7 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
                     tiles: mine.iter().map(|m| m.4.clone()).collect(),
                 }
             } else {
-                Held { handle, sc, i, index, jobs: whole_jobs(i, (sc.desc.width, sc.desc.height), sc.desc.array_size), fovea: Vec::new(), views: Vec::new(), tiles: Vec::new() }
+                Held { handle, desc, i, index, jobs: whole_jobs(i, (desc.width, desc.height), desc.array_size), fovea: Vec::new(), views: Vec::new(), tiles: Vec::new() }
             };
             work.push(held);
         }
@@ -680,13 +692,13 @@ pub(super) fn frame_end(s: &Session, info: &xr::FrameEndInfo) -> Option<super::f
     }
     Some(rewrite(info, &layers, &|h, rect, projection| {
         let sc = find(h)?;
-        runtime_rect(sc.upscale.as_ref().expect("filtered"), (sc.desc.width, sc.desc.height), rect, projection).map(|(_, dst)| dst)
+        runtime_rect(sc.i, (sc.desc.width, sc.desc.height), rect, projection).map(|(_, dst)| dst)
     }))
 }
 
 /// Destroys an interposed swapchain's objects (before the runtime's swapchain goes down).
-pub(super) fn destroy(s: &Session, i: &Interposed) {
-    let g = lock(&s.upscale.gpu);
+pub(crate) fn destroy(s: &Session, i: &Interposed) {
+    let g = lock(&up(s).gpu);
     let Some(g) = g.as_ref() else { return };
     if !crate::plugin::vk::device_is_live(&g.device) {
         return;
@@ -697,8 +709,8 @@ pub(super) fn destroy(s: &Session, i: &Interposed) {
 }
 
 /// The session ends: the GPU objects go (its swapchains went first).
-pub(super) fn session_destroyed(s: &Session) {
-    let Some(mut g) = lock(&s.upscale.gpu).take() else { return };
+pub(crate) fn session_destroyed(s: &Session) {
+    let Some(mut g) = lock(&up(s).gpu).take() else { return };
     if !crate::plugin::vk::device_is_live(&g.device) {
         tracing::warn!("upscale: the app destroyed the session's VkDevice before the session; its Vulkan objects went with the device");
         return;

@@ -1,6 +1,7 @@
-//! What a feature is to the OpenXR chassis: the events the OpenXR hooks raise over the registry
-//! (`crate::registry::XR_FEATURES`), each with a do-nothing default. Per-session state lives in
-//! the session's `XrSessionFeatures` (made by the registry), so no hook names a feature.
+//! What a feature is to the OpenXR chassis: the events the OpenXR hooks raise over the registry's
+//! list of features (`XR_FEATURES`), each with a do-nothing default. Per-session state lives in
+//! the session's `features` by type (made by the registry, read with `Session::feature`), so no
+//! hook names a feature.
 //!
 //! Events: `wanted_extensions` (xrCreateInstance), `swapchain_usage` (xrCreateSwapchain, may add
 //! usage), `action_sets` / `action_sets_attached` / `active_action_sets`
@@ -10,10 +11,9 @@
 //! amended layers in place of the app's), `views_enumerated` (xrEnumerateViewConfigurationViews:
 //! may change what the app is told), `event` (xrPollEvent), `config_reloaded` (between frames),
 //! `frame_stats` (the frame's `stats.file` line).
-//! Image release reaches the Vulkan features (`crate::vk::before_release`).
+//! Image release reaches the Vulkan features (`crate::plugin::vk::before_release`).
 
-use super::session::Session;
-use super::Instance;
+use super::{Instance, Session};
 use crate::plugin::settings::Settings;
 use openxr_sys as xr;
 use std::any::Any;
