@@ -189,7 +189,7 @@ fn views_is_never_empty() {
 const XR_LINE: &str = "2026-01-01T00:00:00Z  INFO ThreadId(01) xrCreateApiLayerInstance{app=xr-scene}: stereoshim::xr::instance: instance 0x1 for app \"xr-scene\" enabled=true exe=\"xr-scene\"";
 const VK_LINE: &str = "2026-01-01T00:00:00Z  INFO ThreadId(01) stereoshim::vk::chain: vulkan device created decision=x pass_through=false";
 const VK_QUOTED: &str = "2026-01-01T00:00:00Z  WARN ThreadId(01) stereoshim::features::foveation::vrs::rules: vrs unsupported (see \"vulkan device created\" in this log)";
-const FAILURE: &str = "2026-01-01T00:00:00Z ERROR ThreadId(01) stereoshim::guard: internal failure: boom call=\"xrEndFrame\"";
+const FAILURE: &str = "2026-01-01T00:00:00Z ERROR ThreadId(01) stereoshim::core::guard: internal failure: boom call=\"xrEndFrame\"";
 
 #[test]
 fn absence_needs_the_layer_loaded() {

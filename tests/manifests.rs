@@ -15,7 +15,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
-use stereoshim::manifest::{self, Kind};
+use stereoshim::manifests::{self as manifest, Kind};
 
 #[path = "manifests/rules.rs"]
 mod rules;

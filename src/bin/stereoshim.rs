@@ -7,9 +7,9 @@ use std::ffi::OsString;
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use stereoshim::install::{self, Scope};
-use stereoshim::manifest::{self, Kind};
-use stereoshim::private_fs;
+use stereoshim::manifests::install::{self, Scope};
+use stereoshim::manifests::{self as manifest, Kind};
+use stereoshim::manifests::private_fs;
 
 /// Install or remove the layer, show what is registered and how it is configured, run one app
 /// with it, print its manifests, or read its statistics.
@@ -356,7 +356,7 @@ fn doctor_cmd(app: Option<String>, config: Option<PathBuf>, json: bool) -> ExitC
 /// `follow`, keeps reading what the layer appends; a second is printed once a later frame shows
 /// it is complete.
 fn stats_cmd(file: Option<PathBuf>, follow: bool, csv: bool, app: Option<String>) -> Result<(), String> {
-    use stereoshim::stats_summary::{self as summary, Summary};
+    use stereoshim::report::summary::{self as summary, Summary};
     let path = match file {
         Some(f) => f,
         None => {

@@ -8,9 +8,11 @@
 pub mod config;
 pub mod fovea;
 pub mod gpu_time;
+pub mod guard;
 pub mod handles;
 pub mod lens;
 pub mod lifetime;
+pub mod log;
 pub mod parts;
 pub mod pass;
 pub mod rect;

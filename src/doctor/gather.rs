@@ -4,8 +4,8 @@
 //! driver that crashes the probe becomes a finding, not a hung or aborted command).
 
 use super::rules::{self, ConfigFacts, LibraryCheck, ManifestFacts, OtherLayer, RuntimeFacts, VulkanHalfFacts};
-use crate::install::{self, Scope};
-use crate::manifest::{MANIFEST_FILE, VK_NEGOTIATE, XR_LAYER_NAME, XR_NEGOTIATE};
+use crate::manifests::install::{self, Scope};
+use crate::manifests::{MANIFEST_FILE, VK_NEGOTIATE, XR_LAYER_NAME, XR_NEGOTIATE};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 use std::time::Duration;
@@ -168,9 +168,9 @@ pub fn vulkan_half(ours: &[ManifestFacts]) -> VulkanHalfFacts {
     };
     let path = std::fs::canonicalize(&path).unwrap_or(path);
     let library = Some(check_library(Path::new("/"), &path.to_string_lossy(), LAYER_SYMBOLS, true));
-    let manifest_dir = crate::vk_manifest::write_manifest(&path).map_err(|e| e.to_string());
+    let manifest_dir = crate::manifests::vulkan::write_manifest(&path).map_err(|e| e.to_string());
     if let Ok(dir) = &manifest_dir {
-        if let Some(value) = crate::vk_manifest::add_layer_path(env("VK_ADD_LAYER_PATH").as_deref(), dir) {
+        if let Some(value) = crate::manifests::vulkan::add_layer_path(env("VK_ADD_LAYER_PATH").as_deref(), dir) {
             // Only this process, and before the probe threads exist: the Vulkan loader reads it
             // when the probe enumerates layers, as it does in an app after the OpenXR half set it.
             std::env::set_var("VK_ADD_LAYER_PATH", value);
@@ -182,7 +182,7 @@ pub fn vulkan_half(ours: &[ManifestFacts]) -> VulkanHalfFacts {
 /// The configuration for `app` from `file` (or the default file), with the layer's own loader.
 /// The layer's log file, if there is one (for which pass got which eye).
 pub fn layer_log() -> Option<String> {
-    crate::log::default_path(&env).and_then(|p| std::fs::read_to_string(p).ok())
+    crate::core::log::default_path(&env).and_then(|p| std::fs::read_to_string(p).ok())
 }
 
 pub fn config(file: Option<&Path>, app: Option<&str>) -> ConfigFacts {

@@ -42,7 +42,7 @@ pub fn run(opts: &Options) -> Report {
     findings.extend(rules::runtime(&runtime));
     findings.extend(rules::instance(&xr, &runtime));
     findings.extend(rules::extensions(&xr, &runtime));
-    findings.extend(rules::manifests(&ours, env(crate::manifest::DISABLE_ENV).is_some()));
+    findings.extend(rules::manifests(&ours, env(crate::manifests::DISABLE_ENV).is_some()));
     findings.extend(rules::vulkan_half(&half, vk_layers, &env));
     findings.extend(rules::gpu(&vk, &config.config));
     findings.extend(rules::config(&config));

@@ -8,7 +8,7 @@ use crate::features::upscale::UpscaleSettings;
 use crate::features::foveation::FoveationSettings;
 use crate::core::config::Config;
 use crate::features::foveation::Method;
-use crate::manifest::{DISABLE_ENV, VK_LAYER_NAME, VK_NEGOTIATE, XR_LAYER_NAME, XR_NEGOTIATE};
+use crate::manifests::{DISABLE_ENV, VK_LAYER_NAME, VK_NEGOTIATE, XR_LAYER_NAME, XR_NEGOTIATE};
 use crate::plugin::settings::Settings;
 use crate::track::device_ext;
 use crate::vk::probe::{DeviceFacts, LibraryFacts, VulkanFacts};

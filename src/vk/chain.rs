@@ -7,7 +7,7 @@
 
 use super::{check_fault, instance_of, layer, loader, InstanceState};
 use crate::plugin::vk::{convert, dispatch_key, DeviceState, ExtFns};
-use crate::guard::{self, PassThrough};
+use crate::core::guard::{self, PassThrough};
 use crate::track::{caps, device_ext};
 use ash::vk;
 use std::ffi::{c_char, c_void, CStr};
@@ -62,7 +62,7 @@ fn resolve_config() -> Arc<crate::core::config::Config> {
     let exe = std::env::current_exe().ok().and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()));
     let names: Vec<&str> = exe.as_deref().into_iter().collect();
     let (config, diagnostics) = crate::core::config::load(crate::registry::keys(), &names);
-    crate::log::init(config.choice("log.level"));
+    crate::core::log::init(config.choice("log.level"));
     for d in diagnostics {
         tracing::warn!("config: {d}");
     }
@@ -469,7 +469,7 @@ pub(super) unsafe extern "system" fn create_device(
             repeats: Default::default(),
         };
         crate::plugin::vk::devices().insert(state.key, Arc::new(state));
-        super::device_stats::log_at_exit();
+        super::device_line::log_at_exit();
         r
     })
 }
@@ -543,7 +543,7 @@ pub(super) unsafe extern "system" fn destroy_device(device: vk::Device, allocato
         // The app waited for the device to go idle: every recording's holds go now, so what
         // they counted on completion (e.g. the far field's reused pixels) is in the stats line.
         crate::plugin::vk::lifetime::release_holds(&dev);
-        let line = super::device_stats::line(&dev);
+        let line = super::device_line::line(&dev);
         tracing::info!(device = ?dev.handle, extensions = %dev.extension_decision.reason, "vulkan device stats: {line}");
         let repeats = dev.repeats.summary();
         if !repeats.is_empty() {

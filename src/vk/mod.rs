@@ -8,20 +8,20 @@
 
 mod chain;
 pub(crate) mod chassis;
-mod device_stats;
+mod device_line;
 mod hooks;
 pub mod loader;
 pub mod probe;
 
 use crate::core::config::Config;
-use crate::guard::{self, PassThrough};
+use crate::core::guard::{self, PassThrough};
 use crate::core::handles::HandleMap;
 use ash::vk::{self, Handle};
 use std::ffi::{c_char, CStr};
 use std::sync::{Arc, OnceLock};
 use crate::plugin::vk::{dispatch_key, gpu_time, lifetime, DeviceKey, DeviceState};
 
-pub use crate::vk_manifest::VK_LAYER_NAME;
+pub use crate::manifests::vulkan::VK_LAYER_NAME;
 
 /// What the layer keeps per `VkInstance`.
 pub(crate) struct InstanceState {
@@ -72,7 +72,7 @@ pub(crate) fn device_of<H: Handle>(handle: H) -> Option<Arc<DeviceState>> {
 /// Logs the stats line of the session's device, still live (`at` says when).
 pub(crate) fn log_device_stats(device: DeviceKey, at: &str) {
     if let Some(d) = device.state() {
-        device_stats::log_live(&d, at);
+        device_line::log_live(&d, at);
     }
 }
 

@@ -52,7 +52,7 @@ fn name(c: Result<&CStr, std::ffi::FromBytesUntilNulError>) -> String {
 /// The file a loaded address belongs to.
 pub fn mapped_file(address: usize) -> Option<PathBuf> {
     let maps = std::fs::read_to_string("/proc/self/maps").ok()?;
-    crate::vk_manifest::library_containing(&maps, address)
+    crate::manifests::vulkan::library_containing(&maps, address)
 }
 
 /// Loads `libvulkan.so.1`, makes an instance with no layers and no extensions, and reads every
@@ -183,7 +183,7 @@ pub fn load_library(library: &Path, symbols: &[&str], negotiate_vk: bool) -> Res
     if negotiate_vk {
         type Negotiate = unsafe extern "system" fn(*mut super::loader::NegotiateLayerInterface) -> vk::Result;
         // SAFETY: the loader interface gives this symbol this signature (vk_layer.h).
-        if let Ok(f) = unsafe { lib.get::<Negotiate>(crate::manifest::VK_NEGOTIATE.as_bytes()) } {
+        if let Ok(f) = unsafe { lib.get::<Negotiate>(crate::manifests::VK_NEGOTIATE.as_bytes()) } {
             let mut v = super::loader::NegotiateLayerInterface {
                 s_type: super::loader::LAYER_NEGOTIATE_INTERFACE_STRUCT,
                 p_next: std::ptr::null_mut(),

@@ -3,7 +3,7 @@
 //! an attach that fails with the layer's sets leaves nothing of the layer's behind.
 
 use super::session;
-use crate::guard;
+use crate::core::guard;
 use openxr_sys as xr;
 
 /// The app's array of `n` elements (empty when null or zero).

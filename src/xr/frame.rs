@@ -6,7 +6,7 @@ use crate::features::mask::MaskSettings;
 use crate::features::foveation::FoveationSettings;
 use crate::features::far_field::FarFieldSettings;
 use super::session;
-use crate::guard;
+use crate::core::guard;
 use crate::bridge;
 use crate::core::views::ImageRect;
 use crate::bridge::eye_uses::{self, SubImage, SubmittedView};
@@ -54,7 +54,7 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
             .map(|src| format!("{src:?}"))
     };
     let vulkan_half = session.map(|s| s.vulkan_half);
-    let record = crate::frame_stats::FrameRecord {
+    let record = crate::report::stats_file::FrameRecord {
         frame,
         time: std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0.0, |d| d.as_secs_f64()),
         mask_enabled: settings.of::<MaskSettings>().enabled,
@@ -82,12 +82,12 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
     // `stats.gpu_time`: the GPU work submitted since the last frame end is this frame's; the
     // times that came back meanwhile (usually of earlier frames) go to their own lines.
     let times = crate::vk::end_gpu_frame(frame);
-    crate::frame_stats::sink().frame(&settings.stats_file, record, settings.stats_gpu_time, &times);
+    crate::report::stats_file::sink().frame(&settings.stats_file, record, settings.stats_gpu_time, &times);
 }
 
 /// What the overlay names as on: the Vulkan features, then the upscale and the view tricks, which
 /// change no app pass and are told by the frame's record.
-fn shown(enabled: &[(&'static str, bool)], record: &crate::frame_stats::FrameRecord) -> Vec<(&'static str, bool)> {
+fn shown(enabled: &[(&'static str, bool)], record: &crate::report::stats_file::FrameRecord) -> Vec<(&'static str, bool)> {
     let extra = |key: &str| record.extra.iter().find(|(k, _)| *k == key).map(|(_, v)| v);
     let mut v = enabled.to_vec();
     v.push(("upscale", record.upscale.is_some()));

@@ -4,7 +4,7 @@
 use super::session::sessions;
 use super::{state, Instance, Next};
 use crate::plugin::xr::Stats;
-use crate::guard::{self, PassThrough};
+use crate::core::guard::{self, PassThrough};
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
 use std::ffi::{c_char, CStr, CString};
@@ -115,7 +115,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
         let app_name = unsafe { info.as_ref() }.map(|i| super::fixed_str(&i.application_info.application_name)).unwrap_or_default();
         let exe = exe_name();
         let (config, diagnostics) = crate::core::config::load(crate::registry::keys(), &[app_name.as_str(), exe.as_str()]);
-        crate::log::init(config.choice("log.level"));
+        crate::core::log::init(config.choice("log.level"));
         for d in &diagnostics {
             tracing::warn!("config: {d}");
         }

@@ -122,7 +122,7 @@ pub unsafe extern "system" fn xrNegotiateLoaderApiLayerInterface(
     _layer_name: *const c_char,
     request: *mut xr::NegotiateApiLayerRequest,
 ) -> xr::Result {
-    crate::guard::catch("xrNegotiateLoaderApiLayerInterface", xr::Result::ERROR_INITIALIZATION_FAILED, || {
+    crate::core::guard::catch("xrNegotiateLoaderApiLayerInterface", xr::Result::ERROR_INITIALIZATION_FAILED, || {
         // SAFETY: the loader passes valid pointers or null; null is rejected before use.
         let (Some(info), Some(req)) = (unsafe { loader_info.as_ref() }, unsafe { request.as_mut() }) else {
             return xr::Result::ERROR_INITIALIZATION_FAILED;
@@ -151,7 +151,7 @@ unsafe extern "system" fn get_instance_proc_addr(
     name: *const c_char,
     function: *mut Option<xr::pfn::VoidFunction>,
 ) -> xr::Result {
-    crate::guard::catch("xrGetInstanceProcAddr", xr::Result::ERROR_RUNTIME_FAILURE, || {
+    crate::core::guard::catch("xrGetInstanceProcAddr", xr::Result::ERROR_RUNTIME_FAILURE, || {
         if name.is_null() || function.is_null() {
             return xr::Result::ERROR_VALIDATION_FAILURE;
         }

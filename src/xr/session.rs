@@ -5,7 +5,7 @@
 use crate::features::mask::MaskSettings;
 use crate::features::foveation::FoveationSettings;
 use super::Instance;
-use crate::guard;
+use crate::core::guard;
 use crate::core::views::ViewFov;
 use std::sync::atomic::{AtomicBool, Ordering};
 use openxr_sys as xr;
@@ -170,7 +170,7 @@ pub(super) unsafe extern "system" fn destroy_session(session: xr::Session) -> xr
             // The app has waited for its GPU work by now (it may not destroy a session whose
             // images are in use): the last frames' GPU times are in, and every waiting
             // `stats.file` line is written.
-            crate::frame_stats::sink().finish(&crate::vk::completed_gpu_frames());
+            crate::report::stats_file::sink().finish(&crate::vk::completed_gpu_frames());
         }
         Ok(r)
     }, plain)

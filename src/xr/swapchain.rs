@@ -3,7 +3,7 @@
 
 use super::session::{self, Session};
 use super::{state, Instance};
-use crate::guard;
+use crate::core::guard;
 use crate::bridge;
 use crate::core::views::SwapchainDesc;
 use crate::bridge::swapchain_images;

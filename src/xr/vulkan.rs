@@ -4,9 +4,9 @@
 //! asking for the runtime's instance extensions, so that request is where the layer is put into
 //! `VK_INSTANCE_LAYERS`. Either way the loader finds the layer through `VK_ADD_LAYER_PATH`.
 
-use crate::guard;
+use crate::core::guard;
 use crate::track::device_ext;
-use crate::vk_manifest::{self, VK_LAYER_NAME};
+use crate::manifests::vulkan::{self as vk_manifest, VK_LAYER_NAME};
 use ash::vk;
 use openxr_sys as xr;
 use std::ffi::{c_char, CStr, CString};

@@ -496,7 +496,7 @@ pub fn log_lacks(log: &str, half: Half, needle: &str) -> Result<(), String> {
     }
 }
 
-pub const XR_LAYER_NAME: &str = stereoshim::manifest::XR_LAYER_NAME;
+pub const XR_LAYER_NAME: &str = stereoshim::manifests::XR_LAYER_NAME;
 
 /// A folder holding an explicit OpenXR layer manifest for the built `libstereoshim.so`.
 pub fn layer_manifest_dir() -> PathBuf {
@@ -505,7 +505,7 @@ pub fn layer_manifest_dir() -> PathBuf {
     let dir = target_dir().join("test-output").join("openxr-layer");
     std::fs::create_dir_all(&dir).unwrap();
     // The manifest `stereoshim run` writes (tests/manifests.rs checks it against both loaders).
-    let json = stereoshim::manifest::json(stereoshim::manifest::Kind::OpenXr, &lib);
+    let json = stereoshim::manifests::json(stereoshim::manifests::Kind::OpenXr, &lib);
     static N: AtomicUsize = AtomicUsize::new(0);
     let tmp = dir.join(format!(".m.{}.{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
     std::fs::write(&tmp, json).unwrap();
@@ -726,8 +726,8 @@ pub fn vulkan_layer_dir(layer_name: &str) -> PathBuf {
     let dir = target_dir().join("test-output").join("vulkan-layer-manifest");
     std::fs::create_dir_all(&dir).unwrap();
     // The manifest the OpenXR half generates (tests/manifests.rs checks it against both loaders).
-    assert_eq!(layer_name, stereoshim::manifest::VK_LAYER_NAME, "the Vulkan manifest names stereoshim's layer");
-    let json = stereoshim::manifest::json(stereoshim::manifest::Kind::Vulkan, &lib);
+    assert_eq!(layer_name, stereoshim::manifests::VK_LAYER_NAME, "the Vulkan manifest names stereoshim's layer");
+    let json = stereoshim::manifests::json(stereoshim::manifests::Kind::Vulkan, &lib);
     static N: AtomicUsize = AtomicUsize::new(0);
     let tmp = dir.join(format!(".stereoshim.{}.{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
     std::fs::write(&tmp, json).unwrap();

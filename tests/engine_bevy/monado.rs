@@ -87,7 +87,7 @@ fn run(root: &Path, exe: &Path, name: &str, args: &[&str], layer: bool) -> Monad
     if layer {
         layers.push("XR_APILAYER_STEREOSHIM_stereoshim");
         std::fs::create_dir_all(dir.join("xr-layers")).unwrap();
-        let json = stereoshim::manifest::json(stereoshim::manifest::Kind::OpenXr, Path::new("/opt/libstereoshim.so"));
+        let json = stereoshim::manifests::json(stereoshim::manifests::Kind::OpenXr, Path::new("/opt/libstereoshim.so"));
         std::fs::write(dir.join("xr-layers/stereoshim.json"), json).unwrap();
         env.push(("XR_API_LAYER_PATH".into(), "/tmp/xr-layers:/usr/share/openxr/1/api_layers/explicit.d".into()));
         std::fs::create_dir_all(dir.join("config/stereoshim")).unwrap();

@@ -11,7 +11,7 @@
 
 use std::path::{Path, PathBuf};
 use serde_json::Value;
-use stereoshim::manifest::{self, Kind};
+use stereoshim::manifests::{self as manifest, Kind};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Api {

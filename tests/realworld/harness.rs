@@ -299,7 +299,7 @@ pub fn run(root: &Path, spec: &Spec) -> Outcome {
         layers.push(LAYER);
         let manifest_dir = dir.join("xr-layers");
         std::fs::create_dir_all(&manifest_dir).unwrap();
-        let json = stereoshim::manifest::json(stereoshim::manifest::Kind::OpenXr, Path::new("/opt/libstereoshim.so"));
+        let json = stereoshim::manifests::json(stereoshim::manifests::Kind::OpenXr, Path::new("/opt/libstereoshim.so"));
         std::fs::write(manifest_dir.join("stereoshim.json"), json).unwrap();
         env.push(("XR_API_LAYER_PATH".into(), "/tmp/xr-layers:/usr/share/openxr/1/api_layers/explicit.d".into()));
     }

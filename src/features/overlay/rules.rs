@@ -5,7 +5,7 @@
 //! small upload a second).
 #![forbid(unsafe_code)]
 
-use crate::stats_summary::{Frame, Second, Summary};
+use crate::report::summary::{Frame, Second, Summary};
 use ash::vk;
 use glam::Vec3;
 

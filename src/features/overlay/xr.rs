@@ -15,7 +15,7 @@ use super::OverlaySettings;
 use super::rules::{self, Window};
 use crate::plugin::xr::Session;
 use crate::plugin::settings::Settings;
-use crate::stats_summary::Second;
+use crate::report::summary::Second;
 use crate::plugin::vk::DeviceState;
 use ash::vk;
 use ash::vk::Handle as _;
@@ -171,11 +171,11 @@ pub(crate) fn quad(s: &Session, settings: &Settings, app_layers: u32, enabled_no
 
 /// A frame ended under `settings` with `record`: the stats window learns it, and the text is
 /// redrawn when a second completed or the features on changed.
-pub(crate) fn frame_ended(s: &Session, settings: &Settings, record: &crate::frame_stats::FrameRecord, enabled: &[(&'static str, bool)]) {
+pub(crate) fn frame_ended(s: &Session, settings: &Settings, record: &crate::report::stats_file::FrameRecord, enabled: &[(&'static str, bool)]) {
     if !settings.of::<OverlaySettings>().enabled || state(s).off.load(Ordering::Relaxed) {
         return;
     }
-    let frame = crate::stats_summary::parse_line(&record.to_json());
+    let frame = crate::report::summary::parse_line(&record.to_json());
     let mut t = lock(&state(s).text);
     if t.enabled != enabled {
         t.enabled = enabled.to_vec();

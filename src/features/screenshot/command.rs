@@ -51,7 +51,7 @@ pub fn request(env: &dyn Fn(&str) -> Option<String>, pid: Option<u32>, wait: boo
     // A request number no earlier request of this folder used.
     let token = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(1).max(1);
     for i in &targets {
-        crate::private_fs::write_private(&rules::trigger_file(&folder, i.pid), token.to_string().as_bytes())
+        crate::manifests::private_fs::write_private(&rules::trigger_file(&folder, i.pid), token.to_string().as_bytes())
             .map_err(|e| format!("{}: {e}", rules::trigger_file(&folder, i.pid).display()))?;
     }
     if !wait {

@@ -37,9 +37,9 @@ impl TouchWatch {
 }
 
 /// The folder the layer and `stereoshim screenshot` meet in: `<private base>/stereoshim/screenshot`
-/// (`$XDG_RUNTIME_DIR` first, as for the generated Vulkan manifest: `crate::private_fs`).
+/// (`$XDG_RUNTIME_DIR` first, as for the generated Vulkan manifest: `crate::manifests::private_fs`).
 pub fn runtime_folder(env: &dyn Fn(&str) -> Option<String>) -> Option<PathBuf> {
-    crate::private_fs::private_base(env).map(|b| b.join("stereoshim").join("screenshot"))
+    crate::manifests::private_fs::private_base(env).map(|b| b.join("stereoshim").join("screenshot"))
 }
 
 /// `<pid>.json`: a running instance (its app name), written by the layer while a session runs.

@@ -89,7 +89,7 @@ pub(super) fn write(request: &Request, frame: u64, mut pictures: Vec<Picture>) {
     };
     done["request"] = request.token.into();
     if let Some(path) = &request.done {
-        if let Err(e) = crate::private_fs::write_private(path, done.to_string().as_bytes()) {
+        if let Err(e) = crate::manifests::private_fs::write_private(path, done.to_string().as_bytes()) {
             tracing::warn!("screenshot: cannot write {}: {e}", path.display());
         }
     }

@@ -151,11 +151,11 @@ impl XrFeature for ScreenshotXr {
 
 /// Makes the runtime folder and writes this session's instance file; logs why not otherwise.
 fn register(w: &mut Watch, app: &str) {
-    let Some(base) = crate::private_fs::private_base(&env) else {
+    let Some(base) = crate::manifests::private_fs::private_base(&env) else {
         tracing::warn!("screenshot: none of XDG_RUNTIME_DIR, XDG_STATE_HOME, HOME is set: `stereoshim screenshot` cannot reach this app");
         return;
     };
-    let folder = match crate::private_fs::private_dir(&base, std::path::Path::new("stereoshim/screenshot")) {
+    let folder = match crate::manifests::private_fs::private_dir(&base, std::path::Path::new("stereoshim/screenshot")) {
         Ok(f) => f,
         Err(e) => {
             // The folder checks speak of manifests; the reason is what matters here.
@@ -167,7 +167,7 @@ fn register(w: &mut Watch, app: &str) {
     };
     let file = rules::instance_file(&folder, std::process::id());
     let json = serde_json::json!({ "pid": std::process::id(), "app": app });
-    match crate::private_fs::write_private(&file, json.to_string().as_bytes()) {
+    match crate::manifests::private_fs::write_private(&file, json.to_string().as_bytes()) {
         Ok(()) => w.instance_file = Some(file),
         Err(e) => tracing::warn!("screenshot: cannot write {}: {e}", file.display()),
     }

@@ -15,7 +15,7 @@ pub(crate) mod secondary;
 #[cfg(test)]
 pub(crate) mod test_chain;
 
-use crate::guard::{self, PassThrough};
+use crate::core::guard::{self, PassThrough};
 use crate::core::handles::HandleMap;
 use crate::track::device_ext::Decision;
 use crate::track::DeviceTracker;
@@ -95,7 +95,7 @@ pub(crate) struct DeviceState {
     pub gpu_time: gpu_time::GpuTimeDevice,
     /// Failures of the layer's own objects that repeat: logged once per kind, counted
     /// (`DeviceState::warn_repeated`).
-    pub repeats: crate::log::Repeats,
+    pub repeats: crate::core::log::Repeats,
 }
 
 /// The loader's `PFN_vkSetDeviceLoaderData`: a layer must call it on dispatchable objects it

@@ -6,7 +6,7 @@ use super::next::Next;
 use super::session::{sessions, Session};
 use crate::core::config::Config;
 use crate::core::parts::States;
-use crate::guard::PassThrough;
+use crate::core::guard::PassThrough;
 use openxr_sys as xr;
 use std::any::Any;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -72,9 +72,9 @@ impl Instance {
 
     /// Layer logic of `call` fails on purpose when the config says so (`debug.fail_in`), to prove
     /// the fallback to pass-through end to end.
-    pub(crate) fn check_fault(&self, call: &str) -> Result<(), crate::guard::Fault> {
+    pub(crate) fn check_fault(&self, call: &str) -> Result<(), crate::core::guard::Fault> {
         if self.config.fails_in(call) {
-            return Err(crate::guard::Fault(format!("forced by debug.fail_in for {call}")));
+            return Err(crate::core::guard::Fault(format!("forced by debug.fail_in for {call}")));
         }
         Ok(())
     }

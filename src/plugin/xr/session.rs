@@ -48,7 +48,7 @@ pub(crate) struct Session {
     pub vulkan_half: bool,
     /// What the enabled features did over the session (`notices`): warnings once per reason, and a
     /// summary when the session ends.
-    pub summary: Mutex<crate::notices::Summary>,
+    pub summary: Mutex<crate::report::notices::Summary>,
     /// The system the session was created for (the overlay asks for its `maxLayerCount`).
     pub system_id: xr::SystemId,
 }

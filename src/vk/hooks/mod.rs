@@ -12,7 +12,7 @@ use crate::features::upscale::UpscaleSettings;
 use crate::plugin::vk::feature::{Destroyed, RenderPassInfo};
 use super::device_of;
 use crate::plugin::vk::{convert, lifetime, DeviceState};
-use crate::guard::{self, Fault};
+use crate::core::guard::{self, Fault};
 use crate::track::cmd::StateCmd;
 use ash::vk::{self, Handle};
 use std::sync::Arc;

@@ -1,6 +1,6 @@
 //! Every layer manifest stereoshim writes or ships comes from here: the explicit and the implicit
 //! OpenXR API-layer manifest (`stereoshim run`, `stereoshim install`), the Vulkan layer manifest
-//! the OpenXR half writes at run time (`vk_manifest`), and the files under `manifest/`, which are
+//! the OpenXR half writes at run time (`vulkan`), and the files under `manifest/`, which are
 //! this module's output for a library in the build tree (`stereoshim manifest --shipped manifest`
 //! rewrites them; `tests/manifests.rs` fails when they differ).
 //!
@@ -11,6 +11,10 @@
 //! `api_version`, `implementation_version` and `type` only as strings and, when one is not, lists a
 //! layer without a library path), implicit layers name a `disable_environment`, and the only entry
 //! point the loaders look up by name is declared in `functions`.
+
+pub mod install;
+pub mod private_fs;
+pub mod vulkan;
 
 use std::path::Path;
 

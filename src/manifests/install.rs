@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-pub use crate::manifest::{DISABLE_ENV, MANIFEST_FILE, XR_LAYER_NAME};
+pub use crate::manifests::{DISABLE_ENV, MANIFEST_FILE, XR_LAYER_NAME};
 
 pub type Env<'a> = &'a dyn Fn(&str) -> Option<String>;
 

@@ -3,11 +3,11 @@
 //! (so both halves are one loaded image and share state) and adds its folder to
 //! `VK_ADD_LAYER_PATH`. The manifest text comes from `manifest`, like every other manifest.
 
-use crate::manifest::{self, Kind};
-use crate::private_fs;
+use crate::manifests::{self as manifest, Kind};
+use crate::manifests::private_fs;
 use std::path::{Path, PathBuf};
 
-pub use crate::manifest::VK_LAYER_NAME;
+pub use crate::manifests::VK_LAYER_NAME;
 
 /// The manifest text for a library at `library_path`.
 pub fn manifest_json(library_path: &Path) -> String {

@@ -67,7 +67,7 @@ extern "C" fn at_exit() {
     // gone already (seen with Bevy on an H100), and touching them panics.
     let _ = std::panic::catch_unwind(|| {
         for (_, dev) in crate::plugin::vk::devices().values() {
-            crate::log::append_at_exit("stereoshim::vk::device_stats", &format!("vulkan device still live at exit; its stats so far: {}", line(&dev)));
+            crate::core::log::append_at_exit("stereoshim::vk::device_stats", &format!("vulkan device still live at exit; its stats so far: {}", line(&dev)));
         }
     });
 }
