@@ -174,17 +174,7 @@ pub(super) fn copy_barriers(
 ) -> (Vec<vk::ImageMemoryBarrier<'static>>, Vec<vk::ImageMemoryBarrier<'static>>) {
     let span = |f: fn((u32, u32)) -> u32| sources.iter().map(|dr| f(source_layers(p, dr))).fold((u32::MAX, 0), |(lo, hi), l| (lo.min(l), hi.max(l)));
     let layers = [(&p.color, span(|l| l.0)), (&p.depth, span(|l| l.1))];
-    let barrier = |image: vk::Image, (old, new): (vk::ImageLayout, vk::ImageLayout), (src, dst): (vk::AccessFlags, vk::AccessFlags), range: vk::ImageSubresourceRange| {
-        vk::ImageMemoryBarrier::default()
-            .image(image)
-            .old_layout(old)
-            .new_layout(new)
-            .src_access_mask(src)
-            .dst_access_mask(dst)
-            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .subresource_range(range)
-    };
+    let barrier = |image: vk::Image, layouts: (vk::ImageLayout, vk::ImageLayout), access: (vk::AccessFlags, vk::AccessFlags), range: vk::ImageSubresourceRange| crate::plugin::vk::gpu::image_barrier(image, range, layouts, access);
     let app = |to_read: bool| {
         layers.map(|(src, (lo, hi))| {
             let range = vk::ImageSubresourceRange { aspect_mask: src.aspect, base_mip_level: 0, level_count: 1, base_array_layer: lo, layer_count: hi - lo + 1 };

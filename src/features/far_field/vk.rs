@@ -691,14 +691,7 @@ fn record_slot_init(d: &DeviceState, cb: vk::CommandBuffer, slots: &Slots) {
         .iter()
         .flat_map(|s| [(&s[0], vk::ImageAspectFlags::COLOR), (&s[1], if slots.compute { vk::ImageAspectFlags::COLOR } else { vk::ImageAspectFlags::DEPTH })])
         .map(|(o, aspect)| {
-            vk::ImageMemoryBarrier::default()
-                .image(o.image)
-                .old_layout(vk::ImageLayout::UNDEFINED)
-                .new_layout(vk::ImageLayout::GENERAL)
-                .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_READ)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 })
+            crate::plugin::vk::gpu::image_barrier(o.image, vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 }, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::GENERAL), (vk::AccessFlags::empty(), vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_READ))
         })
         .collect();
     let tiles = [vk::BufferMemoryBarrier::default()

@@ -384,17 +384,7 @@ fn upload(s: &Session, ov: &mut Overlay, lines: &[String]) -> Result<(), String>
 fn record_and_submit(ov: &Overlay, image: vk::Image) -> Result<(), String> {
     let d = &ov.device;
     let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: 1 };
-    let barrier = |old, new, src, dst| {
-        vk::ImageMemoryBarrier::default()
-            .src_access_mask(src)
-            .dst_access_mask(dst)
-            .old_layout(old)
-            .new_layout(new)
-            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .image(image)
-            .subresource_range(range)
-    };
+    let barrier = |old, new, src, dst| crate::plugin::vk::gpu::image_barrier(image, range, (old, new), (src, dst));
     // SAFETY: our command buffer and fence (the fence signalled: the buffer is not in use); the
     // image acquired and waited for; the session's queue, which the OpenXR Vulkan binding lets
     // the layer use inside xrEndFrame (the app synchronizes its queue use around frame calls).

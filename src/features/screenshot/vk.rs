@@ -648,15 +648,7 @@ fn copy(me: &ScreenshotDevice, d: &DeviceState, image: u64, desc: &crate::core::
 /// holds every view at its offset.
 unsafe fn record(f: &ash::Device, cb: vk::CommandBuffer, image: vk::Image, layers: u32, buffer: vk::Buffer, views: &[ViewCopy]) {
     let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: layers };
-    let to_src = vk::ImageMemoryBarrier::default()
-        .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
-        .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
-        .old_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
-        .new_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
-        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(image)
-        .subresource_range(range);
+    let to_src = crate::plugin::vk::gpu::image_barrier(image, range, (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::ImageLayout::TRANSFER_SRC_OPTIMAL), (vk::AccessFlags::MEMORY_WRITE, vk::AccessFlags::TRANSFER_READ));
     let regions: Vec<vk::BufferImageCopy> = views
         .iter()
         .map(|v| vk::BufferImageCopy {
@@ -668,15 +660,7 @@ unsafe fn record(f: &ash::Device, cb: vk::CommandBuffer, image: vk::Image, layer
             image_extent: vk::Extent3D { width: v.region.2, height: v.region.3, depth: 1 },
         })
         .collect();
-    let back = vk::ImageMemoryBarrier::default()
-        .src_access_mask(vk::AccessFlags::empty())
-        .dst_access_mask(vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE)
-        .old_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
-        .new_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
-        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(image)
-        .subresource_range(range);
+    let back = crate::plugin::vk::gpu::image_barrier(image, range, (vk::ImageLayout::TRANSFER_SRC_OPTIMAL, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL), (vk::AccessFlags::empty(), vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE));
     let host = vk::BufferMemoryBarrier::default()
         .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
         .dst_access_mask(vk::AccessFlags::HOST_READ)

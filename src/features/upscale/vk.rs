@@ -683,16 +683,9 @@ pub(super) fn rect4(r: PixelRect) -> [i32; 4] {
     [r.x, r.y, r.width as i32, r.height as i32]
 }
 
+/// A colour barrier over `layers` layers and `mips` levels of `image` (`gpu::image_barrier`).
 pub(super) fn image_barrier(image: vk::Image, old: vk::ImageLayout, new: vk::ImageLayout, src: vk::AccessFlags, dst: vk::AccessFlags, layers: u32, mips: u32) -> vk::ImageMemoryBarrier<'static> {
-    vk::ImageMemoryBarrier::default()
-        .src_access_mask(src)
-        .dst_access_mask(dst)
-        .old_layout(old)
-        .new_layout(new)
-        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(image)
-        .subresource_range(vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: mips.max(1), base_array_layer: 0, layer_count: layers.max(1) })
+    crate::plugin::vk::gpu::image_barrier(image, crate::plugin::vk::gpu::color_range(0, layers.max(1), mips.max(1)), (old, new), (src, dst))
 }
 
 /// # Safety

@@ -6,6 +6,7 @@
 
 pub(crate) mod convert;
 pub(crate) mod feature;
+pub(crate) mod gpu;
 pub(crate) mod gpu_time;
 pub(crate) mod inject;
 pub(crate) mod keep_depth;

@@ -90,10 +90,7 @@ impl ReconParams {
     }
 }
 
-/// A barrier on the whole of `buffer` between `src` and `dst` accesses.
-pub(super) fn buffer_barrier(buffer: vk::Buffer, src: vk::AccessFlags, dst: vk::AccessFlags) -> vk::BufferMemoryBarrier<'static> {
-    vk::BufferMemoryBarrier::default().src_access_mask(src).dst_access_mask(dst).src_queue_family_index(vk::QUEUE_FAMILY_IGNORED).dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED).buffer(buffer).offset(0).size(vk::WHOLE_SIZE)
-}
+pub(super) use crate::plugin::vk::gpu::buffer_barrier;
 
 /// The compute pass's shared objects of one device, made on first use: one set layout (pixels,
 /// tiles or link), a pipeline layout with the release's push constants and one without, and a
@@ -446,17 +443,7 @@ pub(super) fn record(
     let swapchain_layers = |(from, src): (vk::ImageLayout, vk::AccessFlags), (to, dst): (vk::ImageLayout, vk::AccessFlags)| -> Vec<vk::ImageMemoryBarrier> {
         layers
             .iter()
-            .map(|&l| {
-                vk::ImageMemoryBarrier::default()
-                    .src_access_mask(src)
-                    .dst_access_mask(dst)
-                    .old_layout(from)
-                    .new_layout(to)
-                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                    .image(image)
-                    .subresource_range(range(l))
-            })
+            .map(|&l| crate::plugin::vk::gpu::image_barrier(image, range(l), (from, to), (src, dst)))
             .collect()
     };
     // A rect `r` of eye `i` (inside its clip) ↔ its words in the pixel buffer.

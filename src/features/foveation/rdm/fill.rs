@@ -9,6 +9,7 @@ use super::rules::{NotApplied, Pending};
 use crate::core::rect::PixelRect;
 use super::vk::lock;
 use crate::plugin::vk::DeviceState;
+use crate::plugin::vk::gpu;
 use ash::vk::{self, Handle};
 use std::collections::HashMap;
 
@@ -274,20 +275,9 @@ pub(super) enum FillDraws<'a> {
 pub(super) const EYES_PER_LAYER: usize = 2;
 
 pub(super) fn color_range(layer: u32, count: u32) -> vk::ImageSubresourceRange {
-    vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: layer, layer_count: count }
+    gpu::color_range(layer, count, 1)
 }
 
-pub(super) fn layout_barrier(image: vk::Image, range: vk::ImageSubresourceRange, (old, new): (vk::ImageLayout, vk::ImageLayout), (src, dst): (vk::AccessFlags, vk::AccessFlags)) -> vk::ImageMemoryBarrier<'static> {
-    vk::ImageMemoryBarrier::default()
-        .src_access_mask(src)
-        .dst_access_mask(dst)
-        .old_layout(old)
-        .new_layout(new)
-        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(image)
-        .subresource_range(range)
-}
 
 /// Records the reconstruction by the fill into `cb` (outside any pass): the eyes' pixels of
 /// `target.image` copied into `temp` (image, layers, the fill's descriptor set over it), then per
@@ -320,14 +310,14 @@ pub(super) unsafe fn record_fill(
         FillDraws::FromBuffer { area, .. } => target.framebuffers.iter().map(|(l, _)| copy(*l, area.intersect(&whole))).collect(),
     };
     let regions: Vec<vk::ImageCopy> = regions.into_iter().filter(|c| c.extent.width > 0 && c.extent.height > 0).collect();
-    let each_layer = |layouts, access| target.framebuffers.iter().map(move |(l, _)| layout_barrier(image, color_range(*l, 1), layouts, access));
+    let each_layer = |layouts, access| target.framebuffers.iter().map(move |(l, _)| gpu::image_barrier(image, color_range(*l, 1), layouts, access));
     // SAFETY: per the contract; arrays outlive the calls.
     unsafe {
         // The app's writes (rendering, a resolve, or a copy from an intermediate) finish before
         // the copy reads the image; the temp image's previous readers before it is overwritten.
         let mut first: Vec<vk::ImageMemoryBarrier> =
             each_layer((target.before, vk::ImageLayout::TRANSFER_SRC_OPTIMAL), (vk::AccessFlags::COLOR_ATTACHMENT_WRITE | vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::TRANSFER_READ)).collect();
-        first.push(layout_barrier(temp, color_range(0, temp_layers), (vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL), (vk::AccessFlags::empty(), vk::AccessFlags::TRANSFER_WRITE)));
+        first.push(gpu::image_barrier(temp, color_range(0, temp_layers), (vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL), (vk::AccessFlags::empty(), vk::AccessFlags::TRANSFER_WRITE)));
         let waits = vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT | vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::FRAGMENT_SHADER;
         d.fns.cmd_pipeline_barrier(cb, waits, vk::PipelineStageFlags::TRANSFER, vk::DependencyFlags::empty(), &[], &[], &first);
         d.fns.cmd_copy_image(cb, image, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, temp, vk::ImageLayout::TRANSFER_DST_OPTIMAL, &regions);
@@ -336,7 +326,7 @@ pub(super) unsafe fn record_fill(
             (vk::AccessFlags::empty(), vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE),
         )
         .collect();
-        second.push(layout_barrier(temp, color_range(0, temp_layers), (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL), (vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ)));
+        second.push(gpu::image_barrier(temp, color_range(0, temp_layers), (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL), (vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::SHADER_READ)));
         let fill_stages = vk::PipelineStageFlags::FRAGMENT_SHADER | vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT;
         d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::TRANSFER, fill_stages, vk::DependencyFlags::empty(), &[], &[], &second);
         for (li, (layer, fb)) in target.framebuffers.iter().enumerate() {

@@ -286,7 +286,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: &Prepared, image
     let (layout, _, pipeline) = p.objects;
     let pixels = p.pixels.buffer;
     let barrier = |(old, new): (vk::ImageLayout, vk::ImageLayout), (src, dst): (vk::AccessFlags, vk::AccessFlags)| -> Vec<vk::ImageMemoryBarrier> {
-        p.layers.iter().map(|&l| super::fill::layout_barrier(image, super::fill::color_range(l, 1), (old, new), (src, dst))).collect()
+        p.layers.iter().map(|&l| crate::plugin::vk::gpu::image_barrier(image, super::fill::color_range(l, 1), (old, new), (src, dst))).collect()
     };
     let pixel_barrier = |src, dst| compute::buffer_barrier(pixels, src, dst);
     let fns = &d.fns;

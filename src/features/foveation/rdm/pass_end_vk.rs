@@ -12,7 +12,7 @@
 //! both draw nothing — a pass is foveated and reconstructed, or left whole, never holed.
 
 use crate::features::foveation::FoveationSettings;
-use super::fill::{color_range, fill_objects_for, layout_barrier, make_temp, record_fill, FillDraws, FillSource, FillTarget, FillVertex, Temp, EYES_PER_LAYER};
+use super::fill::{color_range, fill_objects_for, make_temp, record_fill, FillDraws, FillSource, FillTarget, FillVertex, Temp, EYES_PER_LAYER};
 use super::pass_end::{self, PassEndTarget};
 use super::pass_end_compute::{self, EyesAt, LinkCompute};
 use super::rules::{NotApplied, Pending};
@@ -432,7 +432,7 @@ pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, job: &Job) -> bool 
             let last: Vec<vk::ImageMemoryBarrier> = framebuffers
                 .iter()
                 .map(|(l, _)| {
-                    layout_barrier(target.image, color_range(*l, 1), (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, p.target.layout), (vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE))
+                    crate::plugin::vk::gpu::image_barrier(target.image, color_range(*l, 1), (vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, p.target.layout), (vk::AccessFlags::COLOR_ATTACHMENT_WRITE, vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE))
                 })
                 .collect();
             d.fns.cmd_pipeline_barrier(cb, vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT, vk::PipelineStageFlags::ALL_COMMANDS, vk::DependencyFlags::empty(), &[], &[], &last);

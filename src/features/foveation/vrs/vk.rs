@@ -632,24 +632,8 @@ unsafe fn for_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, kind: Pa
 /// first barrier waits for earlier passes' reads of the image (none for a new one).
 fn record_rate_content(d: &DeviceState, cb: vk::CommandBuffer, image: vk::Image, layers: u32, extent: (u32, u32), staging: Option<vk::Buffer>) {
     let range = vk::ImageSubresourceRange { aspect_mask: vk::ImageAspectFlags::COLOR, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: layers };
-    let to_dst = vk::ImageMemoryBarrier::default()
-        .src_access_mask(vk::AccessFlags::empty())
-        .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-        .old_layout(vk::ImageLayout::UNDEFINED)
-        .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(image)
-        .subresource_range(range);
-    let to_fsr = vk::ImageMemoryBarrier::default()
-        .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-        .dst_access_mask(vk::AccessFlags::FRAGMENT_SHADING_RATE_ATTACHMENT_READ_KHR)
-        .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-        .new_layout(vk::ImageLayout::FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL_KHR)
-        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-        .image(image)
-        .subresource_range(range);
+    let to_dst = crate::plugin::vk::gpu::image_barrier(image, range, (vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL), (vk::AccessFlags::empty(), vk::AccessFlags::TRANSFER_WRITE));
+    let to_fsr = crate::plugin::vk::gpu::image_barrier(image, range, (vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::FRAGMENT_SHADING_RATE_ATTACHMENT_OPTIMAL_KHR), (vk::AccessFlags::TRANSFER_WRITE, vk::AccessFlags::FRAGMENT_SHADING_RATE_ATTACHMENT_READ_KHR));
     let f = d.fns.fp_v1_0();
     let fsr = vk::PipelineStageFlags::FRAGMENT_SHADING_RATE_ATTACHMENT_KHR;
     // SAFETY: `cb` is recording outside a render pass instance (the app is about to begin one);
