@@ -42,7 +42,7 @@ fn main() {
     // Bind every reference from inside the library to its own definitions at link time. Without
     // this, a process that links libvulkan.so.1 or libopenxr_loader.so.1 resolves any symbol the
     // library shares with them to the loader's copy (ELF interposition), and the loader ends up
-    // calling itself through the layer. tests/symbols.rs checks the built library.
+    // calling itself through the layer. tests/layer/symbols.rs checks the built library.
     println!("cargo:rustc-cdylib-link-arg=-Wl,-Bsymbolic");
     println!("cargo:rerun-if-changed={}", shader_dir.display());
     for (src, dst, extra) in SHADERS {

@@ -1,7 +1,7 @@
 // stereoshim's upscale, second pass: RCAS (robust contrast-adaptive sharpening), written from the
 // published description of FidelityFX Super Resolution 1, operation for operation as the CPU
 // reference src/features/upscale/filter.rs `rcas`. Shared by the compute pass
-// (upscale_rcas.comp, held to the reference by tests/upscale_filters.rs) and the fragment pass
+// (upscale_rcas.comp, held to the reference by tests/features/upscale_filters.rs) and the fragment pass
 // that writes the runtime's image as a colour attachment (upscale_rcas.frag).
 
 layout(set = 0, binding = 0) uniform sampler2D src;

@@ -2,7 +2,7 @@
 //! OpenXR API-layer manifest (`stereoshim run`, `stereoshim install`), the Vulkan layer manifest
 //! the OpenXR half writes at run time (`vulkan`), and the files under `manifest/`, which are
 //! this module's output for a library in the build tree (`stereoshim manifest --shipped manifest`
-//! rewrites them; `tests/manifests.rs` fails when they differ).
+//! rewrites them; `tests/layer/manifests.rs` fails when they differ).
 //!
 //! The rules followed are those of both loaders' manifest readers (Vulkan-Loader
 //! `docs/LoaderLayerInterface.md` "Layer Manifest File Format", OpenXR-SDK

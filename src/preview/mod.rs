@@ -446,7 +446,7 @@ mod tests {
 
     #[test]
     fn the_fov_cut_as_the_layer_decides_it() {
-        // The Index's published mask at a quarter of its size: as tests/views.rs measures with
+        // The Index's published mask at a quarter of its size: as tests/features/views.rs measures with
         // the mock runtime (484x560 of 504x560, view 1 from pixel 16).
         let h = Headset::from_profile(hmd_profiles::profile::HmdProfile::by_name("index").unwrap(), 0.25);
         let s = settings(&|k| (k == "STEREOSHIM_VIEW_FOV_CUT").then(|| "lens".to_string()));

@@ -148,7 +148,7 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: vk::Instance, al
         // `instance` is freed memory now: only the key read above is used (issue 23).
         layer().instances.remove(key);
         // What the layer still keys by dispatch key: an app that destroyed its devices before
-        // its last instance leaves 0 of each (tests/lifecycle.rs checks every teardown order).
+        // its last instance leaves 0 of each (tests/hardening/lifecycle.rs checks every teardown order).
         tracing::info!(
             "vulkan layer tables: instances={} devices={} own_tables={}",
             layer().instances.len(),

@@ -22,7 +22,7 @@ pub(crate) fn line(dev: &DeviceState) -> String {
     let (walks, traced, post) = dev.track.traced.counts();
     line.push_str(&format!(" flow.walks={walks} flow.traced_images={traced} flow.post_images={post}"));
     // What the layer still tracks of the app's objects: an app that destroyed everything
-    // leaves 0 of each when the device goes (tests/lifecycle.rs checks it).
+    // leaves 0 of each when the device goes (tests/hardening/lifecycle.rs checks it).
     let t = &dev.track;
     line.push_str(&format!(
         " live.images={} live.views={} live.render_passes={} live.framebuffers={} live.pipelines={} live.command_pools={} live.command_buffers={} live.descriptor_sets={}",

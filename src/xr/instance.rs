@@ -244,7 +244,7 @@ pub(super) unsafe extern "system" fn destroy_instance(instance: xr::Instance) ->
             st.instances.remove(instance.into_raw());
             tracing::info!("openxr stats: {} (app {:?})", inst.stats.line(), inst.app_name);
             // What the layer still keys by handle after the instance went with its children: 0
-            // of each once the app's last instance is gone (tests/lifecycle.rs, every teardown order).
+            // of each once the app's last instance is gone (tests/hardening/lifecycle.rs, every teardown order).
             tracing::info!(
                 "openxr layer tables: instances={} sessions={} swapchains={} shared_swapchains={}",
                 st.instances.len(),

@@ -1,4 +1,4 @@
-//! The monoscopic far field judged from captures, shared by tests/far_field.rs and the GPU proof
+//! The monoscopic far field judged from captures, shared by tests/features/far_field.rs and the GPU proof
 //! (examples/far_field_check.rs): a destination view of a run through the layer against the same
 //! frame of a run without it, with the set of pixels to reuse computed here, independently of the
 //! layer, from the reference run's submitted depth and the captured poses and FOVs.

@@ -62,6 +62,13 @@ pub fn runtime_manifest() -> PathBuf {
     path
 }
 
+/// Held while a test reads, or reads and rewrites, a file of the repository that another test of
+/// the same binary rewrites: docs/faults.md, whose `## OpenXR` table is tests/hardening/faults_xr.rs's
+/// and whose `## Vulkan` table is tests/hardening/faults_vk.rs's (`STEREOSHIM_UPDATE_DOCS=1`). The
+/// tests of one binary are threads of one process: without it one rewrite could drop the other's
+/// table, or a comparison read the file half written.
+pub static REPO_DOCS: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// The CPU time an xr-scene run may use before it counts as a hang (`Run::run`): far above the
 /// longest run of the suite (seconds), and CPU time, so a loaded machine does not reach it.
 pub const DEFAULT_CPU_BUDGET: std::time::Duration = std::time::Duration::from_secs(600);
@@ -226,7 +233,7 @@ impl Run {
 }
 
 /// `base` through the layer with the mask, RDM and the far field on, as run `name` (every
-/// feature there is: tests/lifecycle.rs, tests/threads.rs).
+/// feature there is: tests/hardening/lifecycle.rs, tests/hardening/threads.rs).
 pub fn every_feature(base: Run, name: &str) -> Run {
     let mut run = base
         .with_layer()
@@ -504,7 +511,7 @@ pub fn layer_manifest_dir() -> PathBuf {
     assert!(lib.exists(), "{} missing: run `cargo build --workspace` first", lib.display());
     let dir = target_dir().join("test-output").join("openxr-layer");
     std::fs::create_dir_all(&dir).unwrap();
-    // The manifest `stereoshim run` writes (tests/manifests.rs checks it against both loaders).
+    // The manifest `stereoshim run` writes (tests/layer/manifests.rs checks it against both loaders).
     let json = stereoshim::manifests::json(stereoshim::manifests::Kind::OpenXr, &lib);
     static N: AtomicUsize = AtomicUsize::new(0);
     let tmp = dir.join(format!(".m.{}.{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
@@ -725,7 +732,7 @@ pub fn vulkan_layer_dir(layer_name: &str) -> PathBuf {
     assert!(lib.exists(), "{} missing: run `cargo build --workspace` first", lib.display());
     let dir = target_dir().join("test-output").join("vulkan-layer-manifest");
     std::fs::create_dir_all(&dir).unwrap();
-    // The manifest the OpenXR half generates (tests/manifests.rs checks it against both loaders).
+    // The manifest the OpenXR half generates (tests/layer/manifests.rs checks it against both loaders).
     assert_eq!(layer_name, stereoshim::manifests::VK_LAYER_NAME, "the Vulkan manifest names stereoshim's layer");
     let json = stereoshim::manifests::json(stereoshim::manifests::Kind::Vulkan, &lib);
     static N: AtomicUsize = AtomicUsize::new(0);

@@ -28,6 +28,14 @@ impl PostMode {
         self
     }
 
+    /// The same mode under `owner`'s name (`<owner>-<mode>`), so that its run folders are that
+    /// test module's alone: the modules of one test binary run the same modes at the same time
+    /// (tests/features/post_chain*.rs).
+    pub fn owned_by(mut self, owner: &str) -> PostMode {
+        self.name = format!("{owner}-{}", self.name);
+        self
+    }
+
     /// The same mode with more arguments (the last value of an option wins).
     pub fn with_args(mut self, suffix: &str, args: &[&str]) -> PostMode {
         self.name = format!("{}-{suffix}", self.name);
@@ -125,7 +133,7 @@ fn mode(layout: &str, rendering: &str, depth: &str, tag: &str, extra: &[&str]) -
 
 /// Each post-chain option in every layout where it applies and in every rendering path at least
 /// once (rotating through them), both depth conventions, some with 4× MSAA: the modest matrix the
-/// suite runs (tests/post_chain.rs). Rendering paths an option does not support (`--post-subpass`
+/// suite runs (tests/features/post_chain.rs). Rendering paths an option does not support (`--post-subpass`
 /// with dynamic rendering) are skipped in the rotation.
 pub fn matrix() -> Vec<PostMode> {
     let options: [(&str, &[&str]); 13] = [
@@ -167,7 +175,7 @@ pub fn matrix() -> Vec<PostMode> {
 
 /// The full cross product: every layout × rendering path × depth convention × option × 1 or 4
 /// samples where the command line accepts the combination (the ignored test of
-/// tests/post_chain.rs, `scripts/post-chain-matrix`).
+/// tests/features/post_chain.rs, `scripts/post-chain-matrix`).
 pub fn full_matrix() -> Vec<PostMode> {
     let options: [(&str, &[&str]); 12] = [
         ("tonemap", &["--post", "tonemap"]),

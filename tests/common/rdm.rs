@@ -1,5 +1,5 @@
-//! Radial density masking judged from captures, shared by tests/foveation.rs (frame 1 of apps
-//! that record every frame) and tests/record_once.rs (many frames of an app that records once):
+//! Radial density masking judged from captures, shared by tests/features/foveation.rs (frame 1 of apps
+//! that record every frame) and tests/features/record_once.rs (many frames of an app that records once):
 //! one frame of a run through the layer against the same frame of a run without RDM.
 
 use super::image::{self, Image};

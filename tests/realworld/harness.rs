@@ -1,4 +1,4 @@
-//! The real-world runs' harness (tests/realworld.rs): the trixie root, one app run inside it with
+//! The real-world runs' harness (tests/realworld/main.rs): the trixie root, one app run inside it with
 //! its layers and logs, what a run left (frames, validation errors, stats), and the checks the
 //! cases share.
 
@@ -317,7 +317,7 @@ pub fn run(root: &Path, spec: &Spec) -> Outcome {
             // The full-screen fill, not the compute pass: on Monado + lavapipe (2 cores) the
             // compute pass's first dispatch stalls a frame by 1.5–1.7 s (llvmpipe compiles the
             // shader then) and hello_xr keeps 85–88 % of its frames; the compute pass is proven on
-            // the mock runtime (tests/foveation.rs, tests/hello_xr.rs).
+            // the mock runtime (tests/features/foveation.rs, tests/real_apps/hello_xr.rs).
             env.push(("STEREOSHIM_FOVEATION_RDM_RECONSTRUCTION".into(), "fill".into()));
         }
     }

@@ -1,7 +1,7 @@
 //! A minimal Vulkan compute harness for the upscale's passes (`features::upscale::gpu`): one
 //! device, the input uploaded as RGBA32F, EASU into an RGBA16F image, RCAS into another, read
 //! back, with the device's timestamps around each pass; the tile classes of
-//! `upscale.skip_hidden` in a storage buffer. Used by tests/upscale_filters.rs (against
+//! `upscale.skip_hidden` in a storage buffer. Used by tests/features/upscale_filters.rs (against
 //! the CPU reference) and examples/upscale_bench.rs (their GPU time at a headset's size).
 
 use ash::vk;

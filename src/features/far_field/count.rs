@@ -37,7 +37,7 @@ impl Counter {
     ///
     /// The reset is prepared here, not at submission: once the app's command buffer has the
     /// queries in it, a reset that cannot be made (no command pool, no command buffer) would
-    /// leave the app's submission using unreset queries (issue 11, found by tests/faults_vk.rs).
+    /// leave the app's submission using unreset queries (issue 11, found by tests/hardening/faults_vk.rs).
     /// Failing now, the pool is destroyed and the pass is not counted; nothing reaches the app.
     pub(super) fn new(
         d: &DeviceState,

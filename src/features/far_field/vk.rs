@@ -293,7 +293,7 @@ impl FarFieldDevice {
     /// recorded in a command buffer of queue family `family`. Their layout set-up is recorded
     /// here too, not when it is submitted: the app's command buffer is about to copy into them,
     /// and a set-up that could not be made at submission would leave that copy writing images in
-    /// an undefined layout (issue 11, tests/faults_vk.rs). Failing now, the pass goes without.
+    /// an undefined layout (issue 11, tests/hardening/faults_vk.rs). Failing now, the pass goes without.
     fn slots(&self, d: &DeviceState, family: Option<u32>, extent: vk::Extent2D, color_format: vk::Format, depth_format: vk::Format, samples: vk::SampleCountFlags) -> Result<Arc<Slots>, String> {
         if let Some(s) = &lock(&self.objects).slots {
             if s.color_format == color_format && s.depth_format == depth_format && s.samples == samples && s.extent.width >= extent.width && s.extent.height >= extent.height {

@@ -2,7 +2,7 @@
 //! SPIR-V and push constants. Both read a sampled image with `texelFetch` (binding 0, combined
 //! image sampler) and write an RGBA16F storage image (binding 1), read which tiles they skip from
 //! a storage buffer (binding 2: `lens`, `upscale.skip_hidden`), one invocation per output pixel
-//! in 16×16 workgroups; they match `filter::easu` and `filter::rcas` (tests/upscale_filters.rs
+//! in 16×16 workgroups; they match `filter::easu` and `filter::rcas` (tests/features/upscale_filters.rs
 //! holds them to it on the device).
 
 /// EASU's SPIR-V.

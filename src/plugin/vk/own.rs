@@ -4,7 +4,7 @@
 //! calls go down through `DeviceState::next`, the plain table, and are not counted. So the
 //! counts are what the layer holds at any moment: exposed in its device stats line (`own.*`) and
 //! checked to be 0 once it destroyed everything at `vkDestroyDevice` (issue 11: a layer that
-//! leaked per session would show there and in tests/vk_objects.rs).
+//! leaked per session would show there and in tests/hardening/vk_objects.rs).
 
 use crate::core::handles::HandleMap;
 use ash::vk;

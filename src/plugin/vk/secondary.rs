@@ -13,7 +13,7 @@
 //! primary they are executed in). Pools are externally synchronized, so a thread *takes* one out
 //! of the family's idle list while it allocates, begins, records and ends command buffers of it,
 //! and puts it back after; a thread that finds none idle makes another. No lock is held across
-//! those calls down: what is below the layer may call back into it (tests/reentry.rs).
+//! those calls down: what is below the layer may call back into it (tests/hardening/reentry.rs).
 
 use super::DeviceState;
 use ash::vk::{self, Handle};

@@ -206,7 +206,7 @@ impl SlotData {
 /// not on a later image release in the middle of the app's frame pacing.
 pub(super) fn warm(d: &DeviceState) {
     if let Err(e) = objects(d, Shader::Release) {
-        // A failure of the layer's own objects is never silent (issue 11: tests/faults_vk.rs
+        // A failure of the layer's own objects is never silent (issue 11: tests/hardening/faults_vk.rs
         // found this one logged only at DEBUG): WARN once, DEBUG after; the reconstruction tries
         // again when it needs the pipeline, and a failure there turns it off for that image
         // (`NotApplied::LayerError`).

@@ -1,0 +1,243 @@
+//! The `stereoshim` command end to end: install as an implicit layer into a private data folder,
+//! see it picked up by an app that was told nothing, keep it out with the disable variable, show it
+//! in `status`, remove it again; and `stereoshim run`.
+
+use crate::common;
+
+use common::{assert_same_captures, target_dir, Run};
+use std::path::Path;
+use std::process::Command;
+
+fn stereoshim(args: &[&str], data_home: &Path, config_home: &Path) -> (i32, String) {
+    let out = Command::new(target_dir().join("stereoshim"))
+        .args(args)
+        .env("XDG_DATA_HOME", data_home)
+        .env("XDG_CONFIG_HOME", config_home)
+        .env("XDG_CONFIG_DIRS", "/nonexistent")
+        .env("XDG_DATA_DIRS", "/nonexistent")
+        .env_remove("XR_API_LAYER_PATH")
+        .env_remove("STEREOSHIM_DISABLE")
+        .output()
+        .expect("run stereoshim");
+    let text = String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    (out.status.code().unwrap_or(-1), text)
+}
+
+#[test]
+fn install_status_disable_uninstall() {
+    let home = common::output_dir("cli-home");
+    let (data, config) = (home.join("data"), home.join("config"));
+    std::fs::create_dir_all(config.join("stereoshim")).unwrap();
+    std::fs::write(config.join("stereoshim/config.toml"), "[app.\"xr-scene\"]\nlog.level = \"debug\"\n").unwrap();
+
+    let (code, text) = stereoshim(&["install", "--user"], &data, &config);
+    assert_eq!(code, 0, "{text}");
+    let manifest = data.join("openxr/1/api_layers/implicit.d/stereoshim.json");
+    assert!(manifest.is_file() && data.join("stereoshim/libstereoshim.so").is_file(), "{text}");
+
+    let (code, text) = stereoshim(&["status", "--app", "xr-scene"], &data, &config);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains(&format!("{} (implicit)", manifest.display())), "{text}");
+    assert!(text.contains("log.level = debug") && text.contains("[app.\"xr-scene\"]"), "{text}");
+
+    // An app told nothing about stereoshim gets it from the implicit manifest.
+    let reference = Run::new("cli-reference").run();
+    reference.assert_ok();
+    let implicit = Run::new("cli-implicit").env("XDG_DATA_HOME", data.to_str().unwrap()).run();
+    implicit.assert_ok();
+    assert_eq!(implicit.log_lines("the Vulkan half tracks this device").len(), 1, "{}", implicit.log);
+    assert_same_captures("cli-implicit", &implicit, &reference);
+
+    let disabled = Run::new("cli-disabled").env("XDG_DATA_HOME", data.to_str().unwrap()).env("STEREOSHIM_DISABLE", "1").run();
+    disabled.assert_ok();
+    // STEREOSHIM_DISABLE must keep the layer out (the run before shows it is picked up otherwise).
+    disabled.assert_layer_not_loaded();
+
+    let (code, text) = stereoshim(&["uninstall", "--user"], &data, &config);
+    assert_eq!(code, 0, "{text}");
+    assert!(!manifest.exists() && !data.join("stereoshim/libstereoshim.so").exists());
+    assert!(!data.join("stereoshim").exists(), "the library folder is left behind");
+    let (_, text) = stereoshim(&["status"], &data, &config);
+    assert!(text.contains("none (not installed"), "{text}");
+}
+
+#[test]
+fn run_wraps_one_app() {
+    let reference = Run::new("cli-run-reference").args(["--layout", "side-by-side"]).run();
+    reference.assert_ok();
+    let mut run = Run::new("cli-run").args(["--layout", "side-by-side"]);
+    run.wrapper = vec![target_dir().join("stereoshim").into(), "run".into(), "--".into()];
+    let out = run.run();
+    out.assert_ok();
+    assert_eq!(out.log_lines("the Vulkan half tracks this device").len(), 1, "{}", out.log);
+    assert_same_captures("cli-run", &out, &reference);
+}
+
+#[test]
+fn bad_usage_is_reported() {
+    let home = common::output_dir("cli-usage");
+    let (code, text) = stereoshim(&["frobnicate"], &home, &home);
+    assert_eq!(code, 2);
+    assert!(text.contains("Usage:"), "{text}");
+    let (code, text) = stereoshim(&["run"], &home, &home);
+    assert_eq!(code, 2);
+    assert!(text.contains("-- <APP>"), "{text}");
+    // --help of the command and of every subcommand it lists: exit 0, never a panic.
+    let (code, text) = stereoshim(&["--help"], &home, &home);
+    assert_eq!(code, 0, "{text}");
+    let subcommands = listed_subcommands(&text);
+    for expected in ["install", "uninstall", "status", "run", "manifest", "stats"] {
+        assert!(subcommands.iter().any(|s| s == expected), "{expected} missing from --help: {text}");
+    }
+    for sub in &subcommands {
+        let (code, text) = stereoshim(&[sub, "--help"], &home, &home);
+        assert_eq!(code, 0, "{sub} --help: {text}");
+        assert!(text.contains(&format!("Usage: stereoshim {sub}")), "{sub} --help: {text}");
+        let (code, text) = stereoshim(&[sub, "--no-such-option"], &home, &home);
+        assert_eq!(code, 2, "{sub} --no-such-option: {text}");
+        assert!(!text.contains("panicked"), "{sub}: {text}");
+    }
+    let (code, text) = stereoshim(&["install", "--user", "--system"], &home, &home);
+    assert_eq!(code, 2, "{text}");
+}
+
+/// The subcommands clap lists under "Commands:" (without its own `help`).
+fn listed_subcommands(help: &str) -> Vec<String> {
+    help.lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|s| *s != "help")
+        .map(String::from)
+        .collect()
+}
+
+/// Every binary of the workspace and every example (found in `examples/`, so a new one is covered
+/// without touching this test) answers `--help` with its usage (exit 0) and an unknown option
+/// with a usage error (exit 2), never with a panic.
+#[test]
+fn every_binary_and_example_answers_help() {
+    let examples = std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("examples")).unwrap();
+    let mut programs: Vec<std::path::PathBuf> = examples
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "rs"))
+        .map(|p| target_dir().join("examples").join(p.file_stem().unwrap()))
+        .collect();
+    assert!(programs.len() >= 4, "{programs:?}");
+    programs.extend([target_dir().join("stereoshim"), target_dir().join("xr-scene")]);
+    for program in &programs {
+        let run = |arg: &str| {
+            let out = Command::new(program).arg(arg).output().unwrap_or_else(|e| panic!("{}: {e} (cargo build --workspace --all-targets first)", program.display()));
+            (out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+        };
+        let (code, stdout, stderr) = run("--help");
+        assert_eq!(code, Some(0), "{} --help: {stdout}{stderr}", program.display());
+        assert!(stdout.contains("Usage:"), "{} --help: {stdout}", program.display());
+        let (code, stdout, stderr) = run("--no-such-option");
+        assert_eq!(code, Some(2), "{} --no-such-option: {stdout}{stderr}", program.display());
+        assert!(stderr.contains("error:") && !stderr.contains("panicked"), "{}: {stderr}", program.display());
+    }
+}
+
+#[test]
+fn manifest_prints_and_regenerates() {
+    let home = common::output_dir("cli-manifest");
+    let (code, text) = stereoshim(&["manifest", "bogus"], &home, &home);
+    assert_eq!(code, 2);
+    assert!(text.contains("openxr, openxr-implicit, vulkan"), "{text}");
+    let (code, text) = stereoshim(&["manifest"], &home, &home);
+    assert_eq!(code, 2, "{text}");
+    // The printed manifest names the library next to the command.
+    let (code, text) = stereoshim(&["manifest", "openxr-implicit"], &home, &home);
+    assert_eq!(code, 0, "{text}");
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let lib = std::fs::canonicalize(target_dir().join("libstereoshim.so")).unwrap();
+    assert_eq!(json["api_layer"]["library_path"], lib.to_str().unwrap());
+    assert_eq!(json["api_layer"]["disable_environment"], "STEREOSHIM_DISABLE");
+    // --shipped writes the files of manifest/, byte for byte.
+    let out = home.join("shipped");
+    let (code, text) = stereoshim(&["manifest", "--shipped", out.to_str().unwrap()], &home, &home);
+    assert_eq!(code, 0, "{text}");
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("manifest");
+    for kind in ["openxr", "openxr-implicit", "vulkan"] {
+        let ours = std::fs::read(out.join(kind).join("stereoshim.json")).unwrap();
+        assert_eq!(ours, std::fs::read(repo.join(kind).join("stereoshim.json")).unwrap(), "{kind}");
+    }
+}
+
+/// `stereoshim stats`: the layer's stats file of a real run summarised per second and as CSV,
+/// an unreadable line named with its number, and `--follow` printing what is appended.
+#[test]
+fn stats_summarises_the_layers_file() {
+    const FRAMES: u64 = 12;
+    let home = common::output_dir("cli-stats");
+    let stats = home.join("layer-stats.jsonl");
+    let _ = std::fs::remove_file(&stats);
+    let run = Run::new("cli-stats")
+        .with_layer()
+        .env("MOCK_XR_EXIT_AFTER", &FRAMES.to_string())
+        .env("MOCK_XR_CAPTURE_FRAMES", "0")
+        .env("STEREOSHIM_MASK_ENABLED", "1")
+        .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap())
+        .run();
+    run.assert_ok();
+    let file = stats.to_str().unwrap();
+    let (code, text) = stereoshim(&["stats", file], &home, &home);
+    assert_eq!(code, 0, "{text}");
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split_whitespace().collect()).collect();
+    assert!(!rows.is_empty(), "{text}");
+    let frames: u64 = rows.iter().map(|r| r[1].parse::<u64>().unwrap()).sum();
+    assert_eq!(frames, FRAMES, "every frame in one second or another:\n{text}");
+    let masked: u64 = rows.iter().map(|r| r[2].parse::<u64>().unwrap()).sum();
+    assert!(masked > 0, "the mask's passes are counted:\n{text}");
+    assert!(text.contains("mask.eye_unknown"), "frame 0's reason is listed:\n{text}");
+
+    let (code, csv) = stereoshim(&["stats", "--csv", file], &home, &home);
+    assert_eq!(code, 0, "{csv}");
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len() as u64, FRAMES + 1, "a header and a row per frame:\n{csv}");
+    assert!(lines[1..].iter().enumerate().all(|(i, l)| l.starts_with(&format!("{i},"))), "{csv}");
+
+    let mut bad = std::fs::read_to_string(&stats).unwrap();
+    bad.push_str("{not json\n");
+    let broken = home.join("broken.jsonl");
+    std::fs::write(&broken, bad).unwrap();
+    let (code, text) = stereoshim(&["stats", broken.to_str().unwrap()], &home, &home);
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains(&format!("broken.jsonl:{}: not a JSON line", FRAMES + 1)), "{text}");
+
+    // --follow: lines appended later (a second apart) are summarised as they come.
+    let growing = home.join("growing.jsonl");
+    let first: Vec<String> = std::fs::read_to_string(&stats).unwrap().lines().map(String::from).collect();
+    let shifted = |l: &str, dt: f64| {
+        let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
+        v["time"] = (v["time"].as_f64().unwrap() + dt).into();
+        v.to_string() + "\n"
+    };
+    std::fs::write(&growing, shifted(&first[0], 0.0)).unwrap();
+    let mut child = Command::new(target_dir().join("stereoshim"))
+        .args(["stats", "--follow", growing.to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        use std::io::Write;
+        let mut f = std::fs::OpenOptions::new().append(true).open(&growing).unwrap();
+        // Frame 1 in the next second completes second 0; frame 2 two seconds later completes 1.
+        f.write_all(shifted(&first[1], 1.0).as_bytes()).unwrap();
+        f.write_all(shifted(&first[2], 3.0).as_bytes()).unwrap();
+    }
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut got = Vec::new();
+    for _ in 0..3 {
+        let mut l = String::new();
+        std::io::BufRead::read_line(&mut out, &mut l).unwrap();
+        got.push(l);
+    }
+    child.kill().unwrap();
+    let _ = child.wait();
+    assert!(got[0].starts_with("second"), "{got:?}");
+    let seconds: Vec<&str> = got[1..].iter().map(|l| l.split_whitespace().next().unwrap()).collect();
+    assert_eq!(seconds, ["0", "1"], "{got:?}");
+}
