@@ -488,35 +488,21 @@ impl Target {
                     return Err(e);
                 }
             };
-            let stages = [
-                vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vert).name(c"main"),
-                vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(frag).name(c"main"),
-            ];
-            let vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
-            let assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
-            let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
-            let raster = vk::PipelineRasterizationStateCreateInfo::default().polygon_mode(vk::PolygonMode::FILL).cull_mode(vk::CullModeFlags::NONE).line_width(1.0);
-            let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
-            let blend_attachment = [vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA)];
-            let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachment);
-            let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
-            let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-            let ci = vk::GraphicsPipelineCreateInfo::default()
-                .stages(&stages)
-                .vertex_input_state(&vertex_input)
-                .input_assembly_state(&assembly)
-                .viewport_state(&viewport)
-                .rasterization_state(&raster)
-                .multisample_state(&multisample)
-                .color_blend_state(&blend)
-                .dynamic_state(&dynamic)
-                .layout(p.layout)
-                .render_pass(self.render_pass)
-                .subpass(0);
-            let r = d.fns.create_graphics_pipelines(vk::PipelineCache::null(), &[ci], None);
+            let draw = crate::plugin::vk::gpu::Draw {
+                vert,
+                frag: Some(frag),
+                bindings: &[],
+                attributes: &[],
+                samples: vk::SampleCountFlags::TYPE_1,
+                depth_compare: None,
+                color_writes: &[vk::ColorComponentFlags::RGBA],
+                layout: p.layout,
+                target: crate::plugin::vk::gpu::Target::Subpass(self.render_pass, 0),
+            };
+            let r = crate::plugin::vk::gpu::graphics_pipeline(&d.fns, draw);
             d.fns.destroy_shader_module(vert, None);
             d.fns.destroy_shader_module(frag, None);
-            self.pipeline = r.map(|v| v[0]).map_err(|(_, e)| format!("vkCreateGraphicsPipelines: {e}"))?;
+            self.pipeline = r.map_err(|e| format!("vkCreateGraphicsPipelines: {e}"))?;
             let (w, h) = desc.runtime_extent;
             for &image in &desc.runtime_images {
                 let mut per_layer = Vec::new();

@@ -521,10 +521,6 @@ pub(super) fn create_fill_pipeline(d: &DeviceState, f: &FillObjects, format: vk:
             FillSource::PushConstants => (f.vert, f.frag),
             FillSource::VertexBuffer => (f.vert_buffer, f.frag_buffer),
         };
-        let stages = [
-            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vert).name(c"main"),
-            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(frag).name(c"main"),
-        ];
         let bindings = [vk::VertexInputBindingDescription { binding: 0, stride: std::mem::size_of::<FillVertex>() as u32, input_rate: vk::VertexInputRate::VERTEX }];
         let attributes = [
             vk::VertexInputAttributeDescription { location: 0, binding: 0, format: vk::Format::R32G32_SFLOAT, offset: 0 },
@@ -532,37 +528,24 @@ pub(super) fn create_fill_pipeline(d: &DeviceState, f: &FillObjects, format: vk:
             vk::VertexInputAttributeDescription { location: 2, binding: 0, format: vk::Format::R32G32B32A32_SFLOAT, offset: 24 },
             vk::VertexInputAttributeDescription { location: 3, binding: 0, format: vk::Format::R32G32B32A32_SFLOAT, offset: 40 },
         ];
-        let vertex_input = match source {
-            FillSource::PushConstants => vk::PipelineVertexInputStateCreateInfo::default(),
-            FillSource::VertexBuffer => vk::PipelineVertexInputStateCreateInfo::default().vertex_binding_descriptions(&bindings).vertex_attribute_descriptions(&attributes),
+        let (bindings, attributes): (&[_], &[_]) = match source {
+            FillSource::PushConstants => (&[], &[]),
+            FillSource::VertexBuffer => (&bindings, &attributes),
         };
-        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
-        let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
-        let raster = vk::PipelineRasterizationStateCreateInfo::default()
-            .polygon_mode(vk::PolygonMode::FILL)
-            .cull_mode(vk::CullModeFlags::NONE)
-            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
-            .line_width(1.0);
-        let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
-        let blend_atts = [vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA)];
-        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_atts);
-        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
-        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-        let info = vk::GraphicsPipelineCreateInfo::default()
-            .stages(&stages)
-            .vertex_input_state(&vertex_input)
-            .input_assembly_state(&input_assembly)
-            .viewport_state(&viewport)
-            .rasterization_state(&raster)
-            .multisample_state(&multisample)
-            .color_blend_state(&blend)
-            .dynamic_state(&dynamic)
-            .layout(f.layout)
-            .render_pass(rp)
-            .subpass(0);
-        match d.fns.create_graphics_pipelines(vk::PipelineCache::null(), &[info], None) {
-            Ok(p) => Ok((rp, p[0])),
-            Err((_, e)) => {
+        let draw = gpu::Draw {
+            vert,
+            frag: Some(frag),
+            bindings,
+            attributes,
+            samples: vk::SampleCountFlags::TYPE_1,
+            depth_compare: None,
+            color_writes: &[vk::ColorComponentFlags::RGBA],
+            layout: f.layout,
+            target: gpu::Target::Subpass(rp, 0),
+        };
+        match gpu::graphics_pipeline(&d.fns, draw) {
+            Ok(p) => Ok((rp, p)),
+            Err(e) => {
                 d.fns.destroy_render_pass(rp, None);
                 Err(e.to_string())
             }

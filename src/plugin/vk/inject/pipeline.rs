@@ -8,7 +8,7 @@
 use crate::track::caps;
 use crate::track::cmd::{AttachmentUse, PassInstance};
 use crate::track::eye_pass::{EyeLayout, MaskPlan};
-use crate::plugin::vk::DeviceState;
+use crate::plugin::vk::{gpu, DeviceState};
 use ash::vk::{self, Handle};
 use std::collections::HashMap;
 use std::sync::{Mutex, MutexGuard};
@@ -145,75 +145,37 @@ pub(crate) fn get(d: &DeviceState, key: &PipelineKey, desc: impl FnOnce() -> Pip
     };
     let vert = module(d, if key.pass.multiview() { desc.vert_multiview } else { desc.vert })?;
     let frag = desc.frag.map(|f| module(d, f)).transpose()?;
-    let mut stages = vec![vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vert).name(c"main")];
-    if let Some(frag) = frag {
-        stages.push(vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(frag).name(c"main"));
-    }
     let (samples, colors) = match &key.pass {
         PassKey::RenderPass { samples, colors, .. } => (*samples, *colors as usize),
         PassKey::Dynamic { colors, samples, .. } => (*samples, colors.len()),
     };
     let bindings = [vk::VertexInputBindingDescription { binding: 0, stride: desc.stride, input_rate: if desc.per_instance { vk::VertexInputRate::INSTANCE } else { vk::VertexInputRate::VERTEX } }];
-    let vertex_input = vk::PipelineVertexInputStateCreateInfo::default().vertex_binding_descriptions(&bindings).vertex_attribute_descriptions(&desc.attributes);
-    let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
-    let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
-    let raster = vk::PipelineRasterizationStateCreateInfo::default()
-        .polygon_mode(vk::PolygonMode::FILL)
-        .cull_mode(vk::CullModeFlags::NONE)
-        .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
-        .line_width(1.0);
-    let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::from_raw(samples));
-    // ALWAYS + write: the draw replaces the cleared depth with the failing value, whatever the
-    // app's compare op is.
-    let depth = vk::PipelineDepthStencilStateCreateInfo::default().depth_test_enable(true).depth_write_enable(true).depth_compare_op(desc.depth_compare_op);
-    let blend_atts: Vec<vk::PipelineColorBlendAttachmentState> = (0..colors)
-        .map(|i| {
-            let mask = if desc.write_first_color && i == 0 { vk::ColorComponentFlags::RGBA } else { vk::ColorComponentFlags::empty() };
-            vk::PipelineColorBlendAttachmentState::default().color_write_mask(mask)
-        })
-        .collect();
-    let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_atts);
-    let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
-    let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
-    let mut info = vk::GraphicsPipelineCreateInfo::default()
-        .stages(&stages)
-        .vertex_input_state(&vertex_input)
-        .input_assembly_state(&input_assembly)
-        .viewport_state(&viewport)
-        .rasterization_state(&raster)
-        .multisample_state(&multisample)
-        .depth_stencil_state(&depth)
-        .color_blend_state(&blend)
-        .dynamic_state(&dynamic)
-        .layout(layout);
-    let color_formats: Vec<vk::Format>;
-    let mut rendering;
-    match &key.pass {
-        PassKey::RenderPass { render_pass, subpass, .. } => {
-            info = info.render_pass(vk::RenderPass::from_raw(*render_pass)).subpass(*subpass);
-        }
-        PassKey::Dynamic { colors, depth, stencil, view_mask, .. } => {
-            color_formats = colors.clone();
-            rendering = vk::PipelineRenderingCreateInfo::default()
-                .view_mask(*view_mask)
-                .color_attachment_formats(&color_formats)
-                .depth_attachment_format(*depth)
-                .stencil_attachment_format(*stencil);
-            info = info.push_next(&mut rendering);
-            // The pass may carry variable-rate shading's attachment, which every pipeline bound
-            // in it must be made for.
-            if d.caps.fsr_attachment {
-                info = info.flags(vk::PipelineCreateFlags::RENDERING_FRAGMENT_SHADING_RATE_ATTACHMENT_KHR);
-            }
-        }
-    }
-    // No VkPipelineFragmentShadingRateStateCreateInfoKHR: the defaults (1×1, [KEEP, KEEP]) ignore
-    // a rate attachment, so injected depth is written at full rate, pixel-exact, also in render
-    // pass objects that carry the layer's rate attachment.
-    // SAFETY: a valid create info; every object it names is alive (the app's render pass is in use
-    // by the pass being recorded).
-    let created = unsafe { d.fns.create_graphics_pipelines(vk::PipelineCache::null(), &[info], None) }.map_err(|(_, e)| PipelineError::Vulkan(e.to_string()))?;
-    let p = created[0];
+    let color_writes: Vec<vk::ColorComponentFlags> = (0..colors).map(|i| if desc.write_first_color && i == 0 { vk::ColorComponentFlags::RGBA } else { vk::ColorComponentFlags::empty() }).collect();
+    let target = match &key.pass {
+        PassKey::RenderPass { render_pass, subpass, .. } => gpu::Target::Subpass(vk::RenderPass::from_raw(*render_pass), *subpass),
+        // The pass may carry variable-rate shading's attachment, which every pipeline bound in it
+        // must be made for.
+        PassKey::Dynamic { colors, depth, stencil, view_mask, .. } => gpu::Target::Rendering {
+            info: vk::PipelineRenderingCreateInfo::default().view_mask(*view_mask).color_attachment_formats(colors).depth_attachment_format(*depth).stencil_attachment_format(*stencil),
+            fsr_attachment: d.caps.fsr_attachment,
+        },
+    };
+    let draw = gpu::Draw {
+        vert,
+        frag,
+        bindings: &bindings,
+        attributes: &desc.attributes,
+        samples: vk::SampleCountFlags::from_raw(samples),
+        // ALWAYS + write: the draw replaces the cleared depth with the failing value, whatever
+        // the app's compare op is.
+        depth_compare: Some(desc.depth_compare_op),
+        color_writes: &color_writes,
+        layout,
+        target,
+    };
+    // SAFETY: every object the draw names is alive (the app's render pass is in use by the pass
+    // being recorded).
+    let p = unsafe { gpu::graphics_pipeline(&d.fns, draw) }.map_err(|e| PipelineError::Vulkan(e.to_string()))?;
     let mut o = lock(&cache.objects);
     if let Some(existing) = o.pipelines.get(key) {
         let existing = *existing;
