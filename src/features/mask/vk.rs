@@ -113,17 +113,17 @@ fn remap(p: [f32; 2], from: PixelRect, to: PixelRect) -> [f32; 2] {
 }
 
 impl MaskData {
-    fn draw_slots(&self) -> usize {
+    fn draw_slots(&self) -> inject::DrawSlots {
         match &self.target {
-            Target::Eyes { draws, multiview: false, .. } => draws.len().max(1),
-            _ => 1,
+            Target::Eyes { draws, multiview, .. } => inject::DrawSlots::for_eyes(draws.len(), *multiview),
+            Target::Awaiting { .. } => inject::DrawSlots::AWAITING,
         }
     }
     fn vertex_offset(&self) -> u64 {
-        inject::DRAW_ARGS * self.draw_slots() as u64
+        self.draw_slots().vertex_offset()
     }
     fn clear(&self, f: &mut Filled) {
-        self.buffer.write(0, &vec![vk::DrawIndirectCommand::default(); self.draw_slots()]);
+        self.draw_slots().clear(&self.buffer);
         *f = Filled::default();
     }
     /// Makes the buffer hold `g`'s mask for the target's eyes (`plan`: the eyes known now, for an

@@ -212,18 +212,18 @@ fn vertices(eyes: &[(EyeDraw, RdmParams)], area: Option<PixelRect>) -> Vec<Verte
 }
 
 impl Drawn {
-    fn draw_slots(&self) -> usize {
+    fn draw_slots(&self) -> inject::DrawSlots {
         match &self.target {
-            Target::Eyes { draws, multiview: false, .. } => draws.len().max(1),
-            _ => 1,
+            Target::Eyes { draws, multiview, .. } => inject::DrawSlots::for_eyes(draws.len(), *multiview),
+            Target::Awaiting { .. } => inject::DrawSlots::AWAITING,
         }
     }
     fn vertex_offset(&self) -> u64 {
-        inject::DRAW_ARGS * self.draw_slots() as u64
+        self.draw_slots().vertex_offset()
     }
     /// Draws nothing, leaves nothing to reconstruct.
     fn clear(&self, f: &mut Filled) {
-        self.buffer.write(0, &vec![vk::DrawIndirectCommand::default(); self.draw_slots()]);
+        self.draw_slots().clear(&self.buffer);
         *f = Filled::default();
     }
     /// Makes the buffer hold the rule for the current fovea (`plan`: the eyes known now, for an

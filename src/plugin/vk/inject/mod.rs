@@ -36,6 +36,29 @@ pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 /// recording's own buffer (`vk::lifetime::PooledBuffer`), so resubmissions draw current data.
 pub(crate) const DRAW_ARGS: u64 = std::mem::size_of::<vk::DrawIndirectCommand>() as u64;
 
+/// The indirect draws a feature's recording keeps at the head of its own buffer, ahead of its
+/// vertices (the mask, RDM): one slot per eye for per-eye draws, one for a multiview pass or a
+/// pass awaiting its eyes (one draw over the render area).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct DrawSlots(usize);
+
+impl DrawSlots {
+    /// For a known eye pass of `eyes` eyes.
+    pub(crate) fn for_eyes(eyes: usize, multiview: bool) -> DrawSlots {
+        DrawSlots(if multiview { 1 } else { eyes.max(1) })
+    }
+    /// For a pass awaiting its eyes.
+    pub(crate) const AWAITING: DrawSlots = DrawSlots(1);
+    /// Where the vertices start in the buffer.
+    pub(crate) fn vertex_offset(self) -> u64 {
+        DRAW_ARGS * self.0 as u64
+    }
+    /// Makes every slot draw nothing (only while no submission of the recording executes).
+    pub(crate) fn clear(self, buffer: &crate::plugin::vk::lifetime::PooledBuffer) {
+        buffer.write(0, &vec![vk::DrawIndirectCommand::default(); self.0]);
+    }
+}
+
 /// What a feature gets at the injection point.
 pub(crate) struct Injection<'a> {
     /// The command buffer to record into: the app's, inside its pass, or a secondary of the
