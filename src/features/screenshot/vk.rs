@@ -142,6 +142,13 @@ pub(crate) struct ScreenshotDevice {
     logged: Mutex<HashSet<String>>,
 }
 
+impl ScreenshotDevice {
+    /// The device's object of this feature (the registry made one for every device).
+    pub(crate) fn of(d: &DeviceState) -> &ScreenshotDevice {
+        d.features.get::<ScreenshotDevice>()
+    }
+}
+
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
@@ -187,7 +194,7 @@ impl ScreenshotDevice {
 /// Arms `frame` on `device` for `request` (the OpenXR side, at `xrBeginFrame`).
 pub(crate) fn request(device: crate::plugin::vk::DeviceKey, frame: u64, request: Request) -> Requested {
     let Some(d) = device.state() else { return Requested::NoDevice };
-    let me = &d.features.get::<crate::features::screenshot::vk::ScreenshotDevice>();
+    let me = ScreenshotDevice::of(&d);
     let mut st = lock(&me.jobs.state);
     if st.busy || st.handoff.is_some() || st.armed.is_some() || st.closed {
         return Requested::Busy;
@@ -266,7 +273,7 @@ unsafe fn destroy_staging(fns: &ash::Device, s: &Staging) {
 /// Returns whether a frame is still armed.
 pub(crate) fn frame_begun(device: crate::plugin::vk::DeviceKey, frame: u64) -> bool {
     let Some(d) = device.state() else { return false };
-    let me = &d.features.get::<crate::features::screenshot::vk::ScreenshotDevice>();
+    let me = ScreenshotDevice::of(&d);
     let mut st = lock(&me.jobs.state);
     let preparing = st.preparing;
     match st.armed.as_mut() {

@@ -236,7 +236,7 @@ pub(super) fn ready(d: &DeviceState, data: &mut SlotData, descriptor_pool: vk::D
 /// (pipeline layout, set layout, pipeline) of `shader`, made on first use.
 pub(super) fn objects(d: &DeviceState, shader: Shader) -> Result<(vk::PipelineLayout, vk::DescriptorSetLayout, vk::Pipeline), String> {
     let shader = shader.key();
-    let objects = &d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.compute.objects;
+    let objects = &super::vk::RdmDevice::of(d).reconstruct.compute.objects;
     let layout_of = |o: &ComputeObjects| if shader == Shader::Release { o.layout } else { o.plain_layout };
     let made = lock(objects).as_ref().map(|o| (layout_of(o), o.set_layout, o.pipelines.get(&shader).map(|p| p.1)));
     // Made with no lock held: the calls go down the chain, and what is below may call back into
@@ -340,7 +340,7 @@ pub(super) fn pixel_buffer(d: &DeviceState, size: u64) -> Result<(vk::Buffer, vk
     unsafe {
         let buffer = d.fns.create_buffer(&info, None).map_err(layer_error("pixel buffer"))?;
         let req = d.fns.get_buffer_memory_requirements(buffer);
-        let mem = &d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.memory;
+        let mem = &super::vk::RdmDevice::of(d).reconstruct.memory;
         let index = crate::plugin::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
             .or_else(|| crate::plugin::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
         let Some(index) = index else {
@@ -374,7 +374,7 @@ fn prepare(d: &DeviceState, data: &mut SlotData, descriptor_pool: vk::Descriptor
     }
     if data.tiles.as_ref().is_none_or(|b| b.size < tile_bytes) {
         // The old buffer (if any) goes back to the pool: the slot's fence signalled.
-        data.tiles = Some(PooledBuffer::take(d, tile_bytes, &d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.memory).map_err(|e| (NotApplied::LayerError, format!("tile buffer: {e}")))?);
+        data.tiles = Some(PooledBuffer::take(d, tile_bytes, &super::vk::RdmDevice::of(d).reconstruct.memory).map_err(|e| (NotApplied::LayerError, format!("tile buffer: {e}")))?);
     }
     if data.set == vk::DescriptorSet::null() {
         let layouts = [set_layout];
@@ -415,7 +415,7 @@ pub(super) fn record(
     let (layout, set_layout, pipeline) = objects(d, Shader::Release).map_err(|e| (NotApplied::LayerError, e))?;
     let texel = storage.texel_bytes();
     let whole = PixelRect { x: 0, y: 0, width, height };
-    let me = &d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.compute;
+    let me = &super::vk::RdmDevice::of(d).reconstruct.compute;
     let lists: Vec<Arc<Vec<u32>>> = eyes.iter().map(|p| me.tiles_of(&p.params, whole)).collect();
     let clips: Vec<PixelRect> = eyes.iter().map(|p| p.params.rect.intersect(&whole)).collect();
     // Each eye's pixels from word `bases[i]`, rows of its clip's width.

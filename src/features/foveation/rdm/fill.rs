@@ -146,7 +146,7 @@ pub(super) fn make_temp(d: &DeviceState, format: vk::Format, usage: vk::ImageUsa
     unsafe {
         let image = d.fns.create_image(&info, None).map_err(layer_error("temp image"))?;
         let req = d.fns.get_image_memory_requirements(image);
-        let mem = &d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.memory;
+        let mem = &super::vk::RdmDevice::of(d).reconstruct.memory;
         let index = crate::plugin::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
             .or_else(|| crate::plugin::vk::lifetime::memory_type(mem, req.memory_type_bits, vk::MemoryPropertyFlags::empty()));
         let Some(index) = index else {
@@ -378,7 +378,7 @@ pub(super) fn fill_objects_for(d: &DeviceState, key: (vk::Format, FillSource)) -
     let format = key.0;
     // Objects are made with no lock held: the calls go down the chain, and what is below may
     // call back into the layer. A thread that loses a race to another destroys its own.
-    let fill = &d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.fill;
+    let fill = &super::vk::RdmDevice::of(d).reconstruct.fill;
     let have = lock(fill).as_ref().map(|f| (f.shared(), f.passes.get(&key).copied()));
     let common = match have {
         Some((f, Some((rp, p)))) => return Ok((f.layout, f.set_layout, rp, p, f.sampler)),

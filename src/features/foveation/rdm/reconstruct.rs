@@ -150,14 +150,14 @@ fn reconstruct(d: &DeviceState, sc: &bridge::Swapchain, image: u64, pending: &[P
                 Ok(tiles) => return Ok(How::Compute(tiles)),
                 // Nothing was submitted: the fill may still do it.
                 Err(e) => {
-                    log_once(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>(), "compute failure".into(), || tracing::warn!("radial density masking: compute reconstruction failed ({}), using the fill", e.1));
+                    log_once(super::vk::RdmDevice::of(d), "compute failure".into(), || tracing::warn!("radial density masking: compute reconstruction failed ({}), using the fill", e.1));
                     super::rules::FillFallback::LayerError
                 }
             }
         }
         Err(why) => why,
     };
-    log_once(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>(), format!("fill {}", fallback.name()), || {
+    log_once(super::vk::RdmDevice::of(d), format!("fill {}", fallback.name()), || {
         tracing::info!(?format, ?usage, "radial density masking: reconstruction by the full-screen fill, not the compute pass: {}", fallback.name())
     });
     if !has(vk::ImageUsageFlags::COLOR_ATTACHMENT) {
@@ -175,7 +175,7 @@ fn reconstruct(d: &DeviceState, sc: &bridge::Swapchain, image: u64, pending: &[P
 /// on failure the pass gets no checkerboard (and so no holes to fill at the image's release).
 /// `with_compute`: the compute pass is wanted (not `rdm_reconstruction = fill`).
 pub(super) fn ready(d: &DeviceState, family: u32, with_compute: bool) -> Result<(), Failure> {
-    let r = &d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct;
+    let r = &super::vk::RdmDevice::of(d).reconstruct;
     if r.failed.load(Ordering::Relaxed) {
         return Err((NotApplied::LayerError, "an earlier reconstruction failed".into()));
     }
@@ -202,11 +202,11 @@ pub(super) fn ready(d: &DeviceState, family: u32, with_compute: bool) -> Result<
 /// submitted, so its fence (reset) would never signal: it is destroyed instead.
 fn give_back(d: &DeviceState, slot: Slot, submitted: bool) {
     if submitted {
-        lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).push_back(slot);
+        lock(&super::vk::RdmDevice::of(d).reconstruct.slots).push_back(slot);
     } else {
         // SAFETY: nothing of the slot was submitted since its fence last signalled.
         unsafe { destroy_slot(d, slot) };
-        d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slot_count.fetch_sub(1, Ordering::Relaxed);
+        super::vk::RdmDevice::of(d).reconstruct.slot_count.fetch_sub(1, Ordering::Relaxed);
     }
 }
 
@@ -256,35 +256,35 @@ pub(super) fn submit(d: &DeviceState, slot: &Slot, family: u32, queue_index: u32
 
 /// A free slot (waiting for the oldest if all are in flight), reset for recording.
 fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
-    let mut front = lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).pop_front();
+    let mut front = lock(&super::vk::RdmDevice::of(d).reconstruct.slots).pop_front();
     // A slot made for another queue family (a command buffer of another pool) cannot record for
     // this queue: it goes back, and this release gets its own.
     if let Some(s) = front.take_if(|s| s.family != family) {
-        lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).push_back(s);
+        lock(&super::vk::RdmDevice::of(d).reconstruct.slots).push_back(s);
     }
     // SAFETY: our fence.
     let done = front.as_ref().map(|s| unsafe { d.fns.get_fence_status(s.fence) }.unwrap_or(false));
-    let count = d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slot_count.load(Ordering::Relaxed);
+    let count = super::vk::RdmDevice::of(d).reconstruct.slot_count.load(Ordering::Relaxed);
     let slot = match (super::rules::slot_choice(done, count, MAX_SLOTS), front) {
         (super::rules::SlotChoice::New, front) => match (new_slot(d, family), front) {
             (Ok(made), front) => {
                 if let Some(s) = front {
-                    lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).push_back(s);
+                    lock(&super::vk::RdmDevice::of(d).reconstruct.slots).push_back(s);
                 }
                 made
             }
             // No new slot can be made: the oldest one, once its work is done, is better than
             // leaving this image's holes (`ready` made sure one exists before the checkerboard).
             (Err(e), Some(s)) => {
-                log_once(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>(), "slot fallback".into(), || tracing::warn!("radial density masking: no new reconstruction slot ({}); reusing the oldest", e.1));
+                log_once(super::vk::RdmDevice::of(d), "slot fallback".into(), || tracing::warn!("radial density masking: no new reconstruction slot ({}); reusing the oldest", e.1));
                 s
             }
             (Err(e), None) => return Err(e),
         },
         (choice, Some(s)) => {
             if choice == super::rules::SlotChoice::WaitOldest {
-                d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.release_waits.fetch_add(1, Ordering::Relaxed);
-                log_once(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>(), "release wait".into(), || {
+                super::vk::RdmDevice::of(d).reconstruct.release_waits.fetch_add(1, Ordering::Relaxed);
+                log_once(super::vk::RdmDevice::of(d), "release wait".into(), || {
                     tracing::warn!("radial density masking: xrReleaseSwapchainImage waits for an earlier reconstruction ({MAX_SLOTS} in flight: the GPU is that many behind)")
                 });
             }
@@ -296,7 +296,7 @@ fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
     // with everything the slot's last submission used.
     unsafe {
         if let Err(e) = d.fns.wait_for_fences(&[slot.fence], true, SLOT_WAIT_NS) {
-            lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).push_back(slot);
+            lock(&super::vk::RdmDevice::of(d).reconstruct.slots).push_back(slot);
             return Err((NotApplied::LayerError, format!("waiting for an earlier reconstruction: {e}")));
         }
         let mut slot = slot;
@@ -306,7 +306,7 @@ fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
         }
         let reset = d.fns.reset_fences(&[slot.fence]).and_then(|_| d.fns.reset_command_pool(slot.pool, vk::CommandPoolResetFlags::empty()));
         if let Err(e) = reset {
-            lock(&d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slots).push_back(slot);
+            lock(&super::vk::RdmDevice::of(d).reconstruct.slots).push_back(slot);
             return Err((NotApplied::LayerError, format!("reset: {e}")));
         }
         Ok(slot)
@@ -314,7 +314,7 @@ fn take_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
 }
 
 fn new_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
-    let Some(set_loader_data) = d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.set_loader_data else {
+    let Some(set_loader_data) = super::vk::RdmDevice::of(d).reconstruct.set_loader_data else {
         return Err((NotApplied::LayerError, "the loader gave no vkSetDeviceLoaderData".into()));
     };
     // SAFETY: valid create infos on our device; every object made here is destroyed on failure
@@ -357,7 +357,7 @@ fn new_slot(d: &DeviceState, family: u32) -> Result<Slot, Failure> {
             destroy_slot(d, slot);
             return Err(e);
         }
-        d.features.get::<crate::features::foveation::rdm::vk::RdmDevice>().reconstruct.slot_count.fetch_add(1, Ordering::Relaxed);
+        super::vk::RdmDevice::of(d).reconstruct.slot_count.fetch_add(1, Ordering::Relaxed);
         Ok(slot)
     }
 }

@@ -86,6 +86,13 @@ pub(crate) struct RdmDevice {
     open: OpenPasses<Arc<Drawn>>,
 }
 
+impl RdmDevice {
+    /// The device's object of this feature (the registry made one for every device).
+    pub(crate) fn of(d: &DeviceState) -> &RdmDevice {
+        d.features.get::<RdmDevice>()
+    }
+}
+
 pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }

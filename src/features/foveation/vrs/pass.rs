@@ -79,7 +79,7 @@ unsafe fn leave_alone(ci: &vk::GraphicsPipelineCreateInfo<'_>) -> bool {
 /// # Safety
 /// `infos` must be `count` valid create infos, alive while the result is used.
 pub(super) unsafe fn pipeline_infos(d: &DeviceState, infos: *const vk::GraphicsPipelineCreateInfo<'_>, count: u32) -> Option<PipelineInfos> {
-    if !d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().enabled() {
+    if !super::vk::VrsDevice::of(d).enabled() {
         return None;
     }
     // SAFETY: the caller's contract.
@@ -354,12 +354,12 @@ fn with_rate(mut o: Owned2, texel: vk::Extent2D) -> RatePass {
 }
 
 fn texel(d: &DeviceState) -> Option<vk::Extent2D> {
-    d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates.filter(|_| d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().enabled()).map(|r| vk::Extent2D { width: r.texel_width, height: r.texel_height })
+    super::vk::VrsDevice::of(d).rates.filter(|_| super::vk::VrsDevice::of(d).enabled()).map(|r| vk::Extent2D { width: r.texel_width, height: r.texel_height })
 }
 
 fn adds(d: &DeviceState, o: &Owned2, app_fsr_or_fdm: bool) -> bool {
     let graphics = o.subpasses.iter().filter(|s| s.pipeline_bind_point == vk::PipelineBindPoint::GRAPHICS).count();
-    rule::adds_rate_attachment(d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().enabled(), app_fsr_or_fdm, false, graphics)
+    rule::adds_rate_attachment(super::vk::VrsDevice::of(d).enabled(), app_fsr_or_fdm, false, graphics)
 }
 
 /// `vkCreateRenderPass`: the app's pass as `vkCreateRenderPass2` info with the rate attachment;
@@ -409,7 +409,7 @@ pub(super) unsafe fn framebuffer_info(d: &DeviceState, ci: *const vk::Framebuffe
     // SAFETY: the caller's contract.
     let app = unsafe { &*ci };
     let Some(rp) = d.track.render_passes.get(app.render_pass.as_raw()) else { return Ok(None) };
-    let (Some(index), Some(rates)) = (rp.layer_rate_attachment, d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates) else { return Ok(None) };
+    let (Some(index), Some(rates)) = (rp.layer_rate_attachment, super::vk::VrsDevice::of(d).rates) else { return Ok(None) };
     let masks: Vec<u32> = rp.subpasses.iter().map(|s| s.view_mask).collect();
     let (width, height, layers) = rule::pass_rate_extent(app.width, app.height, &masks, rates);
     let imageless = app.flags.contains(vk::FramebufferCreateFlags::IMAGELESS);
@@ -464,7 +464,7 @@ pub(super) unsafe fn framebuffer_info(d: &DeviceState, ci: *const vk::Framebuffe
 pub(super) fn framebuffer_created(d: &DeviceState, fb: Option<vk::Framebuffer>, pending: PendingRate) {
     match fb {
         Some(fb) => {
-            lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().framebuffers).insert(fb.as_raw(), pending.0);
+            lock(&super::vk::VrsDevice::of(d).framebuffers).insert(fb.as_raw(), pending.0);
         }
         None => destroy_fb_rate(d, &pending.0),
     }
@@ -481,7 +481,7 @@ pub(super) fn destroy_fb_rate(d: &DeviceState, r: &FbRate) {
 
 /// `vkDestroyFramebuffer` (after it went down).
 pub(super) fn forget_framebuffer(d: &DeviceState, fb: u64) {
-    let r = lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().framebuffers).remove(&fb);
+    let r = lock(&super::vk::VrsDevice::of(d).framebuffers).remove(&fb);
     if let Some(r) = r {
         destroy_fb_rate(d, &r);
     }

@@ -26,7 +26,7 @@ const POOLED: usize = 16;
 
 /// A pooled rate image of `shape`, if any.
 pub(super) fn take_pooled(d: &DeviceState, shape: (u32, u32, u32)) -> Option<RateImage> {
-    let mut pool = super::vk::lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rate_pool);
+    let mut pool = super::vk::lock(&super::vk::VrsDevice::of(d).rate_pool);
     let i = pool.iter().position(|(s, _)| *s == shape)?;
     Some(pool.swap_remove(i).1)
 }
@@ -74,7 +74,7 @@ pub(super) fn awaits_walk(d: &DeviceState, pass: &PassInstance, secondary: bool)
 pub(super) fn layers(d: &DeviceState, pass: &PassInstance) -> Result<u32, NotApplied> {
     let mask = pass.view_mask();
     if mask != 0 {
-        let rates = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates.ok_or(NotApplied::Unsupported)?;
+        let rates = super::vk::VrsDevice::of(d).rates.ok_or(NotApplied::Unsupported)?;
         return if rates.layered { Ok(32 - mask.leading_zeros()) } else { Err(NotApplied::MultiviewNotLayered) };
     }
     let layered = pass.rendering.as_ref().is_some_and(|r| r.layer_count > 1) || pass.framebuffer.as_ref().is_some_and(|f| f.layers > 1);
@@ -98,14 +98,14 @@ impl SubmissionMap {
     pub(super) fn new(d: &DeviceState, pass: PassInstance, kind: PassKind, shape: (u32, u32, u32), image: Option<RateImage>) -> Result<SubmissionMap, String> {
         let bytes = shape.0 as u64 * shape.1 as u64 * shape.2 as u64;
         // On failure `image` drops into the device's trash.
-        let staging = PooledBuffer::take(d, bytes.max(4), &d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().memory)?;
-        let map = SubmissionMap { pass, kind, shape, staging, image, pool: d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rate_pool.clone(), last: Mutex::default() };
+        let staging = PooledBuffer::take(d, bytes.max(4), &super::vk::VrsDevice::of(d).memory)?;
+        let map = SubmissionMap { pass, kind, shape, staging, image, pool: super::vk::VrsDevice::of(d).rate_pool.clone(), last: Mutex::default() };
         map.write(d, &[]);
         Ok(map)
     }
 
     fn write(&self, d: &DeviceState, eyes: &[rule::EyeRates]) -> bool {
-        let Some(rates) = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates else { return false };
+        let Some(rates) = super::vk::VrsDevice::of(d).rates else { return false };
         let (w, h, layers) = self.shape;
         let data: Vec<u8> = (0..layers).flat_map(|l| rule::rate_layer(w, h, rates.texel_width, rates.texel_height, l, eyes)).collect();
         self.staging.write(0, &data)
@@ -114,7 +114,7 @@ impl SubmissionMap {
     /// At a submission of the recording (`idle`: none of its earlier submissions still runs):
     /// the map for the eyes this submission's walk found, counted as applied or not.
     pub(super) fn submit(&self, d: &DeviceState, idle: bool) {
-        let mode = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().mode(&d.settings());
+        let mode = super::vk::VrsDevice::of(d).mode(&d.settings());
         let mut last = super::vk::lock(&self.last);
         if idle {
             let now = if mode != Mode::On {

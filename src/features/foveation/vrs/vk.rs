@@ -127,6 +127,13 @@ pub(crate) struct VrsDevice {
     pub(super) rate_pool: submission::RatePool,
 }
 
+impl VrsDevice {
+    /// The device's object of this feature (the registry made one for every device).
+    pub(crate) fn of(d: &DeviceState) -> &VrsDevice {
+        d.features.get::<VrsDevice>()
+    }
+}
+
 /// What `foveation.*` asks of this device now.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Mode {
@@ -180,7 +187,7 @@ impl VrsDevice {
 }
 
 pub(super) fn count(d: &DeviceState, f: impl Fn(&mut VrsFrameStats)) {
-    let me = &d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>();
+    let me = VrsDevice::of(d);
     me.used.store(true, Ordering::Relaxed);
     let mut b = lock(&me.books);
     f(&mut b.frame);
@@ -189,7 +196,7 @@ pub(super) fn count(d: &DeviceState, f: impl Fn(&mut VrsFrameStats)) {
 
 pub(super) fn not_applied(d: &DeviceState, why: NotApplied, kind: PassKind) {
     count(d, |s| s.count_not_applied(why));
-    if lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().books).logged_reasons.insert(why) {
+    if lock(&VrsDevice::of(d).books).logged_reasons.insert(why) {
         match why {
             NotApplied::Unsupported => tracing::warn!("vrs unsupported on this device (no attachmentFragmentShadingRate enabled by the layer): foveation.method = vrs does nothing here; auto would use rdm"),
             _ => tracing::info!(?kind, "vrs not applied to an eye pass: {} (logged once per reason)", why.name()),
@@ -211,7 +218,7 @@ struct Rendering {
 /// `info` must be the app's valid rendering info, alive while the result is used; `cb` recording
 /// outside a render pass instance.
 unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info: *const vk::RenderingInfo<'_>) -> Option<Rendering> {
-    let mode = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().mode(&d.settings());
+    let mode = VrsDevice::of(d).mode(&d.settings());
     if mode == Mode::Off {
         return None;
     }
@@ -294,7 +301,7 @@ unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info: *const vk:
 /// A rendering whose eyes each submission's walk gives: a rate image and staging buffer of the
 /// recording's own (`submission::SubmissionMap`), its upload recorded into `cb` now.
 fn submission_rendering(d: &DeviceState, cb: vk::CommandBuffer, pass: &PassInstance) -> Result<Result<(vk::ImageView, DeviceRates), String>, NotApplied> {
-    let rates = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates.ok_or(NotApplied::Unsupported)?;
+    let rates = VrsDevice::of(d).rates.ok_or(NotApplied::Unsupported)?;
     let layers = submission::layers(d, pass)?;
     let color = pass.rendering.as_ref().and_then(|r| r.color.first()).and_then(|c| c.attachment.image_view.as_ref());
     let image = color.and_then(|v| d.track.images.get(v.image)).map(|i| (i.extent.width, i.extent.height));
@@ -325,7 +332,7 @@ fn submission_rendering(d: &DeviceState, cb: vk::CommandBuffer, pass: &PassInsta
 }
 
 fn log_submission_once(d: &DeviceState, kind: PassKind, key: &MapKey) {
-    if lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().books).logged_submission.insert(kind) {
+    if lock(&VrsDevice::of(d).books).logged_submission.insert(kind) {
         tracing::info!("vrs on {kind:?} passes whose eyes are known only at each submission (recorded before the data-flow walk knew their target, or dynamic resolution): rate attachment {}x{} texels x {} layer(s), its map written at every submission", key.width, key.height, key.layers);
     }
 }
@@ -333,7 +340,7 @@ fn log_submission_once(d: &DeviceState, kind: PassKind, key: &MapKey) {
 /// `vkCmdBeginRenderPass(2)` (after it went down, the pass tracked) of a pass without the
 /// layer's rate attachment: counts an eye pass VRS would apply to as not applied.
 fn on_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, secondary: bool) {
-    let mode = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().mode(&d.settings());
+    let mode = VrsDevice::of(d).mode(&d.settings());
     if mode == Mode::Off {
         return;
     }
@@ -371,7 +378,7 @@ pub(super) fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: 
     if secondary {
         return Err(NotApplied::Secondary);
     }
-    let rates = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates.ok_or(NotApplied::Unsupported)?;
+    let rates = VrsDevice::of(d).rates.ok_or(NotApplied::Unsupported)?;
     let (views, fovea) = (shared().views(), shared().foveation());
     let shape = rule::PassShape {
         base_layer: att.image_view.as_ref().map_or(0, |v| v.range.base_array_layer),
@@ -396,7 +403,7 @@ pub(super) fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: 
 }
 
 fn log_kind_once(d: &DeviceState, kind: PassKind, multiview: bool, key: &MapKey) {
-    if lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().books).logged_kinds.insert((kind, multiview)) {
+    if lock(&VrsDevice::of(d).books).logged_kinds.insert((kind, multiview)) {
         tracing::info!(
             "vrs on {kind:?}{} pass: rate attachment {}x{} texels x {} layer(s), eyes (layer, view, rect) {:?}",
             if multiview { " multiview" } else { "" },
@@ -421,7 +428,7 @@ fn image_for(d: &DeviceState, cb: vk::CommandBuffer, key: &MapKey, eyes: &[EyeRa
 /// The cached rate image (`with_image`) or staging buffer alone holding `key`'s map, made when
 /// first needed. The cache keeps the current generations' maps only (at most 16).
 fn cached_map(d: &DeviceState, key: &MapKey, eyes: &[EyeRates], rates: DeviceRates, with_image: bool) -> Result<Arc<RateImage>, String> {
-    let me = &d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>();
+    let me = VrsDevice::of(d);
     let mut cache_key = key.clone();
     if !with_image {
         // Staging-only maps (render pass objects) are told apart from images of the same shape.
@@ -457,7 +464,7 @@ fn cached_map(d: &DeviceState, key: &MapKey, eyes: &[EyeRates], rates: DeviceRat
 }
 
 fn memory_type(d: &DeviceState, bits: u32, wanted: vk::MemoryPropertyFlags) -> Option<u32> {
-    lifetime::memory_type(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().memory, bits, wanted)
+    lifetime::memory_type(&VrsDevice::of(d).memory, bits, wanted)
 }
 
 /// The rate image (`key`'s extent and layers) and its view, into `img`.
@@ -529,19 +536,19 @@ struct RateBegin {
 /// `info` must be the app's valid begin info, alive while the result is used; `cb` recording
 /// outside a render pass instance.
 unsafe fn for_render_pass_begin(d: &DeviceState, cb: vk::CommandBuffer, kind: PassKind, info: *const vk::RenderPassBeginInfo<'_>) -> Option<RateBegin> {
-    if !d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().enabled() {
+    if !VrsDevice::of(d).enabled() {
         return None;
     }
     // SAFETY: the caller's contract.
     let app = unsafe { &*info };
     let rp = d.track.render_passes.get(app.render_pass.as_raw())?;
     rp.layer_rate_attachment?;
-    let fb = lock(&d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().framebuffers).get(&app.framebuffer.as_raw()).cloned()?;
-    let rates = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().rates?;
+    let fb = lock(&VrsDevice::of(d).framebuffers).get(&app.framebuffer.as_raw()).cloned()?;
+    let rates = VrsDevice::of(d).rates?;
     // SAFETY: as above.
     let begin = unsafe { crate::plugin::vk::convert::render_pass_begin(app) };
     let imageless_views = begin.attachment_views.clone();
-    let mode = d.features.get::<crate::features::foveation::vrs::vk::VrsDevice>().mode(&d.settings());
+    let mode = VrsDevice::of(d).mode(&d.settings());
     let mut submitted = false;
     // Every begin records the framebuffer's rate content it needs (never "already there": another
     // command buffer may run in between, or this one may be resubmitted after others).
