@@ -4,7 +4,8 @@
 //! learn about features only through what this file generates: the per-device and per-session
 //! feature sets, the key list the configuration is resolved against, the empty statistics.
 //!
-//! Adding a feature: a folder under `src/features/`, and one line here.
+//! Adding a feature: a folder under `src/features/` (with its `pub mod` line in
+//! `src/features/mod.rs`), and one entry in `registry!` here.
 
 use crate::features::{far_field, foveation, mask, overlay, screenshot, upscale, views};
 use crate::core::config::{self, Config, KeySpec};
@@ -12,119 +13,100 @@ use crate::plugin::settings::Settings;
 use crate::plugin::vk::feature::{DeviceFeatures, DeviceInit, Plugin};
 use crate::core::stats::FrameStats;
 
-/// Declares the registered features: `field: Type` per feature, where `Type` implements
-/// `VkFeature` and `Plugin`, and the OpenXR features with their state types. Generates the
-/// per-device feature set, the OpenXR feature list and the per-session and per-instance states,
-/// the config keys and the empty statistics of a frame.
+/// Declares the registered features, one entry each, in dispatch order (the same for both halves):
+/// its config keys and settings type, and what it has of `vulkan` (its per-device objects, each a
+/// `VkFeature` + `Plugin`), `openxr` (its `XrFeature` object with its per-session and
+/// per-instance state types) and `states` (the state of an OpenXR half the shell calls directly).
+/// Generates every list the shells and the configuration use.
 macro_rules! registry {
-    (
-        vulkan { $($field:ident: $ty:ty,)* }
-        openxr { $($xfield:ident: $xty:path => $xsession:ty, $xinstance:ty,)* }
-        xr_states { $($sfield:ident => $ssession:ty, $sinstance:ty,)* }
-    ) => {
+    ($(
+        $name:ident {
+            keys: $keys:expr,
+            settings: $settings:ty,
+            $(vulkan: [$($vk:ty),*],)?
+            $(openxr: $xr:path => $xsession:ty, $xinstance:ty,)?
+            $(states: $ssession:ty, $sinstance:ty,)?
+        }
+    )*) => {
         /// Every OpenXR feature object, in registry order.
-        pub(crate) static XR_FEATURES: &[&dyn crate::plugin::xr::XrFeature] = &[$(&$xty,)*];
+        pub(crate) static XR_FEATURES: &[&dyn crate::plugin::xr::XrFeature] = &[$($(&$xr,)?)*];
 
-        /// One session's per-feature state (OpenXR side), one value per type: each feature's, then
-        /// those of the OpenXR features that are no plug-ins (`xr_states`). A feature reads its own
-        /// with `Session::feature`.
+        /// One session's per-feature state (OpenXR side), one value per type. A feature reads its
+        /// own with `Session::feature`.
         pub(crate) fn xr_session_states() -> crate::core::parts::States {
             crate::core::parts::States::default()
-                $(.with(<$xsession>::default()))*
-                $(.with(<$ssession>::default()))*
+                $($(.with(<$xsession>::default()))?)*
+                $($(.with(<$ssession>::default()))?)*
         }
 
         /// One XR instance's per-feature state (what is decided before any session exists); `()`
         /// for a feature without any. Read with `Instance::feature`.
         pub(crate) fn xr_instance_states() -> crate::core::parts::States {
             crate::core::parts::States::default()
-                $(.with(<$xinstance>::default()))*
-                $(.with(<$sinstance>::default()))*
+                $($(.with(<$xinstance>::default()))?)*
+                $($(.with(<$sinstance>::default()))?)*
         }
 
         /// One new device's feature objects, in registry order.
         pub(crate) fn device_features(init: &DeviceInit<'_>) -> DeviceFeatures {
-            DeviceFeatures::new(vec![$(Box::new(<$ty as Plugin>::new(init)),)*])
+            DeviceFeatures::new(vec![$($($(Box::new(<$vk as Plugin>::new(init)),)*)?)*])
         }
 
         /// Every feature's config keys, in registry order.
-        pub const KEYS: &[&[KeySpec]] = &[$(<$ty as Plugin>::KEYS,)*];
+        pub const KEYS: &[&[KeySpec]] = &[$($keys,)*];
 
-        /// A frame's statistics with every feature present (and empty).
+        /// A frame's statistics with every feature's Vulkan objects present (and empty).
         pub fn empty_stats() -> FrameStats {
-            FrameStats::new(vec![$(<$ty as Plugin>::empty_stats(),)*])
+            FrameStats::new(vec![$($($(<$vk as Plugin>::empty_stats(),)*)?)*])
         }
 
         /// (feature id, whether the user has it on) for a frame recorded under `s`.
         pub fn enabled(s: &crate::plugin::settings::Settings, frame: &FrameStats) -> Vec<(&'static str, bool)> {
             let ids = empty_stats();
-            let on = [$(<$ty as Plugin>::enabled(s, frame),)*];
+            let on = [$($($(<$vk as Plugin>::enabled(s, frame),)*)?)*];
             ids.iter().map(|f| f.id()).zip(on).collect()
         }
-    };
-    (@count) => { 0 };
-    (@count $head:ident $($tail:ident)*) => { 1 + registry!(@count $($tail)*) };
-}
 
-registry! {
-    vulkan {
-        mask: mask::vk::MaskDevice,
-        rdm: foveation::rdm::vk::RdmDevice,
-        vrs: foveation::vrs::vk::VrsDevice,
-        far_field: far_field::vk::FarFieldDevice,
-        // Last: it copies the images as the runtime gets them, after RDM's reconstruction.
-        screenshot: screenshot::vk::ScreenshotDevice,
-    }
-    // OpenXR features: `field: object => per-session state, per-instance state,`. First the view
-    // tricks: they check each frame's angles at `amend_frame_end`, which stops at the first
-    // feature that amends.
-    openxr {
-        views: views::xr::ViewsXr => views::xr::ViewsSession, views::xr::ViewsInstance,
-        mask: mask::xr::MaskXr => mask::xr::MaskSession, (),
-        foveation: foveation::xr::FoveationXr => foveation::xr::FoveationSession, (),
-        far_field: far_field::xr::FarFieldXr => far_field::xr::FarFieldSession, (),
-        screenshot: screenshot::xr::ScreenshotXr => screenshot::xr::ScreenshotSession, (),
-    }
-    // OpenXR features that are no plug-ins (the shell calls them at their places): only their
-    // per-session and per-instance state, `field => session state, instance state,`.
-    xr_states {
-        upscale => upscale::xr::SessionUpscale, upscale::xr::InstanceUpscale,
-        overlay => overlay::xr::OverlaySession, (),
-    }
-}
-
-/// Every feature's settings type, each parsed from the configuration by its own `from_config`.
-macro_rules! feature_settings {
-    ($($ty:ty,)*) => {
         impl Settings {
             /// The typed settings of `c`: the chassis' and every feature's.
             pub fn from_config(c: &Config) -> Settings {
                 let mut s = Settings::chassis(c);
-                $(s.features = s.features.with(<$ty>::from_config(c));)*
-                // Symmetric and parallel views pad the app's views beyond what the runtime shows:
-                // the mask hides the padding, so it comes on with them (docs/views.md).
-                // The upscale's `fovea_only` runs EASU in the foveation's inner ring when foveation
-                // publishes no fovea.
-                let upscale = upscale::UpscaleSettings { fovea_inner_deg: s.of::<foveation::FoveationSettings>().rings.inner_deg, ..*s.of::<upscale::UpscaleSettings>() };
-                s.features = s.features.with(upscale);
-                if s.of::<views::ViewSettings>().widens() {
-                    let mask = mask::MaskSettings { enabled: true, ..s.of::<mask::MaskSettings>().clone() };
-                    s.features = s.features.with(mask);
-                }
+                $(s.features = s.features.with(<$settings>::from_config(c));)*
+                implied(&mut s);
                 s
             }
         }
     };
 }
 
-feature_settings! {
-    mask::MaskSettings,
-    foveation::FoveationSettings,
-    far_field::FarFieldSettings,
-    overlay::OverlaySettings,
-    screenshot::ScreenshotSettings,
-    upscale::UpscaleSettings,
-    views::ViewSettings,
+registry! {
+    // First the view tricks: they check each frame's angles at `amend_frame_end`, which stops at
+    // the first feature that amends.
+    views { keys: views::KEYS, settings: views::ViewSettings, openxr: views::xr::ViewsXr => views::xr::ViewsSession, views::xr::ViewsInstance, }
+    // The mask's depth goes down before RDM's checkerboard over the same cleared depth.
+    mask { keys: mask::KEYS, settings: mask::MaskSettings, vulkan: [mask::vk::MaskDevice], openxr: mask::xr::MaskXr => mask::xr::MaskSession, (), }
+    foveation { keys: foveation::KEYS, settings: foveation::FoveationSettings, vulkan: [foveation::rdm::vk::RdmDevice, foveation::vrs::vk::VrsDevice], openxr: foveation::xr::FoveationXr => foveation::xr::FoveationSession, (), }
+    far_field { keys: far_field::KEYS, settings: far_field::FarFieldSettings, vulkan: [far_field::vk::FarFieldDevice], openxr: far_field::xr::FarFieldXr => far_field::xr::FarFieldSession, (), }
+    // The upscale and the overlay change no app pass: the shell calls their OpenXR halves at their
+    // places; here are only their keys, settings and state.
+    upscale { keys: upscale::KEYS, settings: upscale::UpscaleSettings, states: upscale::xr::SessionUpscale, upscale::xr::InstanceUpscale, }
+    overlay { keys: overlay::KEYS, settings: overlay::OverlaySettings, states: overlay::xr::OverlaySession, (), }
+    // Last: it copies the images as the runtime gets them, after RDM's reconstruction.
+    screenshot { keys: screenshot::KEYS, settings: screenshot::ScreenshotSettings, vulkan: [screenshot::vk::ScreenshotDevice], openxr: screenshot::xr::ScreenshotXr => screenshot::xr::ScreenshotSession, (), }
+}
+
+/// What one feature's settings imply for another's: the only place two features' settings meet.
+fn implied(s: &mut Settings) {
+    // The upscale's `fovea_only` runs EASU in the foveation's inner ring when foveation publishes
+    // no fovea.
+    let upscale = upscale::UpscaleSettings { fovea_inner_deg: s.of::<foveation::FoveationSettings>().rings.inner_deg, ..*s.of::<upscale::UpscaleSettings>() };
+    s.features = std::mem::take(&mut s.features).with(upscale);
+    // Symmetric and parallel views pad the app's views beyond what the runtime shows: the mask
+    // hides the padding, so it comes on with them (docs/views.md).
+    if s.of::<views::ViewSettings>().widens() {
+        let mask = mask::MaskSettings { enabled: true, ..s.of::<mask::MaskSettings>().clone() };
+        s.features = std::mem::take(&mut s.features).with(mask);
+    }
 }
 
 /// Every key the layer reads: the chassis' (`config::CORE_KEYS`) and every feature's, each once,
@@ -134,7 +116,6 @@ pub fn keys() -> &'static [KeySpec] {
     ALL.get_or_init(|| {
         let mut lists: Vec<&[KeySpec]> = vec![config::CORE_KEYS];
         lists.extend(KEYS.iter().copied());
-        lists.extend([overlay::KEYS, upscale::KEYS, views::KEYS]);
         config::join_keys(&lists)
     })
 }

@@ -160,7 +160,6 @@ pub(crate) struct FarFieldDevice {
 }
 
 impl Plugin for FarFieldDevice {
-    const KEYS: &'static [crate::core::config::KeySpec] = super::KEYS;
     fn new(init: &DeviceInit<'_>) -> FarFieldDevice {
         FarFieldDevice { pixels_reused: Arc::default(), query_pools: Arc::default(), layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default(), objects: Mutex::default() }
     }

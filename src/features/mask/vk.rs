@@ -203,7 +203,6 @@ pub(crate) struct MaskDevice {
 }
 
 impl Plugin for MaskDevice {
-    const KEYS: &'static [crate::core::config::KeySpec] = super::KEYS;
     fn new(init: &DeviceInit<'_>) -> MaskDevice {
         MaskDevice { layer_enabled: init.settings.enabled, used: AtomicBool::new(false), memory: init.memory, books: Mutex::default(), open: OpenPasses::default() }
     }

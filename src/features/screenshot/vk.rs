@@ -12,7 +12,6 @@
 use super::rules::{self, Texels};
 use super::write::{self, Picture};
 use super::ScreenshotStats;
-use crate::core::config::KeySpec;
 use crate::core::stats::FeatureStats;
 use crate::plugin::settings::Settings;
 use crate::bridge::shared;
@@ -154,7 +153,6 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 impl Plugin for ScreenshotDevice {
-    const KEYS: &'static [KeySpec] = super::KEYS;
     fn new(init: &DeviceInit<'_>) -> ScreenshotDevice {
         ScreenshotDevice {
             memory: init.memory,

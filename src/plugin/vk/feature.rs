@@ -24,7 +24,6 @@
 use super::inject::{Awaiting, Injection};
 use super::DeviceState;
 use std::any::TypeId;
-use crate::core::config::KeySpec;
 use crate::core::pass::NotMasked;
 use crate::core::stats::FeatureStats;
 use crate::plugin::settings::Settings;
@@ -81,8 +80,6 @@ impl<T: Any> AsAny for T {
 
 /// How a feature is registered.
 pub(crate) trait Plugin: VkFeature + Sized {
-    /// The config keys the feature owns.
-    const KEYS: &'static [KeySpec];
     fn new(init: &DeviceInit<'_>) -> Self;
     /// A frame's empty statistics of this feature.
     fn empty_stats() -> Box<dyn FeatureStats>;

@@ -99,7 +99,6 @@ pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 
 impl Plugin for RdmDevice {
     /// `foveation.*`, shared with VRS (the registry lists a key once).
-    const KEYS: &'static [crate::core::config::KeySpec] = crate::features::foveation::KEYS;
     fn new(init: &DeviceInit<'_>) -> RdmDevice {
         RdmDevice {
             layer_enabled: init.settings.enabled,

@@ -145,7 +145,6 @@ pub(super) enum Mode {
 
 impl Plugin for VrsDevice {
     /// `foveation.*`, shared with RDM (the registry lists a key once).
-    const KEYS: &'static [crate::core::config::KeySpec] = crate::features::foveation::KEYS;
     fn new(init: &DeviceInit<'_>) -> VrsDevice {
         VrsDevice {
             layer_enabled: init.settings.enabled,
