@@ -7,7 +7,7 @@
 //! Adding a feature: a folder under `src/features/` (with its `pub mod` line in
 //! `src/features/mod.rs`), and one entry in `registry!` here.
 
-use crate::features::{far_field, foveation, mask, overlay, screenshot, upscale, views};
+use crate::features::*;
 use crate::core::config::{self, Config, KeySpec};
 use crate::plugin::settings::Settings;
 use crate::plugin::vk::feature::{DeviceFeatures, DeviceInit, Plugin};
