@@ -1,5 +1,5 @@
 //! Layer-side GPU time per frame (`stats.gpu_time`): the pure bookkeeping behind the timer in
-//! `vk::gpu_time`. Every timed queue submission gets a *ticket* and a *slot* (two timestamp
+//! `plugin::vk::gpu_time`. Every timed queue submission gets a *ticket* and a *slot* (two timestamp
 //! queries) of its queue's ring; the ticket belongs to the frame being recorded when it was
 //! submitted (frames end at `xrEndFrame`); when its two timestamps are read back (later, without
 //! stalling) they join that frame, and once the frame is closed and every ticket of it is back,

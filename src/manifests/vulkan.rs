@@ -1,7 +1,7 @@
 //! Makes the Vulkan loader find stereoshim's Vulkan half without the user installing anything: the
 //! OpenXR half writes a layer manifest that points at the very library file it was loaded from
 //! (so both halves are one loaded image and share state) and adds its folder to
-//! `VK_ADD_LAYER_PATH`. The manifest text comes from `manifest`, like every other manifest.
+//! `VK_ADD_LAYER_PATH`. The manifest text comes from `manifests`, like every other manifest.
 
 use crate::manifests::{self as manifest, Kind};
 use crate::manifests::private_fs;

@@ -34,7 +34,7 @@ pub struct Settings {
     pub eyes_fallback: Option<crate::track::fallback::Order>,
     pub fragment_shading_rate: FsrSetting,
     pub stats_file: String,
-    /// `stats.gpu_time`: the submit hooks bracket submissions with timestamps (`vk::gpu_time`).
+    /// `stats.gpu_time`: the submit hooks bracket submissions with timestamps (`plugin::vk::gpu_time`).
     pub stats_gpu_time: bool,
     /// `debug.fail_in`, split.
     pub fail_in: Vec<String>,

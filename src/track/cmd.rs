@@ -286,7 +286,7 @@ pub struct CmdState {
     pub depth_image_clears: Vec<(u64, f32)>,
     /// The first command the app recorded whose state the layer cannot restore after an injected
     /// draw (shader objects, vertex input, shading rate, extended dynamic state 3): injections
-    /// into this command buffer are vetoed (`vk::inject`).
+    /// into this command buffer are vetoed (`vk::chassis`).
     pub veto: Option<&'static str>,
     /// Descriptor set bindings still in effect, oldest first (a bind fully covered by a later
     /// one of the same sets is dropped).
@@ -302,7 +302,7 @@ pub struct CmdState {
 }
 
 /// What the app bound at `VK_PIPELINE_BIND_POINT_COMPUTE` (restored after the layer's own
-/// dispatches in its command buffer, `vk::inject::restore::RestoreCompute`).
+/// dispatches in its command buffer, `plugin::vk::inject::restore::RestoreCompute`).
 #[derive(Clone, Debug, Default)]
 pub struct ComputeState {
     pub pipeline: Option<u64>,

@@ -315,7 +315,7 @@ pub fn awaiting_eyes(pass: &PassInstance, facts: &Facts<'_>) -> Option<f32> {
 /// Whether a pass the walk may still tie to its eyes at submission — one recorded before any
 /// walk (`Untraced`), or into a target whose eye rect changes from frame to frame (`Changing`) —
 /// has a freshly cleared depth; its fail depth then. Features record draws for it that are filled
-/// at each submission, from what that submission's walk found (`vk::inject::plan_now`).
+/// at each submission, from what that submission's walk found (`plugin::vk::inject::plan_now`).
 pub fn awaiting_walk(pass: &PassInstance, facts: &Facts<'_>) -> Option<f32> {
     if facts.secondary_contents || !facts.intermediate_enabled {
         return None;

@@ -4,7 +4,7 @@
 //! the chassis' plan; this module only turns them into commands.
 //!
 //! The draw reads its vertices and its indirect draw arguments from a buffer of the recording's
-//! own (`MaskData`), held by the app's command buffer (`vk::lifetime`). A command buffer recorded
+//! own (`MaskData`), held by the app's command buffer (`plugin::vk::lifetime`). A command buffer recorded
 //! once and resubmitted keeps drawing the *current* mask: before each submission whose recording
 //! is idle, a buffer filled for an older mask generation is refilled (`before_submit`).
 

@@ -10,10 +10,10 @@
 //! - destruction: `destroyed` (images, render passes, framebuffers);
 //! - recording: `amend_render_pass_begin` / `amend_rendering` (before the pass goes down; the
 //!   point before begin), `pass_begun` (after), `inject` / `inject_awaiting` at the chassis'
-//!   injection point (`vk::inject`: right after the depth clear), `not_injected`, `pass_ending`
+//!   injection point (`vk::chassis`: right after the depth clear), `not_injected`, `pass_ending`
 //!   (before the end goes down), `pass_ended` (after it), `transfer` (copies, resolves, blits);
 //! - `injects_before_depth_test` features get `inject` at the pass's first depth-tested draw
-//!   (`vk::inject::before_draw`) instead of right after the clear;
+//!   (`vk::chassis::before_draw`) instead of right after the clear;
 //! - submission: `queue_submitting` (set-up work of the layer's that goes at the head of the
 //!   app's submission) and `set_up_submitted`, `before_submit` (refresh what a recorded command
 //!   buffer reads; apply what it recorded, in recording order);
@@ -201,7 +201,7 @@ pub(crate) trait VkFeature: AsAny + Send + Sync {
     /// no earlier submission of a recording may still execute) and act on what they recorded.
     fn before_submit(&self, _d: &DeviceState, _cbs: &[u64]) {}
     /// A queue submission of command buffers of `family` is about to go down: the feature's
-    /// one-time set-up work for them (command buffers made by `vk::secondary::prepare_once`:
+    /// one-time set-up work for them (command buffers made by `plugin::vk::secondary::prepare_once`:
     /// first image layouts, query pool resets). The chassis puts them at the head of the app's
     /// first batch, so they run first and share the app's fate: a submission that fails runs
     /// neither the set-up nor the app work that needs it (a separate submission of the layer's
@@ -213,7 +213,7 @@ pub(crate) trait VkFeature: AsAny + Send + Sync {
     /// down (`ok`) or not: set-up that did not go down is handed out again next time.
     fn set_up_submitted(&self, _d: &DeviceState, _family: u32, _set_up: &[vk::CommandBuffer], _ok: bool) {}
     /// Whether the feature reads the depth attachment after an eye pass ends: the chassis then
-    /// makes passes store their depth (`vk::keep_depth`).
+    /// makes passes store their depth (`plugin::vk::keep_depth`).
     fn keeps_depth(&self, _s: &Settings) -> bool {
         false
     }

@@ -1,6 +1,6 @@
 //! The layer's GPU frame timer (`stats.gpu_time`), the Vulkan shell of `core::gpu_time`: every
 //! queue submission — the app's (`vkQueueSubmit`, `vkQueueSubmit2`) and the layer's own work
-//! (RDM's reconstruction, `vk::secondary::prepare_once` / `submit_prepared`) — is bracketed by two command buffers of
+//! (RDM's reconstruction, `plugin::vk::secondary::prepare_once` / `submit_prepared`) — is bracketed by two command buffers of
 //! the layer's, one writing a `TOP_OF_PIPE` timestamp put first into the first batch, one writing
 //! a `BOTTOM_OF_PIPE` timestamp put last into the last batch. Inside the app's own batches, the batches' semaphore waits come
 //! before the first and their signals and the app's fence after the last, so the app's

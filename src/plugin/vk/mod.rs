@@ -104,8 +104,6 @@ pub(crate) struct DeviceState {
 pub(crate) type PfnSetDeviceLoaderData = unsafe extern "system" fn(vk::Device, *mut c_void) -> vk::Result;
 
 impl DeviceState {
-    /// The live settings (the OpenXR half re-reads a changed config file between frames), else
-    /// the device's own.
     /// A failure of the layer's own object of `kind` (`what` says what failed): WARN the first
     /// time on this device, then only counted (the feature tries again at its next use, which
     /// under a persistent failure is every pass).
@@ -114,6 +112,8 @@ impl DeviceState {
             tracing::warn!("{kind}: {what} (repeats are counted, not logged)");
         }
     }
+    /// The live settings (the OpenXR half re-reads a changed config file between frames), else
+    /// the device's own.
     pub fn settings(&self) -> Arc<crate::plugin::settings::Settings> {
         crate::plugin::settings::current().unwrap_or_else(|| self.settings.clone())
     }

@@ -622,7 +622,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_clear_depth_stencil_image(
 
 // ---------------------------------------------------------------------------------------------
 // State the layer cannot restore: shader objects, vertex input, the app's own shading rate and
-// extended dynamic state 3. Recorded as a veto on the command buffer (`vk::inject`); the command
+// extended dynamic state 3. Recorded as a veto on the command buffer (`vk::chassis`); the command
 // goes down unchanged.
 
 /// Hooks for commands that veto injections: call down through `ExtFns`, mark the command buffer.

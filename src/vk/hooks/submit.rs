@@ -1,11 +1,11 @@
 //! Queue submissions: before the app's command buffers go down the features refresh and apply
 //! what their recordings hold (`VkFeature::before_submit`); after they went down, submissions
-//! that carried held recordings are tracked to completion (`vk::lifetime`). The submission goes
+//! that carried held recordings are tracked to completion (`plugin::vk::lifetime`). The submission goes
 //! down with the layer's own command buffers added to the app's batches, everything else about
 //! them (semaphores, fence, pNext) passed on as it came: the features' one-time set-up work
 //! (`VkFeature::queue_submitting`) at the head of the first batch, and with `stats.gpu_time` on
 //! the GPU timer's two command buffers first in the first batch and last in the last
-//! (`vk::gpu_time`).
+//! (`plugin::vk::gpu_time`).
 
 use crate::plugin::vk::gpu_time::{self, Bracket};
 use crate::plugin::vk::{convert, lifetime, secondary, DeviceState};

@@ -32,7 +32,7 @@ pub(super) fn take_pooled(d: &DeviceState, shape: (u32, u32, u32)) -> Option<Rat
 }
 
 impl Drop for SubmissionMap {
-    /// The recording is done (its submissions completed: `vk::lifetime`): its image can serve
+    /// The recording is done (its submissions completed: `plugin::vk::lifetime`): its image can serve
     /// another.
     fn drop(&mut self) {
         if let Some(img) = self.image.take() {

@@ -16,7 +16,7 @@
 //! upload itself, before its pass (a small buffer-to-image copy behind a barrier that waits for
 //! earlier passes' reads), so whichever command buffer runs first, and a command buffer recorded
 //! once and resubmitted, always finds the map it was recorded with. Images and staging buffers
-//! are held by the recordings that use them (`vk::lifetime`); the caches keep only the current
+//! are held by the recordings that use them (`plugin::vk::lifetime`); the caches keep only the current
 //! generations'.
 
 use crate::features::foveation::FoveationSettings;

@@ -33,7 +33,7 @@ pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 /// The size of one `VkDrawIndirectCommand`: injected draws read their arguments from the
-/// recording's own buffer (`vk::lifetime::PooledBuffer`), so resubmissions draw current data.
+/// recording's own buffer (`plugin::vk::lifetime::PooledBuffer`), so resubmissions draw current data.
 pub(crate) const DRAW_ARGS: u64 = std::mem::size_of::<vk::DrawIndirectCommand>() as u64;
 
 /// The indirect draws a feature's recording keeps at the head of its own buffer, ahead of its

@@ -1,5 +1,5 @@
 //! When an injection point is reached and whether it counts: the pure state machine behind
-//! `vk::inject::on_trigger`. A pass counts once — at its beginning, or, when it loads its depth,
+//! `vk::chassis::on_trigger`. A pass counts once — at its beginning, or, when it loads its depth,
 //! at its first depth clear or (uncleared) at its end; resumed and suspended dynamic renderings
 //! count once over all their parts.
 #![forbid(unsafe_code)]
