@@ -127,6 +127,24 @@ mod config_tests;
 mod tests {
     use super::*;
     use crate::core::config::Inputs;
+    use crate::plugin::vk::feature::VkFeature;
+
+    /// Each feature finds its own device object by type among the registry's (`RdmDevice::of`):
+    /// through the trait object, never the box around it.
+    #[test]
+    fn every_device_object_is_found_by_type() {
+        let (c, _) = Config::resolve(&Inputs { keys: keys(), file: None, app_names: &[], env: &|_| None });
+        let s = Settings::from_config(&c);
+        let init = DeviceInit { settings: &s, memory: Default::default(), rates: None, set_loader_data: None, software: true };
+        let f = device_features(&init);
+        let ids: Vec<&str> = f.all().iter().map(|f| f.id()).collect();
+        assert_eq!(ids, ["mask", "rdm", "vrs", "far_field", "screenshot"]);
+        assert_eq!(f.get::<mask::vk::MaskDevice>().id(), "mask");
+        assert_eq!(f.get::<foveation::rdm::vk::RdmDevice>().id(), "rdm");
+        assert_eq!(f.get::<foveation::vrs::vk::VrsDevice>().id(), "vrs");
+        assert_eq!(f.get::<far_field::vk::FarFieldDevice>().id(), "far_field");
+        assert_eq!(f.get::<screenshot::vk::ScreenshotDevice>().id(), "screenshot");
+    }
 
     #[test]
     fn parsed_once_from_the_config() {

@@ -40,7 +40,7 @@ impl Parts {
         self
     }
     pub fn get<T: Part>(&self) -> Option<&T> {
-        self.0.iter().find(|(t, _)| *t == TypeId::of::<T>()).and_then(|(_, p)| p.as_any().downcast_ref())
+        self.0.iter().find(|(t, _)| *t == TypeId::of::<T>()).and_then(|(_, p)| p.as_ref().as_any().downcast_ref())
     }
 }
 

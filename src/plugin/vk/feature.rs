@@ -23,7 +23,6 @@
 
 use super::inject::{Awaiting, Injection};
 use super::DeviceState;
-use std::any::TypeId;
 use crate::core::pass::NotMasked;
 use crate::core::stats::FeatureStats;
 use crate::plugin::settings::Settings;
@@ -62,7 +61,8 @@ impl DeviceFeatures {
     pub(crate) fn get<T: VkFeature + 'static>(&self) -> &T {
         self.0
             .iter()
-            .find_map(|f| (f.as_any().type_id() == TypeId::of::<T>()).then(|| f.as_any().downcast_ref::<T>()).flatten())
+            // `as_ref` first: `AsAny` is implemented for the `Box` too, whose `Any` is the box's.
+            .find_map(|f| f.as_ref().as_any().downcast_ref::<T>())
             .unwrap_or_else(|| panic!("no {} on the device: the feature is not registered", std::any::type_name::<T>()))
     }
 }
