@@ -9,6 +9,7 @@ use crate::plugin::vk::{convert, lifetime, DeviceState};
 use super::{cmd, hook, hook_decided, state};
 use crate::core::rect::PixelRect;
 use crate::track::cmd::{PassKind, StateCmd};
+use crate::track::eye_pass::TransferRegion;
 use ash::vk::{self, Handle};
 use std::ffi::c_void;
 
@@ -402,7 +403,7 @@ pub(in crate::vk) unsafe extern "system" fn cmd_bind_vertex_buffers2(
 
 /// A copy / resolve / blit: learned for intermediate eye targets while anything injects, and
 /// raised to the features.
-fn transfer(d: &DeviceState, cb: vk::CommandBuffer, src: vk::Image, dst: vk::Image, regions: Vec<crate::track::eye_pass::TransferRegion>) {
+fn transfer(d: &DeviceState, cb: vk::CommandBuffer, src: vk::Image, dst: vk::Image, regions: Vec<TransferRegion>) {
     if crate::vk::chassis::any_injects(d, &d.settings()) {
         d.track.record_transfer(crate::bridge::shared(), src.as_raw(), dst.as_raw(), &regions);
     }
@@ -444,6 +445,87 @@ fn pass_begun(d: &DeviceState, cb: vk::CommandBuffer, secondary: bool) {
     }
 }
 
+/// A region of any version of the copy, resolve and blit commands, as the trackers take it (a
+/// blit that mirrors or has no area gives none).
+trait Region {
+    fn region(&self) -> Option<TransferRegion>;
+}
+
+/// Copies and resolves (both versions) have the same fields; this makes the one `ImageCopy` the
+/// conversion reads.
+macro_rules! copy_like_region {
+    ($($ty:ty),*) => {$(
+        impl Region for $ty {
+            fn region(&self) -> Option<TransferRegion> {
+                let r = self;
+                Some(convert::copy_region(&vk::ImageCopy { src_subresource: r.src_subresource, src_offset: r.src_offset, dst_subresource: r.dst_subresource, dst_offset: r.dst_offset, extent: r.extent }))
+            }
+        }
+    )*};
+}
+copy_like_region!(vk::ImageCopy, vk::ImageCopy2<'_>, vk::ImageResolve, vk::ImageResolve2<'_>);
+
+impl Region for vk::ImageBlit {
+    fn region(&self) -> Option<TransferRegion> {
+        convert::blit_region(self.src_subresource, self.src_offsets, self.dst_subresource, self.dst_offsets)
+    }
+}
+
+impl Region for vk::ImageBlit2<'_> {
+    fn region(&self) -> Option<TransferRegion> {
+        convert::blit_region(self.src_subresource, self.src_offsets, self.dst_subresource, self.dst_offsets)
+    }
+}
+
+/// The `VkCopyImageInfo2` family: the images and the regions of a version-2 transfer.
+trait Info2 {
+    type Region: Region;
+    fn images(&self) -> (vk::Image, vk::Image);
+    /// # Safety
+    /// `self` is the app's valid info, with a valid region array.
+    unsafe fn regions(&self) -> &[Self::Region];
+}
+
+macro_rules! info2 {
+    ($($info:ident => $region:ident),*) => {$(
+        impl<'a> Info2 for vk::$info<'a> {
+            type Region = vk::$region<'a>;
+            fn images(&self) -> (vk::Image, vk::Image) {
+                (self.src_image, self.dst_image)
+            }
+            unsafe fn regions(&self) -> &[vk::$region<'a>] {
+                // SAFETY: per the contract.
+                unsafe { convert::slice(self.p_regions, self.region_count) }
+            }
+        }
+    )*};
+}
+info2!(CopyImageInfo2 => ImageCopy2, ResolveImageInfo2 => ImageResolve2, BlitImageInfo2 => ImageBlit2);
+
+/// The version-1 transfer hooks after the call went down: `n` regions at `regions`.
+///
+/// # Safety
+/// `regions` is the app's valid array of `n` regions.
+unsafe fn transferred<R: Region>(d: &DeviceState, cb: vk::CommandBuffer, src: vk::Image, dst: vk::Image, regions: *const R, n: u32) {
+    // SAFETY: per the contract.
+    let regions = unsafe { convert::slice(regions, n) }.iter().filter_map(Region::region).collect();
+    transfer(d, cb, src, dst, regions)
+}
+
+/// `vkCmdCopyImage2`, `vkCmdResolveImage2` and `vkCmdBlitImage2` alike: the call goes down
+/// unchanged, then the transfer is tracked.
+///
+/// # Safety
+/// `info` is the app's valid info, valid during the call.
+unsafe fn transfer2<I: Info2>(call: &'static str, cb: vk::CommandBuffer, info: *const I, down: impl Fn(&DeviceState)) {
+    cmd(call, cb, (), down, |d, _| {
+        // SAFETY: a valid info with a valid region array (the contract).
+        let (i, regions) = unsafe { (&*info, (*info).regions()) };
+        let (src, dst) = i.images();
+        transfer(d, cb, src, dst, regions.iter().filter_map(Region::region).collect())
+    })
+}
+
 pub(in crate::vk) unsafe extern "system" fn cmd_copy_image(
     cb: vk::CommandBuffer,
     src: vk::Image,
@@ -460,21 +542,13 @@ pub(in crate::vk) unsafe extern "system" fn cmd_copy_image(
         // SAFETY: forwarding the app's arguments unchanged.
         |d| unsafe { (d.fns.fp_v1_0().cmd_copy_image)(cb, src, src_layout, dst, dst_layout, n, regions) },
         // SAFETY: the region array is valid with its count.
-        |d, _| transfer(d, cb, src, dst, unsafe { convert::slice(regions, n) }.iter().map(convert::copy_region).collect()),
+        |d, _| unsafe { transferred(d, cb, src, dst, regions, n) },
     )
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_copy_image2(cb: vk::CommandBuffer, info: *const vk::CopyImageInfo2<'_>) {
-    // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdCopyImage2", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_copy_image2)(cb, info) }, |d, _| {
-        // SAFETY: a valid info with a valid region array.
-        let (i, regions) = unsafe { (&*info, convert::slice((*info).p_regions, (*info).region_count)) };
-        let regions = regions
-            .iter()
-            .map(|r| convert::copy_region(&vk::ImageCopy { src_subresource: r.src_subresource, src_offset: r.src_offset, dst_subresource: r.dst_subresource, dst_offset: r.dst_offset, extent: r.extent }))
-            .collect();
-        transfer(d, cb, i.src_image, i.dst_image, regions)
-    })
+    // SAFETY: forwarding the app's valid info unchanged.
+    unsafe { transfer2("vkCmdCopyImage2", cb, info, |d| (d.fns.fp_v1_3().cmd_copy_image2)(cb, info)) }
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_resolve_image(
@@ -492,28 +566,14 @@ pub(in crate::vk) unsafe extern "system" fn cmd_resolve_image(
         (),
         // SAFETY: forwarding the app's arguments unchanged.
         |d| unsafe { (d.fns.fp_v1_0().cmd_resolve_image)(cb, src, src_layout, dst, dst_layout, n, regions) },
-        |d, _| {
-            // SAFETY: the region array is valid with its count.
-            let regions = unsafe { convert::slice(regions, n) }
-                .iter()
-                .map(|r| convert::copy_region(&vk::ImageCopy { src_subresource: r.src_subresource, src_offset: r.src_offset, dst_subresource: r.dst_subresource, dst_offset: r.dst_offset, extent: r.extent }))
-                .collect();
-            transfer(d, cb, src, dst, regions)
-        },
+        // SAFETY: the region array is valid with its count.
+        |d, _| unsafe { transferred(d, cb, src, dst, regions, n) },
     )
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_resolve_image2(cb: vk::CommandBuffer, info: *const vk::ResolveImageInfo2<'_>) {
-    // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdResolveImage2", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_resolve_image2)(cb, info) }, |d, _| {
-        // SAFETY: a valid info with a valid region array.
-        let (i, regions) = unsafe { (&*info, convert::slice((*info).p_regions, (*info).region_count)) };
-        let regions = regions
-            .iter()
-            .map(|r| convert::copy_region(&vk::ImageCopy { src_subresource: r.src_subresource, src_offset: r.src_offset, dst_subresource: r.dst_subresource, dst_offset: r.dst_offset, extent: r.extent }))
-            .collect();
-        transfer(d, cb, i.src_image, i.dst_image, regions)
-    })
+    // SAFETY: forwarding the app's valid info unchanged.
+    unsafe { transfer2("vkCmdResolveImage2", cb, info, |d| (d.fns.fp_v1_3().cmd_resolve_image2)(cb, info)) }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -533,28 +593,14 @@ pub(in crate::vk) unsafe extern "system" fn cmd_blit_image(
         (),
         // SAFETY: forwarding the app's arguments unchanged.
         |d| unsafe { (d.fns.fp_v1_0().cmd_blit_image)(cb, src, src_layout, dst, dst_layout, n, regions, filter) },
-        |d, _| {
-            // SAFETY: the region array is valid with its count.
-            let regions = unsafe { convert::slice(regions, n) }
-                .iter()
-                .filter_map(|r| convert::blit_region(r.src_subresource, r.src_offsets, r.dst_subresource, r.dst_offsets))
-                .collect();
-            transfer(d, cb, src, dst, regions)
-        },
+        // SAFETY: the region array is valid with its count.
+        |d, _| unsafe { transferred(d, cb, src, dst, regions, n) },
     )
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_blit_image2(cb: vk::CommandBuffer, info: *const vk::BlitImageInfo2<'_>) {
-    // SAFETY: forwarding the app's arguments unchanged.
-    cmd("vkCmdBlitImage2", cb, (), |d| unsafe { (d.fns.fp_v1_3().cmd_blit_image2)(cb, info) }, |d, _| {
-        // SAFETY: a valid info with a valid region array.
-        let (i, regions) = unsafe { (&*info, convert::slice((*info).p_regions, (*info).region_count)) };
-        let regions = regions
-            .iter()
-            .filter_map(|r| convert::blit_region(r.src_subresource, r.src_offsets, r.dst_subresource, r.dst_offsets))
-            .collect();
-        transfer(d, cb, i.src_image, i.dst_image, regions)
-    })
+    // SAFETY: forwarding the app's valid info unchanged.
+    unsafe { transfer2("vkCmdBlitImage2", cb, info, |d| (d.fns.fp_v1_3().cmd_blit_image2)(cb, info)) }
 }
 
 pub(in crate::vk) unsafe extern "system" fn cmd_clear_attachments(
