@@ -1,9 +1,10 @@
 //! The eye decision: which eyes a pass's attachment shows, and which source of that knowledge
 //! wins, in order. A swapchain image shows what `xrEndFrame` published (unless the walk saw it
-//! written by a post pass); otherwise what the data-flow walk traced (fresh at a submission, never
-//! a rect that keeps changing), then a 1:1 transfer into a swapchain image (an intermediate eye
-//! target), then `eyes.fallback = size` (by size and order in the frame). Every outcome that
-//! teaches something is logged once per image.
+//! written by a post pass). Any other image: a post pass's target as the walk last saw it; else a
+//! 1:1 transfer into a swapchain image (an intermediate eye target); else, or when the transfer
+//! does not qualify, what the data-flow walk traced (fresh at a submission, never a rect that
+//! keeps changing); else `eyes.fallback = size` (by size and order in the frame). Every outcome
+//! that teaches something is logged once per image.
 
 use super::cmd::AttachmentUse;
 use super::eye_pass::{self, EyeSource, Eyes, Learned};
