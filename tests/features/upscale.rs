@@ -195,6 +195,28 @@ fn with_every_other_feature() {
     }
 }
 
+/// The app destroys its swapchains while its last frame's work still runs (Bevy at exit), with
+/// validation on: the layer's app-facing images go only after that work, and the layers above it
+/// see them retired (a wait on the layer's own upscales alone left validation reporting
+/// `VUID-vkDestroyImage-image-01000`, and the driver freeing images still being drawn).
+#[test]
+fn swapchains_destroyed_with_work_in_flight() {
+    // `--record-once`: xr-scene then leaves its frames in flight instead of waiting for each.
+    for args in [&["--teardown", "in-flight", "--record-once"][..], &["--teardown", "in-flight", "--record-once", "--post", "tonemap"]] {
+        let label = args.join(" ");
+        // Validation through `VK_INSTANCE_LAYERS`, above the layer as developers enable it: it
+        // sees the app's work and the layer's destruction of the app-facing images, not the
+        // layer's own waits.
+        let base = Run::new("upscale-in-flight-native").with_layer().args(args.iter().copied()).env("MOCK_XR_EXIT_AFTER", "3").env("VK_INSTANCE_LAYERS", "VK_LAYER_KHRONOS_validation");
+        let native = base.run();
+        native.assert_ok();
+        let on = upscaled(base, "upscale-in-flight", "easu_rcas").run();
+        on.assert_ok();
+        assert!(!on.log_lines("the runtime shows").is_empty(), "{label}: no swapchain was interposed");
+        assert!(on.log_lines("waiting for the session's queue").is_empty(), "{label}: {}", on.log);
+    }
+}
+
 /// The runtime failing its own (display-size) swapchain: the app gets the runtime's error.
 #[test]
 fn the_runtimes_swapchain_failure_reaches_the_app() {

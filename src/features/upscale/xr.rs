@@ -698,11 +698,31 @@ pub(crate) fn frame_end(s: &Session, info: &xr::FrameEndInfo, scs: &[Interposing
 
 /// Destroys an interposed swapchain's objects (before the runtime's swapchain goes down).
 pub(crate) fn destroy(s: &Session, i: &Interposed) {
+    // The app-facing images are the layer's, and the app may still have work in flight on them:
+    // the spec asks it to finish first, but apps do not always (Bevy leaves its last frame's
+    // submissions running when it drops the swapchain at exit), and runtimes tolerate it by
+    // waiting on the session's queue. The layer waits the same way, through the app's level, so
+    // that the layers above (validation among them) see the work retired before the images go;
+    // a wait only on the layer's own fences would leave them counting the images as in use.
+    // Taken outside the feature's lock: the wait may be long.
+    let top = {
+        let g = lock(&up(s).gpu);
+        let Some(g) = g.as_ref() else { return };
+        if !crate::plugin::vk::device_is_live(&g.device) {
+            return;
+        }
+        (g.top.device.clone(), g.top.family, g.top.queue_index)
+    };
+    let (device, family, queue_index) = top;
+    // SAFETY: the session's live device and queue at the app's level. xrDestroySwapchain is not
+    // among the calls in which XR_KHR_vulkan_enable hands the runtime the queue, so an app
+    // submitting on it from another thread during this call would race the wait; runtimes wait
+    // here all the same (the mock runtime on this queue), and no app is known to do that.
+    if let Err(e) = unsafe { device.queue_wait_idle(device.get_device_queue(family, queue_index)) } {
+        tracing::warn!("upscale: waiting for the session's queue before destroying swapchain images failed ({e}); the layer waits for its own upscales only");
+    }
     let g = lock(&up(s).gpu);
     let Some(g) = g.as_ref() else { return };
-    if !crate::plugin::vk::device_is_live(&g.device) {
-        return;
-    }
     g.slots.wait_all(&g.device);
     // SAFETY: the objects are idle (waited above); `top` is the app-level table of their device.
     unsafe { lock(&i.target).destroy(&g.device, &g.top.device) };

@@ -139,6 +139,8 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
     // `--record-once` that is when its frame set is needed again, or at the end).
     let mut xr_us: std::collections::HashMap<u64, stats::CallTimes> = std::collections::HashMap::new();
 
+    // What the last frame drew with (`--teardown in-flight` draws it once more).
+    let mut last_uniforms = None;
     loop {
         if xs.poll_events(&xri.instance, &mut || pacer.stop())? == xr::Flow::Exit {
             break;
@@ -190,6 +192,7 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
             }
             let uniforms = frame_uniforms(&assumed(opts, &views), reversed, opts.animate, opts.far_movers, frame);
             let finished = renderer.render(gpu, &targets, &acquired, &uniforms, frame)?;
+            last_uniforms = Some(uniforms);
             for slot in &mut targets.slots {
                 calls.time("xrReleaseSwapchainImage", || slot.color.swapchain.release_image()).ctx("xrReleaseSwapchainImage")?;
                 if let Some(d) = &mut slot.depth {
@@ -215,6 +218,18 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
             renderer = renderer::Renderer::new(&sized, gpu, &targets)?;
         }
     }
+    // `--teardown in-flight`: one more frame drawn into the swapchains, which go before anything
+    // waits for it.
+    let early = match (opts.teardown, &last_uniforms) {
+        (cli::Teardown::InFlight, Some(u)) => match in_flight_frame(gpu, &mut targets, &mut renderer, u, frame) {
+            Ok(finished) => {
+                push_stats(stats, &mut xr_us, finished)?;
+                targets.destroy_swapchains_in_flight().err()
+            }
+            Err(e) => Some(e),
+        },
+        _ => None,
+    };
     // Frames still in flight (`--record-once`) are measured before anything is torn down.
     let finished = renderer.finish()?;
     push_stats(stats, &mut xr_us, finished)?;
@@ -240,10 +255,32 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
             xs.leave();
             vec![]
         }
-        cli::Teardown::Instance => vec![targets.destroy(), xs.destroy()],
+        cli::Teardown::Instance | cli::Teardown::InFlight => vec![targets.destroy(), xs.destroy()],
     };
-    let errors: Vec<String> = results.into_iter().filter_map(|r| r.err().map(|e| e.0)).collect();
+    let errors: Vec<String> = early.into_iter().map(|e| e.0).chain(results.into_iter().filter_map(|r| r.err().map(|e| e.0))).collect();
     Ok((frame, errors))
+}
+
+/// `--teardown in-flight`: after the session's last frame, one more is begun as an engine that
+/// renders ahead does (Bevy): images acquired and drawn into, its work submitted, and then
+/// neither released nor ended, so that it may still run when the swapchains are destroyed.
+/// Returns the frames whose GPU work finished meanwhile.
+fn in_flight_frame(gpu: &gpu::Gpu, targets: &mut targets::Targets, renderer: &mut renderer::Renderer, uniforms: &renderer::FrameUniforms, frame: u64) -> Result<Vec<renderer::FrameResult>> {
+    let mut acquired = Vec::new();
+    for slot in &mut targets.slots {
+        let color = slot.color.swapchain.acquire_image().ctx("xrAcquireSwapchainImage")?;
+        slot.color.swapchain.wait_image(oxr::Duration::INFINITE).ctx("xrWaitSwapchainImage")?;
+        let depth = match &mut slot.depth {
+            Some(d) => {
+                let i = d.swapchain.acquire_image().ctx("xrAcquireSwapchainImage(depth)")?;
+                d.swapchain.wait_image(oxr::Duration::INFINITE).ctx("xrWaitSwapchainImage(depth)")?;
+                Some(i)
+            }
+            None => None,
+        };
+        acquired.push(renderer::Acquired { color, depth });
+    }
+    renderer.render(gpu, targets, &acquired, uniforms, frame)
 }
 
 /// Adds the measurements of frames whose GPU work finished to `--stats`.

@@ -204,6 +204,9 @@ pub struct Targets {
     pub color_format: vk::Format,
     pub depth_format: vk::Format,
     pub samples: vk::SampleCountFlags,
+    /// The XR swapchains were destroyed with the frame's work in flight
+    /// (`destroy_swapchains_in_flight`): only the Vulkan objects are left.
+    swapchains_gone: bool,
 }
 
 /// What `push_slot` makes: the swapchain's size and layers, the eye pass's target's, and each
@@ -242,6 +245,7 @@ impl Targets {
             color_format: vk::Format::UNDEFINED,
             depth_format: vk::Format::UNDEFINED,
             samples: vk::SampleCountFlags::from_raw(opts.samples),
+            swapchains_gone: false,
         };
         t.build(opts, gpu, xri, xs)?;
         Ok(t)
@@ -523,6 +527,10 @@ impl Targets {
     /// `xrDestroySession` or `xrDestroyInstance` to destroy with their parent (`--teardown`).
     pub fn leave_swapchains(mut self) {
         self.destroy_vulkan_objects();
+        self.leave_swapchains_now();
+    }
+
+    fn leave_swapchains_now(&mut self) {
         for slot in std::mem::take(&mut self.slots) {
             for chain in std::iter::once(slot.color).chain(slot.depth) {
                 // Forgotten: its `Drop` would destroy it.
@@ -531,8 +539,32 @@ impl Targets {
         }
     }
 
+    /// `--teardown in-flight`: each XR swapchain is destroyed at once, while the last frames'
+    /// GPU work may still use its images (nothing is waited for), as Bevy does at exit. The
+    /// spec asks the app to finish that work first; runtimes tolerate it by waiting themselves.
+    /// The Vulkan objects go later, with `destroy`.
+    pub fn destroy_swapchains_in_flight(&mut self) -> Result<()> {
+        let mut errors = Vec::new();
+        for slot in &self.slots {
+            for chain in std::iter::once(&slot.color).chain(&slot.depth) {
+                // SAFETY: the app's own swapchain, destroyed once (`swapchains_gone` keeps
+                // `destroy` and `Drop` from destroying it again).
+                let r = unsafe { (chain.swapchain.instance().fp().destroy_swapchain)(chain.swapchain.as_raw()) };
+                if let Err(e) = crate::error::check(r, "xrDestroySwapchain") {
+                    errors.push(e.0);
+                }
+            }
+        }
+        self.swapchains_gone = true;
+        if errors.is_empty() { Ok(()) } else { crate::error::fail(errors.join("; ")) }
+    }
+
     pub fn destroy(mut self) -> Result<()> {
         self.destroy_vulkan_objects();
+        if self.swapchains_gone {
+            self.leave_swapchains_now();
+            return Ok(());
+        }
         let mut errors = Vec::new();
         for slot in std::mem::take(&mut self.slots) {
             for chain in std::iter::once(slot.color).chain(slot.depth) {
@@ -584,5 +616,8 @@ impl Drop for Targets {
     /// `slots` drops, after their views.
     fn drop(&mut self) {
         self.destroy_vulkan_objects();
+        if self.swapchains_gone {
+            self.leave_swapchains_now();
+        }
     }
 }

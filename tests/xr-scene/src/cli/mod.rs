@@ -82,7 +82,8 @@ pub enum Sky {
     Clear,
 }
 
-/// How a session and its instance are torn down (`--teardown`): every order OpenXR allows.
+/// How a session and its instance are torn down (`--teardown`): every order OpenXR allows, and
+/// one it does not that apps use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Teardown {
     /// Children first: swapchains, session, the Vulkan device, the XR instance.
@@ -92,6 +93,11 @@ pub enum Teardown {
     /// `xrDestroyInstance` with its session and swapchains alive (the last session only), and the
     /// Vulkan device destroyed after the XR instance.
     Instance,
+    /// Children first, but after the last frame one more is drawn into newly acquired images,
+    /// neither released nor ended, and the swapchains are destroyed while its work may still run;
+    /// the app waits for its device only afterwards (Bevy at exit, rendering ahead). Outside what
+    /// the spec allows the app; what a runtime, and a layer, must survive.
+    InFlight,
 }
 
 /// The post-processing chain between the eye pass and the swapchain (`--post`), as engines record
@@ -297,7 +303,8 @@ struct Args {
     secondary: bool,
     /// Destroy swapchains, then the session, the Vulkan device and the XR instance (children);
     /// leave the swapchains to xrDestroySession (session); or leave the last session and its
-    /// swapchains to xrDestroyInstance, destroying the Vulkan device after it (instance).
+    /// swapchains to xrDestroyInstance, destroying the Vulkan device after it (instance); or
+    /// destroy the swapchains while one more frame's work may still run (in-flight).
     #[arg(long, value_enum, default_value_t = Teardown::Children)]
     teardown: Teardown,
     /// xrWaitFrame on a frame-pacing thread (the next frame's wait overlapping this frame), each
@@ -617,12 +624,13 @@ mod tests {
         assert!(p(&["--secondary", "--bind-before-pass"]).is_err());
     }
 
-    /// `--teardown`: the three orders, nothing else.
+    /// `--teardown`: the four orders, nothing else.
     #[test]
     fn teardown_orders() {
         assert_eq!(p(&[]).unwrap().unwrap().teardown, Teardown::Children);
         assert_eq!(p(&["--teardown", "session"]).unwrap().unwrap().teardown, Teardown::Session);
         assert_eq!(p(&["--teardown=instance"]).unwrap().unwrap().teardown, Teardown::Instance);
+        assert_eq!(p(&["--teardown", "in-flight"]).unwrap().unwrap().teardown, Teardown::InFlight);
         assert!(p(&["--teardown", "device"]).is_err());
     }
 
