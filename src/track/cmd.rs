@@ -89,6 +89,11 @@ pub enum StateCmd {
     /// `vkCmdBindDescriptorSets(GRAPHICS)`. Restored only after an injection that bound sets of
     /// its own (the layer's pipelines so far use none, which disturbs nothing).
     BindDescriptorSets { layout: u64, first: u32, sets: Vec<u64>, dynamic_offsets: Vec<u32> },
+    /// Extended dynamic state 3 and vertex input dynamic state (`track::ext_state`).
+    Ext(super::ext_state::ExtState),
+    /// `vkCmdBindShadersEXT`: shader objects bound per stage (a null handle unbinds). Not dynamic
+    /// state: binding a pipeline unbinds them, so the layer's pipeline needs them rebound.
+    BindShaders { stages: Vec<vk::ShaderStageFlags>, shaders: Vec<u64> },
 }
 
 /// One vertex buffer binding slot as the app set it.
@@ -110,7 +115,12 @@ impl StateCmd {
     pub fn dynamic_state(&self) -> Option<vk::DynamicState> {
         use vk::DynamicState as D;
         Some(match self {
-            StateCmd::BindPipeline(_) | StateCmd::PushConstants { .. } | StateCmd::BindVertexBuffers { .. } | StateCmd::BindDescriptorSets { .. } => return None,
+            StateCmd::BindPipeline(_)
+            | StateCmd::PushConstants { .. }
+            | StateCmd::BindVertexBuffers { .. }
+            | StateCmd::BindDescriptorSets { .. }
+            | StateCmd::BindShaders { .. } => return None,
+            StateCmd::Ext(e) => e.dynamic_state(),
             StateCmd::SetViewport { .. } => D::VIEWPORT,
             StateCmd::SetViewportWithCount(_) => D::VIEWPORT_WITH_COUNT,
             StateCmd::SetScissor { .. } => D::SCISSOR,
@@ -139,6 +149,15 @@ impl StateCmd {
             StateCmd::LogicOp(_) => D::LOGIC_OP_EXT,
             StateCmd::PatchControlPoints(_) => D::PATCH_CONTROL_POINTS_EXT,
         })
+    }
+
+    /// What tells apart values of one dynamic state kept side by side: the colour attachment of
+    /// a per-attachment state (stencil faces are split by `face`).
+    fn attachment(&self) -> u32 {
+        match self {
+            StateCmd::Ext(e) => e.attachment(),
+            _ => 0,
+        }
     }
 
     fn face(&self) -> Option<vk::StencilFaceFlags> {
@@ -285,9 +304,15 @@ pub struct CmdState {
     /// from that clear.
     pub depth_image_clears: Vec<(u64, f32)>,
     /// The first command the app recorded whose state the layer cannot restore after an injected
-    /// draw (shader objects, vertex input, shading rate, extended dynamic state 3): injections
-    /// into this command buffer are vetoed (`vk::chassis`).
+    /// draw (the app's own shading rate, NVIDIA's extended dynamic state 3 commands, attachment
+    /// remapping of `VK_KHR_dynamic_rendering_local_read`): injections into this command buffer
+    /// are vetoed (`vk::chassis`).
     pub veto: Option<&'static str>,
+    /// Shader objects bound per stage (`vkCmdBindShadersEXT`; null: bound as none), in the order
+    /// first bound; cleared by binding a graphics pipeline, which unbinds them.
+    shaders: Vec<(vk::ShaderStageFlags, u64)>,
+    /// Shader objects, not a pipeline, are what draws use now.
+    shader_objects: bool,
     /// Descriptor set bindings still in effect, oldest first (a bind fully covered by a later
     /// one of the same sets is dropped).
     descriptor_sets: Vec<StateCmd>,
@@ -384,6 +409,15 @@ impl CmdState {
                 self.scissor_count = Some(s.len() as u32);
             }
             StateCmd::BindDescriptorSets { .. } => keep_binding(&mut self.descriptor_sets, cmd),
+            StateCmd::BindShaders { stages, shaders } => {
+                for (stage, shader) in stages.into_iter().zip(shaders) {
+                    match self.shaders.iter_mut().find(|(s, _)| *s == stage) {
+                        Some(slot) => slot.1 = shader,
+                        None => self.shaders.push((stage, shader)),
+                    }
+                }
+                self.shader_objects = true;
+            }
             StateCmd::PushConstants { layout, stages, offset, ref data } => {
                 let end = offset + data.len() as u32;
                 self.push_constants.retain(|p| match p {
@@ -408,7 +442,7 @@ impl CmdState {
                         }
                     }
                     None => {
-                        self.dynamic.insert((ds, 0), other);
+                        self.dynamic.insert((ds, other.attachment()), other);
                     }
                 }
             }
@@ -437,6 +471,8 @@ impl CmdState {
         }
         self.pipeline_handle = Some(handle);
         self.pipeline = pipeline;
+        self.shaders.clear();
+        self.shader_objects = false;
     }
 
     /// `vkCmdExecuteCommands`: afterwards the primary's bound pipeline and dynamic state are
@@ -506,6 +542,13 @@ impl CmdState {
     /// Whether a draw now would test depth: the bound pipeline's depth test (or its dynamic
     /// value), a compare op of ALWAYS counting as no test. None for an untracked pipeline.
     pub fn depth_tested(&self) -> Option<bool> {
+        if self.shader_objects {
+            // Shader objects take every state from the command buffer: the app set both.
+            return match (self.dynamic.get(&(vk::DynamicState::DEPTH_TEST_ENABLE.as_raw(), 0)), self.dynamic.get(&(vk::DynamicState::DEPTH_COMPARE_OP.as_raw(), 0))) {
+                (Some(StateCmd::DepthTestEnable(e)), Some(StateCmd::DepthCompareOp(op))) => Some(*e && *op != vk::CompareOp::ALWAYS),
+                _ => None,
+            };
+        }
         let p = self.pipeline.as_ref()?;
         let dynamic = |ds: vk::DynamicState| if p.is_dynamic(ds) { self.dynamic.get(&(ds.as_raw(), 0)) } else { None };
         let enabled = match dynamic(vk::DynamicState::DEPTH_TEST_ENABLE) {
@@ -524,7 +567,12 @@ impl CmdState {
     /// constants in their original order.
     pub fn restore_commands(&self) -> Vec<StateCmd> {
         let mut out = Vec::new();
-        if let Some(p) = self.pipeline_handle {
+        if self.shader_objects {
+            // Every stage the app bound, null ones included: a draw with shader objects needs
+            // each stage bound, and the layer's pipeline unbound them all.
+            let (stages, shaders) = self.shaders.iter().copied().unzip();
+            out.push(StateCmd::BindShaders { stages, shaders });
+        } else if let Some(p) = self.pipeline_handle {
             out.push(StateCmd::BindPipeline(p));
         }
         restore_slots(&mut out, &self.viewports, self.viewport_count, StateCmd::SetViewportWithCount, |first, viewports| {
@@ -534,12 +582,13 @@ impl CmdState {
             StateCmd::SetScissor { first, scissors }
         });
         let mut stencil_pending: Option<StateCmd> = None;
-        for ((_, face), cmd) in &self.dynamic {
-            if *face == vk::StencilFaceFlags::FRONT.as_raw() {
+        for cmd in self.dynamic.values() {
+            let face = cmd.face();
+            if face == Some(vk::StencilFaceFlags::FRONT) {
                 stencil_pending = Some(cmd.clone());
                 continue;
             }
-            if *face == vk::StencilFaceFlags::BACK.as_raw() {
+            if face == Some(vk::StencilFaceFlags::BACK) {
                 // Front and back with equal values replay as one FRONT_AND_BACK command.
                 match stencil_pending.take() {
                     Some(front) if front.with_face(vk::StencilFaceFlags::BACK) == *cmd => {

@@ -16,6 +16,8 @@ fn pipeline(dynamic: &[vk::DynamicState]) -> Arc<GraphicsPipeline> {
         depth_write_enable: true,
         depth_compare_op: vk::CompareOp::LESS,
         dynamic_states: dynamic.to_vec(),
+        parts: vk::GraphicsPipelineLibraryFlagsEXT::empty(),
+        libraries: Vec::new(),
     })
 }
 
@@ -193,4 +195,66 @@ fn descriptor_sets_are_kept_in_order_and_covered_binds_dropped() {
     assert_eq!(s.descriptor_set_commands().len(), 1, "binding a pipeline keeps the sets");
     s.forget_graphics_state();
     assert!(s.descriptor_set_commands().is_empty());
+}
+
+#[test]
+fn extended_dynamic_state_3_and_vertex_input_are_restored_per_attachment() {
+    use crate::track::ext_state::{ExtState, VertexInputAttribute, VertexInputBinding};
+    let mut s = CmdState::default();
+    s.begin(vk::CommandBufferUsageFlags::empty());
+    let blend = |attachment, enable| StateCmd::Ext(ExtState::ColorBlendEnable { attachment, enable });
+    let mask = |attachment| StateCmd::Ext(ExtState::ColorWriteMask { attachment, mask: vk::ColorComponentFlags::RGBA });
+    let input = StateCmd::Ext(ExtState::VertexInput {
+        bindings: vec![VertexInputBinding { binding: 0, stride: 40, input_rate: vk::VertexInputRate::VERTEX, divisor: 1 }],
+        attributes: vec![VertexInputAttribute { location: 0, binding: 0, format: vk::Format::R32G32B32_SFLOAT, offset: 0 }],
+    });
+    // Set before a pipeline that has it static: that pipeline's bind overwrites it.
+    s.record(StateCmd::Ext(ExtState::DepthClampEnable(true)));
+    s.bind_pipeline(
+        3,
+        Some(pipeline(&[
+            vk::DynamicState::COLOR_BLEND_ENABLE_EXT,
+            vk::DynamicState::COLOR_WRITE_MASK_EXT,
+            vk::DynamicState::POLYGON_MODE_EXT,
+            vk::DynamicState::VERTEX_INPUT_EXT,
+        ])),
+    );
+    for c in [blend(0, true), blend(1, false), mask(0), mask(1), StateCmd::Ext(ExtState::PolygonMode(vk::PolygonMode::FILL)), input.clone()] {
+        s.record(c);
+    }
+    // A later command for attachment 1 only replaces attachment 1's value.
+    s.record(blend(1, true));
+    let restore = s.restore_commands();
+    assert_eq!(restore[0], StateCmd::BindPipeline(3));
+    assert!(restore.contains(&blend(0, true)) && restore.contains(&blend(1, true)) && !restore.contains(&blend(1, false)));
+    assert!(restore.contains(&mask(0)) && restore.contains(&mask(1)) && restore.contains(&input));
+    assert_eq!(restore.len(), 7, "pipeline, 2 blend enables, 2 write masks, polygon mode, vertex input: {restore:?}");
+    // Binding a pipeline that makes them static drops them.
+    s.bind_pipeline(4, Some(pipeline(&[vk::DynamicState::POLYGON_MODE_EXT])));
+    assert_eq!(s.restore_commands(), vec![StateCmd::BindPipeline(4), StateCmd::Ext(ExtState::PolygonMode(vk::PolygonMode::FILL))]);
+}
+
+#[test]
+fn shader_objects_are_rebound_with_every_state() {
+    let mut s = CmdState::default();
+    s.begin(vk::CommandBufferUsageFlags::empty());
+    s.bind_pipeline(9, Some(pipeline(&[])));
+    let (v, t, f) = (vk::ShaderStageFlags::VERTEX, vk::ShaderStageFlags::TESSELLATION_CONTROL, vk::ShaderStageFlags::FRAGMENT);
+    s.record(StateCmd::BindShaders { stages: vec![v, t, f], shaders: vec![11, 0, 12] });
+    s.record(StateCmd::DepthTestEnable(true));
+    // Set before the pipeline of an earlier draw would have made it static: with shader objects
+    // every state is the command buffer's.
+    s.record(StateCmd::LineWidth(1.0));
+    assert_eq!(s.depth_tested(), None, "the compare op is not set yet");
+    s.record(StateCmd::DepthCompareOp(vk::CompareOp::GREATER));
+    assert_eq!(s.depth_tested(), Some(true));
+    // The fragment shader replaced: one slot per stage, in the order first bound.
+    s.record(StateCmd::BindShaders { stages: vec![f], shaders: vec![13] });
+    let restore = s.restore_commands();
+    assert_eq!(restore[0], StateCmd::BindShaders { stages: vec![v, t, f], shaders: vec![11, 0, 13] });
+    assert_eq!(restore.len(), 4);
+    // A pipeline bound afterwards unbinds them: it is what is restored then.
+    s.bind_pipeline(9, Some(pipeline(&[])));
+    assert_eq!(s.restore_commands(), vec![StateCmd::BindPipeline(9)]);
+    assert_eq!(s.depth_tested(), Some(true), "the pipeline's own depth test");
 }

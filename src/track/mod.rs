@@ -8,6 +8,7 @@ pub mod descriptors;
 pub mod device_ext;
 pub mod eye_pass;
 pub mod eyes;
+pub mod ext_state;
 pub mod fallback;
 pub mod flow;
 pub mod resources;
@@ -123,8 +124,13 @@ impl DeviceTracker {
         Some(f(&mut state))
     }
 
-    pub fn add_pipeline(&self, p: GraphicsPipeline) {
+    /// A created graphics pipeline (or library); one linked from libraries takes their state.
+    pub fn add_pipeline(&self, mut p: GraphicsPipeline) {
         Stats::bump(&self.stats.pipelines, 1);
+        if !p.libraries.is_empty() {
+            let libs: Vec<Arc<GraphicsPipeline>> = p.libraries.iter().filter_map(|l| self.pipelines.get(*l)).collect();
+            p.link(&libs.iter().map(|l| l.as_ref()).collect::<Vec<_>>());
+        }
         self.pipelines.insert(p.handle, Arc::new(p));
     }
 

@@ -175,11 +175,46 @@ pub struct GraphicsPipeline {
     pub depth_write_enable: bool,
     pub depth_compare_op: vk::CompareOp,
     pub dynamic_states: Vec<vk::DynamicState>,
+    /// The state subsets its own create info defines (`VkGraphicsPipelineLibraryCreateInfoEXT`;
+    /// all of them for a pipeline made whole, none for a link of libraries alone).
+    pub parts: vk::GraphicsPipelineLibraryFlagsEXT,
+    /// The graphics pipeline libraries it links (`VkPipelineLibraryCreateInfoKHR`): the rest of
+    /// its state is theirs (`link`).
+    pub libraries: Vec<u64>,
 }
 
 impl GraphicsPipeline {
     pub fn is_dynamic(&self, state: vk::DynamicState) -> bool {
         self.dynamic_states.contains(&state)
+    }
+
+    /// A pipeline linked from libraries (DXVK builds nearly all its pipelines so) takes from
+    /// each library the subsets that library defines: the depth test from the one with the
+    /// fragment shader state, the rendering formats and render pass from any that has them,
+    /// and every library's dynamic states.
+    pub fn link(&mut self, libraries: &[&GraphicsPipeline]) {
+        use vk::GraphicsPipelineLibraryFlagsEXT as P;
+        for l in libraries {
+            for ds in &l.dynamic_states {
+                if !self.dynamic_states.contains(ds) {
+                    self.dynamic_states.push(*ds);
+                }
+            }
+            if l.parts.contains(P::FRAGMENT_SHADER) && !self.parts.contains(P::FRAGMENT_SHADER) {
+                self.depth_test_enable = l.depth_test_enable;
+                self.depth_write_enable = l.depth_write_enable;
+                self.depth_compare_op = l.depth_compare_op;
+            }
+            let output = l.parts.contains(P::FRAGMENT_OUTPUT_INTERFACE) && !self.parts.contains(P::FRAGMENT_OUTPUT_INTERFACE);
+            if l.rendering.is_some() && (self.rendering.is_none() || output) {
+                self.rendering = l.rendering.clone();
+            }
+            if self.render_pass == 0 && l.render_pass != 0 {
+                self.render_pass = l.render_pass;
+                self.subpass = l.subpass;
+            }
+            self.parts |= l.parts;
+        }
     }
 }
 
@@ -193,6 +228,38 @@ pub struct CommandPool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_linked_pipeline_takes_its_libraries_state() {
+        use vk::GraphicsPipelineLibraryFlagsEXT as P;
+        let part = |parts: P, dynamic: &[vk::DynamicState], depth: bool| GraphicsPipeline {
+            handle: 1,
+            render_pass: 0,
+            subpass: 0,
+            rendering: parts.contains(P::FRAGMENT_OUTPUT_INTERFACE).then(|| RenderingFormats { view_mask: 0, color: vec![vk::Format::R8G8B8A8_SRGB], depth: vk::Format::D32_SFLOAT, stencil: vk::Format::UNDEFINED }),
+            depth_test_enable: depth,
+            depth_write_enable: depth,
+            depth_compare_op: if depth { vk::CompareOp::GREATER } else { vk::CompareOp::NEVER },
+            dynamic_states: dynamic.to_vec(),
+            parts,
+            libraries: Vec::new(),
+        };
+        let vertex_input = part(P::VERTEX_INPUT_INTERFACE, &[vk::DynamicState::VERTEX_INPUT_EXT], false);
+        let raster = part(P::PRE_RASTERIZATION_SHADERS, &[vk::DynamicState::VIEWPORT_WITH_COUNT, vk::DynamicState::CULL_MODE], false);
+        let fragment = part(P::FRAGMENT_SHADER, &[vk::DynamicState::DEPTH_COMPARE_OP], true);
+        let output = part(P::FRAGMENT_OUTPUT_INTERFACE, &[vk::DynamicState::COLOR_BLEND_ENABLE_EXT], false);
+        // The link's own create info defines nothing; what it says of depth is ignored.
+        let mut linked = part(P::empty(), &[], false);
+        linked.libraries = vec![2, 3, 4, 5];
+        linked.link(&[&vertex_input, &raster, &fragment, &output]);
+        assert!(linked.depth_test_enable && linked.depth_write_enable);
+        assert_eq!(linked.depth_compare_op, vk::CompareOp::GREATER);
+        assert_eq!(linked.rendering.as_ref().map(|r| r.depth), Some(vk::Format::D32_SFLOAT));
+        for ds in [vk::DynamicState::VERTEX_INPUT_EXT, vk::DynamicState::CULL_MODE, vk::DynamicState::DEPTH_COMPARE_OP, vk::DynamicState::COLOR_BLEND_ENABLE_EXT] {
+            assert!(linked.is_dynamic(ds), "{ds:?}");
+        }
+        assert_eq!(linked.parts, P::VERTEX_INPUT_INTERFACE | P::PRE_RASTERIZATION_SHADERS | P::FRAGMENT_SHADER | P::FRAGMENT_OUTPUT_INTERFACE);
+    }
 
     #[test]
     fn remaining_layers_resolve_against_the_image() {

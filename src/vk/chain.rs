@@ -508,22 +508,24 @@ fn load_ext(gdpa: vk::PFN_vkGetDeviceProcAddr, device: vk::Device) -> ExtFns {
         cmd_set_logic_op: get(c"vkCmdSetLogicOpEXT").map(|p| unsafe { std::mem::transmute(p) }),
         // SAFETY: see above.
         cmd_set_patch_control_points: get(c"vkCmdSetPatchControlPointsEXT").map(|p| unsafe { std::mem::transmute(p) }),
-        // SAFETY: see above.
-        cmd_set_fragment_shading_rate: get(c"vkCmdSetFragmentShadingRateKHR").map(|p| unsafe { std::mem::transmute(p) }),
-        // SAFETY: see above.
-        cmd_bind_shaders: get(c"vkCmdBindShadersEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        // Loaded whole when the device has the extension's commands: those it lacks (another
+        // extension's interactions) stay ash's stubs, never called, since the app reaches a hook
+        // only for a command the next layer has.
+        eds3: get(c"vkCmdSetPolygonModeEXT").map(|_| ash::ext::extended_dynamic_state3::DeviceFn::load(|name| get(name).unwrap_or(std::ptr::null()))),
         // SAFETY: see above.
         cmd_set_vertex_input: get(c"vkCmdSetVertexInputEXT").map(|p| unsafe { std::mem::transmute(p) }),
         // SAFETY: see above.
-        cmd_set_polygon_mode: get(c"vkCmdSetPolygonModeEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        cmd_bind_shaders: get(c"vkCmdBindShadersEXT").map(|p| unsafe { std::mem::transmute(p) }),
         // SAFETY: see above.
-        cmd_set_rasterization_samples: get(c"vkCmdSetRasterizationSamplesEXT").map(|p| unsafe { std::mem::transmute(p) }),
-        // SAFETY: see above.
-        cmd_set_color_write_mask: get(c"vkCmdSetColorWriteMaskEXT").map(|p| unsafe { std::mem::transmute(p) }),
-        // SAFETY: see above.
-        cmd_set_color_blend_enable: get(c"vkCmdSetColorBlendEnableEXT").map(|p| unsafe { std::mem::transmute(p) }),
-        // SAFETY: see above.
-        cmd_set_depth_clamp_enable: get(c"vkCmdSetDepthClampEnableEXT").map(|p| unsafe { std::mem::transmute(p) }),
+        cmd_set_fragment_shading_rate: get(c"vkCmdSetFragmentShadingRateKHR").map(|p| unsafe { std::mem::transmute(p) }),
+        cmd_set_rendering_attachment_locations: get(c"vkCmdSetRenderingAttachmentLocations")
+            .or_else(|| get(c"vkCmdSetRenderingAttachmentLocationsKHR"))
+            // SAFETY: see above (the core 1.4 name and the KHR one have the same type).
+            .map(|p| unsafe { std::mem::transmute(p) }),
+        cmd_set_rendering_input_attachment_indices: get(c"vkCmdSetRenderingInputAttachmentIndices")
+            .or_else(|| get(c"vkCmdSetRenderingInputAttachmentIndicesKHR"))
+            // SAFETY: see above.
+            .map(|p| unsafe { std::mem::transmute(p) }),
         // SAFETY: see above (the core 1.4 name and the KHR one have the same type).
         cmd_push_descriptor_set: get(c"vkCmdPushDescriptorSet").or_else(|| get(c"vkCmdPushDescriptorSetKHR")).map(|p| unsafe { std::mem::transmute(p) }),
         // SAFETY: see above.

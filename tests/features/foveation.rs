@@ -41,6 +41,7 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
         (y.trim().parse().unwrap(), p.trim().parse().unwrap())
     });
     let mut base = Run::new(name).args(args.iter().copied()).pixel_stats();
+    super::mask::no_validation_for_libraries(&mut base, args);
     if gaze.is_none() {
         base = base.env("MOCK_XR_EYE_TRACKER", "0");
     }
@@ -123,6 +124,13 @@ rdm_tests! {
     side_by_side_dynamic_reverse: ["--layout", "side-by-side", "--rendering", "dynamic", "--depth", "reverse"];
     intermediate_per_eye_msaa: ["--layout", "per-eye", "--rendering", "render-pass", "--intermediate"];
     intermediate_multiview_copy: ["--layout", "multiview", "--rendering", "dynamic", "--intermediate", "--samples", "1"];
+}
+
+// State set as DXVK sets it (see tests/features/mask.rs): RDM's checkerboard and its
+// reconstruction leave the app's dynamic state and linked pipelines as they were.
+rdm_tests! {
+    dxvk_dynamic_state_library_per_eye: ["--layout", "per-eye", "--rendering", "dynamic", "--dynamic-state", "--pipeline-library", "--bind-before-pass"];
+    dxvk_dynamic_state_side_by_side: ["--layout", "side-by-side", "--rendering", "render-pass", "--dynamic-state"];
 }
 
 // Eye passes recorded into secondary command buffers (as engines do): the checkerboard goes into

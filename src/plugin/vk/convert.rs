@@ -307,17 +307,39 @@ pub unsafe fn framebuffer(handle: vk::Framebuffer, ci: &vk::FramebufferCreateInf
 }
 
 /// # Safety
-/// `ci` and everything it points to must be valid (`vkCreateGraphicsPipelines`).
+/// `ci` and everything it points to must be valid (`vkCreateGraphicsPipelines`): the pointers of
+/// the state subsets it defines; those of other subsets are never read (the spec lets them dangle).
 pub unsafe fn graphics_pipeline(handle: vk::Pipeline, ci: &vk::GraphicsPipelineCreateInfo<'_>) -> GraphicsPipeline {
-    // SAFETY: optional pointers are null or valid (caller's contract). pDepthStencilState is
-    // ignored by the spec when the pass has no depth attachment; reading it then is still fine
-    // when non-null, but it means "no depth test", which the eye-pass code resolves later.
-    let ds = unsafe { ci.p_depth_stencil_state.as_ref() };
-    // SAFETY: as above; the dynamic-state array is valid with its count.
-    let dynamic_states = unsafe {
-        ci.p_dynamic_state.as_ref().map(|d| slice(d.p_dynamic_states, d.dynamic_state_count).to_vec()).unwrap_or_default()
+    use vk::GraphicsPipelineLibraryFlagsEXT as P;
+    // SAFETY: a valid chain (caller's contract); the sTypes name these structs.
+    let (library_info, linked) = unsafe {
+        (
+            find_in_chain::<vk::GraphicsPipelineLibraryCreateInfoEXT<'_>>(ci.p_next, vk::StructureType::GRAPHICS_PIPELINE_LIBRARY_CREATE_INFO_EXT).map(|g| (*g).flags),
+            find_in_chain::<vk::PipelineLibraryCreateInfoKHR<'_>>(ci.p_next, vk::StructureType::PIPELINE_LIBRARY_CREATE_INFO_KHR)
+                .map(|l| slice((*l).p_libraries, (*l).library_count).iter().map(|p| p.as_raw()).collect::<Vec<u64>>())
+                .unwrap_or_default(),
+        )
     };
-    let rendering = if ci.render_pass == vk::RenderPass::null() {
+    // The subsets this create info defines (the spec's rule when the struct is absent: none for
+    // a library or a link of libraries, all for a whole pipeline).
+    let parts = match library_info {
+        Some(flags) => flags,
+        None if ci.flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR) || !linked.is_empty() => P::empty(),
+        None => P::VERTEX_INPUT_INTERFACE | P::PRE_RASTERIZATION_SHADERS | P::FRAGMENT_SHADER | P::FRAGMENT_OUTPUT_INTERFACE,
+    };
+    let defines_any = !parts.is_empty();
+    // SAFETY: pDepthStencilState belongs to the fragment shader subset, read only when this info
+    // defines it. It is ignored by the spec when the pass has no depth attachment; reading it
+    // then is still fine when non-null, but it means "no depth test", which the eye-pass code
+    // resolves later.
+    let ds = if parts.contains(P::FRAGMENT_SHADER) { unsafe { ci.p_depth_stencil_state.as_ref() } } else { None };
+    let dynamic_states = if defines_any {
+        // SAFETY: every subset reads pDynamicState; the array is valid with its count.
+        unsafe { ci.p_dynamic_state.as_ref().map(|d| slice(d.p_dynamic_states, d.dynamic_state_count).to_vec()).unwrap_or_default() }
+    } else {
+        Vec::new()
+    };
+    let rendering = if defines_any && ci.render_pass == vk::RenderPass::null() {
         // SAFETY: a valid chain; the sType names this struct; its array is valid.
         unsafe {
             find_in_chain::<vk::PipelineRenderingCreateInfo<'_>>(ci.p_next, vk::StructureType::PIPELINE_RENDERING_CREATE_INFO).map(|r| {
@@ -335,13 +357,15 @@ pub unsafe fn graphics_pipeline(handle: vk::Pipeline, ci: &vk::GraphicsPipelineC
     };
     GraphicsPipeline {
         handle: handle.as_raw(),
-        render_pass: ci.render_pass.as_raw(),
+        render_pass: if defines_any { ci.render_pass.as_raw() } else { 0 },
         subpass: ci.subpass,
         rendering,
         depth_test_enable: ds.is_some_and(|d| d.depth_test_enable != 0),
         depth_write_enable: ds.is_some_and(|d| d.depth_write_enable != 0),
         depth_compare_op: ds.map_or(vk::CompareOp::ALWAYS, |d| d.depth_compare_op),
         dynamic_states,
+        parts,
+        libraries: linked,
     }
 }
 

@@ -39,15 +39,16 @@ pub(crate) struct ExtFns {
     pub cmd_set_color_write_enable: Option<vk::PFN_vkCmdSetColorWriteEnableEXT>,
     pub cmd_set_logic_op: Option<vk::PFN_vkCmdSetLogicOpEXT>,
     pub cmd_set_patch_control_points: Option<vk::PFN_vkCmdSetPatchControlPointsEXT>,
-    // Commands that veto injections (`hooks::record`).
-    pub cmd_set_fragment_shading_rate: Option<vk::PFN_vkCmdSetFragmentShadingRateKHR>,
-    pub cmd_bind_shaders: Option<vk::PFN_vkCmdBindShadersEXT>,
+    /// Extended dynamic state 3's commands (from that extension or `VK_EXT_shader_object`),
+    /// when the device has them: the app's are tracked and replayed (`hooks::dyn_state`). A
+    /// table loaded by name; the layer calls only commands the app itself called through it.
+    pub eds3: Option<ash::ext::extended_dynamic_state3::DeviceFn>,
     pub cmd_set_vertex_input: Option<vk::PFN_vkCmdSetVertexInputEXT>,
-    pub cmd_set_polygon_mode: Option<vk::PFN_vkCmdSetPolygonModeEXT>,
-    pub cmd_set_rasterization_samples: Option<vk::PFN_vkCmdSetRasterizationSamplesEXT>,
-    pub cmd_set_color_write_mask: Option<vk::PFN_vkCmdSetColorWriteMaskEXT>,
-    pub cmd_set_color_blend_enable: Option<vk::PFN_vkCmdSetColorBlendEnableEXT>,
-    pub cmd_set_depth_clamp_enable: Option<vk::PFN_vkCmdSetDepthClampEnableEXT>,
+    pub cmd_bind_shaders: Option<vk::PFN_vkCmdBindShadersEXT>,
+    // Commands that veto injections (`hooks::dyn_state`).
+    pub cmd_set_fragment_shading_rate: Option<vk::PFN_vkCmdSetFragmentShadingRateKHR>,
+    pub cmd_set_rendering_attachment_locations: Option<vk::PFN_vkCmdSetRenderingAttachmentLocationsKHR>,
+    pub cmd_set_rendering_input_attachment_indices: Option<vk::PFN_vkCmdSetRenderingInputAttachmentIndicesKHR>,
     pub cmd_push_descriptor_set: Option<vk::PFN_vkCmdPushDescriptorSetKHR>,
     pub cmd_push_descriptor_set_with_template: Option<vk::PFN_vkCmdPushDescriptorSetWithTemplateKHR>,
     pub cmd_bind_descriptor_buffers: Option<vk::PFN_vkCmdBindDescriptorBuffersEXT>,

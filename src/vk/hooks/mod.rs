@@ -19,10 +19,12 @@ use std::sync::Arc;
 
 mod descriptors;
 mod draw;
+mod dyn_state;
 mod record;
 mod submit;
 pub(super) use descriptors::*;
 pub(super) use draw::*;
+pub(super) use dyn_state::*;
 pub(super) use record::*;
 pub(super) use submit::*;
 

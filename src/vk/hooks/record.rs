@@ -1,8 +1,8 @@
 //! The command-recording hooks: command buffer begin / reset / execute, state the injection must
 //! restore (pipelines, dynamic state, push constants, vertex buffers), render pass instances
-//! (raising the features' begin events and the injection triggers), transfers, depth clears, and
-//! the commands whose state the layer cannot restore (they veto injections into their command
-//! buffer: `CmdState::veto`).
+//! (raising the features' begin events and the injection triggers), transfers and depth clears.
+//! Extended dynamic state 3, vertex input, shader objects and the commands that veto injections
+//! are in `dyn_state`.
 
 use crate::plugin::vk::inject::Trigger;
 use crate::plugin::vk::{convert, lifetime, DeviceState};
@@ -665,42 +665,3 @@ pub(in crate::vk) unsafe extern "system" fn cmd_clear_depth_stencil_image(
         },
     )
 }
-
-// ---------------------------------------------------------------------------------------------
-// State the layer cannot restore: shader objects, vertex input, the app's own shading rate and
-// extended dynamic state 3. Recorded as a veto on the command buffer (`vk::chassis`); the command
-// goes down unchanged.
-
-/// Hooks for commands that veto injections: call down through `ExtFns`, mark the command buffer.
-macro_rules! veto_hook {
-    ($name:ident, $call:literal, $field:ident, ($cb:ident, $($arg:ident : $ty:ty),*)) => {
-        pub(in crate::vk) unsafe extern "system" fn $name($cb: vk::CommandBuffer, $($arg: $ty),*) {
-            cmd(
-                $call,
-                $cb,
-                (),
-                |d| {
-                    if let Some(f) = d.ext.$field {
-                        // SAFETY: forwarding the app's arguments unchanged to the next layer's
-                        // command (only handed out when the next layer has it).
-                        unsafe { f($cb, $($arg),*) }
-                    }
-                },
-                |d, cb| {
-                    d.track.with_cb(cb, |s| {
-                        s.veto.get_or_insert($call);
-                    });
-                },
-            )
-        }
-    };
-}
-
-veto_hook!(cmd_set_fragment_shading_rate, "vkCmdSetFragmentShadingRateKHR", cmd_set_fragment_shading_rate, (cb, size: *const vk::Extent2D, ops: *const [vk::FragmentShadingRateCombinerOpKHR; 2]));
-veto_hook!(cmd_bind_shaders, "vkCmdBindShadersEXT", cmd_bind_shaders, (cb, n: u32, stages: *const vk::ShaderStageFlags, shaders: *const vk::ShaderEXT));
-veto_hook!(cmd_set_vertex_input, "vkCmdSetVertexInputEXT", cmd_set_vertex_input, (cb, nb: u32, b: *const vk::VertexInputBindingDescription2EXT<'_>, na: u32, a: *const vk::VertexInputAttributeDescription2EXT<'_>));
-veto_hook!(cmd_set_polygon_mode, "vkCmdSetPolygonModeEXT", cmd_set_polygon_mode, (cb, mode: vk::PolygonMode));
-veto_hook!(cmd_set_rasterization_samples, "vkCmdSetRasterizationSamplesEXT", cmd_set_rasterization_samples, (cb, samples: vk::SampleCountFlags));
-veto_hook!(cmd_set_color_write_mask, "vkCmdSetColorWriteMaskEXT", cmd_set_color_write_mask, (cb, first: u32, n: u32, masks: *const vk::ColorComponentFlags));
-veto_hook!(cmd_set_color_blend_enable, "vkCmdSetColorBlendEnableEXT", cmd_set_color_blend_enable, (cb, first: u32, n: u32, enables: *const vk::Bool32));
-veto_hook!(cmd_set_depth_clamp_enable, "vkCmdSetDepthClampEnableEXT", cmd_set_depth_clamp_enable, (cb, enable: vk::Bool32));

@@ -301,6 +301,16 @@ impl Gpu {
         if opts.rendering == Rendering::Dynamic && !at_least(3) {
             push_unique(&mut exts, ash::khr::dynamic_rendering::NAME);
         }
+        // `--dynamic-state` / `--pipeline-library` (Vulkan 1.3, so extended dynamic state 1 and 2
+        // are core): the extensions DXVK builds its pipelines with.
+        if opts.dynamic_state {
+            push_unique(&mut exts, ash::ext::extended_dynamic_state3::NAME);
+            push_unique(&mut exts, ash::ext::vertex_input_dynamic_state::NAME);
+        }
+        if opts.pipeline_library {
+            push_unique(&mut exts, ash::khr::pipeline_library::NAME);
+            push_unique(&mut exts, ash::ext::graphics_pipeline_library::NAME);
+        }
         for e in &exts {
             if !has(e) {
                 return fail(format!("device extension {e:?} is not supported"));
@@ -315,12 +325,21 @@ impl Gpu {
             let mut mv_q = vk::PhysicalDeviceMultiviewFeatures::default();
             let mut dr_q = vk::PhysicalDeviceDynamicRenderingFeatures::default();
             let mut s2_q = vk::PhysicalDeviceSynchronization2Features::default();
+            let mut eds3_q = vk::PhysicalDeviceExtendedDynamicState3FeaturesEXT::default();
+            let mut vi_q = vk::PhysicalDeviceVertexInputDynamicStateFeaturesEXT::default();
+            let mut gpl_q = vk::PhysicalDeviceGraphicsPipelineLibraryFeaturesEXT::default();
             let mut f2_q = vk::PhysicalDeviceFeatures2::default().push_next(&mut mv_q);
             if dynamic {
                 f2_q = f2_q.push_next(&mut dr_q);
             }
             if opts.submit2 {
                 f2_q = f2_q.push_next(&mut s2_q);
+            }
+            if opts.dynamic_state {
+                f2_q = f2_q.push_next(&mut eds3_q).push_next(&mut vi_q);
+            }
+            if opts.pipeline_library {
+                f2_q = f2_q.push_next(&mut gpl_q);
             }
             // SAFETY: valid chain of output structs; vkGetPhysicalDeviceFeatures2 is core in 1.1.
             unsafe { inst.get_physical_device_features2(physical, &mut f2_q) };
@@ -335,6 +354,23 @@ impl Gpu {
             }
             if opts.submit2 && s2_q.synchronization2 == vk::FALSE {
                 return fail("the device lacks synchronization2 (--submit2)");
+            }
+            let e = &eds3_q;
+            let eds3 = [
+                e.extended_dynamic_state3_polygon_mode,
+                e.extended_dynamic_state3_rasterization_samples,
+                e.extended_dynamic_state3_sample_mask,
+                e.extended_dynamic_state3_alpha_to_coverage_enable,
+                e.extended_dynamic_state3_depth_clamp_enable,
+                e.extended_dynamic_state3_color_blend_enable,
+                e.extended_dynamic_state3_color_blend_equation,
+                e.extended_dynamic_state3_color_write_mask,
+            ];
+            if opts.dynamic_state && (eds3.contains(&vk::FALSE) || vi_q.vertex_input_dynamic_state == vk::FALSE) {
+                return fail("the device lacks extended dynamic state 3 or vertex input dynamic state (--dynamic-state)");
+            }
+            if opts.pipeline_library && gpl_q.graphics_pipeline_library == vk::FALSE {
+                return fail("the device lacks graphicsPipelineLibrary (--pipeline-library)");
             }
         } else {
             debug_assert!(opts.layout != Layout::Multiview && !dynamic, "refused by the command line");
@@ -353,12 +389,29 @@ impl Gpu {
         let mut mv = vk::PhysicalDeviceMultiviewFeatures::default().multiview(true);
         let mut dr = vk::PhysicalDeviceDynamicRenderingFeatures::default().dynamic_rendering(true);
         let mut s2 = vk::PhysicalDeviceSynchronization2Features::default().synchronization2(true);
+        let mut eds3 = vk::PhysicalDeviceExtendedDynamicState3FeaturesEXT::default()
+            .extended_dynamic_state3_polygon_mode(true)
+            .extended_dynamic_state3_rasterization_samples(true)
+            .extended_dynamic_state3_sample_mask(true)
+            .extended_dynamic_state3_alpha_to_coverage_enable(true)
+            .extended_dynamic_state3_depth_clamp_enable(true)
+            .extended_dynamic_state3_color_blend_enable(true)
+            .extended_dynamic_state3_color_blend_equation(true)
+            .extended_dynamic_state3_color_write_mask(true);
+        let mut vi = vk::PhysicalDeviceVertexInputDynamicStateFeaturesEXT::default().vertex_input_dynamic_state(true);
+        let mut gpl = vk::PhysicalDeviceGraphicsPipelineLibraryFeaturesEXT::default().graphics_pipeline_library(true);
         let mut f2 = vk::PhysicalDeviceFeatures2::default().features(features).push_next(&mut mv);
         if dynamic {
             f2 = f2.push_next(&mut dr);
         }
         if opts.submit2 {
             f2 = f2.push_next(&mut s2);
+        }
+        if opts.dynamic_state {
+            f2 = f2.push_next(&mut eds3).push_next(&mut vi);
+        }
+        if opts.pipeline_library {
+            f2 = f2.push_next(&mut gpl);
         }
         self.submit2 = opts.submit2;
         let mut device_info = vk::DeviceCreateInfo::default()

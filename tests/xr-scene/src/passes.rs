@@ -45,7 +45,49 @@ pub struct Passes {
     pub render_pass: vk::RenderPass,
     /// By attachment views: colour, depth, and the resolve or subpass-1 attachment (or null).
     framebuffers: HashMap<[vk::ImageView; 3], vk::Framebuffer>,
+    /// How the scene's pipelines are built (`--dynamic-state`, `--pipeline-library`).
+    pub style: PipelineStyle,
+    /// `--pipeline-library`: the libraries of the linked pipelines, kept while those live (the
+    /// spec's rule) and destroyed with the passes.
+    libraries: std::sync::Mutex<Vec<vk::Pipeline>>,
 }
+
+/// `--dynamic-state` and `--pipeline-library`: the scene's pipelines built as DXVK builds its own.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PipelineStyle {
+    /// Nearly every state dynamic (`SceneDraw::set_state` sets them after each bind).
+    pub dynamic: bool,
+    /// Linked from four graphics pipeline libraries, one per state subset.
+    pub library: bool,
+}
+
+/// The states `--dynamic-state` leaves to commands: extended dynamic state 1 and 2 (core in 1.3),
+/// 3 (those every device with the extension's features has) and vertex input.
+pub const DYNAMIC_STATES: [vk::DynamicState; 23] = [
+    vk::DynamicState::VIEWPORT,
+    vk::DynamicState::SCISSOR,
+    vk::DynamicState::CULL_MODE,
+    vk::DynamicState::FRONT_FACE,
+    vk::DynamicState::PRIMITIVE_TOPOLOGY,
+    vk::DynamicState::DEPTH_TEST_ENABLE,
+    vk::DynamicState::DEPTH_WRITE_ENABLE,
+    vk::DynamicState::DEPTH_COMPARE_OP,
+    vk::DynamicState::DEPTH_BOUNDS_TEST_ENABLE,
+    vk::DynamicState::STENCIL_TEST_ENABLE,
+    vk::DynamicState::STENCIL_OP,
+    vk::DynamicState::DEPTH_BIAS_ENABLE,
+    vk::DynamicState::PRIMITIVE_RESTART_ENABLE,
+    vk::DynamicState::RASTERIZER_DISCARD_ENABLE,
+    vk::DynamicState::VERTEX_INPUT_EXT,
+    vk::DynamicState::POLYGON_MODE_EXT,
+    vk::DynamicState::RASTERIZATION_SAMPLES_EXT,
+    vk::DynamicState::SAMPLE_MASK_EXT,
+    vk::DynamicState::ALPHA_TO_COVERAGE_ENABLE_EXT,
+    vk::DynamicState::DEPTH_CLAMP_ENABLE_EXT,
+    vk::DynamicState::COLOR_BLEND_ENABLE_EXT,
+    vk::DynamicState::COLOR_BLEND_EQUATION_EXT,
+    vk::DynamicState::COLOR_WRITE_MASK_EXT,
+];
 
 const COLOR_LAYOUT: vk::ImageLayout = vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL;
 const DEPTH_LAYOUT: vk::ImageLayout = vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
@@ -58,6 +100,8 @@ impl Passes {
             format,
             render_pass: vk::RenderPass::null(),
             framebuffers: HashMap::new(),
+            style: PipelineStyle::default(),
+            libraries: std::sync::Mutex::new(Vec::new()),
         };
         let depth_store = if format.store_depth { vk::AttachmentStoreOp::STORE } else { vk::AttachmentStoreOp::DONT_CARE };
         let depth_load = if format.load_depth { vk::AttachmentLoadOp::LOAD } else { vk::AttachmentLoadOp::CLEAR };
@@ -495,14 +539,31 @@ impl Passes {
         let blend = vk::PipelineColorBlendStateCreateInfo::default()
             .attachments(&blend_atts)
             .blend_constants([0.0, 0.0, 0.0, crate::scene::PANE_ALPHA]);
-        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
-        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let dynamic_states: &[vk::DynamicState] = if self.style.dynamic { &DYNAMIC_STATES } else { &DYNAMIC_STATES[..2] };
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(dynamic_states);
         let color_formats = [self.format.color];
-        let mut rendering = vk::PipelineRenderingCreateInfo::default()
-            .view_mask(self.format.view_mask.unwrap_or(0))
-            .color_attachment_formats(&color_formats)
-            .depth_attachment_format(self.format.depth)
-            .stencil_attachment_format(if self.format.has_stencil { self.format.depth } else { vk::Format::UNDEFINED });
+        let rendering_info = || {
+            vk::PipelineRenderingCreateInfo::default()
+                .view_mask(self.format.view_mask.unwrap_or(0))
+                .color_attachment_formats(&color_formats)
+                .depth_attachment_format(self.format.depth)
+                .stencil_attachment_format(if self.format.has_stencil { self.format.depth } else { vk::Format::UNDEFINED })
+        };
+        if self.style.library {
+            let whole = vk::GraphicsPipelineCreateInfo::default()
+                .stages(&stages)
+                .vertex_input_state(&vertex_input)
+                .input_assembly_state(&input_assembly)
+                .viewport_state(&viewport)
+                .rasterization_state(&raster)
+                .multisample_state(&multisample)
+                .depth_stencil_state(&depth)
+                .color_blend_state(&blend)
+                .dynamic_state(&dynamic)
+                .layout(layout);
+            return self.link_libraries(whole, rendering_info);
+        }
+        let mut rendering = rendering_info();
         let mut info = vk::GraphicsPipelineCreateInfo::default()
             .stages(&stages)
             .vertex_input_state(&vertex_input)
@@ -524,6 +585,58 @@ impl Passes {
             .map_err(|(_, e)| e)
             .ctx("vkCreateGraphicsPipelines")?;
         Ok(pipelines[0])
+    }
+}
+
+impl Passes {
+    /// `--pipeline-library`: `whole`'s state split into the four libraries of graphics pipeline
+    /// libraries (vertex input, pre-rasterization, fragment shader, fragment output), each made
+    /// on its own, then linked (the libraries live as long as the passes).
+    fn link_libraries<'a>(&self, whole: vk::GraphicsPipelineCreateInfo<'a>, rendering: impl Fn() -> vk::PipelineRenderingCreateInfo<'a>) -> Result<vk::Pipeline> {
+        use vk::GraphicsPipelineLibraryFlagsEXT as P;
+        let stages = whole.p_stages;
+        let parts = [P::VERTEX_INPUT_INTERFACE, P::PRE_RASTERIZATION_SHADERS, P::FRAGMENT_SHADER, P::FRAGMENT_OUTPUT_INTERFACE];
+        let mut libraries = Vec::new();
+        let mut made = Ok(());
+        for part in parts {
+            let mut library = vk::GraphicsPipelineLibraryCreateInfoEXT::default().flags(part);
+            let mut r = rendering();
+            // Each library gets the whole create info's pointers: a subset reads its own and
+            // ignores the others (the spec's rule); the stages only where they belong.
+            let mut info = whole;
+            info.p_next = std::ptr::null();
+            info.flags = vk::PipelineCreateFlags::LIBRARY_KHR;
+            info.stage_count = 0;
+            info.p_stages = std::ptr::null();
+            if part == P::PRE_RASTERIZATION_SHADERS || part == P::FRAGMENT_SHADER {
+                info.stage_count = 1;
+                // SAFETY: `whole` has two stages: vertex, then fragment.
+                info.p_stages = if part == P::PRE_RASTERIZATION_SHADERS { stages } else { unsafe { stages.add(1) } };
+            }
+            info = info.push_next(&mut library);
+            if self.mode == Rendering::Dynamic {
+                info = info.push_next(&mut r);
+            } else if part != P::VERTEX_INPUT_INTERFACE {
+                info = info.render_pass(self.render_pass).subpass(0);
+            }
+            // SAFETY: valid create info; all referenced objects are alive.
+            match unsafe { self.device.create_graphics_pipelines(vk::PipelineCache::null(), &[info], None) } {
+                Ok(p) => libraries.push(p[0]),
+                Err((_, e)) => {
+                    made = Err(e);
+                    break;
+                }
+            }
+        }
+        let linked = made.and_then(|()| {
+            let mut link = vk::PipelineLibraryCreateInfoKHR::default().libraries(&libraries);
+            // A fast link, as DXVK makes first (no link-time optimisation).
+            let info = vk::GraphicsPipelineCreateInfo::default().layout(whole.layout).push_next(&mut link);
+            // SAFETY: valid libraries of compatible state and layout.
+            unsafe { self.device.create_graphics_pipelines(vk::PipelineCache::null(), &[info], None) }.map(|p| p[0]).map_err(|(_, e)| e)
+        });
+        self.libraries.lock().unwrap_or_else(|e| e.into_inner()).extend(libraries);
+        linked.ctx("vkCreateGraphicsPipelines(--pipeline-library)")
     }
 }
 
@@ -564,6 +677,10 @@ impl Drop for Passes {
             }
             if self.render_pass != vk::RenderPass::null() {
                 self.device.destroy_render_pass(self.render_pass, None);
+            }
+            // The pipelines linked from them were destroyed by the renderer first.
+            for l in self.libraries.get_mut().unwrap_or_else(|e| e.into_inner()).drain(..) {
+                self.device.destroy_pipeline(l, None);
             }
         }
     }

@@ -2,11 +2,13 @@
 //! (`CmdState::restore_commands`: pipeline, dynamic state, push constants, vertex buffers; and
 //! the app's descriptor sets when a feature bound sets of its own, `Injection::bound_sets`) is
 //! replayed when the `Restore` guard drops, so every path out of an injection — success, a
-//! feature's failure, an early return — gives the app back the state it set. State the layer
-//! cannot restore vetoes the injection before anything is recorded (`CmdState::veto`).
+//! feature's failure, an early return — gives the app back the state it set, extended dynamic
+//! state 3, vertex input and shader objects included. State the layer cannot restore vetoes the
+//! injection before anything is recorded (`CmdState::veto`).
 //! `RestoreCompute` does the same for the compute bind point around the layer's dispatches.
 
 use crate::track::cmd::StateCmd;
+use crate::track::ext_state::ExtState;
 use crate::plugin::vk::DeviceState;
 use ash::vk::{self, Handle};
 
@@ -155,6 +157,13 @@ pub(crate) unsafe fn replay(d: &DeviceState, cb: vk::CommandBuffer, c: &StateCmd
                     f(cb, *n)
                 }
             }
+            StateCmd::Ext(e) => replay_ext(d, cb, e),
+            StateCmd::BindShaders { stages, shaders } => {
+                if let Some(f) = d.ext.cmd_bind_shaders {
+                    let shaders: Vec<vk::ShaderEXT> = shaders.iter().map(|s| vk::ShaderEXT::from_raw(*s)).collect();
+                    f(cb, stages.len() as u32, stages.as_ptr(), shaders.as_ptr())
+                }
+            }
             StateCmd::PushConstants { layout, stages, offset, data } => {
                 (v0.cmd_push_constants)(cb, vk::PipelineLayout::from_raw(*layout), *stages, *offset, data.len() as u32, data.as_ptr().cast())
             }
@@ -192,6 +201,59 @@ pub(crate) unsafe fn replay(d: &DeviceState, cb: vk::CommandBuffer, c: &StateCmd
                     (v0.cmd_bind_vertex_buffers)(cb, *first, n, buffers.as_ptr(), offsets.as_ptr())
                 }
             }
+        }
+    }
+}
+
+/// Records one extended dynamic state command the app had in effect (one attachment at a time
+/// for per-attachment states).
+///
+/// # Safety
+/// As `replay`.
+unsafe fn replay_ext(d: &DeviceState, cb: vk::CommandBuffer, e: &ExtState) {
+    if let ExtState::VertexInput { bindings, attributes } = e {
+        let Some(f) = d.ext.cmd_set_vertex_input else { return };
+        let b: Vec<vk::VertexInputBindingDescription2EXT<'_>> = bindings
+            .iter()
+            .map(|b| vk::VertexInputBindingDescription2EXT::default().binding(b.binding).stride(b.stride).input_rate(b.input_rate).divisor(b.divisor))
+            .collect();
+        let a: Vec<vk::VertexInputAttributeDescription2EXT<'_>> = attributes
+            .iter()
+            .map(|a| vk::VertexInputAttributeDescription2EXT::default().location(a.location).binding(a.binding).format(a.format).offset(a.offset))
+            .collect();
+        // SAFETY: per the contract; the app called this command, so the device has it.
+        unsafe { f(cb, b.len() as u32, b.as_ptr(), a.len() as u32, a.as_ptr()) };
+        return;
+    }
+    // Only reached for commands the app recorded through the same table.
+    let Some(t) = &d.ext.eds3 else { return };
+    let b = |v: bool| vk::Bool32::from(v);
+    // SAFETY: per the contract; each command is one the app called (the device has it), and
+    // the arrays live across each call.
+    unsafe {
+        match e {
+            ExtState::TessellationDomainOrigin(o) => (t.cmd_set_tessellation_domain_origin_ext)(cb, *o),
+            ExtState::DepthClampEnable(v) => (t.cmd_set_depth_clamp_enable_ext)(cb, b(*v)),
+            ExtState::PolygonMode(m) => (t.cmd_set_polygon_mode_ext)(cb, *m),
+            ExtState::RasterizationSamples(s) => (t.cmd_set_rasterization_samples_ext)(cb, *s),
+            ExtState::SampleMask { samples, mask } => (t.cmd_set_sample_mask_ext)(cb, *samples, mask.as_ptr()),
+            ExtState::AlphaToCoverageEnable(v) => (t.cmd_set_alpha_to_coverage_enable_ext)(cb, b(*v)),
+            ExtState::AlphaToOneEnable(v) => (t.cmd_set_alpha_to_one_enable_ext)(cb, b(*v)),
+            ExtState::LogicOpEnable(v) => (t.cmd_set_logic_op_enable_ext)(cb, b(*v)),
+            ExtState::ColorBlendEnable { attachment, enable } => (t.cmd_set_color_blend_enable_ext)(cb, *attachment, 1, &b(*enable)),
+            ExtState::ColorBlendEquation { attachment, equation } => (t.cmd_set_color_blend_equation_ext)(cb, *attachment, 1, &equation.to_vk()),
+            ExtState::ColorWriteMask { attachment, mask } => (t.cmd_set_color_write_mask_ext)(cb, *attachment, 1, mask),
+            ExtState::ColorBlendAdvanced { attachment, advanced } => (t.cmd_set_color_blend_advanced_ext)(cb, *attachment, 1, &advanced.to_vk()),
+            ExtState::RasterizationStream(s) => (t.cmd_set_rasterization_stream_ext)(cb, *s),
+            ExtState::ConservativeRasterizationMode(m) => (t.cmd_set_conservative_rasterization_mode_ext)(cb, *m),
+            ExtState::ExtraPrimitiveOverestimationSize(s) => (t.cmd_set_extra_primitive_overestimation_size_ext)(cb, *s),
+            ExtState::DepthClipEnable(v) => (t.cmd_set_depth_clip_enable_ext)(cb, b(*v)),
+            ExtState::SampleLocationsEnable(v) => (t.cmd_set_sample_locations_enable_ext)(cb, b(*v)),
+            ExtState::ProvokingVertexMode(m) => (t.cmd_set_provoking_vertex_mode_ext)(cb, *m),
+            ExtState::LineRasterizationMode(m) => (t.cmd_set_line_rasterization_mode_ext)(cb, *m),
+            ExtState::LineStippleEnable(v) => (t.cmd_set_line_stipple_enable_ext)(cb, b(*v)),
+            ExtState::DepthClipNegativeOneToOne(v) => (t.cmd_set_depth_clip_negative_one_to_one_ext)(cb, b(*v)),
+            ExtState::VertexInput { .. } => {}
         }
     }
 }

@@ -172,6 +172,12 @@ pub struct Options {
     /// Bind pipeline, buffers, descriptor set, push constants and (one draw per pass) viewport and
     /// scissor before beginning each pass, not inside it.
     pub bind_before_pass: bool,
+    /// `--dynamic-state`: the scene's pipelines leave nearly all state to commands, as DXVK
+    /// records (extended dynamic state 1-3, vertex input), set after each bind.
+    pub dynamic_state: bool,
+    /// `--pipeline-library`: the scene's pipelines linked from graphics pipeline libraries (one
+    /// per state subset), as DXVK builds them.
+    pub pipeline_library: bool,
     /// Begin and end every pass (clears included) but draw nothing: isolates the cost of what a
     /// layer adds to a pass.
     pub empty: bool,
@@ -341,6 +347,13 @@ struct Args {
     /// Set draw state before vkCmdBegin*, not inside the pass.
     #[arg(long)]
     bind_before_pass: bool,
+    /// Scene pipelines with nearly every state dynamic (extended dynamic state 1-3, vertex input),
+    /// set by commands as DXVK records them (Vulkan 1.3).
+    #[arg(long)]
+    dynamic_state: bool,
+    /// Scene pipelines linked from graphics pipeline libraries, as DXVK builds them (Vulkan 1.3).
+    #[arg(long)]
+    pipeline_library: bool,
     /// Passes with their clears but no draws (layer cost benchmarks).
     #[arg(long)]
     empty: bool,
@@ -503,6 +516,9 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
             return Err(usage("--rendering dynamic needs Vulkan 1.1 (VK_KHR_dynamic_rendering) or 1.3"));
         }
     }
+    if (a.dynamic_state || a.pipeline_library) && a.vulkan_api != VulkanApi::V1_3 {
+        return Err(usage("--dynamic-state and --pipeline-library need Vulkan 1.3 (extended dynamic state is core there)"));
+    }
     if a.submit2 && a.vulkan_api != VulkanApi::V1_3 {
         return Err(usage("--submit2 needs Vulkan 1.3 (vkQueueSubmit2, synchronization2)"));
     }
@@ -553,6 +569,8 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         shading_cost: a.shading_cost,
         animate: a.animate,
         bind_before_pass: a.bind_before_pass,
+        dynamic_state: a.dynamic_state,
+        pipeline_library: a.pipeline_library,
         empty: a.empty,
         stats: a.stats,
         pixel_stats: a.pixel_stats,
@@ -622,6 +640,15 @@ mod tests {
         assert!(p(&["--submit2", "--vulkan-api", "1.1"]).is_err());
         assert!(p(&["--secondary=1"]).is_err());
         assert!(p(&["--secondary", "--bind-before-pass"]).is_err());
+    }
+
+    /// `--dynamic-state` and `--pipeline-library` need Vulkan 1.3.
+    #[test]
+    fn dxvk_styles() {
+        let o = p(&["--dynamic-state", "--pipeline-library"]).unwrap().unwrap();
+        assert!(o.dynamic_state && o.pipeline_library);
+        assert!(p(&["--dynamic-state", "--vulkan-api", "1.1"]).is_err());
+        assert!(p(&["--pipeline-library", "--vulkan-api", "1.0"]).is_err());
     }
 
     /// `--teardown`: the four orders, nothing else.

@@ -7,7 +7,7 @@
 use crate::cli::{DepthClear, Layout};
 use crate::error::{Ctx, Error, Result};
 use crate::gpu::Gpu;
-use crate::passes::Passes;
+use crate::passes::{Passes, PipelineKind};
 use crate::targets::ViewRect;
 use ash::vk;
 
@@ -144,6 +144,16 @@ pub(super) struct SceneDraw {
     pub sky_first: bool,
     /// `--empty`: record the passes without their draws.
     pub empty: bool,
+    /// `--dynamic-state`: the state `set_state` records after each bind of a scene pipeline.
+    pub dynamic: Option<DynamicState>,
+}
+
+/// `--dynamic-state`: the extensions' commands and the values the pipelines leave to them.
+pub(super) struct DynamicState {
+    pub eds3: ash::ext::extended_dynamic_state3::Device,
+    pub vertex_input: ash::ext::vertex_input_dynamic_state::Device,
+    pub depth_compare: vk::CompareOp,
+    pub samples: vk::SampleCountFlags,
 }
 
 impl SceneDraw {
@@ -186,6 +196,73 @@ impl SceneDraw {
             d.cmd_bind_vertex_buffers(rec, 0, &[self.vertices.buffer], &[0]);
             d.cmd_bind_index_buffer(rec, self.indices.buffer, 0, vk::IndexType::UINT32);
         }
+        self.set_state(rec, PipelineKind::Opaque);
+    }
+
+    /// Binds the pipeline of `kind` and, with `--dynamic-state`, sets its state.
+    fn bind_kind(&self, rec: vk::CommandBuffer, kind: PipelineKind) {
+        let p = match kind {
+            PipelineKind::Opaque => self.pipeline,
+            PipelineKind::Sky => self.sky_pipeline,
+            PipelineKind::Translucent => self.translucent_pipeline,
+        };
+        // SAFETY: `rec` is recording; the pipeline is alive.
+        unsafe { self.device.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, p) };
+        self.set_state(rec, kind);
+    }
+
+    /// `--dynamic-state`: every state the pipelines leave dynamic but viewport and scissor (set
+    /// per view by `bind`), with the values `--dynamic-state` off builds into the pipeline of
+    /// `kind`: the same pictures, drawn with state from commands, as DXVK draws.
+    fn set_state(&self, rec: vk::CommandBuffer, kind: PipelineKind) {
+        let Some(s) = &self.dynamic else { return };
+        let d = &self.device;
+        let bindings = [vk::VertexInputBindingDescription2EXT::default()
+            .binding(0)
+            .stride(std::mem::size_of::<crate::scene::Vertex>() as u32)
+            .input_rate(vk::VertexInputRate::VERTEX)
+            .divisor(1)];
+        let attr = |location, format, offset| vk::VertexInputAttributeDescription2EXT::default().location(location).binding(0).format(format).offset(offset);
+        let attributes = [
+            attr(0, vk::Format::R32G32B32_SFLOAT, 0),
+            attr(1, vk::Format::R32G32B32_SFLOAT, 12),
+            attr(2, vk::Format::R32G32B32_SFLOAT, 24),
+            attr(3, vk::Format::R32_UINT, 36),
+        ];
+        // The pane's blend (`PipelineKind::Translucent`), as the static pipeline has it.
+        let equation = vk::ColorBlendEquationEXT {
+            src_color_blend_factor: vk::BlendFactor::CONSTANT_ALPHA,
+            dst_color_blend_factor: vk::BlendFactor::ONE_MINUS_CONSTANT_ALPHA,
+            color_blend_op: vk::BlendOp::ADD,
+            src_alpha_blend_factor: vk::BlendFactor::ZERO,
+            dst_alpha_blend_factor: vk::BlendFactor::ONE,
+            alpha_blend_op: vk::BlendOp::ADD,
+        };
+        // SAFETY: `rec` is recording with a scene pipeline bound that has these states dynamic;
+        // the device has the extensions and features (`Gpu::create_device`).
+        unsafe {
+            d.cmd_set_cull_mode(rec, vk::CullModeFlags::NONE);
+            d.cmd_set_front_face(rec, vk::FrontFace::COUNTER_CLOCKWISE);
+            d.cmd_set_primitive_topology(rec, vk::PrimitiveTopology::TRIANGLE_LIST);
+            d.cmd_set_depth_test_enable(rec, kind != PipelineKind::Sky);
+            d.cmd_set_depth_write_enable(rec, kind == PipelineKind::Opaque);
+            d.cmd_set_depth_compare_op(rec, s.depth_compare);
+            d.cmd_set_depth_bounds_test_enable(rec, false);
+            d.cmd_set_stencil_test_enable(rec, false);
+            d.cmd_set_stencil_op(rec, vk::StencilFaceFlags::FRONT_AND_BACK, vk::StencilOp::KEEP, vk::StencilOp::KEEP, vk::StencilOp::KEEP, vk::CompareOp::ALWAYS);
+            d.cmd_set_depth_bias_enable(rec, false);
+            d.cmd_set_primitive_restart_enable(rec, false);
+            d.cmd_set_rasterizer_discard_enable(rec, false);
+            s.vertex_input.cmd_set_vertex_input(rec, &bindings, &attributes);
+            s.eds3.cmd_set_polygon_mode(rec, vk::PolygonMode::FILL);
+            s.eds3.cmd_set_rasterization_samples(rec, s.samples);
+            s.eds3.cmd_set_sample_mask(rec, s.samples, &[u32::MAX]);
+            s.eds3.cmd_set_alpha_to_coverage_enable(rec, false);
+            s.eds3.cmd_set_depth_clamp_enable(rec, false);
+            s.eds3.cmd_set_color_blend_enable(rec, 0, &[(kind == PipelineKind::Translucent).into()]);
+            s.eds3.cmd_set_color_blend_equation(rec, 0, &[equation]);
+            s.eds3.cmd_set_color_write_mask(rec, 0, &[vk::ColorComponentFlags::RGBA]);
+        }
     }
 
     /// `--bind-before-pass`: all draw state of a one-draw pass (pipeline and buffers of any pass)
@@ -224,18 +301,18 @@ impl SceneDraw {
                 // Pipelines share one layout, so switching keeps the bound set and push
                 // constants. Default scene: one draw, the sky last in it.
                 if self.sky_first {
-                    d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.sky_pipeline);
+                    self.bind_kind(rec, PipelineKind::Sky);
                     d.cmd_draw_indexed(rec, self.sky_count, 1, self.opaque_count, 0, 0);
-                    d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+                    self.bind_kind(rec, PipelineKind::Opaque);
                     d.cmd_draw_indexed(rec, self.opaque_count, 1, 0, 0, 0);
                 } else {
                     d.cmd_draw_indexed(rec, self.opaque_count + self.sky_count, 1, 0, 0, 0);
                 }
                 if self.translucent_count > 0 {
                     // After everything opaque, as translucent geometry must be.
-                    d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.translucent_pipeline);
+                    self.bind_kind(rec, PipelineKind::Translucent);
                     d.cmd_draw_indexed(rec, self.translucent_count, 1, self.opaque_count + self.sky_count, 0, 0);
-                    d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+                    self.bind_kind(rec, PipelineKind::Opaque);
                 }
             }
         }

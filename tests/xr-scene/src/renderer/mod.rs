@@ -193,6 +193,7 @@ impl Renderer {
                 translucent_count: 0,
                 sky_first: opts.sky_first,
                 empty: opts.empty,
+                dynamic: None,
             },
             parts: crate::scene::Parts {
                 sky: opts.sky == crate::cli::Sky::Geometry,
@@ -291,6 +292,15 @@ impl Renderer {
             }
             if opts.translucent {
                 kinds.push(PipelineKind::Translucent);
+            }
+            self.passes.style = crate::passes::PipelineStyle { dynamic: opts.dynamic_state, library: opts.pipeline_library };
+            if opts.dynamic_state {
+                self.draw.dynamic = Some(draw::DynamicState {
+                    eds3: ash::ext::extended_dynamic_state3::Device::new(&gpu.instance, d),
+                    vertex_input: ash::ext::vertex_input_dynamic_state::Device::new(&gpu.instance, d),
+                    depth_compare: compare,
+                    samples: self.passes.format.samples,
+                });
             }
             let mut created = Ok(());
             for kind in kinds {
