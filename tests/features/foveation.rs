@@ -131,6 +131,7 @@ rdm_tests! {
 rdm_tests! {
     dxvk_dynamic_state_library_per_eye: ["--layout", "per-eye", "--rendering", "dynamic", "--dynamic-state", "--pipeline-library", "--bind-before-pass"];
     dxvk_dynamic_state_side_by_side: ["--layout", "side-by-side", "--rendering", "render-pass", "--dynamic-state"];
+    shader_objects_multiview: ["--layout", "multiview", "--rendering", "dynamic", "--shader-object", "--bind-before-pass"];
 }
 
 // Eye passes recorded into secondary command buffers (as engines do): the checkerboard goes into

@@ -134,8 +134,11 @@ fn check_env(name: &str, args: &[&str], debug: bool, env: &[(&str, &str)]) -> Ve
 /// synchronization validation, on xr-scene's `--pipeline-library --rendering dynamic`). Those runs
 /// go without it here; their frames are still compared with the run without the layer, pixel for
 /// pixel. With render pass objects validation stays on.
+/// It does not know `VK_EXT_shader_object` either (`--shader-object`). Both kinds are validated
+/// with trixie's layer by tests/realworld/dxvk_state.rs.
 pub fn no_validation_for_libraries(run: &mut Run, args: &[&str]) {
-    if args.contains(&"--pipeline-library") && args.windows(2).any(|w| w == ["--rendering", "dynamic"]) {
+    let library_for_dynamic_rendering = args.contains(&"--pipeline-library") && args.windows(2).any(|w| w == ["--rendering", "dynamic"]);
+    if library_for_dynamic_rendering || args.contains(&"--shader-object") {
         run.validation = false;
     }
 }
@@ -185,6 +188,8 @@ mask_tests! {
     dxvk_dynamic_state_side_by_side_render_pass: ["--layout", "side-by-side", "--rendering", "render-pass", "--dynamic-state"];
     dxvk_pipeline_library_side_by_side_dynamic: ["--layout", "side-by-side", "--rendering", "dynamic", "--pipeline-library", "--bind-before-pass"];
     dxvk_both_per_eye_render_pass2: ["--layout", "per-eye", "--rendering", "render-pass2", "--dynamic-state", "--pipeline-library", "--bind-before-pass", "--translucent"];
+    shader_objects_per_eye: ["--layout", "per-eye", "--rendering", "dynamic", "--shader-object", "--bind-before-pass"];
+    shader_objects_side_by_side: ["--layout", "side-by-side", "--rendering", "dynamic", "--shader-object", "--translucent"];
 }
 
 // Depth cleared by the app itself, not by the pass's load op (`--depth-clear`): the mask must go

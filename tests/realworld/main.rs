@@ -12,6 +12,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod dxvk_state;
 mod harness;
 
 use harness::*;

@@ -307,6 +307,9 @@ impl Gpu {
             push_unique(&mut exts, ash::ext::extended_dynamic_state3::NAME);
             push_unique(&mut exts, ash::ext::vertex_input_dynamic_state::NAME);
         }
+        if opts.shader_object {
+            push_unique(&mut exts, ash::ext::shader_object::NAME);
+        }
         if opts.pipeline_library {
             push_unique(&mut exts, ash::khr::pipeline_library::NAME);
             push_unique(&mut exts, ash::ext::graphics_pipeline_library::NAME);
@@ -328,6 +331,7 @@ impl Gpu {
             let mut eds3_q = vk::PhysicalDeviceExtendedDynamicState3FeaturesEXT::default();
             let mut vi_q = vk::PhysicalDeviceVertexInputDynamicStateFeaturesEXT::default();
             let mut gpl_q = vk::PhysicalDeviceGraphicsPipelineLibraryFeaturesEXT::default();
+            let mut so_q = vk::PhysicalDeviceShaderObjectFeaturesEXT::default();
             let mut f2_q = vk::PhysicalDeviceFeatures2::default().push_next(&mut mv_q);
             if dynamic {
                 f2_q = f2_q.push_next(&mut dr_q);
@@ -340,6 +344,9 @@ impl Gpu {
             }
             if opts.pipeline_library {
                 f2_q = f2_q.push_next(&mut gpl_q);
+            }
+            if opts.shader_object {
+                f2_q = f2_q.push_next(&mut so_q);
             }
             // SAFETY: valid chain of output structs; vkGetPhysicalDeviceFeatures2 is core in 1.1.
             unsafe { inst.get_physical_device_features2(physical, &mut f2_q) };
@@ -368,6 +375,9 @@ impl Gpu {
             ];
             if opts.dynamic_state && (eds3.contains(&vk::FALSE) || vi_q.vertex_input_dynamic_state == vk::FALSE) {
                 return fail("the device lacks extended dynamic state 3 or vertex input dynamic state (--dynamic-state)");
+            }
+            if opts.shader_object && so_q.shader_object == vk::FALSE {
+                return fail("the device lacks shaderObject (--shader-object)");
             }
             if opts.pipeline_library && gpl_q.graphics_pipeline_library == vk::FALSE {
                 return fail("the device lacks graphicsPipelineLibrary (--pipeline-library)");
@@ -400,6 +410,7 @@ impl Gpu {
             .extended_dynamic_state3_color_write_mask(true);
         let mut vi = vk::PhysicalDeviceVertexInputDynamicStateFeaturesEXT::default().vertex_input_dynamic_state(true);
         let mut gpl = vk::PhysicalDeviceGraphicsPipelineLibraryFeaturesEXT::default().graphics_pipeline_library(true);
+        let mut so = vk::PhysicalDeviceShaderObjectFeaturesEXT::default().shader_object(true);
         let mut f2 = vk::PhysicalDeviceFeatures2::default().features(features).push_next(&mut mv);
         if dynamic {
             f2 = f2.push_next(&mut dr);
@@ -412,6 +423,9 @@ impl Gpu {
         }
         if opts.pipeline_library {
             f2 = f2.push_next(&mut gpl);
+        }
+        if opts.shader_object {
+            f2 = f2.push_next(&mut so);
         }
         self.submit2 = opts.submit2;
         let mut device_info = vk::DeviceCreateInfo::default()

@@ -178,6 +178,9 @@ pub struct Options {
     /// `--pipeline-library`: the scene's pipelines linked from graphics pipeline libraries (one
     /// per state subset), as DXVK builds them.
     pub pipeline_library: bool,
+    /// `--shader-object`: the scene drawn with shader objects (`VK_EXT_shader_object`) instead of
+    /// pipelines, every state set by commands (implies `dynamic_state`).
+    pub shader_object: bool,
     /// Begin and end every pass (clears included) but draw nothing: isolates the cost of what a
     /// layer adds to a pass.
     pub empty: bool,
@@ -354,6 +357,10 @@ struct Args {
     /// Scene pipelines linked from graphics pipeline libraries, as DXVK builds them (Vulkan 1.3).
     #[arg(long)]
     pipeline_library: bool,
+    /// Draw the scene with shader objects (VK_EXT_shader_object), every state from commands;
+    /// implies --dynamic-state, needs --rendering dynamic.
+    #[arg(long)]
+    shader_object: bool,
     /// Passes with their clears but no draws (layer cost benchmarks).
     #[arg(long)]
     empty: bool,
@@ -516,8 +523,11 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
             return Err(usage("--rendering dynamic needs Vulkan 1.1 (VK_KHR_dynamic_rendering) or 1.3"));
         }
     }
-    if (a.dynamic_state || a.pipeline_library) && a.vulkan_api != VulkanApi::V1_3 {
-        return Err(usage("--dynamic-state and --pipeline-library need Vulkan 1.3 (extended dynamic state is core there)"));
+    if (a.dynamic_state || a.pipeline_library || a.shader_object) && a.vulkan_api != VulkanApi::V1_3 {
+        return Err(usage("--dynamic-state, --pipeline-library and --shader-object need Vulkan 1.3 (extended dynamic state is core there)"));
+    }
+    if a.shader_object && (a.rendering != Rendering::Dynamic || a.pipeline_library) {
+        return Err(usage("--shader-object draws without pipelines, in dynamic rendering only: it needs --rendering dynamic and excludes --pipeline-library"));
     }
     if a.submit2 && a.vulkan_api != VulkanApi::V1_3 {
         return Err(usage("--submit2 needs Vulkan 1.3 (vkQueueSubmit2, synchronization2)"));
@@ -569,8 +579,9 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         shading_cost: a.shading_cost,
         animate: a.animate,
         bind_before_pass: a.bind_before_pass,
-        dynamic_state: a.dynamic_state,
+        dynamic_state: a.dynamic_state || a.shader_object,
         pipeline_library: a.pipeline_library,
+        shader_object: a.shader_object,
         empty: a.empty,
         stats: a.stats,
         pixel_stats: a.pixel_stats,
@@ -649,6 +660,10 @@ mod tests {
         assert!(o.dynamic_state && o.pipeline_library);
         assert!(p(&["--dynamic-state", "--vulkan-api", "1.1"]).is_err());
         assert!(p(&["--pipeline-library", "--vulkan-api", "1.0"]).is_err());
+        let o = p(&["--shader-object", "--rendering", "dynamic"]).unwrap().unwrap();
+        assert!(o.shader_object && o.dynamic_state);
+        assert!(p(&["--shader-object", "--rendering", "render-pass"]).is_err());
+        assert!(p(&["--shader-object", "--rendering", "dynamic", "--pipeline-library"]).is_err());
     }
 
     /// `--teardown`: the four orders, nothing else.

@@ -146,6 +146,59 @@ pub(super) struct SceneDraw {
     pub empty: bool,
     /// `--dynamic-state`: the state `set_state` records after each bind of a scene pipeline.
     pub dynamic: Option<DynamicState>,
+    /// `--shader-object`: the scene's shaders, bound instead of its pipelines.
+    pub shaders: Option<ShaderObjects>,
+}
+
+/// `--shader-object`: the scene's vertex and fragment shader objects.
+pub(super) struct ShaderObjects {
+    pub device: ash::ext::shader_object::Device,
+    pub vert: vk::ShaderEXT,
+    pub frag: vk::ShaderEXT,
+}
+
+impl ShaderObjects {
+    /// Unlinked shader objects from the pipelines' SPIR-V, with their layout's sets and push
+    /// constants.
+    pub fn new(device: ash::ext::shader_object::Device, vs: &[u8], fs: &[u8], set_layouts: &[vk::DescriptorSetLayout], ranges: &[vk::PushConstantRange]) -> Result<ShaderObjects> {
+        let words = |b: &[u8]| ash::util::read_spv(&mut std::io::Cursor::new(b)).ctx("reading SPIR-V");
+        let (v, f) = (words(vs)?, words(fs)?);
+        let info = |stage, next, code: &[u32]| {
+            vk::ShaderCreateInfoEXT::default()
+                .stage(stage)
+                .next_stage(next)
+                .code_type(vk::ShaderCodeTypeEXT::SPIRV)
+                // SAFETY (of the byte view): plain u32 words.
+                .code(unsafe { std::slice::from_raw_parts(code.as_ptr().cast::<u8>(), code.len() * 4) })
+                .name(c"main")
+                .set_layouts(set_layouts)
+                .push_constant_ranges(ranges)
+        };
+        let infos = [info(vk::ShaderStageFlags::VERTEX, vk::ShaderStageFlags::FRAGMENT, &v), info(vk::ShaderStageFlags::FRAGMENT, vk::ShaderStageFlags::empty(), &f)];
+        // SAFETY: valid create infos whose arrays outlive the call.
+        let shaders = unsafe { device.create_shaders(&infos, None) }.map_err(|(_, e)| e).ctx("vkCreateShadersEXT")?;
+        Ok(ShaderObjects { device, vert: shaders[0], frag: shaders[1] })
+    }
+
+    /// Binds the scene's shaders, every other graphics stage bound to none (as a draw with
+    /// shader objects needs).
+    fn bind(&self, rec: vk::CommandBuffer) {
+        use vk::ShaderStageFlags as S;
+        let stages = [S::VERTEX, S::TESSELLATION_CONTROL, S::TESSELLATION_EVALUATION, S::GEOMETRY, S::FRAGMENT];
+        let shaders = [self.vert, vk::ShaderEXT::null(), vk::ShaderEXT::null(), vk::ShaderEXT::null(), self.frag];
+        // SAFETY: `rec` is recording; the shaders are alive.
+        unsafe { self.device.cmd_bind_shaders(rec, &stages, &shaders) };
+    }
+
+    /// # Safety
+    /// No recording that uses them may still execute.
+    pub unsafe fn destroy(&self) {
+        // SAFETY: per the contract.
+        unsafe {
+            self.device.destroy_shader(self.vert, None);
+            self.device.destroy_shader(self.frag, None);
+        }
+    }
 }
 
 /// `--dynamic-state`: the extensions' commands and the values the pipelines leave to them.
@@ -178,9 +231,15 @@ impl SceneDraw {
         // SAFETY: `rec` is recording (inside the pass, or before it with `--bind-before-pass`);
         // every handle is alive. PushConstants is repr(C) plain data, viewed as its bytes.
         unsafe {
-            if viewport {
-                d.cmd_set_viewport(rec, 0, &[vk::Viewport { x: x as f32, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }]);
-                d.cmd_set_scissor(rec, 0, &[vk::Rect2D { offset: vk::Offset2D { x, y: 0 }, extent: vk::Extent2D { width: w, height: h } }]);
+            let vp = [vk::Viewport { x: x as f32, y: 0.0, width: w as f32, height: h as f32, min_depth: 0.0, max_depth: 1.0 }];
+            let sc = [vk::Rect2D { offset: vk::Offset2D { x, y: 0 }, extent: vk::Extent2D { width: w, height: h } }];
+            if viewport && self.shaders.is_some() {
+                // Shader objects take the viewport count from the command buffer too.
+                d.cmd_set_viewport_with_count(rec, &vp);
+                d.cmd_set_scissor_with_count(rec, &sc);
+            } else if viewport {
+                d.cmd_set_viewport(rec, 0, &vp);
+                d.cmd_set_scissor(rec, 0, &sc);
             }
             d.cmd_bind_descriptor_sets(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline_layout, 0, &[set.descriptor_set], &set.offsets[eye as usize]);
             let bytes = std::slice::from_raw_parts(&pc as *const PushConstants as *const u8, std::mem::size_of::<PushConstants>());
@@ -190,9 +249,13 @@ impl SceneDraw {
 
     fn bind_buffers(&self, rec: vk::CommandBuffer) {
         let d = &self.device;
-        // SAFETY: `rec` is recording; the pipeline and buffers are alive.
+        match &self.shaders {
+            Some(s) => s.bind(rec),
+            // SAFETY: `rec` is recording; the pipeline is alive.
+            None => unsafe { d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline) },
+        }
+        // SAFETY: `rec` is recording; the buffers are alive.
         unsafe {
-            d.cmd_bind_pipeline(rec, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
             d.cmd_bind_vertex_buffers(rec, 0, &[self.vertices.buffer], &[0]);
             d.cmd_bind_index_buffer(rec, self.indices.buffer, 0, vk::IndexType::UINT32);
         }
@@ -201,6 +264,13 @@ impl SceneDraw {
 
     /// Binds the pipeline of `kind` and, with `--dynamic-state`, sets its state.
     fn bind_kind(&self, rec: vk::CommandBuffer, kind: PipelineKind) {
+        if let Some(s) = &self.shaders {
+            // The kinds differ only in state: the same shaders, rebound as an app switching
+            // materials would.
+            s.bind(rec);
+            self.set_state(rec, kind);
+            return;
+        }
         let p = match kind {
             PipelineKind::Opaque => self.pipeline,
             PipelineKind::Sky => self.sky_pipeline,
@@ -253,6 +323,11 @@ impl SceneDraw {
             d.cmd_set_depth_bias_enable(rec, false);
             d.cmd_set_primitive_restart_enable(rec, false);
             d.cmd_set_rasterizer_discard_enable(rec, false);
+            if self.shaders.is_some() {
+                // Static in every pipeline; shader objects take them from the command buffer.
+                d.cmd_set_blend_constants(rec, &[0.0, 0.0, 0.0, crate::scene::PANE_ALPHA]);
+                d.cmd_set_depth_bias(rec, 0.0, 0.0, 0.0);
+            }
             s.vertex_input.cmd_set_vertex_input(rec, &bindings, &attributes);
             s.eds3.cmd_set_polygon_mode(rec, vk::PolygonMode::FILL);
             s.eds3.cmd_set_rasterization_samples(rec, s.samples);

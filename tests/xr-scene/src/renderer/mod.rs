@@ -194,6 +194,7 @@ impl Renderer {
                 sky_first: opts.sky_first,
                 empty: opts.empty,
                 dynamic: None,
+                shaders: None,
             },
             parts: crate::scene::Parts {
                 sky: opts.sky == crate::cli::Sky::Geometry,
@@ -301,6 +302,19 @@ impl Renderer {
                     depth_compare: compare,
                     samples: self.passes.format.samples,
                 });
+            }
+            if opts.shader_object {
+                // Shader objects instead of the scene's pipelines: no pipeline is made.
+                kinds.clear();
+                let device = ash::ext::shader_object::Device::new(&gpu.instance, d);
+                match draw::ShaderObjects::new(device, vs, fs, &set_layouts, &ranges) {
+                    Ok(s) => self.draw.shaders = Some(s),
+                    Err(e) => {
+                        d.destroy_shader_module(vert, None);
+                        d.destroy_shader_module(frag, None);
+                        return Err(e);
+                    }
+                }
             }
             let mut created = Ok(());
             for kind in kinds {
@@ -715,6 +729,9 @@ impl Drop for Renderer {
             d.destroy_pipeline(self.draw.pipeline, None);
             d.destroy_pipeline(self.draw.sky_pipeline, None);
             d.destroy_pipeline(self.draw.translucent_pipeline, None);
+            if let Some(s) = &self.draw.shaders {
+                s.destroy();
+            }
             d.destroy_pipeline_layout(self.draw.pipeline_layout, None);
             d.destroy_descriptor_set_layout(self.draw.set_layout, None);
             d.destroy_command_pool(self.command_pool, None);
