@@ -164,12 +164,13 @@ impl ShaderObjects {
         let words = |b: &[u8]| ash::util::read_spv(&mut std::io::Cursor::new(b)).ctx("reading SPIR-V");
         let (v, f) = (words(vs)?, words(fs)?);
         let info = |stage, next, code: &[u32]| {
+            // SAFETY: the words' own memory, viewed as its bytes (u8 has no alignment needs).
+            let bytes = unsafe { std::slice::from_raw_parts(code.as_ptr().cast::<u8>(), code.len() * 4) };
             vk::ShaderCreateInfoEXT::default()
                 .stage(stage)
                 .next_stage(next)
                 .code_type(vk::ShaderCodeTypeEXT::SPIRV)
-                // SAFETY (of the byte view): plain u32 words.
-                .code(unsafe { std::slice::from_raw_parts(code.as_ptr().cast::<u8>(), code.len() * 4) })
+                .code(bytes)
                 .name(c"main")
                 .set_layouts(set_layouts)
                 .push_constant_ranges(ranges)
