@@ -331,6 +331,9 @@ pub struct CmdState {
 #[derive(Clone, Debug, Default)]
 pub struct ComputeState {
     pub pipeline: Option<u64>,
+    /// The compute shader object bound after `pipeline` (`vkCmdBindShadersEXT` with the compute
+    /// stage; 0: bound as none), which replaces it: what is rebound then.
+    pub shader: Option<u64>,
     /// `StateCmd::BindDescriptorSets` at the compute bind point still in effect, oldest first.
     pub sets: Vec<StateCmd>,
 }
@@ -411,12 +414,17 @@ impl CmdState {
             StateCmd::BindDescriptorSets { .. } => keep_binding(&mut self.descriptor_sets, cmd),
             StateCmd::BindShaders { stages, shaders } => {
                 for (stage, shader) in stages.into_iter().zip(shaders) {
+                    if stage == vk::ShaderStageFlags::COMPUTE {
+                        // The compute bind point's: it replaces the compute pipeline.
+                        self.compute.shader = Some(shader);
+                        continue;
+                    }
                     match self.shaders.iter_mut().find(|(s, _)| *s == stage) {
                         Some(slot) => slot.1 = shader,
                         None => self.shaders.push((stage, shader)),
                     }
+                    self.shader_objects = true;
                 }
-                self.shader_objects = true;
             }
             StateCmd::PushConstants { layout, stages, offset, ref data } => {
                 let end = offset + data.len() as u32;

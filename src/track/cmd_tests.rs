@@ -258,3 +258,15 @@ fn shader_objects_are_rebound_with_every_state() {
     assert_eq!(s.restore_commands(), vec![StateCmd::BindPipeline(9)]);
     assert_eq!(s.depth_tested(), Some(true), "the pipeline's own depth test");
 }
+
+#[test]
+fn a_compute_shader_object_is_the_compute_bind_points() {
+    let mut s = CmdState::default();
+    s.begin(vk::CommandBufferUsageFlags::empty());
+    s.compute.pipeline = Some(5);
+    s.record(StateCmd::BindShaders { stages: vec![vk::ShaderStageFlags::COMPUTE], shaders: vec![21] });
+    assert_eq!(s.compute.shader, Some(21));
+    // Graphics are untouched: no shader objects there, nothing to restore.
+    assert!(s.restore_commands().is_empty());
+    assert_eq!(s.depth_tested(), None);
+}

@@ -26,6 +26,8 @@ struct Case {
     /// Fragments per pixel the app shades before the injection point (a sky drawn first without
     /// depth test): the far field cannot save those.
     shaded_before: u32,
+    /// Vulkan validation on (bookworm's layer does not know shader objects).
+    validation: bool,
 }
 
 impl Case {
@@ -43,6 +45,7 @@ impl Case {
             previous_frame: false,
             debug: false,
             shaded_before: 0,
+            validation: true,
         }
     }
     fn env(mut self, k: &str, v: &str) -> Case {
@@ -60,6 +63,7 @@ impl Case {
         for (k, v) in &self.env {
             run = run.env(k, v);
         }
+        run.validation = self.validation;
         run
     }
 
@@ -134,6 +138,25 @@ fn judge(case: &Case, out: &Outcome, min_psnr: f64) {
 fn per_eye_infinity_matches_the_reference() {
     for (rendering, depth) in ["render-pass", "render-pass2", "dynamic"].into_iter().flat_map(|r| ["standard", "reverse"].map(|d| (r, d))) {
         check(Case::new(&format!("ff-per-eye-{rendering}-{depth}"), &["--layout", "per-eye", "--rendering", rendering, "--depth", depth]), 35.0);
+    }
+}
+
+/// State set as DXVK sets it (`--dynamic-state`, `--pipeline-library` with render pass objects,
+/// where bookworm's validation layer checks them) and shader objects (`--shader-object`, validated
+/// by tests/realworld/dxvk_state.rs; here without validation): the far field's reuse draws and
+/// its compute copy leave the app's dynamic state, linked pipelines and shader objects as they
+/// were, with the state bound before the pass.
+#[test]
+fn dxvk_state_and_shader_objects() {
+    let cases: [(&str, &[&str]); 3] = [
+        ("ff-dxvk-dynamic-state", &["--layout", "per-eye", "--rendering", "render-pass2", "--dynamic-state", "--pipeline-library", "--bind-before-pass"]),
+        ("ff-dxvk-dynamic-rendering", &["--layout", "per-eye", "--rendering", "dynamic", "--dynamic-state", "--bind-before-pass"]),
+        ("ff-shader-objects", &["--layout", "per-eye", "--rendering", "dynamic", "--shader-object", "--bind-before-pass"]),
+    ];
+    for (name, args) in cases {
+        let mut case = Case::new(name, args);
+        case.validation = !args.contains(&"--shader-object");
+        check(case, 35.0);
     }
 }
 

@@ -121,8 +121,8 @@ struct Params {
 
 /// Records the compute copies of `sources` (views of the pass that just ended in `cb`).
 pub(super) fn record(d: &DeviceState, cb: vk::CommandBuffer, p: &PendingCopy, sources: &[EyeDraw], c: &Copier) -> Result<(), &'static str> {
-    // The app's compute bindings are restored afterwards; a command buffer that bound shader
-    // objects (`CmdState::veto`) cannot be.
+    // The app's compute bindings (pipeline or shader object, sets) are restored afterwards; a
+    // command buffer with state the layer does not restore (`CmdState::veto`) is left alone.
     let compute = match d.track.with_cb(cb.as_raw(), |s| (s.veto, s.compute.clone())) {
         Some((None, compute)) => compute,
         Some((Some(_), _)) => return Err("vetoed"),

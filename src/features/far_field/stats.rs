@@ -54,7 +54,7 @@ impl Counters for FarFieldStats {
             "not_stored" => "the pass does not store its colour or depth: there is nothing to reuse",
             "no_transfer_src" => "the eye or depth image was created before the layer could add TRANSFER_SRC to its usage",
             "no_sampled_usage" => "the eye or depth image was created before the layer could add SAMPLED to its usage, or its format cannot be sampled",
-            "vetoed" => "the command buffer bound shader objects, whose state the layer cannot restore after its compute copy",
+            "vetoed" => "the command buffer set state the layer does not restore (the app's own shading rate, NVIDIA's extended dynamic state, local-read attachment remapping)",
             "not_depth_tested" => "the pass has no depth-tested draw: nothing to save",
             _ => crate::core::stats::common_hint(reason),
         }

@@ -97,7 +97,10 @@ pub(in crate::vk) unsafe extern "system" fn cmd_bind_pipeline(cb: vk::CommandBuf
         if bind_point == vk::PipelineBindPoint::GRAPHICS {
             d.track.bind_graphics_pipeline(cb, pipeline.as_raw());
         } else if bind_point == vk::PipelineBindPoint::COMPUTE {
-            d.track.with_cb(cb, |s| s.compute.pipeline = Some(pipeline.as_raw()));
+            d.track.with_cb(cb, |s| {
+                s.compute.pipeline = Some(pipeline.as_raw());
+                s.compute.shader = None;
+            });
         }
     })
 }

@@ -41,8 +41,9 @@ impl Drop for Restore<'_> {
     }
 }
 
-/// Rebinds the app's compute pipeline and descriptor sets when dropped: a dispatch of the layer's
-/// in the app's command buffer (outside any pass) replaces both. Push constants are left alone
+/// Rebinds the app's compute pipeline (or compute shader object) and descriptor sets when
+/// dropped: a dispatch of the layer's in the app's command buffer (outside any pass) replaces
+/// both. Push constants are left alone
 /// (the layer's compute pipelines have none, and binding a pipeline does not disturb them).
 pub(crate) struct RestoreCompute<'a> {
     d: &'a DeviceState,
@@ -64,8 +65,13 @@ impl Drop for RestoreCompute<'_> {
         // SAFETY: `cb` is recording (`new`'s contract); the handles are the app's own bindings,
         // alive while it records.
         unsafe {
-            if let Some(p) = self.state.pipeline {
-                (v0.cmd_bind_pipeline)(self.cb, vk::PipelineBindPoint::COMPUTE, vk::Pipeline::from_raw(p));
+            match (self.state.shader, self.d.ext.cmd_bind_shaders) {
+                (Some(s), Some(bind)) => bind(self.cb, 1, &vk::ShaderStageFlags::COMPUTE, &vk::ShaderEXT::from_raw(s)),
+                _ => {
+                    if let Some(p) = self.state.pipeline {
+                        (v0.cmd_bind_pipeline)(self.cb, vk::PipelineBindPoint::COMPUTE, vk::Pipeline::from_raw(p));
+                    }
+                }
             }
             for c in &self.state.sets {
                 if let StateCmd::BindDescriptorSets { layout, first, sets, dynamic_offsets } = c {
