@@ -152,3 +152,6 @@ pub struct UpscaleFrame {
     pub phases_ms: Vec<f64>,
 }
 
+/// `XR_KHR_visibility_mask`: the runtime's hidden-area meshes, which the layer reads for itself
+/// and offers to the app when the runtime lacks them.
+pub const VISIBILITY_MASK_EXT: &str = "XR_KHR_visibility_mask";

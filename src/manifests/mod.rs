@@ -102,6 +102,7 @@ pub fn xr_api_version() -> String {
 enum Json {
     Str(String),
     Obj(Vec<(&'static str, Json)>),
+    Arr(Vec<Json>),
 }
 
 impl Json {
@@ -126,6 +127,17 @@ impl Json {
                 out.push_str(&" ".repeat(indent));
                 out.push('}');
             }
+            Json::Arr(items) => {
+                out.push('[');
+                for (i, item) in items.iter().enumerate() {
+                    out.push_str(if i == 0 { "\n" } else { ",\n" });
+                    out.push_str(&" ".repeat(indent + 4));
+                    item.write(out, indent + 4);
+                }
+                out.push('\n');
+                out.push_str(&" ".repeat(indent));
+                out.push(']');
+            }
         }
     }
 }
@@ -144,6 +156,13 @@ pub fn json(kind: Kind, library_path: &Path) -> String {
                 ("implementation_version", version),
                 ("description", Json::s(XR_DESCRIPTION)),
                 ("functions", Json::Obj(vec![(XR_NEGOTIATE, Json::s(XR_NEGOTIATE))])),
+                // Offered to the app when the runtime lacks it (the lens the layer knows), so that
+                // OpenVR games through xrizer get a hidden-area mesh; the loader lists an enabled
+                // layer's extensions beside the runtime's.
+                (
+                    "instance_extensions",
+                    Json::Arr(vec![Json::Obj(vec![("name", Json::s(crate::core::views::VISIBILITY_MASK_EXT)), ("extension_version", Json::s("2"))])]),
+                ),
             ];
             if kind.is_implicit() {
                 // No `enable_environment`: an installed layer is meant for every app; a user who

@@ -132,9 +132,12 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             .filter(|e| !app_extensions.iter().any(|a| a == e))
             .filter(|e| available.as_ref().is_none_or(|list| list.iter().any(|a| a == e)))
             .collect();
+        // Extensions the app asked for that the runtime lacks and the layer implements itself:
+        // they do not go down (the runtime would refuse the instance).
+        let offered: Vec<String> = offerable(&app_extensions, available.as_deref(), config.enabled());
         let mut added = Vec::new();
         let r = down.call(|| {
-            if wanted.is_empty() || info.is_null() {
+            if (wanted.is_empty() && offered.is_empty()) || info.is_null() {
                 return plain();
             }
             let names: Vec<CString> = wanted.iter().filter_map(|e| CString::new(*e).ok()).collect();
@@ -147,6 +150,8 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
                     std::slice::from_raw_parts(i.enabled_extension_names, i.enabled_extension_count as usize).to_vec()
                 }
             };
+            // SAFETY: the app's NUL-terminated names, valid for this call.
+            ext_ptrs.retain(|&p| !offered.iter().any(|o| unsafe { std::ffi::CStr::from_ptr(p) }.to_bytes() == o.as_bytes()));
             ext_ptrs.extend(names.iter().map(|n| n.as_ptr()));
             // SAFETY: as above; the copy and the names live until the call returns.
             let mut with = unsafe { *info };
@@ -154,7 +159,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             with.enabled_extension_names = ext_ptrs.as_ptr();
             // SAFETY: forwarding the modified copy with the chain advanced.
             let r = unsafe { next_create(&with, &down_info, instance) };
-            if r == xr::Result::ERROR_EXTENSION_NOT_PRESENT {
+            if r == xr::Result::ERROR_EXTENSION_NOT_PRESENT && offered.is_empty() {
                 // The runtime lacks one of ours: go on exactly as the app asked.
                 tracing::info!("runtime lacks {wanted:?}; features needing them fall back");
                 return plain();
@@ -188,6 +193,9 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
         if !added.is_empty() {
             tracing::info!("enabled {added:?} for the layer's own use (hidden from the app)");
         }
+        if !offered.is_empty() {
+            tracing::info!("the runtime lacks {offered:?}, which the app enabled: the layer implements them (the lens it knows)");
+        }
         let inst = Instance {
             handle,
             next,
@@ -197,6 +205,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             stats: Stats::default(),
             app_extensions,
             layer_extensions: added,
+            offered_extensions: offered,
             watch: crate::core::config::Watch::new(crate::registry::keys(), &[app_name_for_watch.as_str(), exe.as_str()], std::time::Duration::from_millis(100)),
             told_sizes: Default::default(),
             features: crate::registry::xr_instance_states(),
@@ -335,4 +344,32 @@ pub(super) unsafe extern "system" fn poll_event(instance: xr::Instance, event_da
             return Ok(r);
         }
     }, plain)
+}
+
+/// The app's extensions the layer implements itself because the runtime lacks them (only when
+/// the runtime's list is known and the layer is on): `XR_KHR_visibility_mask`.
+fn offerable(app: &[String], runtime: Option<&[String]>, enabled: bool) -> Vec<String> {
+    let Some(runtime) = runtime else { return Vec::new() };
+    [super::VISIBILITY_MASK_EXT]
+        .into_iter()
+        .filter(|e| enabled && app.iter().any(|a| a == e) && !runtime.iter().any(|r| r == e))
+        .map(str::to_string)
+        .collect()
+}
+
+#[cfg(test)]
+mod offer_tests {
+    use super::*;
+
+    #[test]
+    fn the_mask_extension_is_offered_only_where_the_runtime_lacks_it() {
+        let app = vec!["XR_KHR_vulkan_enable2".to_string(), "XR_KHR_visibility_mask".to_string()];
+        let without = vec!["XR_KHR_vulkan_enable2".to_string()];
+        let with = app.clone();
+        assert_eq!(offerable(&app, Some(&without), true), vec!["XR_KHR_visibility_mask".to_string()]);
+        assert!(offerable(&app, Some(&with), true).is_empty(), "the runtime's own");
+        assert!(offerable(&app, None, true).is_empty(), "unknown runtime list: nothing is taken away");
+        assert!(offerable(&app, Some(&without), false).is_empty(), "layer off: pass-through");
+        assert!(offerable(&without, Some(&without), true).is_empty(), "not asked for");
+    }
 }

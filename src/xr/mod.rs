@@ -165,6 +165,14 @@ unsafe extern "system" fn get_instance_proc_addr(
         let Some(inst) = state().instances.get(instance.into_raw()) else {
             return xr::Result::ERROR_HANDLE_INVALID;
         };
+        // Functions of extensions the layer implements for the app: its own, whatever the
+        // runtime has.
+        if name_str == "xrGetVisibilityMaskKHR" && inst.offers(VISIBILITY_MASK_EXT) {
+            // SAFETY: `function` checked non-null above; the loader casts the pointer back to the
+            // type the spec gives the name.
+            unsafe { *function = Some(std::mem::transmute::<xr::pfn::GetVisibilityMaskKHR, xr::pfn::VoidFunction>(hooks::get_visibility_mask)) };
+            return xr::Result::SUCCESS;
+        }
         // Functions of extensions only the layer enabled do not exist for the app.
         if extension_of(name_str).is_some_and(|ext| !inst.app_enabled(ext)) {
             // SAFETY: `function` checked non-null above.

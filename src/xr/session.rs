@@ -6,7 +6,7 @@ use crate::features::mask::MaskSettings;
 use crate::features::foveation::FoveationSettings;
 use super::Instance;
 use crate::core::guard;
-use crate::core::views::ViewFov;
+use crate::core::views::{ViewFov, VISIBILITY_MASK_EXT};
 use std::sync::atomic::{AtomicBool, Ordering};
 use openxr_sys as xr;
 use openxr_sys::Handle as _;
@@ -248,6 +248,10 @@ pub(super) unsafe extern "system" fn get_visibility_mask(
         Err(Some(inst)) => (inst, None),
         Err(None) => return xr::Result::ERROR_HANDLE_INVALID,
     };
+    if inst.offers(VISIBILITY_MASK_EXT) {
+        // SAFETY: the app's output struct for this call.
+        return unsafe { offered_visibility_mask(sess.as_deref(), view_configuration_type, view_index, visibility_mask_type, visibility_mask) };
+    }
     let Some(next) = inst.next.get_visibility_mask else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
     // SAFETY: forwarding the app's arguments unchanged.
     let plain = || unsafe { next(session, view_configuration_type, view_index, visibility_mask_type, visibility_mask) };
@@ -273,6 +277,33 @@ pub(super) unsafe extern "system" fn get_visibility_mask(
         }
         Ok(r)
     }, plain)
+}
+
+/// `xrGetVisibilityMaskKHR` where the runtime lacks the extension and the layer offers it: the
+/// lens the layer knows, from the feature that knows it (`XrFeature::offered_visibility_mask`).
+///
+/// # Safety
+/// `mask` is null or the app's output struct, as for `write_visibility_mask`.
+unsafe fn offered_visibility_mask(
+    sess: Option<&Session>,
+    config: xr::ViewConfigurationType,
+    view: u32,
+    ty: xr::VisibilityMaskTypeKHR,
+    mask: *mut xr::VisibilityMaskKHR,
+) -> xr::Result {
+    let Some(s) = sess else { return xr::Result::ERROR_HANDLE_INVALID };
+    if config != xr::ViewConfigurationType::PRIMARY_STEREO {
+        return xr::Result::ERROR_VIEW_CONFIGURATION_TYPE_UNSUPPORTED;
+    }
+    if view >= 2 {
+        return xr::Result::ERROR_VALIDATION_FAILURE;
+    }
+    let points = crate::core::guard::catch("xrGetVisibilityMaskKHR", None, || crate::registry::XR_FEATURES.iter().find_map(|f| f.offered_visibility_mask(s, view, ty)));
+    match points {
+        // SAFETY: per this function's contract.
+        Some(points) => unsafe { write_visibility_mask(&points, mask) },
+        None => xr::Result::ERROR_RUNTIME_FAILURE,
+    }
 }
 
 /// Writes `points` (indexed in order) into the app's `XrVisibilityMaskKHR` by the two-call idiom:

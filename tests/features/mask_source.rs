@@ -105,3 +105,36 @@ fn changed_mask_is_applied_to_later_frames() {
         }
     }
 }
+
+/// A runtime without `XR_KHR_visibility_mask` (WiVRn, SteamVR's for some headsets): the layer lists
+/// the extension beside the runtime's (its manifest's `instance_extensions`), keeps it away from
+/// the runtime, and answers `xrGetVisibilityMaskKHR` itself with the lens it knows
+/// (`mask.synthesized.*`), the layer's own mask on or off. What an OpenVR game's
+/// `GetHiddenAreaMesh` gets through xrizer. Without the layer the app finds no extension.
+#[test]
+fn the_layer_offers_the_visibility_mask_the_runtime_lacks() {
+    let base = Run::new("mask-offered-plain").args(["--visibility-mask"]).env("MOCK_XR_DISABLE_EXTENSIONS", "XR_KHR_visibility_mask").env("MOCK_XR_EXIT_AFTER", "3");
+    let plain = base.clone().run();
+    assert_ne!(plain.code, Some(0), "the app found the extension without the layer:\n{}", plain.stderr);
+    assert!(plain.stderr.contains("does not offer XR_KHR_visibility_mask"), "{}", plain.stderr);
+    for (name, mask_on) in [("mask-offered-layer", false), ("mask-offered-with-mask", true)] {
+        let mut run = base.clone().with_layer().env("STEREOSHIM_MASK_ENABLED", if mask_on { "1" } else { "0" });
+        run.name = name.into();
+        let out = run.run();
+        out.assert_ok();
+        out.assert_layer_loaded(Half::OpenXr);
+        assert_eq!(out.log_lines("which the app enabled: the layer implements them").len(), 1, "{}", out.log);
+        // Both views: the synthesized lens's ring, 2 triangles per outline segment, hiding a
+        // real part of the view.
+        let lines: Vec<&str> = out.stderr.lines().filter(|l| l.starts_with("xr-scene: visibility mask view")).collect();
+        assert_eq!(lines.len(), 2, "{}", out.stderr);
+        for l in &lines {
+            assert!(l.contains(": 128 triangles,"), "{l}");
+            let area: f64 = l.rsplit(' ').next().unwrap().parse().unwrap();
+            assert!(area > 1.0, "{l}");
+        }
+        if mask_on {
+            assert_eq!(out.log_lines("hidden-area mask from Synthesized").len(), 2, "{}", out.log);
+        }
+    }
+}

@@ -59,6 +59,25 @@ impl LensShape {
         out
     }
 
+    /// The polygon `hidden_triangles` leaves open, CCW from +x (`XR_KHR_visibility_mask`'s line
+    /// loop, when the layer offers the extension).
+    pub fn outline(&self) -> Vec<[f32; 2]> {
+        let margin = 1.0 / (PI / SEGMENTS as f64).cos() * 1.01;
+        (0..SEGMENTS)
+            .map(|i| {
+                let phi = 2.0 * PI * i as f64 / SEGMENTS as f64;
+                let r = self.radius(phi) * margin;
+                [(phi.cos() * r) as f32, (phi.sin() * r) as f32]
+            })
+            .collect()
+    }
+
+    /// The open polygon as triangles (a fan from the axis, CCW): the visible triangle mesh.
+    pub fn visible_triangles(&self) -> Vec<[f32; 2]> {
+        let o = self.outline();
+        (0..o.len()).flat_map(|i| [[0.0, 0.0], o[i], o[(i + 1) % o.len()]]).collect()
+    }
+
     /// Whether a tangent-plane point lies inside the lens outline (tests, diagnostics).
     pub fn contains(&self, t: [f64; 2]) -> bool {
         let rho = (t[0] * t[0] + t[1] * t[1]).sqrt();
@@ -144,6 +163,22 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// The three mesh types the layer offers describe one polygon: the visible fan and the
+    /// hidden ring meet on the outline, and the loop is that outline.
+    #[test]
+    fn offered_meshes_share_one_outline() {
+        let lens = LensShape { horizontal_deg: 50.0, vertical_deg: 45.0 };
+        let (outline, visible, hidden) = (lens.outline(), lens.visible_triangles(), lens.hidden_triangles());
+        assert_eq!(outline.len(), SEGMENTS);
+        assert_eq!(visible.len(), SEGMENTS * 3);
+        for (i, p) in outline.iter().enumerate() {
+            // Each outline point is an inner vertex of the hidden ring and a fan vertex.
+            assert!(hidden.iter().any(|h| (h[0] - p[0]).abs() < 1e-5 && (h[1] - p[1]).abs() < 1e-5), "outline point {i}");
+            assert_eq!(visible[i * 3 + 1], *p);
+            assert!(!lens.contains([p[0] as f64, p[1] as f64]), "the outline lies just outside the lens");
         }
     }
 

@@ -61,6 +61,18 @@ impl XrFeature for MaskXr {
         }
         !inst.app_enabled(VISIBILITY_MASK_EXT)
     }
+    /// The lens the layer knows (`mask.synthesized.*`), whether or not the layer's own mask is on: an
+    /// app that draws the hidden area itself gets it where the runtime has none.
+    fn offered_visibility_mask(&self, s: &Session, _view: u32, ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
+        let settings = settings(&s.instance);
+        let (_, lens) = mask_source::from_settings(settings.of::<MaskSettings>());
+        match ty {
+            xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH => Some(lens.hidden_triangles()),
+            xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH => Some(lens.visible_triangles()),
+            xr::VisibilityMaskTypeKHR::LINE_LOOP => Some(lens.outline()),
+            _ => None,
+        }
+    }
     fn config_reloaded(&self, s: &Session, changed: &[&'static str]) {
         if changed.iter().any(|k| k.starts_with("mask.")) {
             s.feature::<MaskSession>().dirty.store(true, Ordering::Release);

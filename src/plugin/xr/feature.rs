@@ -66,6 +66,11 @@ pub(crate) trait XrFeature: Sync {
     fn amend_visibility_mask(&self, _s: &Session, _view: u32, _ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
         None
     }
+    /// The runtime lacks `XR_KHR_visibility_mask` and the layer offers it to the app: the mesh of
+    /// type `ty` for `view` (points, indexed in order), from the feature that knows the lens.
+    fn offered_visibility_mask(&self, _s: &Session, _view: u32, _ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
+        None
+    }
     /// `xrEndFrame` is about to go down with the app's `info`; an amended copy replaces it (the
     /// first feature that amends wins).
     fn amend_frame_end(&self, _s: &Session, _info: &xr::FrameEndInfo) -> Option<AmendedFrameEnd> {

@@ -50,6 +50,9 @@ pub(crate) struct Instance {
     pub app_extensions: Vec<String>,
     /// Extensions the layer enabled for itself; their functions and events stay hidden from the app.
     pub layer_extensions: Vec<String>,
+    /// Extensions the app enabled that the runtime lacks and the layer implements itself
+    /// (`XR_KHR_visibility_mask`: the lens the layer knows); they never reach the runtime.
+    pub offered_extensions: Vec<String>,
     /// The config file, re-read when it changes; feature settings then apply from the next frame.
     pub watch: crate::core::config::Watch,
     /// Per view, the recommended size the app was told to render at when a feature scaled it
@@ -64,6 +67,10 @@ impl Instance {
     /// Whether the app (not only the layer) enabled `ext`.
     pub fn app_enabled(&self, ext: &str) -> bool {
         self.app_extensions.iter().any(|e| e == ext)
+    }
+    /// Whether the layer, not the runtime, implements `ext` for the app.
+    pub fn offers(&self, ext: &str) -> bool {
+        self.offered_extensions.iter().any(|e| e == ext)
     }
     /// Whether the layer enabled `ext` for itself or the app did.
     pub fn has_extension(&self, ext: &str) -> bool {

@@ -18,7 +18,7 @@ use crate::plugin::settings::Settings;
 use openxr_sys as xr;
 use std::sync::Arc;
 
-pub(crate) const VISIBILITY_MASK_EXT: &str = "XR_KHR_visibility_mask";
+pub(crate) use crate::core::views::VISIBILITY_MASK_EXT;
 pub(crate) const EYE_GAZE_EXT: &str = "XR_EXT_eye_gaze_interaction";
 
 /// An `XrVisibilityMaskKHR` asking for the counts only (the two-call idiom's first call).
