@@ -17,13 +17,11 @@ const LIBDIR: &str = "usr/lib/x86_64-linux-gnu";
 /// validation layer found first.
 fn in_trixie(mut run: Run, root: &Path) -> Run {
     let lib = root.join(LIBDIR);
-    let icd = common::target_dir().join("test-output").join("trixie-lavapipe.json");
+    // One file per run: the tests of this binary run two at a time.
+    let icd = common::target_dir().join("test-output").join(format!("{}.lavapipe.json", run.name));
     let json = serde_json::json!({ "file_format_version": "1.0.0", "ICD": { "library_path": lib.join("libvulkan_lvp.so"), "api_version": "1.4.305" } });
-    // Written whole, then renamed: the tests of this binary run two at a time.
-    let tmp = icd.with_extension(format!("{}.tmp", std::process::id()));
     std::fs::create_dir_all(icd.parent().unwrap()).unwrap();
-    std::fs::write(&tmp, json.to_string()).unwrap();
-    std::fs::rename(&tmp, &icd).unwrap();
+    std::fs::write(&icd, json.to_string()).unwrap();
     run.wrapper = vec![lib.join("ld-linux-x86-64.so.2").into(), "--library-path".into(), lib.into()];
     run.env("VK_DRIVER_FILES", icd.to_str().unwrap()).env("VK_ADD_LAYER_PATH", root.join("usr/share/vulkan/explicit_layer.d").to_str().unwrap())
 }
