@@ -160,6 +160,14 @@ fn dxvk_state_and_shader_objects() {
     }
 }
 
+/// The OpenVR submission path (`--submit-via openvr`): the eyes reach the swapchain through a
+/// second component's copy in a submission of its own; the far field reuses as when the app
+/// copies them itself.
+#[test]
+fn openvr_submission() {
+    check(Case::new("ff-openvr", &["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--submit-via", "openvr"]), 35.0);
+}
+
 #[test]
 fn per_eye_depth_shift_matches_the_reference() {
     let mut case = Case::new("ff-per-eye-depth-shift", &["--layout", "per-eye"]);

@@ -134,6 +134,13 @@ rdm_tests! {
     shader_objects_multiview: ["--layout", "multiview", "--rendering", "dynamic", "--shader-object", "--bind-before-pass"];
 }
 
+// The OpenVR submission path (see tests/features/mask.rs): RDM's reconstruction reaches the
+// swapchain through the compositor's own copy.
+rdm_tests! {
+    openvr_intermediate_msaa_per_eye: ["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--submit-via", "openvr"];
+    openvr_double_wide: ["--layout", "side-by-side", "--rendering", "render-pass", "--submit-texture", "double-wide", "--submit-via", "openvr"];
+}
+
 // Eye passes recorded into secondary command buffers (as engines do): the checkerboard goes into
 // the layer's own secondary, executed ahead of the app's. Vulkan 1.0 apps get RDM too.
 rdm_tests! {

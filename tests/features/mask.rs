@@ -192,6 +192,16 @@ mask_tests! {
     shader_objects_side_by_side: ["--layout", "side-by-side", "--rendering", "dynamic", "--shader-object", "--translucent"];
 }
 
+// The OpenVR submission path (`--submit-via openvr`): the app renders into textures of its own
+// and a second component — xrizer or OpenComposite for an OpenVR game — copies, resolves or
+// blits them into the swapchain in a command buffer and a vkQueueSubmit of its own, after the
+// app's, without fence or semaphore. The eye passes are found through that other submission.
+mask_tests! {
+    openvr_intermediate_msaa_per_eye: ["--layout", "per-eye", "--rendering", "render-pass", "--intermediate", "--submit-via", "openvr"];
+    openvr_intermediate_copy_multiview: ["--layout", "multiview", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--submit-via", "openvr"];
+    openvr_double_wide: ["--layout", "side-by-side", "--rendering", "dynamic", "--submit-texture", "double-wide", "--submit-via", "openvr"];
+}
+
 // Depth cleared by the app itself, not by the pass's load op (`--depth-clear`): the mask must go
 // in right after vkCmdClearAttachments (the pass's first command; side-by-side clears the whole
 // double-wide area in one rect), or at the beginning of a pass that loads an image

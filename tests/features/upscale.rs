@@ -160,6 +160,29 @@ fn record_once_and_dynamic_resolution() {
     }
 }
 
+/// The OpenVR submission path (`--submit-via openvr`): the app renders the size it was told into
+/// textures of its own, which a second component copies (or blits, from a double-wide texture)
+/// into the interposed swapchain in a submission of its own; the runtime still gets display-size
+/// images close to native.
+#[test]
+fn openvr_submission() {
+    let cases: [(&str, &[&str]); 2] = [
+        ("openvr-intermediate", &["--intermediate", "--samples", "1", "--submit-via", "openvr"]),
+        ("openvr-double-wide", &["--layout", "side-by-side", "--submit-texture", "double-wide", "--submit-via", "openvr"]),
+    ];
+    for (label, args) in cases {
+        let base = Run::new(&format!("upscale-native-{label}")).with_layer().args(args.iter().copied()).env("MOCK_XR_EXIT_AFTER", "4");
+        let native = base.run();
+        native.assert_ok();
+        let on = upscaled(base, &format!("upscale-{label}"), "easu_rcas").run();
+        on.assert_ok();
+        assert!(!on.log_lines("the runtime shows").is_empty(), "{label}: no swapchain was interposed");
+        for (p, s, _) in quality_of(label, &on, &native) {
+            assert!(p >= 30.0 && s >= 0.95, "{label}: PSNR {p:.2} dB, SSIM {s:.4}");
+        }
+    }
+}
+
 /// The feature off, with the layer loaded: the runtime gets exactly what it gets without the
 /// layer, and the app is told the runtime's own sizes.
 #[test]

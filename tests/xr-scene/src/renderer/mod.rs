@@ -9,6 +9,7 @@
 //! records the rest; with `--submit-texture double-wide` the frame ends with the blits.
 
 mod barriers;
+mod compositor;
 mod draw;
 
 use crate::cli::{DepthClear, DepthMode, Layout, Options};
@@ -95,6 +96,8 @@ struct FrameSet {
 pub struct Renderer {
     device: ash::Device,
     intermediate: bool,
+    /// `--submit-via openvr`: the copy into the swapchain is the compositor's, not the app's.
+    compositor: Option<compositor::Compositor>,
     samples: vk::SampleCountFlags,
     passes: Passes,
     /// Pipelines, scene buffers, push constants: what a pass's contents are recorded with.
@@ -163,6 +166,7 @@ impl Renderer {
         let mut r = Renderer {
             device: d.clone(),
             intermediate: opts.intermediate,
+            compositor: None,
             samples: targets.samples,
             passes,
             draw: SceneDraw {
@@ -336,6 +340,9 @@ impl Renderer {
         }
         if opts.post.is_some() {
             self.post = Some(crate::post::PostChain::new(gpu, opts, targets, self.passes.render_pass)?);
+        }
+        if opts.submit_via == crate::cli::SubmitVia::Openvr {
+            self.compositor = Some(compositor::Compositor::new(gpu)?);
         }
         self.upload_scene(gpu)
     }
@@ -576,6 +583,9 @@ impl Renderer {
             // One frame at a time: measured before the next one is recorded.
             done.extend(self.complete(index)?);
         }
+        if let Some(c) = &self.compositor {
+            c.submit(gpu, |cb| self.copy_to_swapchains(cb, targets, acquired))?;
+        }
         Ok(done)
     }
 
@@ -692,11 +702,8 @@ impl Renderer {
             if let Some(post) = &mut self.post {
                 post.record(gpu, cmd, targets, acquired, self.frame_scale)?;
             }
-            if self.intermediate {
-                self.resolve_to_swapchains(cmd, targets, acquired);
-            }
-            if targets.slots.iter().any(|s| s.double_wide.is_some()) {
-                self.blit_double_wide(cmd, targets, acquired);
+            if self.compositor.is_none() {
+                self.copy_to_swapchains(cmd, targets, acquired);
             }
             set.counters.record_end(cmd);
             if let Some(p) = &set.pixels {
@@ -705,6 +712,17 @@ impl Renderer {
             d.end_command_buffer(cmd).ctx("vkEndCommandBuffer")?;
         }
         Ok(())
+    }
+
+    /// `--intermediate`'s resolve or copy, `--submit-texture`'s blit: the app's textures into the
+    /// swapchain images, recorded into `cmd` (the app's, or the compositor's).
+    fn copy_to_swapchains(&self, cmd: vk::CommandBuffer, targets: &Targets, acquired: &[Acquired]) {
+        if self.intermediate {
+            self.resolve_to_swapchains(cmd, targets, acquired);
+        }
+        if targets.slots.iter().any(|s| s.double_wide.is_some()) {
+            self.blit_double_wide(cmd, targets, acquired);
+        }
     }
 
     /// `--threads`: (frames recorded on workers, of which with two passes' recordings
