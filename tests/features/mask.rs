@@ -202,6 +202,14 @@ mask_tests! {
     openvr_double_wide: ["--layout", "side-by-side", "--rendering", "dynamic", "--submit-texture", "double-wide", "--submit-via", "openvr"];
 }
 
+// One intermediate target for both eyes (`--one-target`), as engines with post effects render:
+// eye 0 into it, copied into eye 0's swapchain image, then eye 1 into the same image, copied into
+// eye 1's. An image is not an eye: each pass into it is the eye its copy reaches.
+mask_tests! {
+    one_target_per_eye_msaa: ["--layout", "per-eye", "--rendering", "render-pass", "--intermediate", "--one-target"];
+    one_target_per_eye_copy: ["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--one-target"];
+}
+
 // Depth cleared by the app itself, not by the pass's load op (`--depth-clear`): the mask must go
 // in right after vkCmdClearAttachments (the pass's first command; side-by-side clears the whole
 // double-wide area in one rect), or at the beginning of a pass that loads an image
@@ -307,4 +315,24 @@ mask_tests! {
 wrapped_tests! {
     validation_env_vulkan_1_0_per_eye: ["--layout", "per-eye", "--rendering", "render-pass", "--vulkan-api", "1.0"];
     validation_env_secondary_side_by_side: ["--layout", "side-by-side", "--rendering", "dynamic", "--secondary"];
+}
+
+/// `--one-target` over many frames: every eye pass after frame 0 is masked, each with the eye its
+/// copy reaches (the per-frame check is `one_target_*` above), none counted as anything else.
+#[test]
+fn one_target_every_frame() {
+    let frames = 8u64;
+    let out = Run::new("mask-one-target-frames")
+        .args(["--layout", "per-eye", "--intermediate", "--one-target"])
+        .env("MOCK_XR_EXIT_AFTER", &frames.to_string())
+        .with_layer()
+        .env("STEREOSHIM_MASK_ENABLED", "1")
+        .run();
+    out.assert_ok();
+    let stats = out.log_lines("vulkan device stats:").join("\n");
+    let count = |key: &str| -> u64 { stats.split_whitespace().find_map(|w| w.strip_prefix(key)).and_then(|v| v.parse().ok()).unwrap_or(0) };
+    assert_eq!(count("masked_passes="), 2 * (frames - 1), "{stats}");
+    // Frame 0's two passes, before anything is known; nothing else goes unmasked.
+    let unmasked: u64 = stats.split_whitespace().filter(|w| w.starts_with("not_masked.")).filter_map(|w| w.split('=').nth(1)?.parse::<u64>().ok()).sum();
+    assert_eq!(unmasked, 2, "{stats}");
 }

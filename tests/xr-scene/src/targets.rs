@@ -143,7 +143,8 @@ pub struct Slot {
     pub post: Option<crate::post::PostImages>,
     pub color: Chain,
     pub depth: Option<Chain>,
-    /// Multisampled (or single-sampled) offscreen colour with `--intermediate`.
+    /// Multisampled (or single-sampled) offscreen colour with `--intermediate` (with
+    /// `--one-target` the first slot's only: `Targets::offscreen_of` finds it for both).
     pub offscreen: Option<OwnedImage>,
     /// The app's own depth buffer when depth is not submitted.
     pub own_depth: Option<OwnedImage>,
@@ -432,7 +433,8 @@ impl Targets {
                 Err(e) => return push_and_err(self, slot, e),
             }
         }
-        if opts.intermediate {
+        // `--one-target`: the second eye renders into the first eye's offscreen target.
+        if opts.intermediate && !(opts.one_target && !self.slots.is_empty()) {
             match OwnedImage::new(
                 gpu,
                 self.color_format,
@@ -608,6 +610,14 @@ impl Targets {
                 p.destroy(&self.device);
             }
         }
+    }
+}
+
+impl Targets {
+    /// The offscreen target slot `i`'s eye pass renders into (`--intermediate`): its own, or with
+    /// `--one-target` the one the slots share.
+    pub fn offscreen_of(&self, i: usize) -> Option<&OwnedImage> {
+        self.slots.get(i).and_then(|s| s.offscreen.as_ref()).or_else(|| self.slots.first().and_then(|s| s.offscreen.as_ref()))
     }
 }
 

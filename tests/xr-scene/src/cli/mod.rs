@@ -267,6 +267,9 @@ pub struct Options {
     pub submit_texture: Option<SubmitTexture>,
     /// `--submit-via`: who copies the eye textures into the swapchain.
     pub submit_via: SubmitVia,
+    /// `--one-target`: per eye, with `--intermediate`: one offscreen target for both eyes, each
+    /// eye's pass followed by its copy into its swapchain image before the other eye renders.
+    pub one_target: bool,
     /// `--dynamic-resolution`: the eye passes draw into a sub-rect of their target that changes
     /// every frame (`crate::post::dynamic_scale`), read back whole by the tonemap.
     pub dynamic_resolution: bool,
@@ -474,6 +477,10 @@ struct Args {
     /// its own after the app's.
     #[arg(long, value_enum, default_value_t = SubmitVia::App)]
     submit_via: SubmitVia,
+    /// With --layout per-eye --intermediate: one offscreen target for both eyes, rendered one
+    /// eye after the other, each copied (or resolved) into its swapchain before the next.
+    #[arg(long)]
+    one_target: bool,
     /// With --post tonemap or taa: dynamic resolution, the eye passes' sub-rect of their target
     /// changes every frame (x1, x0.75, x0.875 of it in turn, on top of --viewport-scale); the
     /// tonemap reads each frame's sub-rect.
@@ -546,6 +553,9 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
     }
     if a.shader_object && (a.rendering != Rendering::Dynamic || a.pipeline_library) {
         return Err(usage("--shader-object draws without pipelines, in dynamic rendering only: it needs --rendering dynamic and excludes --pipeline-library"));
+    }
+    if a.one_target && !(a.intermediate && a.layout == Layout::PerEye && a.submit_via == SubmitVia::App && !a.secondary && !a.threads && !a.record_once) {
+        return Err(usage("--one-target shares --intermediate's target between the two per-eye passes, copied by the app between them: it needs --layout per-eye --intermediate, without --submit-via openvr, --secondary, --threads or --record-once"));
     }
     if a.submit_via == SubmitVia::Openvr && !(a.intermediate || a.submit_texture.is_some()) {
         return Err(usage("--submit-via openvr copies the app's textures: it needs --intermediate or --submit-texture"));
@@ -633,6 +643,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         viewport_scale: a.viewport_scale,
         submit_texture: a.submit_texture,
         submit_via: a.submit_via,
+        one_target: a.one_target,
         dynamic_resolution: a.dynamic_resolution,
     })
 }

@@ -210,3 +210,12 @@ fn openvr_submission() {
     assert!(p(&["--submit-via", "openvr"]).is_err());
     assert!(p(&["--submit-via", "openvr", "--intermediate", "--record-once"]).is_err());
 }
+
+/// `--one-target`: per eye, through one intermediate copied by the app between the eyes.
+#[test]
+fn one_target_for_both_eyes() {
+    assert!(p(&["--one-target", "--intermediate"]).unwrap().unwrap().one_target);
+    assert!(p(&["--one-target"]).is_err());
+    assert!(p(&["--one-target", "--intermediate", "--layout", "multiview"]).is_err());
+    assert!(p(&["--one-target", "--intermediate", "--submit-via", "openvr"]).is_err());
+}

@@ -147,13 +147,16 @@ impl Renderer {
     /// `--intermediate`: resolve (N > 1) or copy (N = 1) each offscreen target into its swapchain
     /// image (or the double-wide texture), then hand that back in COLOR_ATTACHMENT_OPTIMAL as the
     /// binding requires.
-    pub(super) fn resolve_to_swapchains(&self, cmd: vk::CommandBuffer, targets: &Targets, acquired: &[Acquired]) {
+    /// `only`: that slot's alone (`--one-target`, right after its pass), its offscreen target
+    /// handed back to COLOR_ATTACHMENT_OPTIMAL for the next eye's pass.
+    pub(super) fn resolve_to_swapchains(&self, cmd: vk::CommandBuffer, targets: &Targets, acquired: &[Acquired], only: Option<usize>) {
         let d = &self.device;
         let mut to_transfer = Vec::new();
         let mut back = Vec::new();
+        let chosen = |i: usize| only.is_none_or(|o| o == i);
         for (i, a) in acquired.iter().enumerate() {
             let slot = &targets.slots[i];
-            let Some(off) = &slot.offscreen else { continue };
+            let Some(off) = targets.offscreen_of(i).filter(|_| chosen(i)) else { continue };
             let r = range(vk::ImageAspectFlags::COLOR, slot.scene_layers);
             let (sc, ..) = slot.final_image(a.color);
             to_transfer.push(image_barrier(
@@ -180,6 +183,16 @@ impl Renderer {
                 vk::AccessFlags::TRANSFER_WRITE,
                 vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
             ));
+            if only.is_some() {
+                back.push(image_barrier(
+                    off.image,
+                    r,
+                    vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                    vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                    vk::AccessFlags::TRANSFER_READ,
+                    vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
+                ));
+            }
         }
         // SAFETY: recording state, outside any render pass; images are in the layouts named.
         unsafe {
@@ -194,7 +207,7 @@ impl Renderer {
             );
             for (i, a) in acquired.iter().enumerate() {
                 let slot = &targets.slots[i];
-                let Some(off) = &slot.offscreen else { continue };
+                let Some(off) = targets.offscreen_of(i).filter(|_| chosen(i)) else { continue };
                 let layers = vk::ImageSubresourceLayers {
                     aspect_mask: vk::ImageAspectFlags::COLOR,
                     mip_level: 0,

@@ -96,6 +96,8 @@ struct FrameSet {
 pub struct Renderer {
     device: ash::Device,
     intermediate: bool,
+    /// `--one-target`: both eyes through one offscreen target, each copied right after its pass.
+    one_target: bool,
     /// `--submit-via openvr`: the copy into the swapchain is the compositor's, not the app's.
     compositor: Option<compositor::Compositor>,
     samples: vk::SampleCountFlags,
@@ -167,6 +169,7 @@ impl Renderer {
             device: d.clone(),
             intermediate: opts.intermediate,
             compositor: None,
+            one_target: opts.one_target,
             samples: targets.samples,
             passes,
             draw: SceneDraw {
@@ -629,7 +632,7 @@ impl Renderer {
             let (_, final_view, _, _) = slot.final_image(a.color);
             // The eye pass's colour: the post chain's HDR target (multisampled, resolved into the
             // HDR target), `--intermediate`'s offscreen target, or the final image itself.
-            let (color_view, resolve_view) = match (&slot.post, &slot.offscreen) {
+            let (color_view, resolve_view) = match (&slot.post, targets.offscreen_of(slot_index)) {
                 (Some(p), _) => match &p.scene_msaa {
                     Some(ms) => (ms.view, Some(p.scene.view)),
                     None => (p.scene.view, None),
@@ -698,6 +701,10 @@ impl Renderer {
                     post.record_subpass(gpu, &self.passes, cmd, pass);
                 }
                 self.passes.end(gpu, cmd);
+                if self.one_target {
+                    // This eye's picture leaves the shared target before the other eye renders.
+                    self.resolve_to_swapchains(cmd, targets, acquired, Some(pass.slot));
+                }
             }
             if let Some(post) = &mut self.post {
                 post.record(gpu, cmd, targets, acquired, self.frame_scale)?;
@@ -717,8 +724,8 @@ impl Renderer {
     /// `--intermediate`'s resolve or copy, `--submit-texture`'s blit: the app's textures into the
     /// swapchain images, recorded into `cmd` (the app's, or the compositor's).
     fn copy_to_swapchains(&self, cmd: vk::CommandBuffer, targets: &Targets, acquired: &[Acquired]) {
-        if self.intermediate {
-            self.resolve_to_swapchains(cmd, targets, acquired);
+        if self.intermediate && !self.one_target {
+            self.resolve_to_swapchains(cmd, targets, acquired, None);
         }
         if targets.slots.iter().any(|s| s.double_wide.is_some()) {
             self.blit_double_wide(cmd, targets, acquired);
