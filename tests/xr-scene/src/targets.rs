@@ -434,7 +434,8 @@ impl Targets {
             }
         }
         // `--one-target`: the second eye renders into the first eye's offscreen target.
-        if opts.intermediate && !(opts.one_target && !self.slots.is_empty()) {
+        let shares_the_first = opts.one_target && !self.slots.is_empty();
+        if opts.intermediate && !shares_the_first {
             match OwnedImage::new(
                 gpu,
                 self.color_format,

@@ -554,7 +554,9 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
     if a.shader_object && (a.rendering != Rendering::Dynamic || a.pipeline_library) {
         return Err(usage("--shader-object draws without pipelines, in dynamic rendering only: it needs --rendering dynamic and excludes --pipeline-library"));
     }
-    if a.one_target && !(a.intermediate && a.layout == Layout::PerEye && a.submit_via == SubmitVia::App && !a.secondary && !a.threads && !a.record_once) {
+    let one_target_fits = a.intermediate && a.layout == Layout::PerEye && a.submit_via == SubmitVia::App;
+    let records_simply = !(a.secondary || a.threads || a.record_once);
+    if a.one_target && !(one_target_fits && records_simply) {
         return Err(usage("--one-target shares --intermediate's target between the two per-eye passes, copied by the app between them: it needs --layout per-eye --intermediate, without --submit-via openvr, --secondary, --threads or --record-once"));
     }
     if a.submit_via == SubmitVia::Openvr && !(a.intermediate || a.submit_texture.is_some()) {
