@@ -10,6 +10,7 @@ pub mod fovea;
 pub mod gpu_time;
 pub mod guard;
 pub mod handles;
+pub mod hmd;
 pub mod lens;
 pub mod lifetime;
 pub mod log;

@@ -42,6 +42,10 @@ pub enum MaskSource {
     Runtime,
     /// Synthesized from the configured lens shape (the runtime has no mask).
     Synthesized,
+    /// The published lens of the headset the runtime names, where the runtime's own mask is
+    /// Monado's generic one (`u_visibility_mask_get_default`: the four corners cut, whatever the
+    /// headset; WiVRn's streamed headsets get it) or missing.
+    Headset,
 }
 
 /// One view's hidden area in that view's tangent plane (z = −1; x right, y up, i.e. tangents of

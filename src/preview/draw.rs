@@ -232,6 +232,7 @@ pub fn view_pictures(p: &Preview, i: usize, base: &Canvas) -> Vec<(&'static str,
     let source = match v.mask.source {
         Some(crate::core::views::MaskSource::Runtime) => "runtime mesh",
         Some(crate::core::views::MaskSource::Synthesized) => "synthesized lens",
+        Some(crate::core::views::MaskSource::Headset) => "the headset's published lens",
         None => "none",
     };
     out.push(("mask", c.with_legend(&format!("mask, view {i}: {source}"), &[(MASKED, format!("masked {}", percent(v.mask.pixels_masked, area)))])));

@@ -236,7 +236,8 @@ fn pose(v: &View) -> ViewPose {
 }
 
 fn mask_view(v: &View, policy: mask_source::SourcePolicy, lens: &mask_source::LensShape, rect: PixelRect) -> MaskView {
-    match mask_source::choose(policy, v.hidden.clone(), lens) {
+    // The headset's own lens is what `--hmd` shows as the runtime's mask already.
+    match mask_source::choose(policy, v.hidden.clone(), None, lens) {
         Some((source, triangles)) => {
             let ndc = mask_rules::triangles_to_ndc(&triangles, &v.fov);
             let (_, masked) = mask_rules::coverage_bitmap(&ndc, rect.viewport(), rect);
@@ -338,7 +339,7 @@ pub fn report(headset: &Headset, settings: &Settings, p: &Preview, pngs: &dyn Fn
                 "fov": { "tan_left": fov.tan_left, "tan_right": fov.tan_right, "tan_up": fov.tan_up, "tan_down": fov.tan_down },
                 "pixels": area,
                 "mask": {
-                    "source": v.mask.source.map(|s| match s { MaskSource::Runtime => "runtime", MaskSource::Synthesized => "synthesized" }),
+                    "source": v.mask.source.map(|s| match s { MaskSource::Runtime => "runtime", MaskSource::Synthesized => "synthesized", MaskSource::Headset => "headset" }),
                     "pixels_masked": v.mask.pixels_masked,
                     "fraction": frac(v.mask.pixels_masked),
                     "png": pngs("mask", i),

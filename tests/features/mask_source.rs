@@ -108,8 +108,8 @@ fn changed_mask_is_applied_to_later_frames() {
 
 /// A runtime without `XR_KHR_visibility_mask` (WiVRn, SteamVR's for some headsets): the layer lists
 /// the extension beside the runtime's (its manifest's `instance_extensions`), keeps it away from
-/// the runtime, and answers `xrGetVisibilityMaskKHR` itself with the lens it knows
-/// (`mask.synthesized.*`), the layer's own mask on or off. What an OpenVR game's
+/// the runtime, and answers `xrGetVisibilityMaskKHR` itself with the lens it knows (the
+/// headset's published one, else `mask.synthesized.*`), the layer's own mask on or off. What an OpenVR game's
 /// `GetHiddenAreaMesh` gets through xrizer. Without the layer the app finds no extension.
 #[test]
 fn the_layer_offers_the_visibility_mask_the_runtime_lacks() {
@@ -137,4 +137,35 @@ fn the_layer_offers_the_visibility_mask_the_runtime_lacks() {
             assert_eq!(out.log_lines("hidden-area mask from Synthesized").len(), 2, "{}", out.log);
         }
     }
+    // A headset with a published lens (the mock's Index): the app gets that lens instead, as the
+    // runtime that has the extension would give it (the mock's own mesh, 60 and 59 triangles).
+    let mut run = base.with_layer().env("MOCK_XR_HMD", "index");
+    run.name = "mask-offered-index".into();
+    let out = run.run();
+    out.assert_ok();
+    let lines: Vec<&str> = out.stderr.lines().filter(|l| l.starts_with("xr-scene: visibility mask view")).collect();
+    assert!(lines.len() == 2 && lines[0].contains(": 60 triangles,") && lines[1].contains(": 59 triangles,"), "{}", out.stderr);
+}
+
+/// A runtime that answers with Monado's generic mask (the four corners cut, ~3 % of the view,
+/// whatever the lens: WiVRn's streamed headsets get it) for a headset the layer knows (the mock's
+/// Index): the layer recognises it and masks with the Index's published lens instead, logged;
+/// `mask.source = runtime` keeps the runtime's; a headset whose lens is not published (the
+/// mock's synthetic one) keeps the runtime's generic mask too.
+#[test]
+fn a_generic_runtime_mask_gives_way_to_the_headsets_lens() {
+    let run = |name: &str, hmd: &str, source: &str| {
+        masked(name).env("MOCK_XR_VISIBILITY_MASK", "generic").env("MOCK_XR_HMD", hmd).env("STEREOSHIM_MASK_SOURCE", source).run()
+    };
+    let out = run("mask-source-generic-index", "index", "auto");
+    out.assert_ok();
+    assert_eq!(out.log_lines("Monado's generic one").len(), 2, "{}", out.log);
+    assert_eq!(out.log_lines("hidden-area mask from Headset").len(), 2, "{}", out.log);
+    let out = run("mask-source-generic-index-runtime", "index", "runtime");
+    out.assert_ok();
+    assert_eq!(out.log_lines("hidden-area mask from Runtime, 4 triangles").len(), 2, "{}", out.log);
+    let out = run("mask-source-generic-simple", "simple", "auto");
+    out.assert_ok();
+    assert_eq!(out.log_lines("the layer knows no published lens for this headset").len(), 2, "{}", out.log);
+    assert_eq!(out.log_lines("hidden-area mask from Runtime, 4 triangles").len(), 2, "{}", out.log);
 }

@@ -115,15 +115,57 @@ pub fn from_settings(settings: &super::MaskSettings) -> (SourcePolicy, LensShape
     (policy, LensShape { horizontal_deg: radius, vertical_deg: (radius * settings.synthesized_aspect).min(89.0) })
 }
 
+/// Whether a runtime's hidden triangle mesh is Monado's generic one
+/// (`u_visibility_mask_get_default`): four triangles, each cutting one corner of the view's
+/// FOV rectangle with legs an eighth of its width and height (from ±0.75 to ±1 in coordinates
+/// normalised to the rectangle), the same for every headset that gets it. The rectangle is the
+/// mesh's own bounding box.
+pub fn is_generic(hidden: &[[f32; 2]]) -> bool {
+    if hidden.len() != 12 {
+        return false;
+    }
+    let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
+    for p in hidden {
+        for a in 0..2 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    if hi[0] <= lo[0] || hi[1] <= lo[1] {
+        return false;
+    }
+    let norm = |p: &[f32; 2]| [0, 1].map(|a| (2.0 * (p[a] - lo[a]) / (hi[a] - lo[a]) - 1.0) as f64);
+    let near = |v: f64, want: f64| (v.abs() - want).abs() < 0.02;
+    let mut corners = Vec::new();
+    for t in hidden.chunks_exact(3) {
+        let n: Vec<[f64; 2]> = t.iter().map(norm).collect();
+        // One vertex in a corner, the two others on its two edges, a quarter in from it.
+        let Some(c) = n.iter().find(|p| near(p[0], 1.0) && near(p[1], 1.0)) else { return false };
+        let legs = n.iter().filter(|p| (near(p[0], 1.0) && near(p[1], 0.75) || near(p[0], 0.75) && near(p[1], 1.0)) && p[0].signum() == c[0].signum() && p[1].signum() == c[1].signum()).count();
+        if legs != 2 {
+            return false;
+        }
+        corners.push((c[0].signum() as i32, c[1].signum() as i32));
+    }
+    corners.sort_unstable();
+    corners.dedup();
+    corners.len() == 4
+}
+
 /// Picks a view's mask. `runtime` is the runtime's hidden mesh (None: the runtime offers no
 /// visibility mask; an empty mesh means "no mask" per the spec).
-pub fn choose(policy: SourcePolicy, runtime: Option<Vec<[f32; 2]>>, lens: &LensShape) -> Option<(MaskSource, Vec<[f32; 2]>)> {
+/// `headset`: the published lens of the headset the runtime names, when the layer knows one; it
+/// wins over the runtime's mask only where that is generic (`is_generic`) or missing.
+pub fn choose(policy: SourcePolicy, runtime: Option<Vec<[f32; 2]>>, headset: Option<Vec<[f32; 2]>>, lens: &LensShape) -> Option<(MaskSource, Vec<[f32; 2]>)> {
     let runtime = runtime.filter(|t| t.len() >= 3);
-    match (policy, runtime) {
-        (SourcePolicy::Synthesized, _) => Some((MaskSource::Synthesized, lens.hidden_triangles())),
-        (_, Some(t)) => Some((MaskSource::Runtime, t)),
-        (SourcePolicy::Auto, None) => Some((MaskSource::Synthesized, lens.hidden_triangles())),
-        (SourcePolicy::Runtime, None) => None,
+    let headset = headset.filter(|t| t.len() >= 3);
+    match (policy, runtime, headset) {
+        (SourcePolicy::Synthesized, _, _) => Some((MaskSource::Synthesized, lens.hidden_triangles())),
+        (SourcePolicy::Runtime, t, _) => t.map(|t| (MaskSource::Runtime, t)),
+        (SourcePolicy::Auto, Some(t), Some(h)) if is_generic(&t) => Some((MaskSource::Headset, h)),
+        (SourcePolicy::Auto, Some(t), _) => Some((MaskSource::Runtime, t)),
+        (SourcePolicy::Auto, None, Some(h)) => Some((MaskSource::Headset, h)),
+        (SourcePolicy::Auto, None, None) => Some((MaskSource::Synthesized, lens.hidden_triangles())),
     }
 }
 
@@ -194,11 +236,44 @@ mod tests {
     fn source_choice() {
         let lens = LensShape { horizontal_deg: 50.0, vertical_deg: 50.0 };
         let mesh = vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
-        assert_eq!(choose(SourcePolicy::Auto, Some(mesh.clone()), &lens).unwrap().0, MaskSource::Runtime);
-        assert_eq!(choose(SourcePolicy::Auto, None, &lens).unwrap().0, MaskSource::Synthesized);
-        assert_eq!(choose(SourcePolicy::Auto, Some(vec![]), &lens).unwrap().0, MaskSource::Synthesized);
-        assert!(choose(SourcePolicy::Runtime, None, &lens).is_none());
-        assert_eq!(choose(SourcePolicy::Synthesized, Some(mesh), &lens).unwrap().0, MaskSource::Synthesized);
+        assert_eq!(choose(SourcePolicy::Auto, Some(mesh.clone()), None, &lens).unwrap().0, MaskSource::Runtime);
+        assert_eq!(choose(SourcePolicy::Auto, None, None, &lens).unwrap().0, MaskSource::Synthesized);
+        assert_eq!(choose(SourcePolicy::Auto, Some(vec![]), None, &lens).unwrap().0, MaskSource::Synthesized);
+        assert!(choose(SourcePolicy::Runtime, None, None, &lens).is_none());
+        assert_eq!(choose(SourcePolicy::Synthesized, Some(mesh.clone()), None, &lens).unwrap().0, MaskSource::Synthesized);
+        // A headset the layer knows: its lens where the runtime has none or only the generic one,
+        // never over a real runtime mask; `runtime` keeps even the generic one.
+        let headset = Some(vec![[0.5, 0.5], [1.0, 0.5], [0.5, 1.0]]);
+        let generic = monado_default(&[-1.4, 1.2, 1.3, -1.5]);
+        assert_eq!(choose(SourcePolicy::Auto, Some(mesh), headset.clone(), &lens).unwrap().0, MaskSource::Runtime);
+        assert_eq!(choose(SourcePolicy::Auto, Some(generic.clone()), headset.clone(), &lens).unwrap().0, MaskSource::Headset);
+        assert_eq!(choose(SourcePolicy::Auto, None, headset.clone(), &lens).unwrap().0, MaskSource::Headset);
+        assert_eq!(choose(SourcePolicy::Auto, Some(generic.clone()), None, &lens).unwrap().0, MaskSource::Runtime);
+        assert_eq!(choose(SourcePolicy::Runtime, Some(generic), headset, &lens).unwrap().0, MaskSource::Runtime);
+    }
+
+    /// Monado's `u_visibility_mask_get_default` hidden mesh for a view of FOV tangents
+    /// (left, right, up, down): its four corner triangles in normalised coordinates, scaled.
+    fn monado_default(fov: &[f32; 4]) -> Vec<[f32; 2]> {
+        let n: [[f32; 2]; 12] = [
+            [1.0, 0.75], [1.0, 1.0], [0.75, 1.0], [-1.0, 1.0], [-1.0, 0.75], [-0.75, 1.0],
+            [-1.0, -0.75], [-1.0, -1.0], [-0.75, -1.0], [0.75, -1.0], [1.0, -1.0], [1.0, -0.75],
+        ];
+        let [l, r, u, d] = *fov;
+        n.iter().map(|p| [l + (p[0] + 1.0) / 2.0 * (r - l), d + (p[1] + 1.0) / 2.0 * (u - d)]).collect()
+    }
+
+    #[test]
+    fn monado_generic_mask_is_recognised() {
+        for fov in [[-1.0, 1.0, 1.0, -1.0], [-1.542, 1.053, 1.410, -1.412], [-0.9, 1.3, 0.8, -1.1]] {
+            assert!(is_generic(&monado_default(&fov)), "{fov:?}");
+        }
+        // A real lens (the synthesized one), one corner moved, fewer triangles: not generic.
+        assert!(!is_generic(&LensShape { horizontal_deg: 50.0, vertical_deg: 45.0 }.hidden_triangles()));
+        let mut moved = monado_default(&[-1.0, 1.0, 1.0, -1.0]);
+        moved[0] = [1.0, 0.5];
+        assert!(!is_generic(&moved));
+        assert!(!is_generic(&monado_default(&[-1.0, 1.0, 1.0, -1.0])[..9]));
     }
 
     #[test]

@@ -61,9 +61,21 @@ impl XrFeature for MaskXr {
         }
         !inst.app_enabled(VISIBILITY_MASK_EXT)
     }
-    /// The lens the layer knows (`mask.synthesized.*`), whether or not the layer's own mask is on: an
-    /// app that draws the hidden area itself gets it where the runtime has none.
-    fn offered_visibility_mask(&self, s: &Session, _view: u32, ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
+    /// The lens the layer knows — the headset's published one where the runtime names a headset
+    /// it has one of, else the synthesized lens (`mask.synthesized.*`) —, whether or not the
+    /// layer's own mask is on: an app that draws the hidden area itself gets it where the runtime
+    /// has none.
+    fn offered_visibility_mask(&self, s: &Session, view: u32, ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
+        if let Some(p) = published_lens(s) {
+            let (hidden, visible, line) = hmd_profiles::mask::build(p, view as usize, 1.0);
+            let mesh = match ty {
+                xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH => hidden,
+                xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH => visible,
+                xr::VisibilityMaskTypeKHR::LINE_LOOP => line,
+                _ => return None,
+            };
+            return Some(mesh.indices.iter().filter_map(|&i| mesh.vertices.get(i as usize).map(|v| [v[0], v[1]])).collect());
+        }
         let settings = settings(&s.instance);
         let (_, lens) = mask_source::from_settings(settings.of::<MaskSettings>());
         match ty {
@@ -80,6 +92,12 @@ impl XrFeature for MaskXr {
     }
 }
 
+/// The headset the runtime names, if the layer knows its published lens (an approximating
+/// ellipse is no better than what the runtime says).
+fn published_lens(s: &Session) -> Option<&'static hmd_profiles::profile::HmdProfile> {
+    s.instance.system_name(s.system_id).and_then(|n| crate::core::hmd::profile_for(&n)).filter(|p| matches!(p.lens, hmd_profiles::profile::Lens::LineLoop(_)))
+}
+
 /// (Re)publishes the hidden-area masks of all views when they are due.
 fn refresh_masks(s: &Session) {
     let settings = settings(&s.instance);
@@ -87,9 +105,18 @@ fn refresh_masks(s: &Session) {
         return;
     }
     let (policy, lens) = mask_source::from_settings(settings.of::<MaskSettings>());
+    let profile = published_lens(s);
     let mut masks = Vec::new();
     for view in 0..STEREO_VIEWS {
-        match mask_source::choose(policy, s.runtime_mask(view), &lens) {
+        let headset = profile.map(|p| hmd_profiles::mask::hidden_triangle_points(p, view as usize, 1.0).iter().map(|v| [v[0], v[1]]).collect());
+        let runtime = s.runtime_mask(view);
+        if runtime.as_deref().is_some_and(mask_source::is_generic) {
+            tracing::info!("view {view}: the runtime's hidden-area mask is Monado's generic one (the four corners cut), not the lens; {}", match profile {
+                Some(p) => format!("the layer knows the {} lens ({})", p.name, p.lens_source),
+                None => "the layer knows no published lens for this headset".to_string(),
+            });
+        }
+        match mask_source::choose(policy, runtime, headset, &lens) {
             Some((source, triangles)) => {
                 tracing::info!("view {view}: hidden-area mask from {source:?}, {} triangles", triangles.len() / 3);
                 masks.push(ViewMask { view, source, triangles });

@@ -19,27 +19,12 @@ pub(crate) fn tangents(fov: &Fov) -> ViewFov {
 
 /// The runtime's system name.
 pub(crate) fn system_name(inst: &Instance, system: xr::SystemId) -> Option<String> {
-    let f = inst.next.get_system_properties?;
-    // SAFETY: a zeroed output struct with its type set (every field is plain data).
-    let mut p: xr::SystemProperties = unsafe { std::mem::zeroed() };
-    p.ty = xr::SystemProperties::TYPE;
-    // SAFETY: the instance's own system, an output struct of the right type.
-    if unsafe { f(inst.handle, system, &mut p) } != xr::Result::SUCCESS {
-        return None;
-    }
-    // SAFETY: the runtime wrote a NUL-terminated name into the fixed array.
-    let name = unsafe { std::ffi::CStr::from_ptr(p.system_name.as_ptr()) };
-    Some(name.to_string_lossy().into_owned())
+    inst.system_name(system)
 }
 
 /// The HMD profile a runtime's system name names (the mock's exactly, real headsets by product).
 pub(crate) fn profile_for(name: &str) -> Option<&'static hmd_profiles::profile::HmdProfile> {
-    use hmd_profiles::profile::{HmdProfile, HMD_NAMES};
-    if let Some(p) = HMD_NAMES.iter().filter_map(|n| HmdProfile::by_name(n)).find(|p| p.system_name == name) {
-        return Some(p);
-    }
-    let lower = name.to_lowercase();
-    [("index", "index"), ("vive", "vive"), ("quest 3", "quest3"), ("pimax", "pimax")].iter().find(|(k, _)| lower.contains(k)).and_then(|(_, n)| HmdProfile::by_name(n))
+    crate::core::hmd::profile_for(name)
 }
 
 /// A live session of `inst`, whose runtime meshes can be asked for.

@@ -64,6 +64,20 @@ pub(crate) struct Instance {
 }
 
 impl Instance {
+    /// The runtime's name for `system` (`xrGetSystemProperties`).
+    pub fn system_name(&self, system: xr::SystemId) -> Option<String> {
+        let f = self.next.get_system_properties?;
+        // SAFETY: a zeroed output struct with its type set (every field is plain data).
+        let mut p: xr::SystemProperties = unsafe { std::mem::zeroed() };
+        p.ty = xr::SystemProperties::TYPE;
+        // SAFETY: the instance's own system, an output struct of the right type.
+        if unsafe { f(self.handle, system, &mut p) } != xr::Result::SUCCESS {
+            return None;
+        }
+        // SAFETY: the runtime wrote a NUL-terminated name into the fixed array.
+        let name = unsafe { std::ffi::CStr::from_ptr(p.system_name.as_ptr()) };
+        Some(name.to_string_lossy().into_owned())
+    }
     /// Whether the app (not only the layer) enabled `ext`.
     pub fn app_enabled(&self, ext: &str) -> bool {
         self.app_extensions.iter().any(|e| e == ext)

@@ -44,6 +44,10 @@ pub struct Config {
     pub eye_tracker: bool,
     pub disabled_extensions: HashSet<String>,
     pub mask_change_at: Option<u64>,
+    /// `MOCK_XR_VISIBILITY_MASK=generic`: Monado's generic mask (`u_visibility_mask_get_default`:
+    /// the four corners of the FOV rectangle cut) instead of the profile's lens, as Monado
+    /// answers for headsets it has no lens of (WiVRn's).
+    pub generic_mask: bool,
     pub menu_click_at: Option<u64>,
     pub fail: FailSpec,
     pub log: bool,
@@ -186,6 +190,11 @@ impl Config {
                 .map(|s| s.split(',').map(|e| e.trim().to_string()).filter(|e| !e.is_empty()).collect())
                 .unwrap_or_default(),
             mask_change_at: parse_u64("MOCK_XR_VISIBILITY_MASK_CHANGE_AT")?,
+            generic_mask: match var("MOCK_XR_VISIBILITY_MASK").as_deref().map(str::trim) {
+                None | Some("profile") => false,
+                Some("generic") => true,
+                Some(v) => return Err(format!("MOCK_XR_VISIBILITY_MASK={v}: want profile or generic")),
+            },
             menu_click_at: parse_u64("MOCK_XR_MENU_CLICK_AT")?,
             fail: FailSpec::from_env()?,
             log: log_enabled(),

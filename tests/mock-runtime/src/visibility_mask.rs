@@ -48,7 +48,11 @@ pub unsafe extern "system" fn xr_get_visibility_mask_khr(
         }
         // SAFETY: app output struct.
         let m = unsafe { output(mask) }?;
-        let (hid, vis, line) = build(s.instance.cfg.hmd, view_index as usize, current_scale(&s));
+        let (hid, vis, line) = if s.instance.cfg.generic_mask {
+            generic(s.instance.cfg.hmd.fov_rad(view_index as usize))
+        } else {
+            build(s.instance.cfg.hmd, view_index as usize, current_scale(&s))
+        };
         let mesh = match mask_type {
             xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH => hid,
             xr::VisibilityMaskTypeKHR::VISIBLE_TRIANGLE_MESH => vis,
@@ -58,6 +62,23 @@ pub unsafe extern "system" fn xr_get_visibility_mask_khr(
         fill(m, &mesh)?;
         Ok(xr::Result::SUCCESS)
     })
+}
+
+/// Monado's generic masks (`u_visibility_mask_get_default`) for a view of FOV angles (left,
+/// right, up, down in radians): hidden (the four corner triangles), visible (the octagon as a
+/// fan) and line loop, in coordinates normalised to the FOV rectangle, then mapped onto it.
+pub fn generic(fov: [f32; 4]) -> (Mesh, Mesh, Mesh) {
+    let [l, r, u, d] = fov.map(f32::tan);
+    let map = |p: &[f32; 2]| [l + (p[0] + 1.0) / 2.0 * (r - l), d + (p[1] + 1.0) / 2.0 * (u - d)];
+    let mesh = |v: &[[f32; 2]], i: &[u32]| Mesh { vertices: v.iter().map(map).collect(), indices: i.to_vec() };
+    let hidden = [
+        [1.0, 0.75], [1.0, 1.0], [0.75, 1.0], [-1.0, 1.0], [-1.0, 0.75], [-0.75, 1.0],
+        [-1.0, -0.75], [-1.0, -1.0], [-0.75, -1.0], [0.75, -1.0], [1.0, -1.0], [1.0, -0.75],
+    ];
+    let visible = [[1.0, -0.75], [0.75, -1.0], [-0.75, -1.0], [-1.0, -0.75], [-1.0, 0.75], [-0.75, 1.0], [0.75, 1.0], [1.0, 0.75], [0.0, 0.0]];
+    let visible_indices = [8, 2, 1, 3, 2, 8, 8, 1, 0, 6, 8, 7, 4, 8, 5, 8, 0, 7, 5, 8, 6, 4, 3, 8];
+    let line = [[-0.75, -1.0], [0.75, -1.0], [1.0, -0.75], [1.0, 0.75], [0.75, 1.0], [-0.75, 1.0], [-1.0, 0.75], [-1.0, -0.75]];
+    (mesh(&hidden, &(0..12).collect::<Vec<_>>()), mesh(&visible, &visible_indices), mesh(&line, &(0..8).collect::<Vec<_>>()))
 }
 
 /// The two-call idiom applied to both arrays at once: a zero capacity on both only asks for
