@@ -134,7 +134,9 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             .collect();
         // Extensions the app asked for that the runtime lacks and the layer implements itself:
         // they do not go down (the runtime would refuse the instance).
-        let offered: Vec<String> = offerable(&app_extensions, available.as_deref(), config.enabled());
+        // Whatever the config says: the manifest lists the extension for every app, so an app
+        // that enables it must get an instance, the layer on or off.
+        let offered: Vec<String> = offerable(&app_extensions, available.as_deref());
         let mut added = Vec::new();
         let r = down.call(|| {
             if (wanted.is_empty() && offered.is_empty()) || info.is_null() {
@@ -347,12 +349,12 @@ pub(super) unsafe extern "system" fn poll_event(instance: xr::Instance, event_da
 }
 
 /// The app's extensions the layer implements itself because the runtime lacks them (only when
-/// the runtime's list is known and the layer is on): `XR_KHR_visibility_mask`.
-fn offerable(app: &[String], runtime: Option<&[String]>, enabled: bool) -> Vec<String> {
+/// the runtime's list is known): `XR_KHR_visibility_mask`.
+fn offerable(app: &[String], runtime: Option<&[String]>) -> Vec<String> {
     let Some(runtime) = runtime else { return Vec::new() };
     [super::VISIBILITY_MASK_EXT]
         .into_iter()
-        .filter(|e| enabled && app.iter().any(|a| a == e) && !runtime.iter().any(|r| r == e))
+        .filter(|e| app.iter().any(|a| a == e) && !runtime.iter().any(|r| r == e))
         .map(str::to_string)
         .collect()
 }
@@ -366,10 +368,9 @@ mod offer_tests {
         let app = vec!["XR_KHR_vulkan_enable2".to_string(), "XR_KHR_visibility_mask".to_string()];
         let without = vec!["XR_KHR_vulkan_enable2".to_string()];
         let with = app.clone();
-        assert_eq!(offerable(&app, Some(&without), true), vec!["XR_KHR_visibility_mask".to_string()]);
-        assert!(offerable(&app, Some(&with), true).is_empty(), "the runtime's own");
-        assert!(offerable(&app, None, true).is_empty(), "unknown runtime list: nothing is taken away");
-        assert!(offerable(&app, Some(&without), false).is_empty(), "layer off: pass-through");
-        assert!(offerable(&without, Some(&without), true).is_empty(), "not asked for");
+        assert_eq!(offerable(&app, Some(&without)), vec!["XR_KHR_visibility_mask".to_string()]);
+        assert!(offerable(&app, Some(&with)).is_empty(), "the runtime's own");
+        assert!(offerable(&app, None).is_empty(), "unknown runtime list: nothing is taken away");
+        assert!(offerable(&without, Some(&without)).is_empty(), "not asked for");
     }
 }

@@ -250,7 +250,7 @@ pub(super) unsafe extern "system" fn get_visibility_mask(
     };
     if inst.offers(VISIBILITY_MASK_EXT) {
         // SAFETY: the app's output struct for this call.
-        return unsafe { offered_visibility_mask(sess.as_deref(), view_configuration_type, view_index, visibility_mask_type, visibility_mask) };
+        return unsafe { offered_visibility_mask(&inst, sess.as_deref(), view_configuration_type, view_index, visibility_mask_type, visibility_mask) };
     }
     let Some(next) = inst.next.get_visibility_mask else { return xr::Result::ERROR_FUNCTION_UNSUPPORTED };
     // SAFETY: forwarding the app's arguments unchanged.
@@ -285,20 +285,20 @@ pub(super) unsafe extern "system" fn get_visibility_mask(
 /// # Safety
 /// `mask` is null or the app's output struct, as for `write_visibility_mask`.
 unsafe fn offered_visibility_mask(
+    inst: &Instance,
     sess: Option<&Session>,
     config: xr::ViewConfigurationType,
     view: u32,
     ty: xr::VisibilityMaskTypeKHR,
     mask: *mut xr::VisibilityMaskKHR,
 ) -> xr::Result {
-    let Some(s) = sess else { return xr::Result::ERROR_HANDLE_INVALID };
     if config != xr::ViewConfigurationType::PRIMARY_STEREO {
         return xr::Result::ERROR_VIEW_CONFIGURATION_TYPE_UNSUPPORTED;
     }
     if view >= 2 {
         return xr::Result::ERROR_VALIDATION_FAILURE;
     }
-    let points = crate::core::guard::catch("xrGetVisibilityMaskKHR", None, || crate::registry::XR_FEATURES.iter().find_map(|f| f.offered_visibility_mask(s, view, ty)));
+    let points = crate::core::guard::catch("xrGetVisibilityMaskKHR", None, || crate::registry::XR_FEATURES.iter().find_map(|f| f.offered_visibility_mask(inst, sess, view, ty)));
     match points {
         // SAFETY: per this function's contract.
         Some(points) => unsafe { write_visibility_mask(&points, mask) },

@@ -137,6 +137,13 @@ fn the_layer_offers_the_visibility_mask_the_runtime_lacks() {
             assert_eq!(out.log_lines("hidden-area mask from Synthesized").len(), 2, "{}", out.log);
         }
     }
+    // The layer switched off by its config: the manifest listed the extension all the same, so
+    // the app still gets its instance and the mask.
+    let mut run = base.clone().with_layer().env("STEREOSHIM_ENABLED", "false");
+    run.name = "mask-offered-layer-off".into();
+    let out = run.run();
+    out.assert_ok();
+    assert_eq!(out.stderr.lines().filter(|l| l.starts_with("xr-scene: visibility mask view")).count(), 2, "{}", out.stderr);
     // A headset with a published lens (the mock's Index): the app gets that lens instead, as the
     // runtime that has the extension would give it (the mock's own mesh, 60 and 59 triangles).
     let mut run = base.with_layer().env("MOCK_XR_HMD", "index");

@@ -65,8 +65,8 @@ impl XrFeature for MaskXr {
     /// it has one of, else the synthesized lens (`mask.synthesized.*`) —, whether or not the
     /// layer's own mask is on: an app that draws the hidden area itself gets it where the runtime
     /// has none.
-    fn offered_visibility_mask(&self, s: &Session, view: u32, ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
-        if let Some(p) = published_lens(s) {
+    fn offered_visibility_mask(&self, inst: &Instance, s: Option<&Session>, view: u32, ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
+        if let Some(p) = s.and_then(published_lens) {
             let (hidden, visible, line) = hmd_profiles::mask::build(p, view as usize, 1.0);
             let mesh = match ty {
                 xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH => hidden,
@@ -76,7 +76,7 @@ impl XrFeature for MaskXr {
             };
             return Some(mesh.indices.iter().filter_map(|&i| mesh.vertices.get(i as usize).map(|v| [v[0], v[1]])).collect());
         }
-        let settings = settings(&s.instance);
+        let settings = settings(inst);
         let (_, lens) = mask_source::from_settings(settings.of::<MaskSettings>());
         match ty {
             xr::VisibilityMaskTypeKHR::HIDDEN_TRIANGLE_MESH => Some(lens.hidden_triangles()),

@@ -68,7 +68,8 @@ pub(crate) trait XrFeature: Sync {
     }
     /// The runtime lacks `XR_KHR_visibility_mask` and the layer offers it to the app: the mesh of
     /// type `ty` for `view` (points, indexed in order), from the feature that knows the lens.
-    fn offered_visibility_mask(&self, _s: &Session, _view: u32, _ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
+    /// `s`: the session, when the layer tracks it (not while the config switches the layer off).
+    fn offered_visibility_mask(&self, _inst: &Instance, _s: Option<&Session>, _view: u32, _ty: xr::VisibilityMaskTypeKHR) -> Option<Vec<[f32; 2]>> {
         None
     }
     /// `xrEndFrame` is about to go down with the app's `info`; an amended copy replaces it (the
