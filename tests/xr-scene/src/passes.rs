@@ -549,22 +549,7 @@ impl Passes {
                 .depth_attachment_format(self.format.depth)
                 .stencil_attachment_format(if self.format.has_stencil { self.format.depth } else { vk::Format::UNDEFINED })
         };
-        if self.style.library {
-            let whole = vk::GraphicsPipelineCreateInfo::default()
-                .stages(&stages)
-                .vertex_input_state(&vertex_input)
-                .input_assembly_state(&input_assembly)
-                .viewport_state(&viewport)
-                .rasterization_state(&raster)
-                .multisample_state(&multisample)
-                .depth_stencil_state(&depth)
-                .color_blend_state(&blend)
-                .dynamic_state(&dynamic)
-                .layout(layout);
-            return self.link_libraries(whole, rendering_info);
-        }
-        let mut rendering = rendering_info();
-        let mut info = vk::GraphicsPipelineCreateInfo::default()
+        let whole = vk::GraphicsPipelineCreateInfo::default()
             .stages(&stages)
             .vertex_input_state(&vertex_input)
             .input_assembly_state(&input_assembly)
@@ -575,6 +560,11 @@ impl Passes {
             .color_blend_state(&blend)
             .dynamic_state(&dynamic)
             .layout(layout);
+        if self.style.library {
+            return self.link_libraries(whole, rendering_info);
+        }
+        let mut rendering = rendering_info();
+        let mut info = whole;
         if self.mode == Rendering::Dynamic {
             info = info.push_next(&mut rendering);
         } else {
