@@ -38,10 +38,14 @@ pub enum NotMasked {
     /// The data-flow walk saw the eye's rect in the target change from frame to frame (dynamic
     /// resolution into a sub-rect): the learned rect is last frame's, so the pass is left alone.
     RectChanging,
+    /// One target the eyes take turns in (each eye rendered into it, then carried on by its own
+    /// post chain): which eye a pass shows is known only from the walk of the submission that
+    /// carries it, and that walk did not reach this pass.
+    SharedTarget,
 }
 
 impl NotMasked {
-    pub const ALL: [NotMasked; 13] = [
+    pub const ALL: [NotMasked; 14] = [
         NotMasked::NotEyePass,
         NotMasked::EyeUnknown,
         NotMasked::NoDepthAttachment,
@@ -55,6 +59,7 @@ impl NotMasked {
         NotMasked::DeviceLacks,
         NotMasked::PostPass,
         NotMasked::RectChanging,
+        NotMasked::SharedTarget,
     ];
     pub fn name(&self) -> &'static str {
         match self {
@@ -71,6 +76,7 @@ impl NotMasked {
             NotMasked::DeviceLacks => "device_lacks",
             NotMasked::PostPass => "post_pass",
             NotMasked::RectChanging => "rect_changing",
+            NotMasked::SharedTarget => "shared_target",
         }
     }
 }

@@ -163,6 +163,7 @@ pub fn common_hint(reason: &str) -> &'static str {
              reason is logged, the cause is unknown: report the app and runtime"
         }
         "no_depth_attachment" => "a pass into an eye's image has no depth buffer: an app that renders its eyes without depth (the mask and RDM need one), or a post-process pass before the data-flow walk has seen a frame",
+        "shared_target" => "the app renders both eyes into one target, one after the other, each carried on by its own post chain: a pass into it gets the eye its own use reaches, known only from the data-flow walk of the submission that carries it; these passes were not reached by it",
         "rect_changing" => "the app draws its eyes into a sub-rect of its target that changes from frame to frame (dynamic resolution): the data-flow walk learns each frame's rect one frame late, so such passes are left alone until the rect holds still",
         "post_pass" => "a post-process pass (tonemap, upscale, TAA: its draws never test depth) writes the eye's image; the eye passes behind it are found by the data-flow walk and counted on their own: nothing to do",
         "depth_not_cleared" => "the app loads depth instead of clearing it: the layer cannot know the depth to fail against",

@@ -256,6 +256,9 @@ pub struct PassInstance {
     pub attachments: Vec<AttachmentUse>,
     pub clear_values: Vec<ClearValue>,
     pub rendering: Option<DynamicRendering>,
+    /// Where its (current subpass's) record is in the command buffer's data flow, when that is
+    /// recorded: a target both eyes take turns in is tied to an eye per use, by this.
+    pub flow_at: Option<super::flow::FlowAt>,
 }
 
 impl PassInstance {

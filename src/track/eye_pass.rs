@@ -48,6 +48,9 @@ pub enum Eyes {
     Fallback(Vec<EyeSource>),
     /// Traced, but its eye rect changed at the last walk (dynamic resolution).
     Changing,
+    /// Traced as one target both eyes take turns in: which eye this pass shows is asked per use,
+    /// at its submission (`Traced::use_eyes`), and was not known here.
+    PerUse,
     /// Only post-process passes (draws that never test depth) were seen writing it.
     Post,
     /// Unknown, while the data-flow walk has traced the frame's eyes elsewhere: not an eye
@@ -208,6 +211,7 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
     let mut has_color = false;
     let mut post = false;
     let mut changing = false;
+    let mut per_use = false;
     for att in eye_candidates(pass) {
         let is_depth = att.image_view.as_ref().is_some_and(|v| {
             v.range.aspect_mask.intersects(vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL)
@@ -225,12 +229,15 @@ pub fn find_eyes<'p>(pass: &'p PassInstance, facts: &Facts<'_>) -> Result<(&'p A
             Eyes::Fallback(s) if !s.is_empty() && found.is_none() => found = Some((att, s, Via::Fallback)),
             Eyes::Post => post = true,
             Eyes::Changing => changing = true,
+            Eyes::PerUse => per_use = true,
             _ => {}
         }
     }
     let Some((att, sources, via)) = found else {
         return Err(if changing {
             NotMasked::RectChanging
+        } else if per_use {
+            NotMasked::SharedTarget
         } else if post {
             NotMasked::PostPass
         } else if unknown_swapchain || has_color {
@@ -321,7 +328,7 @@ pub fn awaiting_walk(pass: &PassInstance, facts: &Facts<'_>) -> Option<f32> {
         return None;
     }
     match find_eyes(pass, facts) {
-        Err(NotMasked::EyeUnknown) | Err(NotMasked::RectChanging) => {}
+        Err(NotMasked::EyeUnknown | NotMasked::RectChanging | NotMasked::SharedTarget) => {}
         _ => return None,
     }
     // A colour target only the walk can tie to an eye (a depth image says nothing alone); a
@@ -331,7 +338,7 @@ pub fn awaiting_walk(pass: &PassInstance, facts: &Facts<'_>) -> Option<f32> {
         let depth = a.image_view.as_ref().is_some_and(|v| v.range.aspect_mask.intersects(vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL));
         match (facts.eyes)(a) {
             Eyes::Swapchain(_) => return None,
-            Eyes::Untraced | Eyes::Changing if !depth => walkable = true,
+            Eyes::Untraced | Eyes::Changing | Eyes::PerUse if !depth => walkable = true,
             _ => {}
         }
     }
@@ -498,6 +505,7 @@ mod tests {
                 depth: depth.map(ra),
                 stencil: None,
             }),
+            flow_at: None,
         }
     }
 
@@ -616,6 +624,7 @@ mod tests {
             attachments: vec![att(1, 10, R, None, COLOR), att(2, 20, R, Some(1.0), DEPTH)],
             clear_values: vec![],
             rendering: None,
+            flow_at: None,
         };
         let eyes = swapchain_eyes(vec![src(0, 0, 0, 200)]);
         assert!(classify(&pass, &facts(&eyes)).is_ok());

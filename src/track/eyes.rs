@@ -9,6 +9,7 @@
 use super::cmd::AttachmentUse;
 use super::eye_pass::{self, EyeSource, Eyes, Learned};
 use super::fallback::Order;
+use super::flow::FlowAt;
 use super::DeviceTracker;
 use crate::bridge::Shared;
 use ash::vk;
@@ -39,6 +40,9 @@ pub struct Asked {
     pub walk: bool,
     /// `eyes.fallback = size` with its order; None when off.
     pub fallback: Option<Order>,
+    /// Where the pass asked about is recorded (`PassInstance::flow_at`): at a submission, a
+    /// target both eyes take turns in shows the eye of this use.
+    pub at: Option<FlowAt>,
 }
 
 /// What the decision logged already, and the size fallback's order within the frame.
@@ -74,6 +78,11 @@ pub(crate) fn eyes_at(d: &DeviceTracker, shared: &Shared, a: &AttachmentUse, ask
     }
     let Some(image) = image else { return Eyes::Unknown };
     let traced = || match d.traced.eyes(image) {
+        // One target the eyes take turns in: only this use's walk says which eye it shows.
+        Some(t) if t.per_use => match asked.at.filter(|_| when == When::Submission).and_then(|at| d.traced.use_eyes(at)) {
+            Some(eyes) => Eyes::Traced(eyes),
+            None => Eyes::PerUse,
+        },
         // Confirmed by the walk of the submission being made: right for this frame, whatever
         // the rect did before.
         Some(t) if when == When::Submission && d.traced.fresh(&t) => Eyes::Traced(t.eyes),

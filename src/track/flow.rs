@@ -224,12 +224,23 @@ pub struct Region {
     pub rect: PixelRect,
 }
 
+/// Where a pass is recorded: the command buffer and the index of its record among that
+/// recording's ops (`Recorder::open_index`). An image that shows both eyes one after the other
+/// in a frame is tied to an eye per use, by this.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct FlowAt {
+    pub cb: u64,
+    pub op: usize,
+}
+
 /// An eye pass the walk reached.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Found {
     /// The pass's colour attachment image, and the eye in it.
     pub image: u64,
     pub eye: EyeSource,
+    /// The pass's index in the walked ops: which use of the image this is.
+    pub op: usize,
     /// The pass's depth image (a depth prepass that clears it is an eye pass too).
     pub depth: Option<u64>,
     /// How the walk got there, newest step first (for the log): e.g. "blit", "draw", "resolve".
@@ -520,7 +531,7 @@ fn pass_writes(ops: &[&Op], view: u32, s: &State, i: usize, p: &PassRecord, ci: 
                 _ => s.region.rect,
             };
             let eye = EyeSource { view, layer: s.region.layer, rect };
-            out.found.push(Found { image: color.image, eye, depth: p.depth.map(|d| d.image), chain: s.chain.clone() });
+            out.found.push(Found { image: color.image, eye, op: i, depth: p.depth.map(|d| d.image), chain: s.chain.clone() });
             return;
         }
         // Depth loaded (a later pass of the eye: transparents, a pass after a depth prepass): the

@@ -232,6 +232,7 @@ impl DeviceTracker {
             attachments,
             clear_values: begin.clear_values,
             rendering: None,
+            flow_at: None,
         }
     }
 
@@ -248,11 +249,12 @@ impl DeviceTracker {
             attachments: Vec::new(),
             clear_values: Vec::new(),
             rendering: Some(rendering),
+            flow_at: None,
         };
         self.open_pass(cb, pass, count);
     }
 
-    fn open_pass(&self, cb: u64, pass: PassInstance, count: bool) {
+    fn open_pass(&self, cb: u64, mut pass: PassInstance, count: bool) {
         let (kind, swapchain) = (pass.kind, pass.swapchain_attachments() as u64);
         let opened = self.with_cb(cb, |s| {
             if s.flow_on {
@@ -263,6 +265,7 @@ impl DeviceTracker {
                     record.depth_cleared = s.depth_image_clears.iter().any(|(i, _)| Some(*i) == depth);
                 }
                 s.flow.begin_pass(record);
+                pass.flow_at = s.flow.open_index().map(|op| flow::FlowAt { cb, op });
             }
             s.pass = Some(pass);
         });
@@ -285,6 +288,7 @@ impl DeviceTracker {
                 if s.flow_on {
                     let record = self.pass_record(p);
                     s.flow.begin_pass(record);
+                    p.flow_at = s.flow.open_index().map(|op| flow::FlowAt { cb, op });
                 }
             }
         });

@@ -9,7 +9,7 @@
 
 use super::descriptors::{BoundImage, Descriptors};
 use super::eye_pass::EyeSource;
-use super::flow::{self, ImageUse, Op, Region, Walked, World};
+use super::flow::{self, FlowAt, ImageUse, Op, Region, Walked, World};
 use super::resources::{Image, ImageView};
 use crate::core::handles::HandleMap;
 use crate::bridge::Shared;
@@ -45,6 +45,11 @@ pub struct TracedEyes {
     pub dynamic: bool,
     /// The submission (`Traced::submitted` call) whose walk last found it.
     pub submission: u64,
+    /// One target for both eyes: walks found it showing one eye, then another, at the same
+    /// rect (an engine renders each eye into it in turn, each followed by its post chain). Which
+    /// eye a pass into it shows is the eye its own use reaches (`Traced::use_eyes`), known only
+    /// from the walk of the submission that carries it; `eyes` lists every eye seen.
+    pub per_use: bool,
 }
 
 /// What the layer logs once about a walk.
@@ -56,7 +61,8 @@ pub enum Note {
 
 #[derive(Debug, Default)]
 struct Books {
-    window: VecDeque<Arc<Vec<Op>>>,
+    /// Recent submissions' command buffers and their ops, oldest first.
+    window: VecDeque<(u64, Arc<Vec<Op>>)>,
     window_ops: usize,
     eyes: HashMap<u64, TracedEyes>,
     /// Image → (swapchain, its walk) whose walk found only post passes writing it.
@@ -70,6 +76,10 @@ struct Books {
     walks: u64,
     /// `submitted` calls so far: the current submission's number while its features run.
     submissions: u64,
+    /// The eyes each eye pass of the latest walked submission showed, by where it is recorded.
+    uses: HashMap<FlowAt, Vec<EyeSource>>,
+    /// The submission `uses` describes.
+    uses_submission: u64,
 }
 
 /// The walk's device-level state.
@@ -112,12 +122,13 @@ fn lock(m: &Mutex<Books>) -> MutexGuard<'_, Books> {
 }
 
 impl Traced {
-    /// A submission's command buffers' ops, in submission order: kept, and every swapchain image
-    /// they write whose eyes are known is walked back. Returns what to log (each note once).
-    pub fn submitted(&self, world: &TrackerWorld<'_>, submitted: Vec<Arc<Vec<Op>>>) -> Vec<Note> {
+    /// A submission's command buffers (handle, ops), in submission order: kept, and every
+    /// swapchain image they write whose eyes are known is walked back. Returns what to log (each
+    /// note once).
+    pub fn submitted(&self, world: &TrackerWorld<'_>, submitted: Vec<(u64, Arc<Vec<Op>>)>) -> Vec<Note> {
         // Swapchain images written by this submission, by swapchain: (image, eye starts).
         let mut starts: HashMap<u64, Vec<(u32, Region)>> = HashMap::new();
-        for ops in &submitted {
+        for (_, ops) in &submitted {
             for op in ops.iter() {
                 for image in flow::writes_images(op, world) {
                     let Some(sc) = world.shared.images.get(image) else { continue };
@@ -135,21 +146,29 @@ impl Traced {
         }
         let mut b = lock(&self.books);
         b.submissions += 1;
-        for ops in submitted {
-            b.window_ops += ops.len();
-            b.window.push_back(ops);
+        let new = submitted.len();
+        for entry in submitted {
+            b.window_ops += entry.1.len();
+            b.window.push_back(entry);
         }
         while b.window_ops > WINDOW_OPS && b.window.len() > 1 {
-            let old = b.window.pop_front().map_or(0, |o| o.len());
+            let old = b.window.pop_front().map_or(0, |(_, o)| o.len());
             b.window_ops -= old;
         }
         if starts.is_empty() {
             return Vec::new();
         }
-        let window: Vec<Arc<Vec<Op>>> = b.window.iter().cloned().collect();
+        let window: Vec<(u64, Arc<Vec<Op>>)> = b.window.iter().cloned().collect();
         drop(b);
         // The walk runs without the lock: it only reads the ops and the tracker's maps.
-        let all: Vec<&Op> = window.iter().flat_map(|o| o.iter()).collect();
+        let all: Vec<&Op> = window.iter().flat_map(|(_, o)| o.iter()).collect();
+        // Where the walked ops of this submission are recorded (earlier submissions' command
+        // buffers may have been recorded again since).
+        let mut at_of = Vec::with_capacity(all.len());
+        let first_new = window.len().saturating_sub(new);
+        for (k, (cb, ops)) in window.iter().enumerate() {
+            at_of.extend((0..ops.len()).map(|op| (k >= first_new).then_some(FlowAt { cb: *cb, op })));
+        }
         let mut results = Vec::new();
         let mut swapchains: Vec<_> = starts.into_iter().collect();
         swapchains.sort_by_key(|(sc, _)| *sc);
@@ -159,12 +178,31 @@ impl Traced {
         }
         let mut b = lock(&self.books);
         let mut notes = Vec::new();
+        let submission = b.submissions;
+        if b.uses_submission != submission {
+            b.uses.clear();
+            b.uses_submission = submission;
+        }
         for (sc, walked) in results {
             b.walks += 1;
-            let submission = b.submissions;
+            for f in &walked.found {
+                if let Some(at) = at_of.get(f.op).copied().flatten() {
+                    let eyes = b.uses.entry(at).or_default();
+                    if !eyes.contains(&f.eye) {
+                        eyes.push(f.eye);
+                    }
+                }
+            }
             learn(&mut b, sc, walked, world, submission, &mut notes);
         }
         notes
+    }
+
+    /// The eyes the pass recorded at `at` shows, as the walk of the latest submission found them:
+    /// None when that walk did not reach it (or it is not in that submission).
+    pub fn use_eyes(&self, at: FlowAt) -> Option<Vec<EyeSource>> {
+        let b = lock(&self.books);
+        (b.uses_submission == b.submissions).then(|| b.uses.get(&at).cloned()).flatten()
     }
 
     /// The eyes the walk found `image` to show.
@@ -254,12 +292,31 @@ fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, submi
         let old = b.eyes.get(&image);
         let changing = old.is_some_and(|old| rects(&old.eyes) != rects(&list));
         let dynamic = changing || old.is_some_and(|old| old.dynamic);
+        // Another eye than last time at the same rects: one target the eyes take turns in.
+        let views = |l: &[EyeSource]| l.iter().map(|e| e.view).collect::<HashSet<u32>>();
+        let turns = old.is_some_and(|old| !changing && views(&old.eyes) != views(&list));
+        let per_use = turns || old.is_some_and(|old| old.per_use);
+        if per_use {
+            if let Some(old) = old {
+                for e in &old.eyes {
+                    if !list.contains(e) {
+                        list.push(*e);
+                    }
+                }
+                list.sort_by_key(|s| (s.layer, s.rect.x, s.rect.y, s.view));
+            }
+        }
+        if turns && !old.is_some_and(|old| old.per_use) && b.noted.insert(format!("per use {image:#x}")) {
+            notes.push(Note::Untraced(format!(
+                "{image:#x} shows one eye, then another, in the same frame (one target the eyes take turns in): each pass into it gets the eye its own use reaches, from the walk of the submission that carries it"
+            )));
+        }
         if changing && b.noted.insert(format!("changing {image:#x}")) {
             notes.push(Note::Untraced(format!(
                 "the eye rect in {image:#x} changes from frame to frame (dynamic resolution into a sub-rect): its passes get the layer's draws filled at each submission from that submission's walk, or nothing (rect_changing) where the walk cannot confirm the rect"
             )));
         }
-        b.eyes.insert(image, TracedEyes { eyes: list, swapchain: sc, chain, walk, changing, dynamic, submission });
+        b.eyes.insert(image, TracedEyes { eyes: list, swapchain: sc, chain, walk, changing, dynamic, submission, per_use });
     }
     for image in walked.post {
         if !eye_images.contains(&image) {
@@ -345,7 +402,7 @@ use crate::bridge::Swapchain;
         let t = Traced::default();
         for frame in 0..6u64 {
             let target = 100 + frame % 3;
-            let notes = t.submitted(&world, vec![Arc::new(vec![pass(10, Some(12), true, 0), pass(target, None, false, 5)])]);
+            let notes = t.submitted(&world, vec![(1, Arc::new(vec![pass(10, Some(12), true, 0), pass(target, None, false, 5)]))]);
             if frame == 0 {
                 assert!(notes.iter().any(|n| matches!(n, Note::Traced { image: 10, .. })), "{notes:?}");
             }
@@ -359,7 +416,7 @@ use crate::bridge::Swapchain;
         // intermediate is forgotten after a few walks.
         for frame in 0..(KEEP_WALKS + 1) {
             let target = 100 + frame % 3;
-            t.submitted(&world, vec![Arc::new(vec![pass(target, Some(12), true, 0)])]);
+            t.submitted(&world, vec![(1, Arc::new(vec![pass(target, Some(12), true, 0)]))]);
         }
         assert_eq!(t.eyes(10), None);
         assert!(!t.is_post(100, Some(77)) && !t.is_post(101, Some(77)), "a swapchain image an eye pass writes is no post target");
@@ -377,18 +434,53 @@ use crate::bridge::Swapchain;
             scene.tested_viewports = vec![PixelRect { x: 0, y: 0, width: w, height: w / 2 }];
             Arc::new(vec![Op::Pass(scene), pass(100, None, false, 5)])
         };
-        t.submitted(&world, vec![frame(48)]);
+        t.submitted(&world, vec![(1, frame(48))]);
         assert_eq!(t.eyes(10).map(|e| e.changing), Some(false));
-        let notes = t.submitted(&world, vec![frame(56)]);
+        let notes = t.submitted(&world, vec![(1, frame(56))]);
         assert_eq!(t.eyes(10).map(|e| (e.changing, e.eyes[0].rect.width)), Some((true, 56)));
         assert!(notes.iter().any(|n| matches!(n, Note::Untraced(w) if w.contains("changes from frame to frame"))), "{notes:?}");
         let still = t.eyes(10).unwrap();
         assert!(t.fresh(&still), "found by the latest submission's walk");
-        t.submitted(&world, vec![frame(56)]);
+        t.submitted(&world, vec![(1, frame(56))]);
         let e = t.eyes(10).unwrap();
         assert_eq!((e.changing, e.dynamic), (false, true), "held still, but it has changed once: it may again");
         assert!(t.fresh(&e));
-        t.submitted(&world, vec![Arc::new(vec![pass(10, Some(12), true, 0)])]);
+        t.submitted(&world, vec![(1, Arc::new(vec![pass(10, Some(12), true, 0)]))]);
         assert!(!t.fresh(&t.eyes(10).unwrap()), "a submission without the post pass: what was learned is a frame old");
+    }
+
+    /// One target the eyes take turns in: per-eye swapchains 77 (view 0, image 100) and 78
+    /// (view 1, image 200); each frame renders the scene into 10 (depth 12) and tonemaps it into
+    /// 100, then renders the other eye into 10 again and tonemaps it into 200.
+    #[test]
+    fn one_target_the_eyes_take_turns_in_is_tied_to_an_eye_per_use() {
+        let f = Fixture::new(&[100]);
+        let desc = SwapchainDesc { usage_flags: 0, format: 43, sample_count: 1, width: 64, height: 32, array_size: 1 };
+        let right = Arc::new(Swapchain::new(78, desc, vec![200]));
+        f.shared.add_swapchain(right.clone());
+        right.set_uses(vec![EyeUse { view: 1, image_rect: ImageRect { x: 0, y: 0, width: 64, height: 32 }, image_array_index: 0, depth: false }]);
+        f.images.insert(200, Arc::new(image(200, 64)));
+        let world = f.world();
+        let t = Traced::default();
+        let views = |e: Option<Vec<EyeSource>>| e.map(|e| e.iter().map(|s| s.view).collect::<Vec<_>>());
+        let scene = || pass(10, Some(12), true, 0);
+        let notes = t.submitted(&world, vec![(7, Arc::new(vec![scene(), pass(100, None, false, 5), scene(), pass(200, None, false, 5)]))]);
+        let e = t.eyes(10).unwrap();
+        assert!(e.per_use && !e.changing, "{e:?}");
+        assert_eq!(views(Some(e.eyes)), Some(vec![0, 1]), "every eye seen");
+        assert!(t.eyes(12).unwrap().per_use, "its depth too");
+        assert!(notes.iter().any(|n| matches!(n, Note::Untraced(w) if w.contains("takes turns") || w.contains("take turns in"))), "{notes:?}");
+        assert_eq!(views(t.use_eyes(FlowAt { cb: 7, op: 0 })), Some(vec![0]), "the first use is the left eye's");
+        assert_eq!(views(t.use_eyes(FlowAt { cb: 7, op: 2 })), Some(vec![1]), "the second the right eye's");
+        assert_eq!(t.use_eyes(FlowAt { cb: 7, op: 1 }), None, "a post pass is no eye pass");
+        assert_eq!(t.use_eyes(FlowAt { cb: 8, op: 0 }), None, "another command buffer");
+        // Each eye in its own command buffer, the right one first this time: still per use.
+        t.submitted(&world, vec![(8, Arc::new(vec![scene(), pass(200, None, false, 5)])), (7, Arc::new(vec![scene(), pass(100, None, false, 5)]))]);
+        assert_eq!(views(t.use_eyes(FlowAt { cb: 8, op: 0 })), Some(vec![1]));
+        assert_eq!(views(t.use_eyes(FlowAt { cb: 7, op: 0 })), Some(vec![0]));
+        assert!(t.eyes(10).unwrap().per_use, "it stays so");
+        // A submission that reaches no swapchain: what the last walk said is not about it.
+        t.submitted(&world, vec![(7, Arc::new(vec![scene()]))]);
+        assert_eq!(t.use_eyes(FlowAt { cb: 7, op: 0 }), None);
     }
 }

@@ -368,7 +368,7 @@ pub(crate) fn walk_submitted(d: &DeviceState, cbs: &[u64]) {
     if !d.settings().eyes_walk {
         return;
     }
-    let snaps: Vec<_> = cbs.iter().filter_map(|cb| d.track.with_cb(*cb, |s| s.flow_on.then(|| s.flow.snapshot())).flatten()).collect();
+    let snaps: Vec<_> = cbs.iter().filter_map(|cb| d.track.with_cb(*cb, |s| s.flow_on.then(|| (*cb, s.flow.snapshot()))).flatten()).collect();
     if snaps.is_empty() {
         return;
     }

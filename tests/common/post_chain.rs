@@ -15,11 +15,20 @@ pub struct PostMode {
     /// Frames the mock runtime lets the app render (`MOCK_XR_EXIT_AFTER`; every frame is
     /// captured). Default 2, as every [`Run`].
     pub frames: u64,
+    /// The mock runtime's headset (`MOCK_XR_HMD`); None: its default, whose two eyes' masks are
+    /// mirror images of each other.
+    pub hmd: Option<&'static str>,
 }
 
 impl PostMode {
     pub fn new(name: &str, args: &[&str]) -> PostMode {
-        PostMode { name: name.to_string(), args: args.iter().map(|s| s.to_string()).collect(), frames: 2 }
+        PostMode { name: name.to_string(), args: args.iter().map(|s| s.to_string()).collect(), frames: 2, hmd: None }
+    }
+
+    /// The same mode on the mock runtime's `hmd` profile.
+    pub fn hmd(mut self, hmd: &'static str) -> PostMode {
+        self.hmd = Some(hmd);
+        self
     }
 
     /// The same mode rendering `n` frames (e.g. to look past a layer's warm-up frames).
@@ -54,7 +63,11 @@ impl PostMode {
 
     /// The base run of this mode (validation with synchronization validation on, as every `Run`).
     pub fn run_spec(&self) -> Run {
-        Run::new(&self.name).args(self.args.iter().cloned()).env("MOCK_XR_EXIT_AFTER", &self.frames.to_string())
+        let run = Run::new(&self.name).args(self.args.iter().cloned()).env("MOCK_XR_EXIT_AFTER", &self.frames.to_string());
+        match self.hmd {
+            Some(hmd) => run.env("MOCK_XR_HMD", hmd),
+            None => run,
+        }
     }
 }
 
@@ -169,6 +182,17 @@ pub fn matrix() -> Vec<PostMode> {
     for (i, (tag, extra)) in [("dw", &[][..]), ("dw-tonemap", &["--post", "tonemap"]), ("dw-taa-scaled", &["--post", "taa", "--render-scale", "0.5"])].into_iter().enumerate() {
         let args: Vec<&str> = dw.iter().chain(extra).copied().collect();
         modes.push(mode("side-by-side", RENDERINGS[i], ["standard", "reverse"][i % 2], tag, &args));
+    }
+    // One scene target and depth for both eyes, as engines render them: each eye's pass followed
+    // by its own chain into its swapchain image before the other eye renders into the same
+    // target. On the Index, whose eyes' masks differ: a pass given the other eye's mask shows.
+    for (i, (tag, extra)) in [("one-target", &["--post", "tonemap", "--one-target"][..]), ("one-target-bloom-msaa", &["--post", "bloom", "--samples", "4", "--one-target"])].into_iter().enumerate() {
+        modes.push(mode("per-eye", RENDERINGS[(i + 1) % RENDERINGS.len()], ["reverse", "standard"][i % 2], tag, extra).hmd("index"));
+    }
+    // While working on one shape: `STEREOSHIM_POST_MODES=one-target cargo test … post_chain_`
+    // runs only the modes whose name contains it (never set by the suite).
+    if let Ok(only) = std::env::var("STEREOSHIM_POST_MODES") {
+        modes.retain(|m| m.name.contains(&only));
     }
     modes
 }

@@ -148,7 +148,7 @@ fn run(name: &str, args: &[&str], extra: &[&str]) -> RunOutput {
 /// bit; as a compute dispatch (which encodes sRGB itself) within one step; with an untested depth
 /// attachment, bit for bit; `--render-scale F` and `--viewport-scale F` render the same pixels
 /// (the same size, the same filter arithmetic), bit for bit, and look like the full-size image
-/// (PSNR); bloom only brightens; TAA's first frame blends a black history (never brighter than the
+/// (PSNR); one target for both eyes (`--one-target`) is a target per eye, bit for bit; bloom only brightens; TAA's first frame blends a black history (never brighter than the
 /// tonemap alone); MSAA changes only edge pixels. In every layout.
 #[test]
 fn post_variants_agree() {
@@ -169,6 +169,12 @@ fn post_variants_agree() {
         let taa = run(&name("taa"), &base, &["--post", "taa"]);
         let msaa = run(&name("msaa"), &base, &["--samples", "4"]);
         common::assert_same_captures(&name("subpass"), &subpass, &tone);
+        if layout == "per-eye" {
+            // One scene target and depth for both eyes, each eye's chain run before the other
+            // eye renders: the same pictures as a target per eye.
+            let one_target = run(&name("one-target"), &base, &["--one-target"]);
+            common::assert_same_captures(&name("one-target"), &one_target, &tone);
+        }
         common::assert_same_captures(&name("depth-attachment"), &depth_att, &tone);
         common::assert_same_captures(&name("scales"), &viewport_scale, &render_scale);
         for f in 0..2 {

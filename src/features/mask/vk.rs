@@ -436,12 +436,12 @@ impl VkFeature for MaskDevice {
                             };
                             match moved {
                                 Ok(moved) => data.refresh(self, g, plan.as_ref(), moved.as_deref()),
-                                Err(()) => {
+                                Err(why) => {
                                     // The eye rect changes from frame to frame and this
-                                    // submission's walk did not confirm it: no mask beats one
-                                    // beside the eye.
+                                    // submission's walk did not confirm it, or the target is
+                                    // shared by the eyes: no mask beats one beside the eye.
                                     data.clear(&mut lock(&data.filled));
-                                    not_now = Some(NotMasked::RectChanging);
+                                    not_now = Some(why);
                                 }
                             }
                         }

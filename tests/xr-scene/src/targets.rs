@@ -415,7 +415,8 @@ impl Targets {
                 Ok(c) => slot.depth = Some(c),
                 Err(e) => return push_and_err(self, slot, e),
             }
-        } else {
+        } else if !opts.one_target || self.slots.is_empty() {
+            // `--one-target`: the eyes share the first eye's depth too, as engines do.
             match OwnedImage::new(
                 gpu,
                 self.depth_format,
@@ -619,6 +620,12 @@ impl Targets {
     /// `--one-target` the one the slots share.
     pub fn offscreen_of(&self, i: usize) -> Option<&OwnedImage> {
         self.slots.get(i).and_then(|s| s.offscreen.as_ref()).or_else(|| self.slots.first().and_then(|s| s.offscreen.as_ref()))
+    }
+
+    /// The private depth slot `i`'s eye pass uses: its own, or with `--one-target` the first
+    /// slot's, which the slots share.
+    pub fn own_depth_of(&self, i: usize) -> Option<&OwnedImage> {
+        self.slots.get(i).and_then(|s| s.own_depth.as_ref()).or_else(|| self.slots.first().and_then(|s| s.own_depth.as_ref()))
     }
 }
 

@@ -183,6 +183,7 @@ mod tests {
             attachments: vec![att(w, color_view, vk::ImageLayout::UNDEFINED), att(w, 1003, vk::ImageLayout::UNDEFINED), att(w, 1002, vk::ImageLayout::UNDEFINED)],
             clear_values: vec![],
             rendering: None,
+            flow_at: None,
         }
     }
 
@@ -260,6 +261,7 @@ mod tests {
             attachments: vec![],
             clear_values: vec![],
             rendering: Some(DynamicRendering { flags, layer_count: 1, view_mask: 0, color: vec![c], depth: None, stencil: None }),
+            flow_at: None,
         };
         let t = target(&pass(color(1001, 1002), vk::RenderingFlags::empty()), 1, &w).unwrap();
         assert_eq!((t.view.image, t.layout), (2, vk::ImageLayout::GENERAL));

@@ -433,10 +433,15 @@ impl VkFeature for RdmDevice {
                             if let (Some(link), Target::Eyes { draws, image, .. }) = (&drawn.link, &drawn.target) {
                                 // Behind a post chain the rect may have moved since the recording
                                 // (dynamic resolution): no checkerboard where the eye is not.
-                                if !matches!(inject::walk_moved(d, *image, draws), Ok(None)) {
+                                let why = match inject::walk_moved(d, *image, draws) {
+                                    Ok(None) => None,
+                                    Ok(Some(_)) => Some(crate::core::pass::NotMasked::RectChanging),
+                                    Err(why) => Some(why),
+                                };
+                                if let Some(why) = why {
                                     link.arm(false);
                                     drawn.clear(&mut lock(&drawn.filled));
-                                    self.count(|s| *s.not_applied.entry(crate::core::pass::NotMasked::RectChanging.name()).or_insert(0) += 1);
+                                    self.count(|s| *s.not_applied.entry(why.name()).or_insert(0) += 1);
                                 }
                             }
                         }

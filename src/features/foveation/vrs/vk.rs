@@ -235,6 +235,7 @@ unsafe fn for_rendering(d: &DeviceState, cb: vk::CommandBuffer, info: *const vk:
         attachments: Vec::new(),
         clear_values: Vec::new(),
         rendering: Some(rendering),
+        flow_at: None,
     };
     let secondary = app.flags.contains(vk::RenderingFlags::CONTENTS_SECONDARY_COMMAND_BUFFERS);
     let app_fsr = || {
@@ -362,7 +363,7 @@ type Plan = (MapKey, Vec<EyeRates>, DeviceRates, eye_pass::Via);
 /// as known while it is recorded, or at a submission (`submission`).
 pub(super) fn plan(d: &DeviceState, mode: Mode, pass: &PassInstance, secondary: bool, app_fsr: impl Fn() -> bool, when: When) -> Result<Option<Plan>, NotApplied> {
     let intermediate = d.settings().intermediate;
-    let eyes_fn = |a: &crate::track::cmd::AttachmentUse| crate::plugin::vk::inject::eyes_at(d, a, intermediate, when);
+    let eyes_fn = |a: &crate::track::cmd::AttachmentUse| crate::plugin::vk::inject::eyes_at(d, a, intermediate, when, pass.flow_at);
     let facts = Facts { secondary_contents: false, intermediate_enabled: intermediate, eyes: &eyes_fn, explicit_clear: None };
     let (att, sources, via) = match eye_pass::find_eyes(pass, &facts) {
         Ok(f) => f,

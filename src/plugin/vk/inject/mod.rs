@@ -22,6 +22,7 @@ use crate::track::cmd::{AttachmentUse, PassInstance, StateCmd};
 use crate::track::eye_pass::{self, EyeDraw, EyeSource, Eyes, MaskPlan};
 pub(crate) use crate::track::eyes::When;
 use crate::track::eyes::Asked;
+use crate::track::flow::FlowAt;
 use ash::vk;
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::AtomicUsize;
@@ -95,7 +96,7 @@ pub(crate) struct Awaiting<'a> {
 /// The plan for a pass recorded earlier, with the eyes known now (at a submission of its
 /// recording: after that submission's walk).
 pub(crate) fn plan_now(d: &DeviceState, pass: &PassInstance, fail_depth: f32, intermediate: bool) -> Result<MaskPlan, NotMasked> {
-    let eyes = |a: &AttachmentUse| eyes_at(d, a, intermediate, When::Submission);
+    let eyes = |a: &AttachmentUse| eyes_at(d, a, intermediate, When::Submission, pass.flow_at);
     // The clear that makes `fail_depth` fail.
     let clear = 1.0 - fail_depth;
     let facts = eye_pass::Facts { secondary_contents: false, intermediate_enabled: intermediate, eyes: &eyes, explicit_clear: Some(clear) };
@@ -108,12 +109,17 @@ pub(crate) fn plan_now(d: &DeviceState, pass: &PassInstance, fail_depth: f32, in
 ///   reach the image and its rects are not known to change;
 /// - `Ok(Some(eyes))`: this submission's walk found them elsewhere (dynamic resolution moved the
 ///   rect since the recording): these rects are this frame's;
-/// - `Err(())`: unknown now (the rects change from frame to frame and this submission's walk did
-///   not confirm them): the draws must do nothing, or they could land beside the eye.
-pub(crate) fn walk_moved(d: &DeviceState, image: u64, draws: &[EyeDraw]) -> Result<Option<Vec<EyeSource>>, ()> {
+/// - `Err(why)`: unknown now (the rects change from frame to frame and this submission's walk
+///   did not confirm them, `RectChanging`; or the image turned out to be one target both eyes
+///   take turns in, whose eye only a pass's own use tells, `SharedTarget`): the draws must do
+///   nothing, or they could land beside the eye, or in the other one.
+pub(crate) fn walk_moved(d: &DeviceState, image: u64, draws: &[EyeDraw]) -> Result<Option<Vec<EyeSource>>, NotMasked> {
     let Some(t) = d.track.traced.eyes(image) else { return Ok(None) };
+    if t.per_use {
+        return Err(NotMasked::SharedTarget);
+    }
     if !d.track.traced.fresh(&t) {
-        return if t.dynamic { Err(()) } else { Ok(None) };
+        return if t.dynamic { Err(NotMasked::RectChanging) } else { Ok(None) };
     }
     let same = draws.iter().all(|dr| t.eyes.iter().any(|e| e.view == dr.view && e.layer == dr.layer && e.rect == dr.viewport));
     Ok((!same).then_some(t.eyes))
@@ -218,14 +224,14 @@ pub(crate) fn depth_image(pass: &PassInstance) -> Option<u64> {
 /// Which eyes an attachment shows: a swapchain image's published uses, or an intermediate
 /// target's learned ones (logged once per image).
 pub(crate) fn eyes_of(d: &DeviceState, a: &AttachmentUse, intermediate: bool) -> Eyes {
-    eyes_at(d, a, intermediate, When::Recording)
+    eyes_at(d, a, intermediate, When::Recording, None)
 }
 
 /// The eyes an attachment shows (`eyes_of`), asked at recording or at submission: the trackers'
 /// decision (`track::eyes`) under the live settings.
-pub(crate) fn eyes_at(d: &DeviceState, a: &AttachmentUse, intermediate: bool, when: When) -> Eyes {
+pub(crate) fn eyes_at(d: &DeviceState, a: &AttachmentUse, intermediate: bool, when: When, at: Option<FlowAt>) -> Eyes {
     let s = d.settings();
-    d.track.eyes_at(shared(), a, &Asked { intermediate, when, walk: s.eyes_walk, fallback: s.eyes_fallback })
+    d.track.eyes_at(shared(), a, &Asked { intermediate, when, walk: s.eyes_walk, fallback: s.eyes_fallback, at })
 }
 
 /// One indirect draw of a feature's: its arguments' slot in the recording's buffer, and where.

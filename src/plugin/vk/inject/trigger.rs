@@ -74,6 +74,7 @@ mod tests {
             attachments: Vec::new(),
             clear_values: Vec::new(),
             rendering: None,
+            flow_at: None,
         }
     }
 

@@ -268,7 +268,9 @@ pub struct Options {
     /// `--submit-via`: who copies the eye textures into the swapchain.
     pub submit_via: SubmitVia,
     /// `--one-target`: per eye, with `--intermediate`: one offscreen target for both eyes, each
-    /// eye's pass followed by its copy into its swapchain image before the other eye renders.
+    /// eye's pass followed by its copy into its swapchain image before the other eye renders;
+    /// with `--post tonemap` or `bloom`: one scene target for both eyes, each eye's pass followed
+    /// by its post chain into its swapchain image.
     pub one_target: bool,
     /// `--dynamic-resolution`: the eye passes draw into a sub-rect of their target that changes
     /// every frame (`crate::post::dynamic_scale`), read back whole by the tonemap.
@@ -478,7 +480,9 @@ struct Args {
     #[arg(long, value_enum, default_value_t = SubmitVia::App)]
     submit_via: SubmitVia,
     /// With --layout per-eye --intermediate: one offscreen target for both eyes, rendered one
-    /// eye after the other, each copied (or resolved) into its swapchain before the next.
+    /// eye after the other, each copied (or resolved) into its swapchain before the next. With
+    /// --post tonemap or bloom (drawn): one scene target for both eyes, each eye's pass followed
+    /// by its own post chain into its swapchain image before the next eye renders.
     #[arg(long)]
     one_target: bool,
     /// With --post tonemap or taa: dynamic resolution, the eye passes' sub-rect of their target
@@ -554,10 +558,13 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
     if a.shader_object && (a.rendering != Rendering::Dynamic || a.pipeline_library) {
         return Err(usage("--shader-object draws without pipelines, in dynamic rendering only: it needs --rendering dynamic and excludes --pipeline-library"));
     }
-    let one_target_fits = a.intermediate && a.layout == Layout::PerEye && a.submit_via == SubmitVia::App;
-    let records_simply = !(a.secondary || a.threads || a.record_once);
+    let drawn_post = matches!(a.post, Some(PostEffect::Tonemap | PostEffect::Bloom)) && !a.post_compute && !a.post_subpass;
+    let one_target_fits = (a.intermediate || drawn_post) && a.layout == Layout::PerEye && a.submit_via == SubmitVia::App && a.submit_texture.is_none();
+    // One depth image too, cleared by each eye's pass (a clear by transfer would need its own
+    // barriers between the eyes).
+    let records_simply = !(a.secondary || a.threads || a.record_once || a.depth_clear == DepthClear::Image || a.submit_depth);
     if a.one_target && !(one_target_fits && records_simply) {
-        return Err(usage("--one-target shares --intermediate's target between the two per-eye passes, copied by the app between them: it needs --layout per-eye --intermediate, without --submit-via openvr, --secondary, --threads or --record-once"));
+        return Err(usage("--one-target shares one target between the two per-eye passes, carried into each eye's swapchain image by the app between them: it needs --layout per-eye with --intermediate (copied) or --post tonemap / bloom (drawn, not --post-compute or --post-subpass), without --submit-via openvr, --submit-texture, --submit-depth, --depth-clear image, --secondary, --threads or --record-once"));
     }
     if a.submit_via == SubmitVia::Openvr && !(a.intermediate || a.submit_texture.is_some()) {
         return Err(usage("--submit-via openvr copies the app's textures: it needs --intermediate or --submit-texture"));

@@ -218,4 +218,13 @@ fn one_target_for_both_eyes() {
     assert!(p(&["--one-target"]).is_err());
     assert!(p(&["--one-target", "--intermediate", "--layout", "multiview"]).is_err());
     assert!(p(&["--one-target", "--intermediate", "--submit-via", "openvr"]).is_err());
+    // Behind a drawn post chain: each eye's chain runs before the other eye renders.
+    for post in ["tonemap", "bloom"] {
+        assert!(p(&["--one-target", "--post", post]).unwrap().unwrap().one_target, "{post}");
+        assert!(p(&["--one-target", "--post", post, "--samples", "4"]).unwrap().unwrap().one_target, "{post}");
+    }
+    assert!(p(&["--one-target", "--post", "taa"]).is_err(), "one history per eye");
+    assert!(p(&["--one-target", "--post", "tonemap", "--post-compute"]).is_err());
+    assert!(p(&["--one-target", "--post", "tonemap", "--post-subpass"]).is_err());
+    assert!(p(&["--one-target", "--post", "tonemap", "--layout", "side-by-side"]).is_err());
 }

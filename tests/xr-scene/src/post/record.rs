@@ -97,13 +97,34 @@ impl PostChain {
         }
         self.frame_scale = frame_scale;
         for (i, a) in acquired.iter().enumerate() {
-            self.record_slot(gpu, cmd, i, &targets.slots[i], a.color)?;
+            self.record_slot(gpu, cmd, i, &targets.slots[i], &targets.slots[i], a.color)?;
         }
         Ok(())
     }
 
-    fn record_slot(&mut self, gpu: &Gpu, cmd: vk::CommandBuffer, index: usize, slot: &Slot, color: u32) -> Result<()> {
-        let p = slot.post.as_ref().expect("a slot without post images");
+    /// `--one-target`, right after eye `eye`'s pass: the first slot's chain (whose scene target
+    /// every eye renders into) into eye `eye`'s final image; then, before the next eye's pass
+    /// renders into the scene target again, the scene target back to an attachment after this
+    /// chain's reads.
+    pub fn record_eye(&mut self, gpu: &Gpu, cmd: vk::CommandBuffer, targets: &Targets, eye: usize, color: u32, frame_scale: f32) -> Result<()> {
+        self.frame_scale = frame_scale;
+        let chain = &targets.slots[0];
+        self.record_slot(gpu, cmd, 0, chain, &targets.slots[eye], color)?;
+        if eye + 1 < targets.slots.len() {
+            let p = chain.post.as_ref().expect("post images");
+            let r = range(vk::ImageAspectFlags::COLOR, p.geometry.layers);
+            let mut images = vec![image_barrier(p.scene.image, r, READ, CA, A::SHADER_READ, A::COLOR_ATTACHMENT_READ | A::COLOR_ATTACHMENT_WRITE)];
+            // The multisampled colour is written again by the next eye's pass.
+            images.extend(p.scene_msaa.as_ref().map(|ms| image_barrier(ms.image, r, CA, CA, A::COLOR_ATTACHMENT_WRITE, A::COLOR_ATTACHMENT_READ | A::COLOR_ATTACHMENT_WRITE)));
+            self.barrier(cmd, S::FRAGMENT_SHADER | S::COLOR_ATTACHMENT_OUTPUT, S::COLOR_ATTACHMENT_OUTPUT, &images);
+        }
+        Ok(())
+    }
+
+    /// Chain `index` (its descriptor sets), reading `chain`'s images, into `out`'s final image
+    /// (the same slot but with `--one-target`).
+    fn record_slot(&mut self, gpu: &Gpu, cmd: vk::CommandBuffer, index: usize, chain: &Slot, out: &Slot, color: u32) -> Result<()> {
+        let p = chain.post.as_ref().expect("a slot without post images");
         let g = &p.geometry;
         let reader = if self.compute { S::COMPUTE_SHADER } else { S::FRAGMENT_SHADER };
         // The eye pass's colour (written, or resolved into, as an attachment) is read next.
@@ -113,9 +134,9 @@ impl PostChain {
             self.record_bloom(gpu, cmd, index, p)?;
         }
         if self.compute {
-            self.record_compute(cmd, index, slot, color);
+            self.record_compute(cmd, index, chain, out, color);
         } else {
-            self.record_tonemap_draw(gpu, cmd, index, slot, color)?;
+            self.record_tonemap_draw(gpu, cmd, index, chain, out, color)?;
         }
         Ok(())
     }
@@ -175,10 +196,10 @@ impl PostChain {
 
     /// The tonemap as a full-screen draw into the slot's final image (per view rect; multiview:
     /// one draw), then `--post taa`'s copy of the result into the history.
-    fn record_tonemap_draw(&mut self, gpu: &Gpu, cmd: vk::CommandBuffer, index: usize, slot: &Slot, color: u32) -> Result<()> {
-        let p = slot.post.as_ref().expect("post images");
+    fn record_tonemap_draw(&mut self, gpu: &Gpu, cmd: vk::CommandBuffer, index: usize, chain: &Slot, out: &Slot, color: u32) -> Result<()> {
+        let p = chain.post.as_ref().expect("post images");
         let g = &p.geometry;
-        let (image, view, extent, layers) = slot.final_image(color);
+        let (image, view, extent, layers) = out.final_image(color);
         let depth_view = match &p.final_depth {
             Some(fd) => {
                 // Cleared by the pass, never tested: only last frame's clear came before.
@@ -227,12 +248,12 @@ impl PostChain {
 
     /// `--post-compute`: one dispatch per view rect (multiview: one, z over the layers) into the
     /// storage image, then a copy of all of it into the final image.
-    fn record_compute(&self, cmd: vk::CommandBuffer, index: usize, slot: &Slot, color: u32) {
+    fn record_compute(&self, cmd: vk::CommandBuffer, index: usize, chain: &Slot, out: &Slot, color: u32) {
         let d = &self.device;
-        let p = slot.post.as_ref().expect("post images");
+        let p = chain.post.as_ref().expect("post images");
         let g = &p.geometry;
         let storage = p.storage.as_ref().expect("storage image");
-        let (image, _, extent, layers) = slot.final_image(color);
+        let (image, _, extent, layers) = out.final_image(color);
         let r = range(vk::ImageAspectFlags::COLOR, layers);
         // Last frame's copy read it.
         self.barrier(cmd, S::TRANSFER, S::COMPUTE_SHADER, &[image_barrier(storage.image, r, L::UNDEFINED, L::GENERAL, A::empty(), A::SHADER_WRITE)]);

@@ -105,6 +105,19 @@ impl Renderer {
         }
     }
 
+    /// `--one-target`, between the eyes' passes: the next eye's pass clears and tests the depth
+    /// the last one wrote.
+    pub(super) fn shared_depth_barrier(&self, cmd: vk::CommandBuffer, targets: &Targets) {
+        let Some(depth) = targets.own_depth_of(0) else { return };
+        let slot = &targets.slots[0];
+        let rw = vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE;
+        let l = vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
+        let b = image_barrier(depth.image, range(depth_aspect(targets.depth_format), slot.scene_layers), l, l, vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE, rw);
+        let tests = vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
+        // SAFETY: recording state, outside any render pass; the depth is in the layout named.
+        unsafe { self.device.cmd_pipeline_barrier(cmd, tests, tests, vk::DependencyFlags::empty(), &[], &[], &[b]) };
+    }
+
     /// `--depth-clear image`: `vkCmdClearDepthStencilImage` on every depth image of the frame (in
     /// TRANSFER_DST_OPTIMAL), then the clear made visible to the passes that load it, in
     /// DEPTH_STENCIL_ATTACHMENT_OPTIMAL.

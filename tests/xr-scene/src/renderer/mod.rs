@@ -632,7 +632,9 @@ impl Renderer {
             let (_, final_view, _, _) = slot.final_image(a.color);
             // The eye pass's colour: the post chain's HDR target (multisampled, resolved into the
             // HDR target), `--intermediate`'s offscreen target, or the final image itself.
-            let (color_view, resolve_view) = match (&slot.post, targets.offscreen_of(slot_index)) {
+            // `--one-target`: every eye renders into the first slot's scene target.
+            let post_slot = if self.one_target { &targets.slots[0] } else { slot };
+            let (color_view, resolve_view) = match (&post_slot.post, targets.offscreen_of(slot_index)) {
                 (Some(p), _) => match &p.scene_msaa {
                     Some(ms) => (ms.view, Some(p.scene.view)),
                     None => (p.scene.view, None),
@@ -641,7 +643,7 @@ impl Renderer {
                 (None, None) => (final_view, None),
             };
             let subpass_view = self.passes.format.subpass_color.map(|_| final_view);
-            let depth_view = match (&slot.depth, a.depth, &slot.own_depth) {
+            let depth_view = match (&slot.depth, a.depth, targets.own_depth_of(slot_index)) {
                 (Some(chain), Some(i), _) => chain.views[i as usize],
                 (_, _, Some(own)) => own.view,
                 _ => return Err(Error("internal: slot without depth".into())),
@@ -702,11 +704,18 @@ impl Renderer {
                 }
                 self.passes.end(gpu, cmd);
                 if self.one_target {
-                    // This eye's picture leaves the shared target before the other eye renders.
-                    self.resolve_to_swapchains(cmd, targets, acquired, Some(pass.slot));
+                    // This eye's picture leaves the shared target before the other eye renders:
+                    // through its post chain, or copied.
+                    match &mut self.post {
+                        Some(post) => post.record_eye(gpu, cmd, targets, pass.slot, acquired[pass.slot].color, self.frame_scale)?,
+                        None => self.resolve_to_swapchains(cmd, targets, acquired, Some(pass.slot)),
+                    }
+                    if pass.slot + 1 < passes.len() {
+                        self.shared_depth_barrier(cmd, targets);
+                    }
                 }
             }
-            if let Some(post) = &mut self.post {
+            if let (Some(post), false) = (&mut self.post, self.one_target) {
                 post.record(gpu, cmd, targets, acquired, self.frame_scale)?;
             }
             if self.compositor.is_none() {
