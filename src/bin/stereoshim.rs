@@ -466,11 +466,19 @@ fn preview_cmd(a: PreviewArgs) -> Result<(), String> {
             written += 1;
         }
     }
-    let report = preview::report(&headset, &settings, &p, &file_name);
+    let mut report = preview::report(&headset, &settings, &p, &file_name);
+    // A named headset: its mask under each kind of runtime, and what the layer makes of it.
+    let profile = a.hmd.as_deref().and_then(hmd_profiles::profile::HmdProfile::by_name);
+    if let Some(profile) = profile {
+        report["mask_sources"] = preview::mask_sources::report(profile, &headset, &settings);
+    }
     let json_path = a.out.join("preview.json");
     let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
     std::fs::write(&json_path, text + "\n").map_err(|e| format!("{}: {e}", json_path.display()))?;
     print!("{}", preview_summary(&report));
+    if report["mask_sources"].is_object() {
+        print!("{}", preview::mask_sources::summary(&report["mask_sources"]));
+    }
     println!("wrote {written} PNGs and {}", json_path.display());
     Ok(())
 }

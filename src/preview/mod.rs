@@ -6,6 +6,7 @@
 #![forbid(unsafe_code)]
 
 pub mod draw;
+pub mod mask_sources;
 
 use crate::features::views::ViewSettings;
 use crate::features::upscale::UpscaleSettings;

@@ -413,7 +413,13 @@ pub enum Learned {
 /// `uses`: an eye counts when its image rect lies inside a region's destination and the region
 /// maps pixels 1:1 (same extent on both sides, so no scaling), and the source image (of extent
 /// `src_extent`) holds the whole translated rect.
-pub fn learn_intermediate(regions: &[TransferRegion], uses: &[EyeUse], src_extent: (u32, u32)) -> Learned {
+pub fn learn_intermediate(regions: &[TransferRegion], uses: &[EyeUse], src_extent: (u32, u32), dst_samples: u32) -> Learned {
+    if dst_samples > 1 {
+        // xrizer resolves a multisampled game texture into a swapchain of the texture's sample
+        // count. Vulkan resolves only into single-sampled images; what a driver makes of it
+        // cannot be followed pixel by pixel (a feature's holes would not be where it put them).
+        return Learned::Rejected(format!("transferred into a {dst_samples}-sample swapchain image: a pixel of the source is not a pixel of the destination"));
+    }
     let mut eyes = Vec::new();
     let mut why = Vec::new();
     let src_image = PixelRect { x: 0, y: 0, width: src_extent.0, height: src_extent.1 };
@@ -660,17 +666,20 @@ mod tests {
         let region = TransferRegion { src_layer: 0, dst_layer: 0, layer_count: 1, src: whole, dst: whole };
         // Side-by-side: one region covers both eyes.
         let uses = [eye_use(0, 0, 0, 100), eye_use(1, 0, 100, 100)];
-        assert_eq!(learn_intermediate(&[region], &uses, (200, 100)), Learned::Eyes(vec![src(0, 0, 0, 100), src(1, 0, 100, 100)]));
+        assert_eq!(learn_intermediate(&[region], &uses, (200, 100), 1), Learned::Eyes(vec![src(0, 0, 0, 100), src(1, 0, 100, 100)]));
         // Multiview array: layers map through.
         let mv = TransferRegion { layer_count: 2, ..region };
         let uses = [eye_use(0, 0, 0, 200), eye_use(1, 1, 0, 200)];
-        assert_eq!(learn_intermediate(&[mv], &uses, (200, 100)), Learned::Eyes(vec![src(0, 0, 0, 200), src(1, 1, 0, 200)]));
+        assert_eq!(learn_intermediate(&[mv], &uses, (200, 100), 1), Learned::Eyes(vec![src(0, 0, 0, 200), src(1, 1, 0, 200)]));
         // A scaled blit and a source too small are rejected with a reason.
         let scaled = TransferRegion { src: PixelRect { width: 100, height: 50, ..whole }, ..region };
-        assert!(matches!(learn_intermediate(&[scaled], &uses, (100, 50)), Learned::Rejected(w) if w.contains("scaled")));
-        assert!(matches!(learn_intermediate(&[region], &uses, (100, 100)), Learned::Rejected(w) if w.contains("smaller")));
+        assert!(matches!(learn_intermediate(&[scaled], &uses, (100, 50), 1), Learned::Rejected(w) if w.contains("scaled")));
+        assert!(matches!(learn_intermediate(&[region], &uses, (100, 100), 1), Learned::Rejected(w) if w.contains("smaller")));
         // An offset source region moves the eye rect with it.
         let shifted = TransferRegion { src: PixelRect { x: 50, y: 0, width: 200, height: 100 }, ..region };
-        assert_eq!(learn_intermediate(&[shifted], &uses[..1], (300, 100)), Learned::Eyes(vec![src(0, 0, 50, 200)]));
+        assert_eq!(learn_intermediate(&[shifted], &uses[..1], (300, 100), 1), Learned::Eyes(vec![src(0, 0, 50, 200)]));
+        // A resolve into a multisampled swapchain image (as xrizer does for an MSAA game texture)
+        // is no pixel-for-pixel transfer: the data-flow walk decides instead.
+        assert!(matches!(learn_intermediate(&[region], &uses[..1], (200, 100), 4), Learned::Rejected(w) if w.contains("4-sample")));
     }
 }

@@ -327,7 +327,7 @@ impl DeviceTracker {
         let mut rejected = Vec::new();
         for t in &transfers {
             let Some(sc) = shared.images.get(t.dst_image) else { continue };
-            match eye_pass::learn_intermediate(&[t.region], &sc.swapchain.uses(), (img.extent.width, img.extent.height)) {
+            match eye_pass::learn_intermediate(&[t.region], &sc.swapchain.uses(), (img.extent.width, img.extent.height), sc.swapchain.desc.sample_count) {
                 eye_pass::Learned::Eyes(e) => eyes.extend(e),
                 eye_pass::Learned::Rejected(w) => rejected.push(w),
             }

@@ -173,6 +173,22 @@ fn check_profile(name: &str, scale: f64) {
 #[test]
 fn index_preview_is_what_the_rules_decide() {
     check_profile("index", 0.125);
+    // `--hmd`: the mask under each kind of runtime. Monado's generic corners hide ~3 %; the layer
+    // uses the Index's published lens instead, as where the runtime has none.
+    let j = read_json(&target_dir().join("test-output/preview-index/out"));
+    let m = &j["mask_sources"];
+    assert_eq!(m["published_lens"], true, "{m}");
+    for v in 0..2 {
+        let cases = m["views"][v]["cases"].as_array().unwrap_or_else(|| panic!("{m}"));
+        let case = |name: &str| cases.iter().find(|c| c["runtime"] == name).unwrap_or_else(|| panic!("{name}: {m}"));
+        let (own, generic, none) = (case("headset_mesh"), case("monado_generic"), case("none"));
+        assert_eq!(own["layer_uses"], "runtime");
+        assert!(generic["runtime_fraction"].as_f64().unwrap() < 0.05, "{generic}");
+        assert_eq!(generic["layer_uses"], "headset");
+        assert_eq!(generic["fraction"], own["runtime_fraction"], "the lens, as a runtime with the mesh gives it");
+        assert_eq!((none["runtime_fraction"].clone(), none["layer_uses"].clone()), (serde_json::Value::Null, serde_json::json!("headset")));
+        assert_eq!(j["views"][v]["mask"]["fraction"], own["fraction"], "what the preview draws is the headset-mesh case");
+    }
 }
 
 #[test]

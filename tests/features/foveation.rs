@@ -141,6 +141,59 @@ rdm_tests! {
     openvr_double_wide: ["--layout", "side-by-side", "--rendering", "render-pass", "--submit-texture", "double-wide", "--submit-via", "openvr"];
 }
 
+/// xrizer with a multisampled game texture (the OpenVR SDK's `hellovr_vulkan` at its default 4×
+/// MSAA): its swapchain has the texture's sample count and its compositor resolves into it, which
+/// Vulkan forbids (VUID-vkCmdResolveImage-dstImage-00259: validation is off in both runs; lavapipe
+/// runs it). A skipped pixel of the texture is then not a pixel of what the runtime gets, so the
+/// layer must not leave RDM's holes there: the eye passes are tied to their eyes by the data-flow
+/// walk, not by the resolve, and left unfoveated with the reason counted, every frame; what the
+/// runtime gets is the run without the layer's, bit for bit. The mask still applies. (Before, the
+/// resolve counted as a 1:1 transfer and the skipped quads were reconstructed in the 4-sample
+/// swapchain image, which lavapipe reads one sample of: a grid of quads at a quarter of their
+/// brightness, found with the real xrizer and hellovr_vulkan.)
+#[test]
+fn openvr_resolve_into_a_multisampled_swapchain_leaves_no_holes() {
+    let args = ["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "4", "--swapchain-samples", "4", "--submit-via", "openvr"];
+    let frames = 4u64;
+    let mut plain = Run::new("rdm-openvr-msaa-swapchain").args(args).env("MOCK_XR_EXIT_AFTER", &frames.to_string());
+    plain.validation = false;
+    let plain = plain.run();
+    plain.assert_ok();
+    let stats = common::target_dir().join("test-output").join("rdm-openvr-msaa-swapchain.layer-stats.jsonl");
+    let _ = std::fs::remove_file(&stats);
+    let mut layered = Run::new("rdm-openvr-msaa-swapchain")
+        .args(args)
+        .env("MOCK_XR_EXIT_AFTER", &frames.to_string())
+        .with_layer()
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", "rdm")
+        .env("STEREOSHIM_FOVEATION_EYE_TRACKING", "off")
+        .env("STEREOSHIM_STATS_FILE", stats.to_str().unwrap());
+    layered.name = "rdm-openvr-msaa-swapchain-rdm".into();
+    layered.validation = false;
+    let rdm_run = layered.run();
+    rdm_run.assert_ok();
+    rdm_run.assert_log_lacks(Half::Both, "internal failure");
+    common::assert_same_captures("rdm-openvr-msaa-swapchain", &rdm_run, &plain);
+    let records = rdm::layer_records(&rdm_run, &stats);
+    for f in 1..frames {
+        let r = records.iter().find(|r| r["frame"] == f).unwrap_or_else(|| panic!("no stats of frame {f}"));
+        assert_eq!(r["rdm"]["passes"].as_u64().unwrap_or(0), 0, "frame {f}: {r}");
+        let why: u64 = r["rdm"]["not_applied"].as_object().map_or(0, |m| m.values().filter_map(|v| v.as_u64()).sum());
+        assert!(why >= 2, "frame {f}: both eye passes left alone with their reason: {r}");
+    }
+    // The same run with the mask: both eye passes masked through the walk from frame 2 on. The
+    // walk sees where the eye goes only in the compositor's submission, after the app's: frame 0's
+    // precedes the first xrEndFrame (no eye uses yet), frame 1's comes after frame 1's eye passes
+    // were submitted.
+    let mut masked = Run::new("rdm-openvr-msaa-swapchain-mask").args(args).env("MOCK_XR_EXIT_AFTER", &frames.to_string()).with_layer().env("STEREOSHIM_MASK_ENABLED", "1");
+    masked.validation = false;
+    let masked = masked.run();
+    masked.assert_ok();
+    let line = masked.log_lines("vulkan device stats:").join("\n");
+    assert!(line.contains(&format!("masked_passes={}", 2 * (frames - 2))) && line.contains("masked_by.walk="), "{line}");
+}
+
 // Eye passes recorded into secondary command buffers (as engines do): the checkerboard goes into
 // the layer's own secondary, executed ahead of the app's. Vulkan 1.0 apps get RDM too.
 rdm_tests! {

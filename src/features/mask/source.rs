@@ -3,7 +3,7 @@
 //! config means the same on every HMD). Pure; the OpenXR shell fetches and publishes.
 #![forbid(unsafe_code)]
 
-use crate::core::views::MaskSource;
+use crate::core::views::{MaskSource, ViewFov};
 /// The runtime mesh's expansion is the base's (`core::lens`), shared with the OpenXR contract's
 /// fetch; re-exported for the tests and the preview.
 pub use crate::core::lens::expand;
@@ -113,6 +113,27 @@ pub fn from_settings(settings: &super::MaskSettings) -> (SourcePolicy, LensShape
     };
     let radius = settings.synthesized_radius_deg;
     (policy, LensShape { horizontal_deg: radius, vertical_deg: (radius * settings.synthesized_aspect).min(89.0) })
+}
+
+/// Monado's generic mask for a view of `fov`, as `is_generic` recognises it: each corner of the
+/// FOV rectangle cut by a triangle whose legs run from ±0.75 to ±1 of it in normalised
+/// coordinates, counter-clockwise (what `stereoshim preview` shows a WiVRn headset getting).
+pub fn generic(fov: &ViewFov) -> Vec<[f32; 2]> {
+    let x = |n: f32| fov.tan_left + (n + 1.0) / 2.0 * (fov.tan_right - fov.tan_left);
+    let y = |n: f32| fov.tan_down + (n + 1.0) / 2.0 * (fov.tan_up - fov.tan_down);
+    let mut out = Vec::with_capacity(12);
+    for (sx, sy) in [(-1.0f32, -1.0f32), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+        let corner = [x(sx), y(sy)];
+        let along_x = [x(0.75 * sx), y(sy)];
+        let along_y = [x(sx), y(0.75 * sy)];
+        // Counter-clockwise: from the corner along x first where the corner's signs agree.
+        if sx * sy > 0.0 {
+            out.extend([corner, along_x, along_y]);
+        } else {
+            out.extend([corner, along_y, along_x]);
+        }
+    }
+    out
 }
 
 /// Whether a runtime's hidden triangle mesh is Monado's generic one

@@ -13,8 +13,12 @@ pub(super) fn check_swapchain(a: &Args) -> Result<(), String> {
     // A multisampled swapchain is rendered straight into by the eye pass: every path that writes
     // the swapchain image by anything else (a resolve, a copy, a blit, a full-screen draw of a
     // single-sampled pipeline) or needs single-sampled depth is refused.
-    if a.intermediate {
-        return Err(format!("--swapchain-samples {n} renders the eye pass straight into the multisampled swapchain image: not with --intermediate (it resolves or copies into a single-sampled one)"));
+    // xrizer's swapchain for a multisampled game texture has the texture's sample count, and its
+    // compositor resolves into it (which Vulkan forbids: VUID-vkCmdResolveImage-dstImage-00259;
+    // lavapipe runs it): reproduced with `--submit-via openvr --intermediate --samples N`.
+    let xrizer = a.submit_via == super::SubmitVia::Openvr && a.samples.unwrap_or(4) == n;
+    if a.intermediate && !xrizer {
+        return Err(format!("--swapchain-samples {n} renders the eye pass straight into the multisampled swapchain image: not with --intermediate (it resolves or copies into a single-sampled one), except with --submit-via openvr and --samples {n} (a compositor resolving into it, as xrizer does)"));
     }
     if a.post.is_some() {
         return Err(format!("--swapchain-samples {n} renders the eye pass straight into the multisampled swapchain image: not with --post (its chain writes a single-sampled one)"));
