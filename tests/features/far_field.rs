@@ -166,6 +166,9 @@ fn dxvk_state_and_shader_objects() {
 #[test]
 fn openvr_submission() {
     check(Case::new("ff-openvr", &["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--submit-via", "openvr"]), 35.0);
+    // xrizer's order: a temporary session on a device of its own first, then the legacy
+    // XR_KHR_vulkan_enable on the app's.
+    check(Case::new("ff-openvr-temporary", &["--layout", "per-eye", "--rendering", "render-pass", "--intermediate", "--samples", "1", "--submit-via", "openvr", "--vulkan", "enable", "--temporary-session"]), 35.0);
 }
 
 #[test]

@@ -139,6 +139,9 @@ rdm_tests! {
 rdm_tests! {
     openvr_intermediate_msaa_per_eye: ["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--submit-via", "openvr"];
     openvr_double_wide: ["--layout", "side-by-side", "--rendering", "render-pass", "--submit-texture", "double-wide", "--submit-via", "openvr"];
+    // xrizer's order: a temporary session on a device of its own first, then the legacy
+    // XR_KHR_vulkan_enable on the app's.
+    openvr_temporary_session_legacy_enable: ["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--submit-via", "openvr", "--vulkan", "enable", "--temporary-session"];
 }
 
 /// xrizer with a multisampled game texture (the OpenVR SDK's `hellovr_vulkan` at its default 4×

@@ -317,6 +317,37 @@ wrapped_tests! {
     validation_env_secondary_side_by_side: ["--layout", "side-by-side", "--rendering", "dynamic", "--secondary"];
 }
 
+/// xrizer's temporary session (`--temporary-session`): before the app's device exists, a session
+/// on a Vulkan instance and device of their own, destroyed at once; then the real session on the
+/// app's device through the legacy `XR_KHR_vulkan_enable`, the eyes copied by a second component
+/// (`--submit-via openvr`). The layer applies nothing to the temporary device (its stats line shows
+/// no pass and no object of the layer's) and masks every eye pass of the real one after frame 0.
+#[test]
+fn openvr_temporary_session_on_another_device() {
+    let frames = 4u64;
+    let args = ["--layout", "per-eye", "--rendering", "render-pass", "--intermediate", "--samples", "1", "--submit-via", "openvr", "--vulkan", "enable", "--temporary-session"];
+    let plain = Run::new("mask-temporary-session").args(args).env("MOCK_XR_EXIT_AFTER", &frames.to_string()).run();
+    plain.assert_ok();
+    let mut run = Run::new("mask-temporary-session").args(args).env("MOCK_XR_EXIT_AFTER", &frames.to_string()).with_layer().env("STEREOSHIM_MASK_ENABLED", "1");
+    run.name = "mask-temporary-session-layered".into();
+    let out = run.run();
+    out.assert_ok();
+    out.assert_log_lacks(Half::Both, "internal failure");
+    assert!(out.stderr.contains("temporary session made and destroyed"), "{}", out.stderr);
+    let lines = out.log_lines("vulkan device stats:");
+    assert_eq!(lines.len(), 2, "one line per device, the temporary one first:\n{}", out.log);
+    let count = |line: &str, key: &str| -> u64 { line.split_whitespace().find_map(|w| w.strip_prefix(key)).and_then(|v| v.parse().ok()).unwrap_or(0) };
+    let (temporary, real) = (&lines[0], &lines[1]);
+    for key in ["render_pass=", "render_pass2=", "dynamic_rendering=", "masked_passes=", "pipelines="] {
+        assert_eq!(count(temporary, key), 0, "{key} on the temporary device: {temporary}");
+    }
+    let own: u64 = temporary.split_whitespace().filter(|w| w.starts_with("own.")).filter_map(|w| w.split('=').nth(1)?.parse::<u64>().ok()).sum();
+    assert_eq!(own, 0, "the layer made objects on the temporary device: {temporary}");
+    assert_eq!(count(real, "masked_passes="), 2 * (frames - 1), "{real}");
+    // Outside the mask, what the runtime gets is the run without the layer's.
+    common::assert_same_frame("mask-temporary-session-f0", &out, 0, &plain, 0);
+}
+
 /// `--one-target` over many frames: every eye pass after frame 0 is masked, each with the eye its
 /// copy reaches (the per-frame check is `one_target_*` above), none counted as anything else.
 #[test]

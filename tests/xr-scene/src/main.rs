@@ -56,10 +56,34 @@ fn run(opts: &cli::Options) -> Result<u64> {
     Ok(frames)
 }
 
+/// `--temporary-session`: what xrizer does at an OpenVR game's `VR_Init`, before the game's first
+/// submission hands it the game's device: a Vulkan instance and device made through the runtime,
+/// a session on them, then the session, the device and the instance destroyed.
+fn temporary_session(opts: &cli::Options, xri: &xr::XrInstance) -> Result<()> {
+    let gpu = gpu::Gpu::new(opts, &xri.instance, xri.system)?;
+    let binding = oxr::vulkan::SessionCreateInfo {
+        instance: gpu.instance.handle().as_raw() as _,
+        physical_device: gpu.physical.as_raw() as _,
+        device: gpu.device.handle().as_raw() as _,
+        queue_family_index: gpu.queue_family,
+        queue_index: 0,
+    };
+    // SAFETY: the handles come from the runtime's system; the session and its frame objects are
+    // dropped (xrDestroySession) before the device and instance they use.
+    let (session, waiter, stream) = unsafe { xri.instance.create_session::<oxr::Vulkan>(xri.system, &binding) }.ctx("xrCreateSession(temporary)")?;
+    drop((stream, waiter, session));
+    drop(gpu);
+    eprintln!("xr-scene: temporary session made and destroyed");
+    Ok(())
+}
+
 /// One XR instance, its Vulkan instance and device, and `--sessions` sessions, each until the
 /// runtime ends it. Locals drop in reverse order: the Vulkan device/instance, then the XR instance.
 fn run_instance(opts: &cli::Options) -> Result<u64> {
     let xri = xr::XrInstance::new(opts)?;
+    if opts.temporary_session {
+        temporary_session(opts, &xri)?;
+    }
     let gpu = gpu::Gpu::new(opts, &xri.instance, xri.system)?;
     let mut stats = opts.stats.clone().map(stats::StatsLog::new);
     if let Some(dir) = &opts.pixel_stats {

@@ -272,6 +272,9 @@ pub struct Options {
     /// with `--post tonemap` or `bloom`: one scene target for both eyes, each eye's pass followed
     /// by its post chain into its swapchain image.
     pub one_target: bool,
+    /// `--temporary-session`: before the app's own Vulkan instance and device, a session on an
+    /// instance and device of their own, made and destroyed (xrizer's "temporary session").
+    pub temporary_session: bool,
     /// `--dynamic-resolution`: the eye passes draw into a sub-rect of their target that changes
     /// every frame (`crate::post::dynamic_scale`), read back whole by the tonemap.
     pub dynamic_resolution: bool,
@@ -485,6 +488,11 @@ struct Args {
     /// by its own post chain into its swapchain image before the next eye renders.
     #[arg(long)]
     one_target: bool,
+    /// Before the app's own Vulkan instance and device: a session on a Vulkan instance and device
+    /// of their own (made through the runtime as the real ones), destroyed at once, as xrizer does
+    /// before an OpenVR game's first submission.
+    #[arg(long)]
+    temporary_session: bool,
     /// With --post tonemap or taa: dynamic resolution, the eye passes' sub-rect of their target
     /// changes every frame (x1, x0.75, x0.875 of it in turn, on top of --viewport-scale); the
     /// tonemap reads each frame's sub-rect.
@@ -653,6 +661,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         submit_texture: a.submit_texture,
         submit_via: a.submit_via,
         one_target: a.one_target,
+        temporary_session: a.temporary_session,
         dynamic_resolution: a.dynamic_resolution,
     })
 }

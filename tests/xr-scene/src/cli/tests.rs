@@ -211,6 +211,13 @@ fn openvr_submission() {
     assert!(p(&["--submit-via", "openvr", "--intermediate", "--record-once"]).is_err());
 }
 
+/// `--temporary-session`: any shape (it comes before the app's device).
+#[test]
+fn temporary_session() {
+    assert!(!p(&[]).unwrap().unwrap().temporary_session);
+    assert!(p(&["--temporary-session", "--submit-via", "openvr", "--intermediate", "--vulkan", "enable"]).unwrap().unwrap().temporary_session);
+}
+
 /// `--one-target`: per eye, through one intermediate copied by the app between the eyes.
 #[test]
 fn one_target_for_both_eyes() {
