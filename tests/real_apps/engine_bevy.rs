@@ -164,6 +164,14 @@ fn msaa_off_same_frames_with_and_without_the_layer() {
     same_frames("msaa-off", &["--msaa", "off"]);
 }
 
+/// HDR on, MSAA off: the main pass renders straight into an RGBA16F target, then tonemapping,
+/// then the upscaling pass into the swapchain (issue 33: RDM applied to 2 of 120 eye passes here,
+/// `post_chain`).
+#[test]
+fn hdr_msaa_off_same_frames_with_and_without_the_layer() {
+    same_frames("hdr-msaa-off", &["--hdr", "--msaa", "off"]);
+}
+
 /// Upscaling with every other feature (mask, RDM, far field): Bevy asks for 388×431 per eye (the
 /// Index's told size at `upscale.scale = 0.77`, at this test's quarter size), renders its frame
 /// graph into the layer's images, and the runtime gets 504×560 per eye, the size the run without

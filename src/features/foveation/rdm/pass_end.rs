@@ -111,6 +111,30 @@ pub fn first_color_image(pass: &PassInstance) -> Option<u64> {
     att.and_then(|a| a.image_view.as_ref()).map(|v| v.image)
 }
 
+/// The colour image whose eye pixels the reconstruction at the pass's end fills, for eyes found
+/// through `eye_image`: itself when it is one of the pass's colour attachments; else (the eyes
+/// were found through the pass's depth image: an engine that swaps its colour targets between
+/// frames, as Bevy does without MSAA, has its depth traced before the colour it renders into this
+/// frame) the pass's first colour attachment, which shows the same eyes at the same pixels.
+pub fn reconstructed_image(pass: &PassInstance, eye_image: u64) -> Option<u64> {
+    let colors: Vec<u64> = match (&pass.rendering, &pass.render_pass) {
+        (Some(r), _) => r.color.iter().filter_map(|c| c.attachment.image_view.as_ref()).map(|v| v.image).collect(),
+        (None, Some(rp)) => rp
+            .subpasses
+            .get(pass.subpass as usize)
+            .into_iter()
+            .flat_map(|s| s.color.iter().filter_map(|r| r.used()))
+            .filter_map(|i| pass.attachments.get(i as usize)?.image_view.as_ref().map(|v| v.image))
+            .collect(),
+        _ => Vec::new(),
+    };
+    if colors.contains(&eye_image) {
+        Some(eye_image)
+    } else {
+        first_color_image(pass)
+    }
+}
+
 /// Whether an image of `usage` can be reconstructed in place: copied out (TRANSFER_SRC) and
 /// drawn into (COLOR_ATTACHMENT).
 pub fn usage_ok(usage: vk::ImageUsageFlags) -> bool {

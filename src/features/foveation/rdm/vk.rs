@@ -557,7 +557,8 @@ fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<()
     let pass_end = if plan.via.behind_post() {
         let pending: Vec<Pending> = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
         let mut eyes_at = super::pass_end_vk::Eyes::Recorded(pending);
-        let prepared = super::pass_end_vk::prepare(me, d, at.pass, plan.image, &mut eyes_at).inspect_err(|why| {
+        let image = super::pass_end::reconstructed_image(at.pass, plan.image).ok_or(NotApplied::PostChain)?;
+        let prepared = super::pass_end_vk::prepare(me, d, at.pass, image, &mut eyes_at).inspect_err(|why| {
             log_once(me, format!("pass end {}", why.name()), || tracing::info!("radial density masking left an eye pass behind a post chain alone ({:#x}): {}", plan.image, why.name()))
         })?;
         let link = super::pass_end_vk::Link::new(me, d, &prepared, &eyes_at, Some(((fovea_generation, views_generation), plan.draws.clone())))?;
