@@ -68,6 +68,8 @@ pub fn check_with(name: &str, args: &[&str], preset_name: &str, extra_env: &[(&s
     layered = layered.env("STEREOSHIM_STATS_FILE", stats_path.to_str().unwrap());
     let rdm = layered.run();
     rdm.assert_ok();
+    // Kept beside the run's captures (the layer's own log goes with its state folder).
+    let _ = std::fs::write(common::target_dir().join("test-output").join(format!("{name}-rdm")).join("layer.log"), &rdm.log);
     rdm.assert_log_lacks(Half::Both, "internal failure");
     assert!(!rdm.log_lines("radial density masking ").is_empty(), "{name}: the layer never applied RDM:\n{}", rdm.log);
     // Frame 0: eye uses unknown, nothing skipped.
@@ -142,6 +144,23 @@ rdm_tests! {
     // xrizer's order: a temporary session on a device of its own first, then the legacy
     // XR_KHR_vulkan_enable on the app's.
     openvr_temporary_session_legacy_enable: ["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--submit-via", "openvr", "--vulkan", "enable", "--temporary-session"];
+}
+
+/// An app's own target copied 1:1 into the swapchain (an OpenVR game's eye texture, which its
+/// desktop mirror draws too): RDM fills its skipped quads when the eye pass ends, in that target,
+/// so every reader of it sees it whole; a multisampled target resolved by the copy cannot be
+/// filled there, and its skipped quads follow the copy and are filled at the release. Both give
+/// the runtime the same reconstruction (`check`).
+#[test]
+fn a_copied_target_is_reconstructed_before_its_copy() {
+    check("copied-target-single", &["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--submit-via", "openvr"], "balanced", &[]);
+    let log = |name: &str| std::fs::read_to_string(common::target_dir().join("test-output").join(format!("foveation-{name}-rdm")).join("layer.log")).unwrap_or_default();
+    let at_release = "are reconstructed in the swapchain image at the release";
+    let l = log("copied-target-single");
+    assert!(!l.is_empty() && !l.contains(at_release), "a single-sampled copied target is filled at its pass's end:\n{l}");
+    check("copied-target-msaa", &["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "4", "--submit-via", "openvr"], "balanced", &[]);
+    let l = log("copied-target-msaa");
+    assert!(l.contains(at_release), "a multisampled target resolved by the copy is filled at the release:\n{l}");
 }
 
 /// xrizer with a multisampled game texture (the OpenVR SDK's `hellovr_vulkan` at its default 4×

@@ -12,7 +12,7 @@ use crate::core::rect::PixelRect;
 use crate::core::stats::FeatureStats;
 use crate::plugin::settings::Settings;
 use crate::bridge::shared;
-use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan, TransferRegion};
+use crate::track::eye_pass::{EyeDraw, EyeLayout, MaskPlan, TransferRegion, Via};
 use crate::plugin::vk::feature::{Destroyed, DeviceInit, Plugin, VkFeature};
 use crate::plugin::vk::inject::open_passes::OpenPasses;
 use crate::plugin::vk::inject::{self, pipeline, Awaiting, Injection};
@@ -549,23 +549,44 @@ fn reconstruction_ready(me: &RdmDevice, d: &DeviceState, cb: vk::CommandBuffer, 
     })
 }
 
+/// The reconstruction at `at`'s pass's end, for `eyes` at the fovea and views of `generations`.
+fn pass_end_link(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>, eyes: &[(EyeDraw, RdmParams)], generations: (u64, u64)) -> Result<(super::pass_end_vk::Prepared, super::pass_end_vk::Eyes, Arc<super::pass_end_vk::Link>), NotApplied> {
+    let plan = at.plan;
+    let pending: Vec<Pending> = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
+    let mut eyes_at = super::pass_end_vk::Eyes::Recorded(pending);
+    let image = super::pass_end::reconstructed_image(at.pass, plan.image).ok_or(NotApplied::PostChain)?;
+    let prepared = super::pass_end_vk::prepare(me, d, at.pass, image, &mut eyes_at)?;
+    let link = super::pass_end_vk::Link::new(me, d, &prepared, &eyes_at, Some((generations, plan.draws.clone())))?;
+    Ok((prepared, eyes_at, link))
+}
+
 fn record_draw(me: &RdmDevice, d: &DeviceState, at: &Injection<'_>) -> Result<(), NotApplied> {
     let plan = at.plan;
     let ((fovea_generation, views_generation), eyes) = params_now(&plan.draws)?;
     // Behind a post chain a tonemapper, bloom or TAA reads the target before any release: the
-    // holes are filled when the pass ends (`pass_end_vk`), or the pass is left whole.
-    let pass_end = if plan.via.behind_post() {
-        let pending: Vec<Pending> = eyes.iter().map(|(dr, p)| Pending { view: dr.view, layer: dr.layer, params: *p }).collect();
-        let mut eyes_at = super::pass_end_vk::Eyes::Recorded(pending);
-        let image = super::pass_end::reconstructed_image(at.pass, plan.image).ok_or(NotApplied::PostChain)?;
-        let prepared = super::pass_end_vk::prepare(me, d, at.pass, image, &mut eyes_at).inspect_err(|why| {
+    // holes are filled when the pass ends (`pass_end_vk`), or the pass is left whole. An app's own
+    // target copied 1:1 into the swapchain is filled there too where the pass's end can: other
+    // readers of it then see it whole (an OpenVR game's desktop mirror draws its eye textures);
+    // where it cannot (a multisampled target resolved by the copy), the skipped quads follow the
+    // copy and are filled at the release, as before.
+    let pass_end = match plan.via {
+        Via::Walk | Via::Fallback => Some(pass_end_link(me, d, at, &eyes, (fovea_generation, views_generation)).inspect_err(|why| {
             log_once(me, format!("pass end {}", why.name()), || tracing::info!("radial density masking left an eye pass behind a post chain alone ({:#x}): {}", plan.image, why.name()))
-        })?;
-        let link = super::pass_end_vk::Link::new(me, d, &prepared, &eyes_at, Some(((fovea_generation, views_generation), plan.draws.clone())))?;
-        Some((prepared, eyes_at, link))
-    } else {
-        reconstruction_ready(me, d, at.cb, at.settings)?;
-        None
+        })?),
+        Via::Transfer => match pass_end_link(me, d, at, &eyes, (fovea_generation, views_generation)) {
+            Ok(link) => Some(link),
+            Err(why) => {
+                log_once(me, format!("transfer at release {}", why.name()), || {
+                    tracing::info!("radial density masking: eye passes into {:#x}, copied into the swapchain, are reconstructed in the swapchain image at the release ({}: not at the pass's end)", plan.image, why.name())
+                });
+                reconstruction_ready(me, d, at.cb, at.settings)?;
+                None
+            }
+        },
+        Via::Swapchain => {
+            reconstruction_ready(me, d, at.cb, at.settings)?;
+            None
+        }
     };
     let p = pipeline(me, d, at.pass, plan)?;
     let multiview = plan.layout == EyeLayout::Multiview;
