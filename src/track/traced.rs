@@ -162,13 +162,14 @@ impl Traced {
         drop(b);
         // The walk runs without the lock: it only reads the ops and the tracker's maps.
         let all: Vec<&Op> = window.iter().flat_map(|(_, o)| o.iter()).collect();
-        // Where the walked ops of this submission are recorded (earlier submissions' command
-        // buffers may have been recorded again since).
-        let mut at_of = Vec::with_capacity(all.len());
+        // Where a walked op of this submission is recorded (earlier submissions' command buffers
+        // may have been recorded again since): the window entry it falls in, by the entries' starts.
         let first_new = window.len().saturating_sub(new);
-        for (k, (cb, ops)) in window.iter().enumerate() {
-            at_of.extend((0..ops.len()).map(|op| (k >= first_new).then_some(FlowAt { cb: *cb, op })));
-        }
+        let starts_at: Vec<usize> = window.iter().scan(0, |n, (_, o)| Some(std::mem::replace(n, *n + o.len()))).collect();
+        let at_of = |op: usize| -> Option<FlowAt> {
+            let k = starts_at.partition_point(|s| *s <= op).checked_sub(1)?;
+            (k >= first_new).then(|| FlowAt { cb: window[k].0, op: op - starts_at[k] })
+        };
         let mut results = Vec::new();
         let mut swapchains: Vec<_> = starts.into_iter().collect();
         swapchains.sort_by_key(|(sc, _)| *sc);
@@ -186,7 +187,7 @@ impl Traced {
         for (sc, walked) in results {
             b.walks += 1;
             for f in &walked.found {
-                if let Some(at) = at_of.get(f.op).copied().flatten() {
+                if let Some(at) = at_of(f.op) {
                     let eyes = b.uses.entry(at).or_default();
                     if !eyes.contains(&f.eye) {
                         eyes.push(f.eye);
