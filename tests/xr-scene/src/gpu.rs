@@ -95,6 +95,18 @@ fn push_unique(list: &mut Vec<CString>, name: &CStr) {
 }
 
 impl Gpu {
+    /// The graphics binding of a session on this instance, device and queue (queue 0 of the
+    /// graphics family).
+    pub fn session_binding(&self) -> openxr::vulkan::SessionCreateInfo {
+        openxr::vulkan::SessionCreateInfo {
+            instance: self.instance.handle().as_raw() as _,
+            physical_device: self.physical.as_raw() as _,
+            device: self.device.handle().as_raw() as _,
+            queue_family_index: self.queue_family,
+            queue_index: 0,
+        }
+    }
+
     pub fn new(opts: &Options, xr: &openxr::Instance, system: openxr::SystemId) -> Result<Gpu> {
         // The binding extensions require the requirements query before anything else.
         let reqs = xr

@@ -15,7 +15,6 @@ mod targets;
 mod threads;
 mod xr;
 
-use ash::vk::Handle;
 use error::{Ctx, Result};
 use glam::{Mat4, Quat, Vec3, Vec4};
 use openxr as oxr;
@@ -61,13 +60,7 @@ fn run(opts: &cli::Options) -> Result<u64> {
 /// a session on them, then the session, the device and the instance destroyed.
 fn temporary_session(opts: &cli::Options, xri: &xr::XrInstance) -> Result<()> {
     let gpu = gpu::Gpu::new(opts, &xri.instance, xri.system)?;
-    let binding = oxr::vulkan::SessionCreateInfo {
-        instance: gpu.instance.handle().as_raw() as _,
-        physical_device: gpu.physical.as_raw() as _,
-        device: gpu.device.handle().as_raw() as _,
-        queue_family_index: gpu.queue_family,
-        queue_index: 0,
-    };
+    let binding = gpu.session_binding();
     // SAFETY: the handles come from the runtime's system; the session and its frame objects are
     // dropped (xrDestroySession) before the device and instance they use.
     let (session, waiter, stream) = unsafe { xri.instance.create_session::<oxr::Vulkan>(xri.system, &binding) }.ctx("xrCreateSession(temporary)")?;
@@ -140,13 +133,7 @@ fn rss_kb() -> Option<u64> {
 /// `last`: the instance's last session (`--teardown instance` leaves it to `xrDestroyInstance`).
 fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats: &mut Option<stats::StatsLog>, mut frame: u64, last: bool) -> Result<(u64, Vec<String>)> {
     let first_frame = frame;
-    let binding = oxr::vulkan::SessionCreateInfo {
-        instance: gpu.instance.handle().as_raw() as _,
-        physical_device: gpu.physical.as_raw() as _,
-        device: gpu.device.handle().as_raw() as _,
-        queue_family_index: gpu.queue_family,
-        queue_index: 0,
-    };
+    let binding = gpu.session_binding();
     // SAFETY: the handles come from the runtime's system and outlive the session (dropped later).
     let mut xs = unsafe { xr::XrSession::new(xri, binding) }?;
     if opts.visibility_mask {
