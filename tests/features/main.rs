@@ -15,6 +15,7 @@ mod far_field;
 mod foveation;
 mod gpu_time;
 mod mask;
+mod mask_app_drawn;
 mod mask_geometry;
 mod mask_source;
 mod overlay;

@@ -20,6 +20,8 @@ layout(set = 0, binding = 0) uniform Frame {
     vec4 eye_pos[2];
     // `--far-movers`: the far mover's model matrix (identity without the option).
     mat4 mover_model;
+    // Each view's projection alone (`--draw-hidden-area` places tangent-plane points with it).
+    mat4 proj[2];
 } frame;
 
 layout(set = 0, binding = 1, std430) buffer Counts {
@@ -49,6 +51,7 @@ layout(location = 0) out vec4 out_color;
 const uint FLAG_LIT = 1u;
 const uint FLAG_CHECKER = 4u;
 const uint FLAG_FOG = 8u;
+const uint FLAG_HIDDEN_AREA = 32u;
 const uint PC_MANUAL_SRGB = 1u;
 const uint PC_PIXEL_STATS = 2u;
 
@@ -78,6 +81,12 @@ void main() {
                 atomicAdd(pixel_counts[view * pc.pix_view_stride + uint(y) * pc.pix_width + uint(x)], 1u);
             }
         }
+    }
+
+    // The app's own hidden-area mask: black, and as cheap as a game's mask shader.
+    if ((v_flags & FLAG_HIDDEN_AREA) != 0u) {
+        out_color = vec4(0.0, 0.0, 0.0, 1.0);
+        return;
     }
 
     vec3 c = v_color;

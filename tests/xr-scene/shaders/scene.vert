@@ -16,6 +16,8 @@ layout(set = 0, binding = 0) uniform Frame {
     vec4 eye_pos[2];
     // `--far-movers`: the far mover's model matrix (identity without the option).
     mat4 mover_model;
+    // Each view's projection alone (`--draw-hidden-area` places tangent-plane points with it).
+    mat4 proj[2];
 } frame;
 
 layout(push_constant) uniform Push {
@@ -38,6 +40,7 @@ layout(location = 3) flat out uint v_flags;
 
 const uint FLAG_ANIMATED = 2u;
 const uint FLAG_MOVER = 16u;
+const uint FLAG_HIDDEN_AREA = 32u;
 
 void main() {
 #ifdef MULTIVIEW
@@ -45,6 +48,19 @@ void main() {
 #else
     uint view = pc.eye;
 #endif
+    if ((in_flags & FLAG_HIDDEN_AREA) != 0u) {
+        // The runtime's hidden-area mesh, drawn by the app as games do: the tangent-plane point
+        // through the view's projection, at the near depth (in_normal.x) so that nothing behind
+        // it passes the depth test. The other view's triangles land outside the clip volume.
+        vec4 c = frame.proj[view] * vec4(in_pos.xy, -1.0, 1.0);
+        c.z = in_normal.x * c.w;
+        gl_Position = uint(in_pos.z) == view ? c : vec4(4.0, 4.0, 0.5, 1.0);
+        v_world = vec3(0.0);
+        v_normal = vec3(0.0, 1.0, 0.0);
+        v_color = vec3(0.0);
+        v_flags = in_flags;
+        return;
+    }
     vec4 world = vec4(in_pos, 1.0);
     vec3 n = in_normal;
     if ((in_flags & FLAG_ANIMATED) != 0u) {

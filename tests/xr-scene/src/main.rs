@@ -136,11 +136,10 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
     let binding = gpu.session_binding();
     // SAFETY: the handles come from the runtime's system and outlive the session (dropped later).
     let mut xs = unsafe { xr::XrSession::new(xri, binding) }?;
-    if opts.visibility_mask {
-        xs.fetch_visibility_masks()?;
-    }
+    let masks = if opts.visibility_mask { xs.fetch_visibility_masks()? } else { Vec::new() };
+    let hidden_area = if opts.draw_hidden_area { masks } else { Vec::new() };
     let mut targets = targets::Targets::new(opts, gpu, xri, &xs)?;
-    let mut renderer = renderer::Renderer::new(opts, gpu, &targets)?;
+    let mut renderer = renderer::Renderer::new(opts, gpu, &targets, &hidden_area)?;
     let quad = if opts.quad { Some(quad::Quad::new(gpu, &xs, targets.color_format, targets.views[0].extent)?) } else { None };
     // `--threads`: xrWaitFrame on the frame-pacing thread (dropped, and so joined, before the
     // session on every path; joined explicitly below).
@@ -226,7 +225,7 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
             targets.destroy()?;
             let sized = cli::Options { scale: opts.scale * [1.0, 0.8, 1.2][((frame - first_frame) / k % 3) as usize], ..opts.clone() };
             targets = targets::Targets::new(&sized, gpu, xri, &xs)?;
-            renderer = renderer::Renderer::new(&sized, gpu, &targets)?;
+            renderer = renderer::Renderer::new(&sized, gpu, &targets, &hidden_area)?;
         }
     }
     // `--teardown in-flight`: one more frame drawn into the swapchains, which go before anything
@@ -333,17 +332,14 @@ fn assumed(opts: &cli::Options, views: &[oxr::View]) -> Vec<oxr::View> {
 }
 
 fn frame_uniforms(views: &[oxr::View], reversed: bool, animate: bool, far_movers: bool, frame: u64) -> renderer::FrameUniforms {
-    let vp = |v: &oxr::View| {
+    let proj = |v: &oxr::View| {
         let f = v.fov;
-        let proj = camera::projection(
-            camera::Fov { left: f.angle_left, right: f.angle_right, up: f.angle_up, down: f.angle_down },
-            camera::NEAR,
-            camera::FAR,
-            reversed,
-        );
+        camera::projection(camera::Fov { left: f.angle_left, right: f.angle_right, up: f.angle_up, down: f.angle_down }, camera::NEAR, camera::FAR, reversed)
+    };
+    let vp = |v: &oxr::View| {
         let o = v.pose.orientation;
         let p = v.pose.position;
-        proj * camera::view_matrix(Quat::from_xyzw(o.x, o.y, o.z, o.w), Vec3::new(p.x, p.y, p.z))
+        proj(v) * camera::view_matrix(Quat::from_xyzw(o.x, o.y, o.z, o.w), Vec3::new(p.x, p.y, p.z))
     };
     let eye = |v: &oxr::View| Vec4::new(v.pose.position.x, v.pose.position.y, v.pose.position.z, 1.0);
     let cube_model = if animate {
@@ -355,7 +351,7 @@ fn frame_uniforms(views: &[oxr::View], reversed: bool, animate: bool, far_movers
         Mat4::IDENTITY
     };
     let mover_model = if far_movers { scene::mover_model(frame) } else { Mat4::IDENTITY };
-    renderer::FrameUniforms { view_proj: [vp(&views[0]), vp(&views[1])], cube_model, eye_pos: [eye(&views[0]), eye(&views[1])], mover_model }
+    renderer::FrameUniforms { view_proj: [vp(&views[0]), vp(&views[1])], cube_model, eye_pos: [eye(&views[0]), eye(&views[1])], mover_model, proj: [proj(&views[0]), proj(&views[1])] }
 }
 
 /// xrEndFrame through the raw entry point: the `openxr` crate's safe layer types cannot chain

@@ -14,6 +14,10 @@ pub const FLAG_CHECKER: u32 = 4;
 pub const FLAG_FOG: u32 = 8;
 /// Transformed by the per-frame far-mover matrix (`--far-movers`).
 pub const FLAG_MOVER: u32 = 16;
+/// `--draw-hidden-area`: a vertex of a view's hidden-area mesh, as an app that draws the runtime's
+/// mask itself has it: `pos` is the point in the view's tangent plane (x, y) and the view (z),
+/// `normal.x` the near depth; the vertex shader places it, and clips it away in the other view.
+pub const FLAG_HIDDEN_AREA: u32 = 32;
 
 pub const CUBE_CENTRE: Vec3 = Vec3::new(0.0, 1.45, -1.5);
 pub const CUBE_SIZE: f32 = 0.4;
@@ -63,6 +67,17 @@ pub struct Scene {
     pub sky: u32,
     /// Indices `opaque + sky..opaque + sky + translucent` (0 without `--translucent`).
     pub translucent: u32,
+    /// `--draw-hidden-area`: the last `hidden_area` indices (after the translucent range, so the
+    /// other ranges stay where they are), both views' hidden-area triangles.
+    pub hidden_area: u32,
+}
+
+/// One view's hidden-area mesh as `xrGetVisibilityMaskKHR` gives it: points in the view's
+/// tangent plane and triangles indexing them.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct HiddenAreaMesh {
+    pub vertices: Vec<[f32; 2]>,
+    pub indices: Vec<u32>,
 }
 
 /// The far mover's model matrix at `frame`: deterministic in the frame number, not in time.
@@ -167,14 +182,14 @@ impl Mesh {
 /// Builds the default scene (see [`build_parts`]); the renderer calls `build_parts` itself.
 #[cfg(test)]
 pub fn build() -> Mesh {
-    build_parts(Parts::default()).mesh
+    build_parts(Parts::default(), &[], 0.0).mesh
 }
 
 /// Builds the whole scene. Nearest objects come first in the index buffer so that the depth test
 /// rejects most of what is behind them (primitives rasterize in order within the single draw).
 /// The optional parts go where they leave the default scene's buffers unchanged: the far mover
 /// at the end of the opaque range, the pane after the sky.
-pub fn build_parts(parts: Parts) -> Scene {
+pub fn build_parts(parts: Parts, hidden_area: &[HiddenAreaMesh], near_depth: f32) -> Scene {
     let mut m = Mesh::default();
     let lit_fog = FLAG_LIT | FLAG_FOG;
 
@@ -235,7 +250,15 @@ pub fn build_parts(parts: Parts) -> Scene {
         m.quad(Vec3::new(a.x, a.y, a.z), Vec3::new(b.x, a.y, a.z), Vec3::new(b.x, b.y, a.z), Vec3::new(a.x, b.y, a.z), PANE_COLOR, 0);
     }
     let translucent = m.indices.len() as u32 - opaque - sky;
-    Scene { mesh: m, opaque, sky, translucent }
+    for (view, mesh) in hidden_area.iter().enumerate() {
+        let first = m.vertices.len() as u32;
+        for p in &mesh.vertices {
+            m.vertices.push(Vertex { pos: [p[0], p[1], view as f32], normal: [near_depth, 0.0, 0.0], color: [0.0; 3], flags: FLAG_HIDDEN_AREA });
+        }
+        m.indices.extend(mesh.indices.iter().map(|i| first + i));
+    }
+    let hidden_area = m.indices.len() as u32 - opaque - sky - translucent;
+    Scene { mesh: m, opaque, sky, translucent, hidden_area }
 }
 
 #[cfg(test)]

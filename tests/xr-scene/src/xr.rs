@@ -162,8 +162,9 @@ impl XrSession {
 
     /// `--visibility-mask`: each view's hidden-area mesh, fetched once, as an app that draws its
     /// own mask would (xr-scene checks that the call succeeds and returns triangles, and prints
-    /// their area in the view's tangent plane).
-    pub fn fetch_visibility_masks(&self) -> Result<()> {
+    /// their area in the view's tangent plane); `--draw-hidden-area` draws what it returns.
+    pub fn fetch_visibility_masks(&self) -> Result<Vec<crate::scene::HiddenAreaMesh>> {
+        let mut meshes = Vec::new();
         for view in 0..2 {
             let mask = self
                 .session
@@ -182,8 +183,9 @@ impl XrSession {
                 area += ((b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0)).abs() / 2.0;
             }
             eprintln!("xr-scene: visibility mask view {view}: {} triangles, hidden area {area:.6}", mask.indices.len() / 3);
+            meshes.push(crate::scene::HiddenAreaMesh { vertices: mask.vertices.iter().map(|p| [p.x, p.y]).collect(), indices: mask.indices });
         }
-        Ok(())
+        Ok(meshes)
     }
 
     /// Drains the event queue, following the session lifecycle. `before_end` runs before

@@ -233,6 +233,9 @@ pub struct Options {
     /// `--visibility-mask`: enable XR_KHR_visibility_mask and fetch each view's hidden-area mesh
     /// once after creating the session, as apps that draw their own mask do.
     pub visibility_mask: bool,
+    /// `--draw-hidden-area`: as `--visibility-mask`, and each eye pass draws its view's mesh
+    /// first, black at the near depth, as games do (the app's mask under the layer's).
+    pub draw_hidden_area: bool,
     /// `--quad`: a static swapchain of half a view's size, filled once, submitted every frame as a
     /// quad layer after the projection layer (`crate::quad`).
     pub quad: bool,
@@ -435,6 +438,10 @@ struct Args {
     /// Fetch each view's hidden-area mesh (XR_KHR_visibility_mask).
     #[arg(long)]
     visibility_mask: bool,
+    /// Fetch each view's hidden-area mesh and draw it first in every eye pass, black at the
+    /// near depth (as games that mask themselves do).
+    #[arg(long)]
+    draw_hidden_area: bool,
     /// Submit a quad layer every frame from a static swapchain (half a view's size, filled once).
     #[arg(long)]
     quad: bool,
@@ -647,7 +654,8 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         translucent: a.translucent,
         far_movers: a.far_movers,
         submit2: a.submit2,
-        visibility_mask: a.visibility_mask,
+        visibility_mask: a.visibility_mask || a.draw_hidden_area,
+        draw_hidden_area: a.draw_hidden_area,
         quad: a.quad,
         widen_fov_deg: a.widen_fov,
         assume_symmetric: a.assume_symmetric,

@@ -140,6 +140,8 @@ pub(super) struct SceneDraw {
     pub opaque_count: u32,
     pub sky_count: u32,
     pub translucent_count: u32,
+    /// `--draw-hidden-area`: the hidden-area triangles, the last indices.
+    pub hidden_area_count: u32,
     /// `--sky-first`: the sky is drawn first in each pass, by its own draw.
     pub sky_first: bool,
     /// `--empty`: record the passes without their draws.
@@ -374,6 +376,11 @@ impl SceneDraw {
             }
             // SAFETY: `rec` is recording inside the pass with pipeline, buffers and set bound.
             unsafe {
+                if self.hidden_area_count > 0 {
+                    // First in the pass, as games draw the runtime's mask: at the near depth,
+                    // so the depth test rejects the scene's fragments behind it.
+                    d.cmd_draw_indexed(rec, self.hidden_area_count, 1, self.opaque_count + self.sky_count + self.translucent_count, 0, 0);
+                }
                 // Pipelines share one layout, so switching keeps the bound set and push
                 // constants. Default scene: one draw, the sky last in it.
                 if self.sky_first {

@@ -47,6 +47,8 @@ pub struct FrameUniforms {
     pub eye_pos: [Vec4; 2],
     /// `--far-movers`: the far mover's model matrix (identity without it).
     pub mover_model: Mat4,
+    /// Each view's projection alone (`--draw-hidden-area`).
+    pub proj: [Mat4; 2],
 }
 
 /// Indices of the swapchain images acquired for this frame, per slot.
@@ -106,6 +108,10 @@ pub struct Renderer {
     draw: SceneDraw,
     /// Which optional parts the scene has (`--sky`, `--translucent`, `--far-movers`).
     parts: crate::scene::Parts,
+    /// `--draw-hidden-area`: each view's hidden-area mesh, drawn first in its eye's pass.
+    hidden_area: Vec<crate::scene::HiddenAreaMesh>,
+    /// The depth nothing can be nearer than (0 with standard depth, 1 reversed).
+    near_depth: f32,
     /// `--sync-hazard`: leave out the counters' fill → fragment shader barrier.
     sync_hazard: bool,
     /// `--thread-hazard`: the workers' secondaries come from one pool.
@@ -139,7 +145,7 @@ pub struct Renderer {
 }
 
 impl Renderer {
-    pub fn new(opts: &Options, gpu: &Gpu, targets: &Targets) -> Result<Renderer> {
+    pub fn new(opts: &Options, gpu: &Gpu, targets: &Targets, hidden_area: &[crate::scene::HiddenAreaMesh]) -> Result<Renderer> {
         let d = &gpu.device;
         let multiview = opts.layout == Layout::Multiview;
         let post = opts.post.is_some();
@@ -198,6 +204,7 @@ impl Renderer {
                 opaque_count: 0,
                 sky_count: 0,
                 translucent_count: 0,
+                hidden_area_count: 0,
                 sky_first: opts.sky_first,
                 empty: opts.empty,
                 dynamic: None,
@@ -208,6 +215,8 @@ impl Renderer {
                 translucent: opts.translucent,
                 far_mover: opts.far_movers,
             },
+            hidden_area: hidden_area.to_vec(),
+            near_depth: if opts.depth == crate::cli::DepthMode::Reverse { 1.0 } else { 0.0 },
             sync_hazard: opts.sync_hazard,
             thread_hazard: opts.thread_hazard,
             record_once: opts.record_once,
@@ -468,8 +477,9 @@ impl Renderer {
     /// Puts the scene into device-local buffers through a staging buffer and a fenced copy.
     fn upload_scene(&mut self, gpu: &Gpu) -> Result<()> {
         let d = &gpu.device;
-        let scene = crate::scene::build_parts(self.parts);
+        let scene = crate::scene::build_parts(self.parts, &self.hidden_area, self.near_depth);
         let mesh = scene.mesh;
+        self.draw.hidden_area_count = scene.hidden_area;
         self.draw.opaque_count = scene.opaque;
         self.draw.sky_count = scene.sky;
         self.draw.translucent_count = scene.translucent;
