@@ -166,9 +166,12 @@ fn record_once_and_dynamic_resolution() {
 /// images close to native.
 #[test]
 fn openvr_submission() {
-    let cases: [(&str, &[&str]); 2] = [
+    let cases: [(&str, &[&str]); 3] = [
         ("openvr-intermediate", &["--intermediate", "--samples", "1", "--submit-via", "openvr"]),
         ("openvr-double-wide", &["--layout", "side-by-side", "--submit-texture", "double-wide", "--submit-via", "openvr"]),
+        // xrizer's order: a temporary session on a device of its own first, then the real one on
+        // the app's device with the legacy XR_KHR_vulkan_enable.
+        ("openvr-temporary", &["--intermediate", "--samples", "1", "--submit-via", "openvr", "--vulkan", "enable", "--temporary-session"]),
     ];
     for (label, args) in cases {
         let base = Run::new(&format!("upscale-native-{label}")).with_layer().args(args.iter().copied()).env("MOCK_XR_EXIT_AFTER", "4");
@@ -177,6 +180,24 @@ fn openvr_submission() {
         let on = upscaled(base, &format!("upscale-{label}"), "easu_rcas").run();
         on.assert_ok();
         assert!(!on.log_lines("the runtime shows").is_empty(), "{label}: no swapchain was interposed");
+        if args.contains(&"--temporary-session") {
+            // The temporary session's device (its stats line comes first) gets nothing of the
+            // layer's: no image, no pass, no object.
+            let lines = on.log_lines("vulkan device stats:");
+            assert_eq!(lines.len(), 2, "{label}: one stats line per device:\n{}", on.log);
+            let own: u64 = lines[0].split_whitespace().filter(|w| w.starts_with("own.")).filter_map(|w| w.split('=').nth(1)?.parse::<u64>().ok()).sum();
+            assert_eq!(own, 0, "{label}: the layer made objects on the temporary device: {}", lines[0]);
+            assert!(!lines[0].contains(" upscale"), "{label}: {}", lines[0]);
+        }
+        if args.contains(&"--temporary-session") {
+            // The temporary session's device (its stats line comes first) gets nothing of the
+            // layer's: no image, no pass, no object.
+            let lines = on.log_lines("vulkan device stats:");
+            assert_eq!(lines.len(), 2, "{label}: one stats line per device:\n{}", on.log);
+            let own: u64 = lines[0].split_whitespace().filter(|w| w.starts_with("own.")).filter_map(|w| w.split('=').nth(1)?.parse::<u64>().ok()).sum();
+            assert_eq!(own, 0, "{label}: the layer made objects on the temporary device: {}", lines[0]);
+            assert!(!lines[0].contains(" upscale"), "{label}: {}", lines[0]);
+        }
         for (p, s, _) in quality_of(label, &on, &native) {
             assert!(p >= 30.0 && s >= 0.95, "{label}: PSNR {p:.2} dB, SSIM {s:.4}");
         }
@@ -236,6 +257,15 @@ fn swapchains_destroyed_with_work_in_flight() {
         let on = upscaled(base, "upscale-in-flight", "easu_rcas").run();
         on.assert_ok();
         assert!(!on.log_lines("the runtime shows").is_empty(), "{label}: no swapchain was interposed");
+        if args.contains(&"--temporary-session") {
+            // The temporary session's device (its stats line comes first) gets nothing of the
+            // layer's: no image, no pass, no object.
+            let lines = on.log_lines("vulkan device stats:");
+            assert_eq!(lines.len(), 2, "{label}: one stats line per device:\n{}", on.log);
+            let own: u64 = lines[0].split_whitespace().filter(|w| w.starts_with("own.")).filter_map(|w| w.split('=').nth(1)?.parse::<u64>().ok()).sum();
+            assert_eq!(own, 0, "{label}: the layer made objects on the temporary device: {}", lines[0]);
+            assert!(!lines[0].contains(" upscale"), "{label}: {}", lines[0]);
+        }
         assert!(on.log_lines("waiting for the session's queue").is_empty(), "{label}: {}", on.log);
     }
 }
