@@ -14,3 +14,4 @@ pub mod track;
 pub mod vk;
 pub mod xr;
 pub mod preview;
+pub mod top;

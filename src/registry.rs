@@ -93,6 +93,8 @@ registry! {
     overlay { keys: overlay::KEYS, settings: overlay::OverlaySettings, states: overlay::xr::OverlaySession, (), }
     // Last: it copies the images as the runtime gets them, after RDM's reconstruction.
     screenshot { keys: screenshot::KEYS, settings: screenshot::ScreenshotSettings, vulkan: [screenshot::vk::ScreenshotDevice], openxr: screenshot::xr::ScreenshotXr => screenshot::xr::ScreenshotSession, (), }
+    // `stereoshim top`'s channel: changes nothing the app or the runtime sees.
+    live { keys: live::KEYS, settings: live::LiveSettings, openxr: live::xr::LiveXr => live::xr::LiveSession, (), }
 }
 
 /// What one feature's settings imply for another's: the only place two features' settings meet.

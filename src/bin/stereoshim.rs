@@ -106,6 +106,22 @@ enum Cmd {
         #[arg(long, value_name = "SECONDS", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=3600))]
         timeout: u64,
     },
+    /// A live dashboard of one running app with the layer: frame time, what each feature saves,
+    /// keys that switch features in its config section, and a live A/B in the running app.
+    Top {
+        /// The app with this process id (default: the only running app with the layer).
+        #[arg(long)]
+        pid: Option<u32>,
+        /// The app with this name (its applicationName or executable).
+        #[arg(long)]
+        app: Option<String>,
+        /// A/B: frames per stretch with the features off, then on.
+        #[arg(long, value_name = "FRAMES", value_parser = clap::value_parser!(u64).range(6..=100000))]
+        ab_period: Option<u64>,
+        /// A/B: off/on cycles per comparison.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1000))]
+        ab_cycles: Option<u64>,
+    },
     /// Pictures and numbers of what the effective config would do on a headset: the hidden-area
     /// mask, the VRS rate map, the RDM skip pattern and the far field's reuse region, per view.
     #[command(group(ArgGroup::new("headset").required(true).args(["hmd", "runtime"])))]
@@ -186,6 +202,10 @@ fn main() -> ExitCode {
         Cmd::Manifest { kind, library, shipped } => manifest_cmd(kind, library, shipped),
         Cmd::Stats { file, follow, csv, app } => stats_cmd(file, follow, csv, app),
         Cmd::Preview(args) => preview_cmd(args),
+        Cmd::Top { pid, app, ab_period, ab_cycles } => {
+            let opts = stereoshim::top::Options { pid, app, ab_period, ab_cycles: ab_cycles.map(|c| c as usize) };
+            stereoshim::top::run(&env, &opts).map(|summary| println!("{summary}"))
+        }
         Cmd::Doctor { app, config, json } => return doctor_cmd(app, config, json),
         Cmd::Screenshot { pid, wait, timeout } => {
             stereoshim::features::screenshot::command::request(&env, pid, wait, std::time::Duration::from_secs(timeout)).map(|lines| lines.iter().for_each(|l| println!("{l}")))

@@ -135,6 +135,8 @@ pub enum Source {
     File { path: PathBuf, line: usize },
     App { app: String, path: PathBuf, line: usize },
     Env(String),
+    /// `stereoshim top`'s live settings file (`core::live::settings_file`), while it watches.
+    Live { path: PathBuf, line: usize },
 }
 
 impl fmt::Display for Source {
@@ -144,6 +146,7 @@ impl fmt::Display for Source {
             Source::File { path, line } => write!(f, "{}:{line}", path.display()),
             Source::App { app, path, line } => write!(f, "{}:{line} [app.\"{app}\"]", path.display()),
             Source::Env(var) => write!(f, "${var}"),
+            Source::Live { path, line } => write!(f, "stereoshim top ({}:{line})", path.display()),
         }
     }
 }
@@ -217,6 +220,19 @@ impl Config {
             }
         }
         (config, diagnostics)
+    }
+
+    /// Applies `stereoshim top`'s live settings (plain global keys; above every other source: the
+    /// user changed them while the app runs). A file that does not parse changes nothing.
+    pub fn apply_live(&mut self, path: &Path, text: &str, diagnostics: &mut Vec<String>) {
+        match parse_file(text) {
+            Err(msg) => diagnostics.push(format!("{}: {msg}; live settings ignored", path.display())),
+            Ok(file) => {
+                for entry in &file.global {
+                    self.apply(entry, Source::Live { path: path.into(), line: entry.line }, path, diagnostics);
+                }
+            }
+        }
     }
 
     fn apply(&mut self, entry: &Entry, source: Source, path: &Path, diagnostics: &mut Vec<String>) {
@@ -489,12 +505,16 @@ pub struct Watch {
     path: Option<PathBuf>,
     app_names: Vec<String>,
     interval: std::time::Duration,
+    /// `stereoshim top`'s folder and this process's pid (`core::live`), when there is a folder.
+    live: Option<(PathBuf, u32)>,
     state: std::sync::Mutex<WatchState>,
 }
 
 #[derive(Debug)]
 struct WatchState {
     modified: Option<std::time::SystemTime>,
+    /// The live settings file's modification time while `top`'s heartbeat is fresh, else None.
+    live: Option<std::time::SystemTime>,
     checked: std::time::Instant,
 }
 
@@ -507,26 +527,57 @@ impl Watch {
             path,
             app_names: app_names.iter().map(|s| s.to_string()).collect(),
             interval,
-            state: std::sync::Mutex::new(WatchState { modified, checked: std::time::Instant::now() }),
+            live: None,
+            state: std::sync::Mutex::new(WatchState { modified, live: None, checked: std::time::Instant::now() }),
         }
+    }
+
+    /// Also applies `stereoshim top`'s live settings for process `pid` from `folder`
+    /// (`core::live::folder`) while its heartbeat is fresh.
+    pub fn with_live(mut self, folder: PathBuf, pid: u32) -> Watch {
+        self.live = Some((folder, pid));
+        self
+    }
+
+    /// The live settings file and its modification time, while `top` watches.
+    fn live_settings(&self) -> Option<(PathBuf, std::time::SystemTime)> {
+        let (folder, pid) = self.live.as_ref()?;
+        if !crate::core::live::fresh(crate::core::live::heartbeat_mtime(folder, *pid), std::time::SystemTime::now()) {
+            return None;
+        }
+        let path = crate::core::live::settings_file(folder, *pid);
+        let modified = std::fs::metadata(&path).and_then(|m| m.modified()).ok()?;
+        Some((path, modified))
     }
 
     /// The newly resolved configuration when the file changed since the last look.
     pub fn poll(&self) -> Option<(Config, Vec<String>)> {
-        let path = self.path.as_ref()?;
+        if self.path.is_none() && self.live.is_none() {
+            return None;
+        }
         let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
         if st.checked.elapsed() < self.interval {
             return None;
         }
         st.checked = std::time::Instant::now();
-        let modified = std::fs::metadata(path).and_then(|m| m.modified()).ok();
-        if modified == st.modified {
+        let modified = self.path.as_ref().and_then(|p| std::fs::metadata(p).and_then(|m| m.modified()).ok());
+        let live = self.live_settings();
+        let live_modified = live.as_ref().map(|(_, m)| *m);
+        if modified == st.modified && live_modified == st.live {
             return None;
         }
         st.modified = modified;
+        st.live = live_modified;
         drop(st);
         let names: Vec<&str> = self.app_names.iter().map(String::as_str).collect();
-        Some(load_from(self.keys, Some(path), &names))
+        let (mut config, mut diagnostics) = load_from(self.keys, self.path.as_deref(), &names);
+        if let Some((path, _)) = live {
+            // Read now: a file replaced since its time was taken is read again at the next poll.
+            if let Ok(text) = std::fs::read_to_string(&path) {
+                config.apply_live(&path, &text, &mut diagnostics);
+            }
+        }
+        Some((config, diagnostics))
     }
 }
 
@@ -563,8 +614,10 @@ mod watch_tests {
             path: Some(path.clone()),
             app_names: vec![],
             interval: std::time::Duration::ZERO,
+            live: None,
             state: std::sync::Mutex::new(WatchState {
                 modified: std::fs::metadata(&path).and_then(|m| m.modified()).ok(),
+                live: None,
                 checked: std::time::Instant::now(),
             }),
         };
@@ -579,6 +632,37 @@ mod watch_tests {
         assert!(watch.poll().is_none());
         let (a, _) = Config::resolve(&Inputs { keys: KEYS, file: Some((&path, "mask.enabled = true")), app_names: &[], env: &|_| None });
         assert_eq!(changed_keys(&Config::defaults(KEYS), &a), vec!["mask.enabled"]);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// `stereoshim top`'s live settings apply above the file while its heartbeat is fresh, and
+    /// go when it stops.
+    #[test]
+    fn live_settings_while_top_watches() {
+        use crate::core::live;
+        let dir = std::env::temp_dir().join(format!("stereoshim-watch-live-{}", std::process::id()));
+        let folder = dir.join("live");
+        std::fs::create_dir_all(&folder).unwrap();
+        let path = dir.join("config.toml");
+        std::fs::write(&path, "mask.enabled = false\n").unwrap();
+        let pid = 4242;
+        let watch = Watch::new(KEYS, &[], std::time::Duration::ZERO).with_live(folder.clone(), pid);
+        let watch = Watch { path: Some(path.clone()), ..watch };
+        // Settings without a heartbeat: not applied.
+        std::fs::write(live::settings_file(&folder, pid), "mask.enabled = true\n").unwrap();
+        let first = watch.poll();
+        assert!(first.is_none_or(|(c, _)| !c.bool("mask.enabled")));
+        std::fs::write(live::heartbeat_file(&folder, pid), "").unwrap();
+        let (c, d) = watch.poll().expect("top's settings apply");
+        assert!(d.is_empty(), "{d:?}");
+        assert!(c.bool("mask.enabled"));
+        assert!(matches!(c.source("mask.enabled"), Source::Live { line: 1, .. }), "{}", c.source("mask.enabled"));
+        assert!(watch.poll().is_none(), "nothing changed");
+        // A heartbeat older than HEARTBEAT_FRESH: top is gone, the file's value is back.
+        let old = std::time::SystemTime::now() - live::HEARTBEAT_FRESH - std::time::Duration::from_secs(1);
+        std::fs::File::options().write(true).open(live::heartbeat_file(&folder, pid)).unwrap().set_modified(old).unwrap();
+        let (c, _) = watch.poll().expect("top stopped watching");
+        assert!(!c.bool("mask.enabled"));
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -13,6 +13,7 @@ pub mod handles;
 pub mod hmd;
 pub mod lens;
 pub mod lifetime;
+pub mod live;
 pub mod log;
 pub mod parts;
 pub mod pass;

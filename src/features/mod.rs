@@ -5,6 +5,7 @@
 
 pub mod far_field;
 pub mod foveation;
+pub mod live;
 pub mod mask;
 /// Not a registry plug-in: the overlay draws nothing into the app's passes (the OpenXR shell
 /// calls its `xr` half).

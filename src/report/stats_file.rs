@@ -90,6 +90,17 @@ pub struct Writer {
     open: Mutex<Option<(PathBuf, Option<File>)>>,
 }
 
+/// Appends `line` to a capped stream file (`stereoshim top`'s): opened for each line, so a file
+/// removed when the watching stopped is made anew when it starts again, and emptied first when
+/// it has grown past `max_bytes` (its reader starts over when the file is shorter than it read).
+fn append_capped(path: &Path, line: &str, max_bytes: u64) -> std::io::Result<()> {
+    let mut file = std::fs::OpenOptions::new().create(true).append(true).open(path)?;
+    if file.metadata()?.len() > max_bytes {
+        file.set_len(0)?;
+    }
+    file.write_all(line.as_bytes())
+}
+
 impl Writer {
     pub fn write(&self, path: &str, record: &FrameRecord) {
         if path.is_empty() {
@@ -118,11 +129,25 @@ impl Writer {
 /// frames later).
 pub const GPU_WAIT_FRAMES: u64 = 16;
 
+/// Where a frame's line goes: the configured `stats.file` (empty: none) and the streams the
+/// features asked for (`XrFeature::stats_stream`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Outputs {
+    pub stats_file: String,
+    pub streams: Vec<PathBuf>,
+}
+
+impl Outputs {
+    fn is_empty(&self) -> bool {
+        self.stats_file.is_empty() && self.streams.is_empty()
+    }
+}
+
 /// The process's `stats.file` output: records waiting for their GPU time, then the writer.
 #[derive(Debug)]
 pub struct Sink {
     writer: Writer,
-    waiting: Mutex<Waiting<(String, FrameRecord)>>,
+    waiting: Mutex<Waiting<(Outputs, FrameRecord)>>,
 }
 
 /// The one sink of the process (both halves feed it).
@@ -135,13 +160,13 @@ impl Sink {
     /// Frame `record.frame` ended; `times`: GPU times that completed meanwhile (of it or earlier
     /// frames); `wants_time`: the timer ran while the frame was recorded. Writes every line that
     /// is ready, in frame order.
-    pub fn frame(&self, path: &str, mut record: FrameRecord, wants_time: bool, times: &[(u64, GpuFrameTime)]) {
+    pub fn frame(&self, outputs: Outputs, mut record: FrameRecord, wants_time: bool, times: &[(u64, GpuFrameTime)]) {
         let ready = {
             let mut w = self.waiting.lock().unwrap_or_else(|e| e.into_inner());
             if w.is_empty() && !wants_time && times.is_empty() {
                 // The common case (timer off): straight through.
                 drop(w);
-                self.writer.write(path, &record);
+                self.emit(&outputs, &record);
                 return;
             }
             if wants_time {
@@ -149,7 +174,7 @@ impl Sink {
             }
             // Pushed before the times go in: the frame's own time may be among them (an idle GPU
             // finishes a frame before its xrEndFrame).
-            w.push(record.frame, wants_time, (path.to_string(), record));
+            w.push(record.frame, wants_time, (outputs, record));
             w.times(times);
             w.ready(false)
         };
@@ -166,12 +191,29 @@ impl Sink {
         self.write(ready);
     }
 
-    fn write(&self, ready: Vec<((String, FrameRecord), Option<GpuFrameTime>)>) {
-        for ((path, mut record), time) in ready {
+    fn write(&self, ready: Vec<((Outputs, FrameRecord), Option<GpuFrameTime>)>) {
+        for ((outputs, mut record), time) in ready {
             if record.gpu_ms.is_some() || time.is_some() {
                 record.gpu_ms = Some(time);
             }
-            self.writer.write(&path, &record);
+            self.emit(&outputs, &record);
+        }
+    }
+
+    fn emit(&self, outputs: &Outputs, record: &FrameRecord) {
+        if outputs.is_empty() {
+            return;
+        }
+        self.writer.write(&outputs.stats_file, record);
+        if outputs.streams.is_empty() {
+            return;
+        }
+        let line = record.to_json() + "\n";
+        for stream in &outputs.streams {
+            if let Err(e) = append_capped(stream, &line, crate::core::live::STREAM_MAX_BYTES) {
+                // Every frame would say it again: the stream's reader notices the silence.
+                tracing::debug!("live stream {}: {e}", stream.display());
+            }
         }
     }
 }

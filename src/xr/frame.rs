@@ -82,7 +82,9 @@ fn write_frame_stats(inst: &super::Instance, session: Option<&session::Session>,
     // `stats.gpu_time`: the GPU work submitted since the last frame end is this frame's; the
     // times that came back meanwhile (usually of earlier frames) go to their own lines.
     let times = crate::vk::end_gpu_frame(frame);
-    crate::report::stats_file::sink().frame(&settings.stats_file, record, settings.stats_gpu_time, &times);
+    let streams = session.map(|s| crate::registry::XR_FEATURES.iter().filter_map(|f| f.stats_stream(s)).collect()).unwrap_or_default();
+    let outputs = crate::report::stats_file::Outputs { stats_file: settings.stats_file.clone(), streams };
+    crate::report::stats_file::sink().frame(outputs, record, settings.stats_gpu_time, &times);
 }
 
 /// What the overlay names as on: the Vulkan features, then the upscale and the view tricks, which

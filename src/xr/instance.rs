@@ -208,7 +208,7 @@ pub(super) unsafe extern "system" fn create_api_layer_instance(
             app_extensions,
             layer_extensions: added,
             offered_extensions: offered,
-            watch: crate::core::config::Watch::new(crate::registry::keys(), &[app_name_for_watch.as_str(), exe.as_str()], std::time::Duration::from_millis(100)),
+            watch: live_watch(crate::core::config::Watch::new(crate::registry::keys(), &[app_name_for_watch.as_str(), exe.as_str()], std::time::Duration::from_millis(100))),
             told_sizes: Default::default(),
             features: crate::registry::xr_instance_states(),
         };
@@ -359,6 +359,16 @@ fn offerable(app: &[String], runtime: Option<&[String]>) -> Vec<String> {
         .collect()
 }
 
+/// The config watch, also applying `stereoshim top`'s live settings when there is a private
+/// runtime folder for them (`core::live`).
+fn live_watch(watch: crate::core::config::Watch) -> crate::core::config::Watch {
+    let env = |k: &str| std::env::var(k).ok();
+    match crate::manifests::private_fs::private_base(&env) {
+        Some(base) => watch.with_live(crate::core::live::folder(&base), std::process::id()),
+        None => watch,
+    }
+}
+
 #[cfg(test)]
 mod offer_tests {
     use super::*;
@@ -374,3 +384,4 @@ mod offer_tests {
         assert!(offerable(&without, Some(&without)).is_empty(), "not asked for");
     }
 }
+

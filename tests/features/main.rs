@@ -25,6 +25,7 @@ mod post_chain_layer;
 mod post_chain_rdm;
 mod record_once;
 mod screenshot;
+mod top;
 mod upscale;
 mod upscale_filters;
 mod views;

@@ -87,4 +87,9 @@ pub(crate) trait XrFeature: Sync {
     fn frame_stats(&self, _s: &Session) -> Vec<(&'static str, serde_json::Value)> {
         Vec::new()
     }
+    /// A file the frame's stats line also goes to, besides `stats.file` (`stereoshim top`'s
+    /// stream while it watches), capped at `core::live::STREAM_MAX_BYTES`.
+    fn stats_stream(&self, _s: &Session) -> Option<std::path::PathBuf> {
+        None
+    }
 }
