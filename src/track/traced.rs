@@ -243,8 +243,10 @@ impl Traced {
 }
 
 fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, submission: u64, notes: &mut Vec<Note>) {
-    // Per image: each eye found with the walked op (the use of the image) that shows it.
-    let mut eyes: HashMap<u64, (Vec<(EyeSource, usize)>, String, bool)> = HashMap::new();
+    // Per image: each eye found with the walked op (the use of the image) that shows it, the
+    // chain to it and whether it is a depth image.
+    type Uses = (Vec<(EyeSource, usize)>, String, bool);
+    let mut eyes: HashMap<u64, Uses> = HashMap::new();
     for f in &walked.found {
         // A swapchain image's eyes come from the OpenXR half; the walk adds nothing there.
         if world.shared.images.get(f.image).is_some() {
