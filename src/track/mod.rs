@@ -304,7 +304,9 @@ impl DeviceTracker {
         let mut t = self.transfers.lock().unwrap_or_else(|e| e.into_inner());
         let list = t.entry(src).or_default();
         for r in regions {
-            list.retain(|x| x.region != *r);
+            // Per destination too: one target copied to each eye's own swapchain in turn keeps
+            // both copies (its eyes share its pixels: `eyes::eyes_share_pixels`).
+            list.retain(|x| x.region != *r || x.dst_image != dst);
             list.push(Transfer { dst_image: dst, region: *r });
         }
         let excess = list.len().saturating_sub(MAX_TRANSFERS);

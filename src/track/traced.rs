@@ -243,7 +243,10 @@ impl Traced {
 }
 
 fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, submission: u64, notes: &mut Vec<Note>) {
-    let mut eyes: HashMap<u64, (Vec<EyeSource>, String, bool)> = HashMap::new();
+    // Per image: each eye found with the walked op (the use of the image) that shows it, the
+    // chain to it and whether it is a depth image.
+    type Uses = (Vec<(EyeSource, usize)>, String, bool);
+    let mut eyes: HashMap<u64, Uses> = HashMap::new();
     for f in &walked.found {
         // A swapchain image's eyes come from the OpenXR half; the walk adds nothing there.
         if world.shared.images.get(f.image).is_some() {
@@ -251,10 +254,10 @@ fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, submi
         }
         let chain = if f.chain.is_empty() { "direct".to_string() } else { f.chain.join(" ← ") };
         let e = eyes.entry(f.image).or_insert_with(|| (Vec::new(), chain.clone(), false));
-        e.0.push(f.eye);
+        e.0.push((f.eye, f.op));
         if let Some(depth) = f.depth {
             let d = eyes.entry(depth).or_insert_with(|| (Vec::new(), chain, true));
-            d.0.push(f.eye);
+            d.0.push((f.eye, f.op));
         }
     }
     let eye_images: HashSet<u64> = walked.found.iter().map(|f| f.image).collect();
@@ -275,7 +278,12 @@ fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, submi
     } else if walked.post.iter().any(|i| world.swapchain_of(*i) == Some(sc)) {
         b.post_swapchains.insert(sc, walk);
     }
-    for (image, (mut list, chain, depth)) in eyes {
+    for (image, (uses, chain, depth)) in eyes {
+        // Two eyes at the same pixels of one image, each from a use of its own: one walk saw the
+        // eyes take turns in it (their swapchain images are one image's layers, or one
+        // swapchain's rects, so a single walk reaches both uses).
+        let within = uses.iter().any(|(a, op_a)| uses.iter().any(|(b, op_b)| op_a != op_b && a.view != b.view && (a.layer, a.rect) == (b.layer, b.rect)));
+        let mut list: Vec<EyeSource> = uses.into_iter().map(|(e, _)| e).collect();
         list.sort_by_key(|s| (s.layer, s.rect.x, s.rect.y, s.view));
         list.dedup();
         let key = format!("traced {image:#x} {list:?}");
@@ -295,7 +303,7 @@ fn learn(b: &mut Books, sc: u64, walked: Walked, world: &TrackerWorld<'_>, submi
         let dynamic = changing || old.is_some_and(|old| old.dynamic);
         // Another eye than last time at the same rects: one target the eyes take turns in.
         let views = |l: &[EyeSource]| l.iter().map(|e| e.view).collect::<HashSet<u32>>();
-        let turns = old.is_some_and(|old| !changing && views(&old.eyes) != views(&list));
+        let turns = within || old.is_some_and(|old| !changing && views(&old.eyes) != views(&list));
         let per_use = turns || old.is_some_and(|old| old.per_use);
         if per_use {
             if let Some(old) = old {
@@ -483,5 +491,44 @@ use crate::bridge::Swapchain;
         // A submission that reaches no swapchain: what the last walk said is not about it.
         t.submitted(&world, vec![(7, Arc::new(vec![scene()]))]);
         assert_eq!(t.use_eyes(FlowAt { cb: 7, op: 0 }), None);
+    }
+
+    /// One target the eyes take turns in, each eye's post pass writing its layer of ONE 2-layer
+    /// swapchain image (79: view v at layer v of image 300), so that a single walk reaches both
+    /// uses: still one eye per use, never both eyes on every pass into it.
+    #[test]
+    fn one_target_into_the_layers_of_one_array_swapchain_is_tied_to_an_eye_per_use() {
+        let f = Fixture::new(&[100]);
+        let desc = SwapchainDesc { usage_flags: 0, format: 43, sample_count: 1, width: 64, height: 32, array_size: 2 };
+        let array = Arc::new(Swapchain::new(79, desc.clone(), vec![300]));
+        f.shared.add_swapchain(array.clone());
+        let whole = ImageRect { x: 0, y: 0, width: 64, height: 32 };
+        array.set_uses((0..2).map(|v| EyeUse { view: v, image_rect: whole, image_array_index: v, depth: false }).collect());
+        f.images.insert(300, Arc::new(Image { array_layers: 2, ..image(300, 64) }));
+        let world = f.world();
+        let t = Traced::default();
+        let views = |e: Option<Vec<EyeSource>>| e.map(|e| e.iter().map(|s| (s.view, s.layer)).collect::<Vec<_>>());
+        let scene = || pass(10, Some(12), true, 0);
+        // The tonemap of eye v: a pass whose colour attachment is layer v of image 300.
+        let tonemap = |layer: u32| {
+            let Op::Pass(mut p) = pass(300, None, false, 5) else { unreachable!() };
+            p.colors[0].base_layer = layer;
+            Op::Pass(p)
+        };
+        let notes = t.submitted(&world, vec![(7, Arc::new(vec![scene(), tonemap(0), scene(), tonemap(1)]))]);
+        let e = t.eyes(10).unwrap();
+        assert!(e.per_use && !e.changing, "{e:?}");
+        assert_eq!(views(Some(e.eyes)), Some(vec![(0, 0), (1, 0)]), "every eye seen, at layer 0 of the target");
+        assert!(t.eyes(12).unwrap().per_use, "its depth too");
+        assert!(notes.iter().any(|n| matches!(n, Note::Untraced(w) if w.contains("take turns in"))), "{notes:?}");
+        assert_eq!(views(t.use_eyes(FlowAt { cb: 7, op: 0 })), Some(vec![(0, 0)]), "the first use is the left eye's");
+        assert_eq!(views(t.use_eyes(FlowAt { cb: 7, op: 2 })), Some(vec![(1, 0)]), "the second the right eye's");
+        // One scene pass whose picture both eyes' post passes read (the same pixels for both):
+        // a single use, which shows both eyes; no turn-taking.
+        let t2 = Traced::default();
+        t2.submitted(&world, vec![(7, Arc::new(vec![scene(), tonemap(0), tonemap(1)]))]);
+        let e = t2.eyes(10).unwrap();
+        assert!(!e.per_use && e.eyes.len() == 2, "{e:?}");
+        assert_eq!(views(t2.use_eyes(FlowAt { cb: 7, op: 0 })), Some(vec![(0, 0), (1, 0)]), "the one use shows both");
     }
 }

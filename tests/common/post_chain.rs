@@ -189,6 +189,12 @@ pub fn matrix() -> Vec<PostMode> {
     for (i, (tag, extra)) in [("one-target", &["--post", "tonemap", "--one-target"][..]), ("one-target-bloom-msaa", &["--post", "bloom", "--samples", "4", "--one-target"])].into_iter().enumerate() {
         modes.push(mode("per-eye", RENDERINGS[(i + 1) % RENDERINGS.len()], ["reverse", "standard"][i % 2], tag, extra).hmd("index"));
     }
+    // The same into ONE 2-layer swapchain (`--eye-swapchain array`: eye v's chain writes layer v
+    // of the one image): the walk from that swapchain reaches both uses of the shared target.
+    let array = [("one-target-array", &["--post", "tonemap", "--one-target", "--eye-swapchain", "array"][..]), ("one-target-array-bloom-msaa", &["--post", "bloom", "--samples", "4", "--one-target", "--eye-swapchain", "array"])];
+    for (i, (tag, extra)) in array.into_iter().enumerate() {
+        modes.push(mode("per-eye", RENDERINGS[i % RENDERINGS.len()], ["standard", "reverse"][i % 2], tag, extra).hmd("index"));
+    }
     // While working on one shape: `STEREOSHIM_POST_MODES=one-target cargo test … post_chain_`
     // runs only the modes whose name contains it (never set by the suite).
     if let Ok(only) = std::env::var("STEREOSHIM_POST_MODES") {

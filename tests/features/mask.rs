@@ -210,6 +210,17 @@ mask_tests! {
     one_target_per_eye_copy: ["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--one-target"];
 }
 
+// Per-eye passes into ONE 2-layer swapchain (`--eye-swapchain array`), as many engines and xrizer
+// submit: eye v's picture is array layer v of the one image, each layer written through its own
+// view (by the pass, its copy or resolve). Layer v of the image is eye v, not the image as a whole.
+mask_tests! {
+    array_swapchain_per_eye: ["--layout", "per-eye", "--rendering", "render-pass2", "--eye-swapchain", "array"];
+    array_swapchain_per_eye_msaa: ["--layout", "per-eye", "--rendering", "render-pass", "--intermediate", "--eye-swapchain", "array"];
+    array_swapchain_per_eye_copy: ["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--eye-swapchain", "array"];
+    one_target_array_msaa: ["--layout", "per-eye", "--rendering", "render-pass", "--intermediate", "--one-target", "--eye-swapchain", "array"];
+    one_target_array_copy: ["--layout", "per-eye", "--rendering", "dynamic", "--intermediate", "--samples", "1", "--one-target", "--eye-swapchain", "array"];
+}
+
 // Depth cleared by the app itself, not by the pass's load op (`--depth-clear`): the mask must go
 // in right after vkCmdClearAttachments (the pass's first command; side-by-side clears the whole
 // double-wide area in one rect), or at the beginning of a pass that loads an image

@@ -80,7 +80,9 @@ fn assert_sane(mode: &PostMode, out: &RunOutput) {
 #[test]
 fn every_mode_runs_clean_and_the_layer_off_changes_nothing() {
     let modes = post_chain::matrix();
-    assert!(modes.len() >= 30, "{} modes", modes.len());
+    // 13 options in each of 3 layouts, 3 double-wide modes, 2 one-target modes into a
+    // swapchain per eye and 2 into one 2-layer swapchain.
+    assert_eq!(modes.len(), 13 * 3 + 3 + 2 + 2, "{:?}", modes.iter().map(|m| &m.name).collect::<Vec<_>>());
     for mode in &modes {
         let (without, with) = post_chain::run_post_chain_pair(mode, &LayerConfig::off());
         assert_sane(mode, &without);
@@ -174,6 +176,12 @@ fn post_variants_agree() {
             // eye renders: the same pictures as a target per eye.
             let one_target = run(&name("one-target"), &base, &["--one-target"]);
             common::assert_same_captures(&name("one-target"), &one_target, &tone);
+            // The same eyes into the layers of ONE 2-layer swapchain, a target per eye or one
+            // for both: still the same pictures.
+            let array = run(&name("array"), &base, &["--eye-swapchain", "array"]);
+            common::assert_same_captures(&name("array"), &array, &tone);
+            let one_target_array = run(&name("one-target-array"), &base, &["--one-target", "--eye-swapchain", "array"]);
+            common::assert_same_captures(&name("one-target-array"), &one_target_array, &tone);
         }
         common::assert_same_captures(&name("depth-attachment"), &depth_att, &tone);
         common::assert_same_captures(&name("scales"), &viewport_scale, &render_scale);

@@ -444,6 +444,14 @@ impl VkFeature for MaskDevice {
                                     not_now = Some(why);
                                 }
                             }
+                            // A pass that awaited its eyes, filled now (the walk tied it to its
+                            // eye at this submission): said once per kind, as recorded masks are.
+                            if let Some(p) = &plan {
+                                let px = lock(&data.filled).pixels.clone();
+                                if !px.is_empty() {
+                                    self.log_kind_once(p, &px);
+                                }
+                            }
                         }
                     }
                     if data.saves_nothing.load(Ordering::Relaxed) {

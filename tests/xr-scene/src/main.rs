@@ -188,12 +188,18 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
             }
             let mut acquired = Vec::new();
             for slot in &mut targets.slots {
-                let color = calls.time("xrAcquireSwapchainImage", || slot.color.swapchain.acquire_image()).ctx("xrAcquireSwapchainImage")?;
-                calls.time("xrWaitSwapchainImage", || slot.color.swapchain.wait_image(oxr::Duration::INFINITE)).ctx("xrWaitSwapchainImage")?;
+                let color = match &mut slot.color.swapchain {
+                    Some(sc) => {
+                        let i = calls.time("xrAcquireSwapchainImage", || sc.acquire_image()).ctx("xrAcquireSwapchainImage")?;
+                        calls.time("xrWaitSwapchainImage", || sc.wait_image(oxr::Duration::INFINITE)).ctx("xrWaitSwapchainImage")?;
+                        i
+                    }
+                    None => shared_image(&acquired)?,
+                };
                 let depth = match &mut slot.depth {
                     Some(d) => {
-                        let i = calls.time("xrAcquireSwapchainImage", || d.swapchain.acquire_image()).ctx("xrAcquireSwapchainImage(depth)")?;
-                        calls.time("xrWaitSwapchainImage", || d.swapchain.wait_image(oxr::Duration::INFINITE)).ctx("xrWaitSwapchainImage(depth)")?;
+                        let i = calls.time("xrAcquireSwapchainImage", || d.owned().acquire_image()).ctx("xrAcquireSwapchainImage(depth)")?;
+                        calls.time("xrWaitSwapchainImage", || d.owned().wait_image(oxr::Duration::INFINITE)).ctx("xrWaitSwapchainImage(depth)")?;
                         Some(i)
                     }
                     None => None,
@@ -204,9 +210,11 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
             let finished = renderer.render(gpu, &targets, &acquired, &uniforms, frame)?;
             last_uniforms = Some(uniforms);
             for slot in &mut targets.slots {
-                calls.time("xrReleaseSwapchainImage", || slot.color.swapchain.release_image()).ctx("xrReleaseSwapchainImage")?;
+                if let Some(sc) = &mut slot.color.swapchain {
+                    calls.time("xrReleaseSwapchainImage", || sc.release_image()).ctx("xrReleaseSwapchainImage")?;
+                }
                 if let Some(d) = &mut slot.depth {
-                    calls.time("xrReleaseSwapchainImage", || d.swapchain.release_image()).ctx("xrReleaseSwapchainImage(depth)")?;
+                    calls.time("xrReleaseSwapchainImage", || d.owned().release_image()).ctx("xrReleaseSwapchainImage(depth)")?;
                 }
             }
             calls.time("xrEndFrame", || end_frame(xri, &xs, state.predicted_display_time, Some((&targets, &views, reversed)), quad.as_ref()))?;
@@ -278,12 +286,18 @@ fn run_session(opts: &cli::Options, xri: &xr::XrInstance, gpu: &gpu::Gpu, stats:
 fn in_flight_frame(gpu: &gpu::Gpu, targets: &mut targets::Targets, renderer: &mut renderer::Renderer, uniforms: &renderer::FrameUniforms, frame: u64) -> Result<Vec<renderer::FrameResult>> {
     let mut acquired = Vec::new();
     for slot in &mut targets.slots {
-        let color = slot.color.swapchain.acquire_image().ctx("xrAcquireSwapchainImage")?;
-        slot.color.swapchain.wait_image(oxr::Duration::INFINITE).ctx("xrWaitSwapchainImage")?;
+        let color = match &mut slot.color.swapchain {
+            Some(sc) => {
+                let i = sc.acquire_image().ctx("xrAcquireSwapchainImage")?;
+                sc.wait_image(oxr::Duration::INFINITE).ctx("xrWaitSwapchainImage")?;
+                i
+            }
+            None => shared_image(&acquired)?,
+        };
         let depth = match &mut slot.depth {
             Some(d) => {
-                let i = d.swapchain.acquire_image().ctx("xrAcquireSwapchainImage(depth)")?;
-                d.swapchain.wait_image(oxr::Duration::INFINITE).ctx("xrWaitSwapchainImage(depth)")?;
+                let i = d.owned().acquire_image().ctx("xrAcquireSwapchainImage(depth)")?;
+                d.owned().wait_image(oxr::Duration::INFINITE).ctx("xrWaitSwapchainImage(depth)")?;
                 Some(i)
             }
             None => None,
@@ -291,6 +305,12 @@ fn in_flight_frame(gpu: &gpu::Gpu, targets: &mut targets::Targets, renderer: &mu
         acquired.push(renderer::Acquired { color, depth });
     }
     renderer.render(gpu, targets, &acquired, uniforms, frame)
+}
+
+/// `--eye-swapchain array`: a slot without a swapchain of its own writes another layer of the
+/// image the slot before it acquired (acquired once per frame, as the runtime requires).
+fn shared_image(acquired: &[renderer::Acquired]) -> Result<u32> {
+    acquired.last().map(|a| a.color).ok_or_else(|| error::Error("internal: the first slot has no swapchain of its own".into()))
 }
 
 /// Adds the measurements of frames whose GPU work finished to `--stats`.
@@ -374,14 +394,14 @@ fn end_frame(
                 offset: sys::Offset2Di { x: rect.offset_x, y: 0 },
                 extent: sys::Extent2Di { width: rect.extent.width as i32, height: rect.extent.height as i32 },
             };
-            if let Some(d) = &slot.depth {
+            if let Some(d) = slot.depth.as_ref().and_then(|d| d.swapchain.as_ref()) {
                 // Reversed depth: near maps to 1, which OpenXR expresses as nearZ > farZ.
                 let (near_z, far_z) = if reversed { (camera::FAR, camera::NEAR) } else { (camera::NEAR, camera::FAR) };
                 depth_infos.push(sys::CompositionLayerDepthInfoKHR {
                     ty: sys::CompositionLayerDepthInfoKHR::TYPE,
                     next: std::ptr::null(),
                     sub_image: sys::SwapchainSubImage {
-                        swapchain: d.swapchain.as_raw(),
+                        swapchain: d.as_raw(),
                         image_rect,
                         image_array_index: rect.array_index,
                     },
@@ -397,7 +417,7 @@ fn end_frame(
                 pose: view.pose,
                 fov: view.fov,
                 sub_image: sys::SwapchainSubImage {
-                    swapchain: slot.color.swapchain.as_raw(),
+                    swapchain: targets.color_swapchain(rect.slot).as_raw(),
                     image_rect,
                     image_array_index: rect.array_index,
                 },

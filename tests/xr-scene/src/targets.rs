@@ -6,8 +6,10 @@
 //! (`final_views`: the double-wide texture's halves, else the submitted rects). The colour
 //! swapchain may be multisampled (`--swapchain-samples`: the eye pass renders into it, with depth
 //! of the same count) or have a mip chain (`--swapchain-mips`: only level 0 is viewed and drawn).
+//! Per eye, the colour swapchain is one per eye, or (`--eye-swapchain array`) one 2-layer
+//! swapchain the first slot owns and both slots view a layer of.
 
-use crate::cli::{Layout, Options};
+use crate::cli::{EyeSwapchain, Layout, Options};
 use crate::error::{fail, Ctx, Result};
 use crate::gpu::Gpu;
 use crate::xr::{pick_color_format, XrInstance, XrSession, DEPTH_FORMATS};
@@ -68,7 +70,7 @@ impl OwnedImage {
                 img.destroy(d);
                 return Err(e).ctx("vkBindImageMemory");
             }
-            match create_view(d, image, format, layers, aspect) {
+            match create_view(d, image, format, 0, layers, aspect) {
                 Ok(v) => img.view = v,
                 Err(e) => {
                     img.destroy(d);
@@ -89,10 +91,12 @@ impl OwnedImage {
     }
 }
 
+/// A view of level 0 of `layers` array layers from `base_layer`.
 fn create_view(
     d: &ash::Device,
     image: vk::Image,
     format: vk::Format,
+    base_layer: u32,
     layers: u32,
     aspect: vk::ImageAspectFlags,
 ) -> Result<vk::ImageView> {
@@ -104,7 +108,7 @@ fn create_view(
             aspect_mask: aspect,
             base_mip_level: 0,
             level_count: 1,
-            base_array_layer: 0,
+            base_array_layer: base_layer,
             layer_count: layers,
         });
     // SAFETY: valid image of this device.
@@ -121,9 +125,21 @@ pub fn depth_aspect(format: vk::Format) -> vk::ImageAspectFlags {
 }
 
 pub struct Chain {
-    pub swapchain: xr::Swapchain<xr::Vulkan>,
+    /// None: the images are another slot's swapchain's (`--eye-swapchain array`: the first
+    /// slot owns the 2-layer swapchain; this slot acquires and releases nothing of its own).
+    pub swapchain: Option<xr::Swapchain<xr::Vulkan>>,
     pub images: Vec<vk::Image>,
+    /// This slot's views of each image: all its layers, or with `--eye-swapchain array` the
+    /// slot's own layer alone, so that the passes (and their layout transitions) touch only it.
     pub views: Vec<vk::ImageView>,
+}
+
+impl Chain {
+    /// The swapchain of a chain that owns it, as every depth chain does (`--eye-swapchain
+    /// array` shares colour only, and refuses `--submit-depth`).
+    pub fn owned(&mut self) -> &mut xr::Swapchain<xr::Vulkan> {
+        self.swapchain.as_mut().expect("a depth chain owns its swapchain")
+    }
 }
 
 /// Everything one render pass instance draws into: one per eye for per-eye, one otherwise.
@@ -132,6 +148,9 @@ pub struct Slot {
     /// `--submit-texture double-wide`, else 1).
     pub extent: vk::Extent2D,
     pub layers: u32,
+    /// The first array layer of the colour swapchain's images that this slot writes: eye v's
+    /// layer with `--eye-swapchain array` (where `layers` is 1 of the image's 2), else 0.
+    pub color_layer: u32,
     /// The eye pass's target: its size (the swapchain's, or the double-wide texture's, times
     /// `--render-scale`) and layers.
     pub scene_extent: vk::Extent2D,
@@ -183,6 +202,15 @@ impl Slot {
         }
     }
 
+    /// The first array layer of the final image that this slot's `final_layers` start at.
+    pub fn final_layer(&self) -> u32 {
+        if self.double_wide.is_some() {
+            0
+        } else {
+            self.color_layer
+        }
+    }
+
     pub fn final_layers(&self) -> u32 {
         if self.double_wide.is_some() {
             1
@@ -220,6 +248,9 @@ struct SlotShape {
     scene_layers: u32,
     scene_eyes: Vec<(i32, vk::Extent2D)>,
     final_eyes: Vec<(i32, vk::Extent2D)>,
+    /// `--eye-swapchain array`: the layer of the shared 2-layer colour swapchain this slot writes
+    /// (layer 0's slot creates it, the next one views the same images).
+    array_layer: Option<u32>,
 }
 
 /// What a swapchain is made of besides format and usage: size, layers, `sampleCount`, `mipCount`.
@@ -321,16 +352,25 @@ impl Targets {
         let drawn = |e: vk::Extent2D| by(target(e), opts.viewport_scale);
         let double_wide = opts.submit_texture == Some(crate::cli::SubmitTexture::DoubleWide);
         match opts.layout {
+            Layout::PerEye if opts.eye_swapchain == EyeSwapchain::Array => {
+                // One swapchain has one size: both eyes' (as multiview's), each drawn separately.
+                for v in 0..2 {
+                    let (e, layer) = (shared, v as u32);
+                    self.push_slot(opts, gpu, xs, SlotShape { extent: e, layers: 1, scene_extent: target(e), scene_layers: 1, scene_eyes: vec![(0, drawn(e))], final_eyes: vec![(0, e)], array_layer: Some(layer) })?;
+                    self.views[v] = ViewRect { slot: v, array_index: layer, offset_x: 0, extent: e };
+                    self.scene_views[v] = ViewRect { slot: v, array_index: 0, offset_x: 0, extent: drawn(e) };
+                }
+            }
             Layout::PerEye => {
                 for v in 0..2 {
                     let e = size(v);
-                    self.push_slot(opts, gpu, xs, SlotShape { extent: e, layers: 1, scene_extent: target(e), scene_layers: 1, scene_eyes: vec![(0, drawn(e))], final_eyes: vec![(0, e)] })?;
+                    self.push_slot(opts, gpu, xs, SlotShape { extent: e, layers: 1, scene_extent: target(e), scene_layers: 1, scene_eyes: vec![(0, drawn(e))], final_eyes: vec![(0, e)], array_layer: None })?;
                     self.views[v] = ViewRect { slot: v, array_index: 0, offset_x: 0, extent: e };
                     self.scene_views[v] = ViewRect { slot: v, array_index: 0, offset_x: 0, extent: drawn(e) };
                 }
             }
             Layout::Multiview => {
-                self.push_slot(opts, gpu, xs, SlotShape { extent: shared, layers: 2, scene_extent: target(shared), scene_layers: 2, scene_eyes: vec![(0, drawn(shared))], final_eyes: vec![(0, shared)] })?;
+                self.push_slot(opts, gpu, xs, SlotShape { extent: shared, layers: 2, scene_extent: target(shared), scene_layers: 2, scene_eyes: vec![(0, drawn(shared))], final_eyes: vec![(0, shared)], array_layer: None })?;
                 for v in 0..2 {
                     self.views[v] = ViewRect { slot: 0, array_index: v as u32, offset_x: 0, extent: shared };
                     self.scene_views[v] = ViewRect { slot: 0, array_index: v as u32, offset_x: 0, extent: drawn(shared) };
@@ -346,7 +386,7 @@ impl Targets {
                 // Double-wide: the swapchain is a 2-layer array of one eye's size; the texture the
                 // passes render is side by side.
                 let (extent, layers) = if double_wide { (shared, 2) } else { (wide, 1) };
-                self.push_slot(opts, gpu, xs, SlotShape { extent, layers, scene_extent, scene_layers: 1, scene_eyes, final_eyes })?;
+                self.push_slot(opts, gpu, xs, SlotShape { extent, layers, scene_extent, scene_layers: 1, scene_eyes, final_eyes, array_layer: None })?;
                 for v in 0..2 {
                     let offset_x = (v as u32 * shared.width) as i32;
                     self.views[v] = match double_wide {
@@ -365,7 +405,7 @@ impl Targets {
     }
 
     fn push_slot(&mut self, opts: &Options, gpu: &Gpu, xs: &XrSession, shape: SlotShape) -> Result<()> {
-        let SlotShape { extent, layers, scene_extent, scene_layers, ref scene_eyes, ref final_eyes } = shape;
+        let SlotShape { extent, layers, scene_extent, scene_layers, ref scene_eyes, ref final_eyes, array_layer } = shape;
         let double_wide = opts.submit_texture.is_some();
         let mut usage = xr::SwapchainUsageFlags::COLOR_ATTACHMENT;
         // Written by a resolve, a copy or a blit; read by a copy into the TAA history.
@@ -380,11 +420,34 @@ impl Targets {
         if opts.swapchain_mips > full_chain {
             return fail(format!("--swapchain-mips {}: a {}x{} swapchain has at most {full_chain} levels", opts.swapchain_mips, extent.width, extent.height));
         }
-        let shape = ChainShape { extent, layers, samples: opts.swapchain_samples, mips: opts.swapchain_mips };
-        let color = self.chain(xs, self.color_format, usage, shape, vk::ImageAspectFlags::COLOR)?;
+        let color = match (array_layer, self.slots.last()) {
+            // Layer 0's slot makes the 2-layer swapchain; its view of each image is layer 0.
+            (Some(0), _) | (None, _) => {
+                let chain_layers = if array_layer.is_some() { 2 } else { layers };
+                let shape = ChainShape { extent, layers: chain_layers, samples: opts.swapchain_samples, mips: opts.swapchain_mips };
+                self.chain(xs, self.color_format, usage, shape, vk::ImageAspectFlags::COLOR, 0, layers)?
+            }
+            // A later eye: the same images, its own views of its layer.
+            (Some(layer), Some(first)) => {
+                let images = first.color.images.clone();
+                let mut chain = Chain { swapchain: None, images, views: Vec::new() };
+                for &img in &chain.images {
+                    match create_view(&self.device, img, self.color_format, layer, 1, vk::ImageAspectFlags::COLOR) {
+                        Ok(v) => chain.views.push(v),
+                        Err(e) => {
+                            destroy_views(&self.device, &chain.views);
+                            return Err(e);
+                        }
+                    }
+                }
+                chain
+            }
+            (Some(_), None) => return fail("internal: an array swapchain's later layer before its first"),
+        };
         let mut slot = Slot {
             extent,
             layers,
+            color_layer: array_layer.unwrap_or(0),
             scene_extent,
             scene_layers,
             color,
@@ -411,6 +474,8 @@ impl Targets {
                 depth_usage,
                 ChainShape { extent, layers, samples: 1, mips: 1 },
                 depth_aspect(self.depth_format),
+                0,
+                layers,
             ) {
                 Ok(c) => slot.depth = Some(c),
                 Err(e) => return push_and_err(self, slot, e),
@@ -478,8 +543,10 @@ impl Targets {
         Ok(())
     }
 
-    /// A swapchain and a view of each image's level 0 (all its layers): what the passes render.
-    fn chain(&self, xs: &XrSession, format: vk::Format, usage: xr::SwapchainUsageFlags, shape: ChainShape, aspect: vk::ImageAspectFlags) -> Result<Chain> {
+    /// A swapchain and a view of each image's level 0 (`view_layers` of its layers from
+    /// `base_layer`): what the passes render.
+    #[allow(clippy::too_many_arguments)]
+    fn chain(&self, xs: &XrSession, format: vk::Format, usage: xr::SwapchainUsageFlags, shape: ChainShape, aspect: vk::ImageAspectFlags, base_layer: u32, view_layers: u32) -> Result<Chain> {
         let ChainShape { extent, layers, samples, mips } = shape;
         let swapchain = xs
             .session
@@ -501,9 +568,9 @@ impl Targets {
             .into_iter()
             .map(ash::vk::Handle::from_raw)
             .collect();
-        let mut chain = Chain { swapchain, images, views: Vec::new() };
+        let mut chain = Chain { swapchain: Some(swapchain), images, views: Vec::new() };
         for &img in &chain.images {
-            match create_view(&self.device, img, format, layers, aspect) {
+            match create_view(&self.device, img, format, base_layer, view_layers, aspect) {
                 Ok(v) => chain.views.push(v),
                 Err(e) => {
                     destroy_views(&self.device, &chain.views);
@@ -550,10 +617,10 @@ impl Targets {
     pub fn destroy_swapchains_in_flight(&mut self) -> Result<()> {
         let mut errors = Vec::new();
         for slot in &self.slots {
-            for chain in std::iter::once(&slot.color).chain(&slot.depth) {
+            for sc in std::iter::once(&slot.color).chain(&slot.depth).filter_map(|c| c.swapchain.as_ref()) {
                 // SAFETY: the app's own swapchain, destroyed once (`swapchains_gone` keeps
                 // `destroy` and `Drop` from destroying it again).
-                let r = unsafe { (chain.swapchain.instance().fp().destroy_swapchain)(chain.swapchain.as_raw()) };
+                let r = unsafe { (sc.instance().fp().destroy_swapchain)(sc.as_raw()) };
                 if let Err(e) = crate::error::check(r, "xrDestroySwapchain") {
                     errors.push(e.0);
                 }
@@ -571,8 +638,7 @@ impl Targets {
         }
         let mut errors = Vec::new();
         for slot in std::mem::take(&mut self.slots) {
-            for chain in std::iter::once(slot.color).chain(slot.depth) {
-                let sc = chain.swapchain;
+            for sc in std::iter::once(slot.color).chain(slot.depth).filter_map(|c| c.swapchain) {
                 // SAFETY: the app's own swapchain, no longer used by any GPU work (the device is
                 // idle); the wrapper is forgotten so its `Drop` does not destroy it again.
                 let r = unsafe { (sc.instance().fp().destroy_swapchain)(sc.as_raw()) };
@@ -620,6 +686,12 @@ impl Targets {
     /// `--one-target` the one the slots share.
     pub fn offscreen_of(&self, i: usize) -> Option<&OwnedImage> {
         self.slots.get(i).and_then(|s| s.offscreen.as_ref()).or_else(|| self.slots.first().and_then(|s| s.offscreen.as_ref()))
+    }
+
+    /// The XR swapchain slot `i`'s colour images belong to: its own, or with `--eye-swapchain
+    /// array` the first slot's, whose layers both eyes write.
+    pub fn color_swapchain(&self, i: usize) -> &xr::Swapchain<xr::Vulkan> {
+        self.slots[..=i].iter().rev().find_map(|s| s.color.swapchain.as_ref()).expect("a slot owns the colour swapchain")
     }
 
     /// The private depth slot `i`'s eye pass uses: its own, or with `--one-target` the first

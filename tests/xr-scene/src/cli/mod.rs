@@ -16,6 +16,17 @@ pub enum Layout {
     SideBySide,
 }
 
+/// `--eye-swapchain`: with `--layout per-eye`, where each eye pass's picture ends up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EyeSwapchain {
+    /// A swapchain per eye.
+    PerEye,
+    /// One 2-layer swapchain: eye v's picture is array layer v of its image (`imageArrayIndex`
+    /// v), written by eye v's own pass or its copy / post chain, as many engines and xrizer
+    /// submit separately rendered eyes.
+    Array,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Rendering {
     RenderPass,
@@ -281,6 +292,8 @@ pub struct Options {
     /// `--dynamic-resolution`: the eye passes draw into a sub-rect of their target that changes
     /// every frame (`crate::post::dynamic_scale`), read back whole by the tonemap.
     pub dynamic_resolution: bool,
+    /// `--eye-swapchain`: with per-eye layout, a swapchain per eye or one 2-layer swapchain.
+    pub eye_swapchain: EyeSwapchain,
 }
 
 /// The command line as clap sees it; `parse` turns it into checked `Options`.
@@ -505,6 +518,10 @@ struct Args {
     /// tonemap reads each frame's sub-rect.
     #[arg(long)]
     dynamic_resolution: bool,
+    /// With --layout per-eye: a swapchain per eye, or one 2-layer swapchain whose layer v eye v's
+    /// pass (or its copy, or its post chain) writes.
+    #[arg(long, value_enum, default_value_t = EyeSwapchain::PerEye)]
+    eye_swapchain: EyeSwapchain,
 }
 
 /// `--widen-fov`: degrees in 0..=20.
@@ -581,6 +598,7 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
     if a.one_target && !(one_target_fits && records_simply) {
         return Err(usage("--one-target shares one target between the two per-eye passes, carried into each eye's swapchain image by the app between them: it needs --layout per-eye with --intermediate (copied) or --post tonemap / bloom (drawn, not --post-compute or --post-subpass), without --submit-via openvr, --submit-texture, --submit-depth, --depth-clear image, --secondary, --threads or --record-once"));
     }
+    check_eye_swapchain(&a).map_err(|m| usage(&m))?;
     if a.submit_via == SubmitVia::Openvr && !(a.intermediate || a.submit_texture.is_some()) {
         return Err(usage("--submit-via openvr copies the app's textures: it needs --intermediate or --submit-texture"));
     }
@@ -671,7 +689,42 @@ pub fn parse<I: IntoIterator<Item = String>>(args: I) -> Result<Options, clap::E
         one_target: a.one_target,
         temporary_session: a.temporary_session,
         dynamic_resolution: a.dynamic_resolution,
+        eye_swapchain: a.eye_swapchain,
     })
+}
+
+/// `--eye-swapchain array`: the shapes whose every write of a final image addresses one eye's
+/// layer through a single-layer view or subresource. Refused: what writes the swapchain image
+/// whole or per slot in other ways (a compositor's copy, a double-wide blit, TAA's history copy
+/// and the compute tonemap's copy, the tonemap subpass), submitted depth (a depth swapchain per
+/// eye), and the recording variants this shape was not built for.
+fn check_eye_swapchain(a: &Args) -> Result<(), String> {
+    if a.eye_swapchain == EyeSwapchain::PerEye {
+        return Ok(());
+    }
+    if a.layout != Layout::PerEye {
+        return Err("--eye-swapchain array puts per-eye passes' pictures into the layers of one swapchain: it needs --layout per-eye (multiview and side-by-side already have one swapchain)".into());
+    }
+    let refused = [
+        (a.submit_via == SubmitVia::Openvr, "--submit-via openvr"),
+        (a.submit_texture.is_some(), "--submit-texture"),
+        (a.submit_depth, "--submit-depth"),
+        (a.post == Some(PostEffect::Taa), "--post taa"),
+        (a.post_compute, "--post-compute"),
+        (a.post_subpass, "--post-subpass"),
+        (a.threads, "--threads"),
+        (a.secondary, "--secondary"),
+        (a.record_once, "--record-once"),
+        (a.swapchain_samples > 1, "--swapchain-samples"),
+        (a.swapchain_mips > 1, "--swapchain-mips"),
+    ];
+    match refused.iter().filter(|(on, _)| *on).map(|(_, name)| *name).collect::<Vec<_>>() {
+        names if names.is_empty() => Ok(()),
+        names => Err(format!(
+            "--eye-swapchain array writes each eye's picture into its layer of one swapchain image through per-layer views; not supported with {}",
+            names.join(", ")
+        )),
+    }
 }
 
 #[cfg(test)]

@@ -235,3 +235,40 @@ fn one_target_for_both_eyes() {
     assert!(p(&["--one-target", "--post", "tonemap", "--post-subpass"]).is_err());
     assert!(p(&["--one-target", "--post", "tonemap", "--layout", "side-by-side"]).is_err());
 }
+
+/// `--eye-swapchain array`: per-eye passes into the layers of one 2-layer swapchain.
+#[test]
+fn eye_swapchain_array() {
+    assert_eq!(p(&[]).unwrap().unwrap().eye_swapchain, EyeSwapchain::PerEye);
+    let array = |extra: &[&str]| p(&[&["--eye-swapchain", "array"][..], extra].concat());
+    assert_eq!(array(&[]).unwrap().unwrap().eye_swapchain, EyeSwapchain::Array);
+    for ok in [
+        &["--intermediate"][..],
+        &["--intermediate", "--samples", "1"],
+        &["--intermediate", "--one-target"],
+        &["--post", "tonemap", "--one-target"],
+        &["--post", "bloom", "--samples", "4", "--one-target"],
+        &["--post", "bloom"],
+    ] {
+        assert_eq!(array(ok).unwrap().unwrap().eye_swapchain, EyeSwapchain::Array, "{ok:?}");
+    }
+    for layout in ["multiview", "side-by-side"] {
+        let e = array(&["--layout", layout]).unwrap_err();
+        assert!(e.contains("needs --layout per-eye"), "{layout}: {e}");
+    }
+    for (refused, name) in [
+        (&["--intermediate", "--submit-via", "openvr"][..], "--submit-via openvr"),
+        (&["--submit-depth"], "--submit-depth"),
+        (&["--post", "taa"], "--post taa"),
+        (&["--post", "tonemap", "--post-compute"], "--post-compute"),
+        (&["--post", "tonemap", "--post-subpass"], "--post-subpass"),
+        (&["--threads"], "--threads"),
+        (&["--secondary"], "--secondary"),
+        (&["--record-once"], "--record-once"),
+        (&["--swapchain-samples", "4"], "--swapchain-samples"),
+    ] {
+        let e = array(refused).unwrap_err();
+        assert!(e.contains(&format!("not supported with {name}")), "{refused:?}: {e}");
+    }
+    assert!(p(&["--eye-swapchain", "both"]).is_err());
+}

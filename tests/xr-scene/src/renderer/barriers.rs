@@ -15,7 +15,9 @@ impl Renderer {
         let mut images = Vec::new();
         for (i, a) in acquired.iter().enumerate() {
             let slot = &targets.slots[i];
-            let color_range = range(vk::ImageAspectFlags::COLOR, slot.layers);
+            // `--eye-swapchain array`: each slot's own layer of the image both slots acquired, so
+            // the image is ordered once per layer, never twice over the same subresource.
+            let color_range = layer_range(vk::ImageAspectFlags::COLOR, slot.color_layer, slot.layers);
             let depth_range = range(depth_aspect(targets.depth_format), slot.scene_layers);
             let scene_range = range(vk::ImageAspectFlags::COLOR, slot.scene_layers);
             let color_rw = vk::AccessFlags::COLOR_ATTACHMENT_READ | vk::AccessFlags::COLOR_ATTACHMENT_WRITE;
@@ -171,6 +173,9 @@ impl Renderer {
             let slot = &targets.slots[i];
             let Some(off) = targets.offscreen_of(i).filter(|_| chosen(i)) else { continue };
             let r = range(vk::ImageAspectFlags::COLOR, slot.scene_layers);
+            // The destination's layers: its own layer of a shared array image (`--eye-swapchain
+            // array`), so that eye 1's copy is not ordered against (nor transitions) eye 0's.
+            let dst_r = layer_range(vk::ImageAspectFlags::COLOR, slot.final_layer(), slot.scene_layers);
             let (sc, ..) = slot.final_image(a.color);
             to_transfer.push(image_barrier(
                 off.image,
@@ -182,7 +187,7 @@ impl Renderer {
             ));
             to_transfer.push(image_barrier(
                 sc,
-                r,
+                dst_r,
                 vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
                 vk::ImageLayout::TRANSFER_DST_OPTIMAL,
                 vk::AccessFlags::COLOR_ATTACHMENT_WRITE,
@@ -190,7 +195,7 @@ impl Renderer {
             ));
             back.push(image_barrier(
                 sc,
-                r,
+                dst_r,
                 vk::ImageLayout::TRANSFER_DST_OPTIMAL,
                 vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
                 vk::AccessFlags::TRANSFER_WRITE,
@@ -227,13 +232,14 @@ impl Renderer {
                     base_array_layer: 0,
                     layer_count: slot.scene_layers,
                 };
+                let dst_layers = vk::ImageSubresourceLayers { base_array_layer: slot.final_layer(), ..layers };
                 let extent = vk::Extent3D { width: slot.scene_extent.width, height: slot.scene_extent.height, depth: 1 };
                 let (sc, ..) = slot.final_image(a.color);
                 if self.samples == vk::SampleCountFlags::TYPE_1 {
                     let region = vk::ImageCopy {
                         src_subresource: layers,
                         src_offset: vk::Offset3D::default(),
-                        dst_subresource: layers,
+                        dst_subresource: dst_layers,
                         dst_offset: vk::Offset3D::default(),
                         extent,
                     };
@@ -242,7 +248,7 @@ impl Renderer {
                     let region = vk::ImageResolve {
                         src_subresource: layers,
                         src_offset: vk::Offset3D::default(),
-                        dst_subresource: layers,
+                        dst_subresource: dst_layers,
                         dst_offset: vk::Offset3D::default(),
                         extent,
                     };
@@ -300,7 +306,12 @@ impl Renderer {
 }
 
 pub(crate) fn range(aspect: vk::ImageAspectFlags, layers: u32) -> vk::ImageSubresourceRange {
-    vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: 0, layer_count: layers }
+    layer_range(aspect, 0, layers)
+}
+
+/// Level 0's `layers` array layers from `base`.
+pub(crate) fn layer_range(aspect: vk::ImageAspectFlags, base: u32, layers: u32) -> vk::ImageSubresourceRange {
+    vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: 1, base_array_layer: base, layer_count: layers }
 }
 
 pub(crate) fn image_barrier(
