@@ -109,11 +109,18 @@ impl Labels {
     }
 }
 
-/// A panel of lines over the run's time: `lines` as (legend, colour, runs of points).
+/// One line of a panel: its legend, colour and runs of points (`series::runs`).
+struct Line<'s> {
+    name: &'s str,
+    color: RGBColor,
+    runs: Vec<Vec<(f64, f64)>>,
+}
+
+/// A panel of lines over the run's time.
 struct Panel<'s> {
     y_desc: String,
     top: f64,
-    lines: Vec<(&'s str, RGBColor, Vec<Vec<(f64, f64)>>)>,
+    lines: Vec<Line<'s>>,
     x_desc: bool,
     legend: bool,
     /// Per-phase means drawn as level segments with their value (the GPU panel's).
@@ -160,19 +167,19 @@ fn panel(area: &Area, s: &Series, p: Panel, text: bool) -> Result<(Vec<i32>, (i3
             chart.draw_series(std::iter::once(label)).map_err(err)?;
         }
     }
-    for (_, color, runs) in &p.lines {
-        for run in runs {
-            chart.draw_series(LineSeries::new(run.iter().copied(), color.stroke_width(1))).map_err(err)?;
+    for line in &p.lines {
+        for run in &line.runs {
+            chart.draw_series(LineSeries::new(run.iter().copied(), line.color.stroke_width(1))).map_err(err)?;
         }
     }
     if legend {
         let (left, _) = chart.backend_coord(&(0.0, p.top));
         let (mut x, y) = (left - area.get_base_pixel().0, 10);
         let style = (FONT_FAMILY, 13).into_font().color(&BLACK);
-        for (name, color, _) in &p.lines {
-            area.draw(&PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(3))).map_err(err)?;
-            area.draw(&Text::new(*name, (x + 24, y - 7), style.clone())).map_err(err)?;
-            x += 24 + area.estimate_text_size(name, &style).map_err(err)?.0 as i32 + 22;
+        for line in &p.lines {
+            area.draw(&PathElement::new(vec![(x, y), (x + 18, y)], line.color.stroke_width(3))).map_err(err)?;
+            area.draw(&Text::new(line.name, (x + 24, y - 7), style.clone())).map_err(err)?;
+            x += 24 + area.estimate_text_size(line.name, &style).map_err(err)?.0 as i32 + 22;
         }
     }
     Ok((xs, chart.backend_coord(&(0.0, p.top))))
@@ -191,7 +198,7 @@ fn panels(s: &Series) -> [Panel<'static>; 3] {
         Panel {
             y_desc: "GPU busy, ms/frame".into(),
             top: series::axis_top(gpu_max),
-            lines: vec![("GPU busy (stats.gpu_time)", GPU_COLOR, series::runs(&s.x, &s.gpu_ms))],
+            lines: vec![Line { name: "GPU busy (stats.gpu_time)", color: GPU_COLOR, runs: series::runs(&s.x, &s.gpu_ms) }],
             x_desc: false,
             legend: false,
             means: s.phases(),
@@ -199,7 +206,7 @@ fn panels(s: &Series) -> [Panel<'static>; 3] {
         Panel {
             y_desc: format!("saved, {unit}/frame"),
             top: series::axis_top(px_max / div),
-            lines: series::PIXEL_LINES.iter().zip(PIXEL_COLORS).zip(&s.pixels).map(|((n, c), v)| (*n, c, series::runs(&s.x, &scaled(v)))).collect(),
+            lines: series::PIXEL_LINES.iter().zip(PIXEL_COLORS).zip(&s.pixels).map(|((name, color), v)| Line { name, color, runs: series::runs(&s.x, &scaled(v)) }).collect(),
             x_desc: false,
             legend: true,
             means: Vec::new(),
@@ -207,7 +214,7 @@ fn panels(s: &Series) -> [Panel<'static>; 3] {
         Panel {
             y_desc: "passes/frame".into(),
             top: series::axis_top(pass_max),
-            lines: series::PASS_LINES.iter().zip(PASS_COLORS).zip(&s.passes).map(|((n, c), v)| (*n, c, series::runs(&s.x, &some(v)))).collect(),
+            lines: series::PASS_LINES.iter().zip(PASS_COLORS).zip(&s.passes).map(|((name, color), v)| Line { name, color, runs: series::runs(&s.x, &some(v)) }).collect(),
             x_desc: true,
             legend: true,
             means: Vec::new(),

@@ -6,8 +6,8 @@
 use super::summary::Frame;
 use serde_json::Value;
 
-/// The pixel savings drawn, as (legend, how a frame's value is read). VRS saves shading, not
-/// pixels, and records no pixel count (only its passes), so it is among `PASS_LINES`.
+/// The pixel savings drawn, by legend, in the order of `Series::pixels`. VRS saves shading, not
+/// pixels, and records no pixel count (only its passes), so it is among `PASS_LINES` only.
 pub const PIXEL_LINES: [&str; 4] = ["masked (mask)", "skipped (RDM)", "reused (far field)", "not rendered (upscale: displayed - rendered)"];
 
 /// The per-frame pass counts drawn.
@@ -235,7 +235,7 @@ mod tests {
     fn setting_changes_are_marked_once_where_they_happen() {
         let mut s = Series::default();
         for n in 0..10 {
-            s.add(&frame(n, n >= 4, n >= 4 && n < 7, Some(1.0)));
+            s.add(&frame(n, n >= 4, (4..7).contains(&n), Some(1.0)));
         }
         let got: Vec<(u64, &str)> = s.changes.iter().map(|c| (c.frame, c.label.as_str())).collect();
         assert_eq!(got, [(4, "foveation on, mask on"), (7, "foveation off")]);
