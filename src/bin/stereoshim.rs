@@ -79,7 +79,7 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
-    /// Summarise the layer's stats file (`stats.file`) per second, or convert it to CSV.
+    /// Summarise the layer's stats file (`stats.file`) per second, convert it to CSV, or plot it.
     Stats {
         /// The stats file (default: `stats.file` of the effective config).
         file: Option<PathBuf>,
@@ -92,6 +92,17 @@ enum Cmd {
         /// Read the config for this app (for the default file).
         #[arg(long)]
         app: Option<String>,
+        /// Draw the run into this PNG instead of printing the table: GPU time per frame, each
+        /// feature's pixels saved and passes, and a line where a live setting changed.
+        #[arg(long, value_name = "PNG", conflicts_with_all = ["follow", "csv"])]
+        plot: Option<PathBuf>,
+        /// The plot's size in pixels.
+        #[arg(long, value_name = "WIDTHxHEIGHT", default_value = "1280x720", value_parser = stereoshim::report::plot::parse_size, requires = "plot")]
+        plot_size: (u32, u32),
+        /// A TrueType or OpenType font for the plot's text (default: DejaVu Sans, else any .ttf
+        /// under /usr/share/fonts; none found: the plot is drawn without text).
+        #[arg(long, value_name = "FILE", requires = "plot")]
+        font: Option<PathBuf>,
     },
     /// Ask running apps with the layer to save their next frame's eye images as PNGs (in
     /// `screenshot.dir`, else $XDG_PICTURES_DIR/stereoshim).
@@ -200,7 +211,8 @@ fn main() -> ExitCode {
         Cmd::Status { app } => status_cmd(app),
         Cmd::Run { library, app } => run_cmd(library, &app),
         Cmd::Manifest { kind, library, shipped } => manifest_cmd(kind, library, shipped),
-        Cmd::Stats { file, follow, csv, app } => stats_cmd(file, follow, csv, app),
+        Cmd::Stats { file, follow, csv, app, plot: None, .. } => stats_cmd(file, follow, csv, app),
+        Cmd::Stats { file, app, plot: Some(png), plot_size, font, .. } => plot_cmd(file, app, &png, plot_size, font),
         Cmd::Preview(args) => preview_cmd(args),
         Cmd::Top { pid, app, ab_period, ab_cycles } => {
             let opts = stereoshim::top::Options { pid, app, ab_period, ab_cycles: ab_cycles.map(|c| c as usize) };
@@ -377,18 +389,7 @@ fn doctor_cmd(app: Option<String>, config: Option<PathBuf>, json: bool) -> ExitC
 /// it is complete.
 fn stats_cmd(file: Option<PathBuf>, follow: bool, csv: bool, app: Option<String>) -> Result<(), String> {
     use stereoshim::report::summary::{self as summary, Summary};
-    let path = match file {
-        Some(f) => f,
-        None => {
-            let names: Vec<&str> = app.iter().map(String::as_str).collect();
-            let (config, _) = stereoshim::core::config::load(stereoshim::registry::keys(), &names);
-            let configured = stereoshim::plugin::settings::Settings::from_config(&config).stats_file;
-            if configured.is_empty() {
-                return Err("no stats file: pass FILE, or set stats.file in the config".into());
-            }
-            PathBuf::from(configured)
-        }
-    };
+    let path = stats_path(file, app)?;
     let f = std::fs::File::open(&path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut reader = std::io::BufReader::new(f);
     let out = std::io::stdout();
@@ -432,6 +433,52 @@ fn stats_cmd(file: Option<PathBuf>, follow: bool, csv: bool, app: Option<String>
         write(&summary::table_line(s))?;
     }
     if bad > 0 {
+        return Err(format!("{bad} line(s) of {} could not be read", path.display()));
+    }
+    Ok(())
+}
+
+/// The stats file named, else `stats.file` of the effective config (for `app`).
+fn stats_path(file: Option<PathBuf>, app: Option<String>) -> Result<PathBuf, String> {
+    if let Some(f) = file {
+        return Ok(f);
+    }
+    let names: Vec<&str> = app.iter().map(String::as_str).collect();
+    let (config, _) = stereoshim::core::config::load(stereoshim::registry::keys(), &names);
+    let configured = stereoshim::plugin::settings::Settings::from_config(&config).stats_file;
+    if configured.is_empty() {
+        return Err("no stats file: pass FILE, or set stats.file in the config".into());
+    }
+    Ok(PathBuf::from(configured))
+}
+
+/// `stats --plot`: reads the whole stats file into series and draws them into `png`.
+fn plot_cmd(file: Option<PathBuf>, app: Option<String>, png: &Path, (width, height): (u32, u32), font: Option<PathBuf>) -> Result<(), String> {
+    use stereoshim::report::{plot, series::Series, summary};
+    let path = stats_path(file, app)?;
+    let f = std::fs::File::open(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut series = Series::default();
+    let mut bad = 0u64;
+    // Line by line: the series keep a few numbers per frame, not the frames' JSON.
+    for (i, line) in std::io::BufReader::new(f).lines().enumerate() {
+        let line = line.map_err(|e| format!("{}: {e}", path.display()))?;
+        match summary::parse_line(&line) {
+            Ok(Some(frame)) => series.add(&frame),
+            Ok(None) => {}
+            Err(e) => {
+                bad += 1;
+                eprintln!("stereoshim: {}:{}: {e}", path.display(), i + 1);
+            }
+        }
+    }
+    let title = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let options = plot::Options { width, height, title, font };
+    if let Some(note) = plot::write(&series, &options, png).map_err(|e| format!("{}: {e}", path.display()))? {
+        eprintln!("stereoshim: {note}");
+    }
+    println!("{}: {} frames over {:.1} s, {} setting change(s)", png.display(), series.len(), series.duration(), series.changes.len());
+    if bad > 0 {
+        // The plot shows the lines that could be read; the status still says some could not.
         return Err(format!("{bad} line(s) of {} could not be read", path.display()));
     }
     Ok(())

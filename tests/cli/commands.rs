@@ -241,3 +241,80 @@ fn stats_summarises_the_layers_file() {
     let seconds: Vec<&str> = got[1..].iter().map(|l| l.split_whitespace().next().unwrap()).collect();
     assert_eq!(seconds, ["0", "1"], "{got:?}");
 }
+
+/// A synthetic stats file: 200 frames at 90 Hz, GPU busy 10 ms until frame 100 turns the mask on,
+/// 5 ms after.
+fn step_stats(path: &Path) {
+    let mut text = String::new();
+    for n in 0..200u64 {
+        let on = n >= 100;
+        let line = serde_json::json!({
+            "frame": n, "time": 5000.0 + n as f64 / 90.0, "mask_enabled": on, "foveation_enabled": false, "far_field_enabled": false,
+            "passes_masked": if on { 2 } else { 0 }, "pixels_masked": {"0": if on { 30000 } else { 0 }, "1": if on { 30000 } else { 0 }},
+            "gpu_ms": {"busy": if on { 5.0 } else { 10.0 }, "span": 11.0, "submissions": 2, "untimed": 0},
+        });
+        text += &(line.to_string() + "\n");
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+/// Checks the plot of `step_stats` by its pixels: the GPU time line (found by its colour) sits,
+/// above the panel's x axis, twice as high before frame 100 as after, and the one change line
+/// stands at frame 100's x.
+fn assert_step_plot(png: &Path) {
+    use stereoshim::report::plot::{CHANGE_COLOR, GPU_COLOR};
+    let img = common::image::Image::load(png);
+    let (gpu, change) = ([GPU_COLOR.0, GPU_COLOR.1, GPU_COLOR.2], [CHANGE_COLOR.0, CHANGE_COLOR.1, CHANGE_COLOR.2]);
+    let is = |x: u32, y: u32, c: [u8; 3]| img.pixel(x, y)[..3] == c.map(u16::from);
+    // Per column, the GPU line's topmost pixel.
+    let line: Vec<(u32, u32)> = (0..img.width).filter_map(|x| (0..img.height).find(|&y| is(x, y, gpu)).map(|y| (x, y))).collect();
+    assert!(line.len() as u32 > img.width / 2, "{}: the GPU time line spans the plot ({} columns)", png.display(), line.len());
+    let (x0, x1) = (line[0].0, line[line.len() - 1].0);
+    let span = (x1 - x0) as f64;
+    // Frame 100 of 0..=199, by time; each half measured away from its ends.
+    let change_x = x0 as f64 + span * 100.0 / 199.0;
+    let row = |from: f64, to: f64| {
+        let mut ys: Vec<u32> = line.iter().filter(|(x, _)| (*x as f64) >= x0 as f64 + span * from && (*x as f64) <= x0 as f64 + span * to).map(|p| p.1).collect();
+        ys.sort();
+        (ys[ys.len() / 2], ys.len())
+    };
+    let ((before, n0), (after, n1)) = (row(0.05, 0.45), row(0.55, 0.95));
+    assert!(n0 > 50 && n1 > 50, "{n0} {n1}");
+    // The x axis: the first black pixel below the line in a column of the first half.
+    let col = x0 + (span * 0.25) as u32;
+    let axis = (before..img.height).find(|&y| is(col, y, [0, 0, 0])).expect("the GPU panel's x axis under the line");
+    let ratio = (axis - before) as f64 / (axis - after) as f64;
+    assert!((ratio - 2.0).abs() < 0.05, "10 ms stands {ratio:.3} times as high as 5 ms (line rows {before}, {after}, axis {axis})");
+    // Change lines: columns of the GPU panel holding the change colour.
+    let marks: Vec<u32> = (0..img.width).filter(|&x| (before..axis).any(|y| is(x, y, change))).collect();
+    assert!(!marks.is_empty(), "no change line");
+    assert!(marks.iter().all(|&x| (x as f64 - change_x).abs() <= 3.0), "change lines at x {marks:?}, frame 100 is at {change_x:.1}");
+}
+
+/// `stereoshim stats --plot`: the PNG follows the stats (GPU time, where the setting changed),
+/// with or without a font for its text; refused with --follow and --csv.
+#[test]
+fn stats_plot_follows_the_file() {
+    let home = common::output_dir("cli-stats-plot");
+    let stats = home.join("step.jsonl");
+    step_stats(&stats);
+    let png = home.join("step.png");
+    let (code, text) = stereoshim(&["stats", "--plot", png.to_str().unwrap(), stats.to_str().unwrap()], &home, &home);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("200 frames over 2.2 s, 1 setting change(s)"), "{text}");
+    assert_step_plot(&png);
+
+    // No font: the same curves, no text, and a line saying so.
+    let bare = home.join("no-font.png");
+    let (code, text) = stereoshim(&["stats", "--plot", bare.to_str().unwrap(), "--font", "/nonexistent.ttf", "--plot-size", "800x600", stats.to_str().unwrap()], &home, &home);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("drawn without text"), "{text}");
+    assert_eq!(common::image::Image::load(&bare).width, 800);
+    assert_step_plot(&bare);
+
+    for other in ["--follow", "--csv"] {
+        let (code, text) = stereoshim(&["stats", "--plot", png.to_str().unwrap(), other, stats.to_str().unwrap()], &home, &home);
+        assert_eq!(code, 2, "{text}");
+        assert!(text.contains(&format!("'--plot <PNG>' cannot be used with '{other}'")), "{text}");
+    }
+}
