@@ -1,8 +1,9 @@
 //! What the layer tells the user about its work, never on the app's output: the per-frame
 //! statistics file (`stats_file`, `stats.file`), its per-second summary for `stereoshim stats`
 //! and the overlay (`summary`), and the never-silent notices of features that apply to nothing
-//! (`notices`).
+//! (`notices`), and what `stereoshim run` prints when the app exits (`run_summary`).
 
 pub mod notices;
+pub mod run_summary;
 pub mod stats_file;
 pub mod summary;
