@@ -52,7 +52,9 @@ fn device_counters(pairs: &str) -> (String, BTreeMap<String, u64>, BTreeMap<Stri
 /// Reads the log text a run appended.
 pub fn read_log(text: &str) -> RunLog {
     let mut r = RunLog::default();
-    let mut devices: BTreeMap<String, (BTreeMap<String, u64>, BTreeMap<String, u64>)> = BTreeMap::new();
+    // Device → its counters and far-field reasons.
+    type Totals = (BTreeMap<String, u64>, BTreeMap<String, u64>);
+    let mut devices: BTreeMap<String, Totals> = BTreeMap::new();
     for line in text.lines() {
         if let Some(rest) = line.split_once("stereoshim loaded pid=").map(|(_, r)| r) {
             let pid = rest.split_whitespace().next().and_then(|p| p.parse().ok()).unwrap_or(0);
@@ -100,15 +102,8 @@ pub fn gpu_busy(stats_lines: &str) -> Option<(f64, u64)> {
 
 /// `1 234 567`: counts people read at a glance.
 fn count(n: u64) -> String {
-    let digits = n.to_string();
-    let mut out = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
-            out.push(' ');
-        }
-        out.push(c);
-    }
-    out
+    let digits: Vec<char> = n.to_string().chars().collect();
+    digits.rchunks(3).rev().map(|group| group.iter().collect::<String>()).collect::<Vec<_>>().join(" ")
 }
 
 /// `k1 n1, k2 n2` of the counters under `prefix.`, or None when there are none.

@@ -312,14 +312,14 @@ mod tests {
     #[test]
     fn parts_leave_the_default_scene_alone() {
         let d = build();
-        let s = build_parts(Parts::default());
+        let s = build_parts(Parts::default(), &[], 0.0);
         assert_eq!((s.mesh.vertices.clone(), s.mesh.indices.clone()), (d.vertices.clone(), d.indices.clone()));
         assert_eq!(s.opaque + s.sky, d.indices.len() as u32);
         assert_eq!(s.translucent, 0);
         // The sky is the last part of the default draw and nothing else has flags 0 there.
         assert!(s.mesh.indices[s.opaque as usize..].iter().all(|&i| s.mesh.vertices[i as usize].flags == 0));
 
-        let all = build_parts(Parts { sky: true, translucent: true, far_mover: true });
+        let all = build_parts(Parts { sky: true, translucent: true, far_mover: true }, &[], 0.0);
         assert_eq!(all.translucent, 6);
         assert_eq!(all.sky, s.sky);
         assert_eq!(all.opaque, s.opaque + 36, "the mover is one box at the end of the opaque range");
@@ -328,7 +328,7 @@ mod tests {
         let movers = all.mesh.vertices.iter().filter(|v| v.flags & FLAG_MOVER != 0).count();
         assert_eq!(movers, 24);
 
-        let clear = build_parts(Parts { sky: false, ..Parts::default() });
+        let clear = build_parts(Parts { sky: false, ..Parts::default() }, &[], 0.0);
         assert_eq!((clear.opaque, clear.sky), (s.opaque, 0));
         assert!(clear.mesh.vertices.iter().all(|v| v.flags != 0), "no sky vertices left");
     }
