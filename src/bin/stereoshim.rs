@@ -263,6 +263,7 @@ fn install_cmd(scope: Scope, library: Option<PathBuf>) -> Result<(), String> {
     println!("installed {}", layout.library.display());
     println!("registered implicit OpenXR layer {}", layout.manifest.display());
     println!("every OpenXR app now loads stereoshim; set {}=1 to keep it out of one", install::DISABLE_ENV);
+    stereoshim::manifests::steam::install_note(&layout, &env).iter().for_each(|l| println!("{l}"));
     Ok(())
 }
 
@@ -339,7 +340,10 @@ fn run_cmd(library: Option<PathBuf>, app: &[OsString]) -> Result<(), String> {
     // An explicit manifest of our own, so `run` needs no installation and always uses this library.
     // In a folder of the user's own (`private_fs`), never a shared temporary one: the OpenXR
     // loader loads whatever library a manifest there names.
-    let base = private_fs::private_base(&env).ok_or("none of XDG_RUNTIME_DIR, XDG_STATE_HOME, HOME is set")?;
+    // Steam's container has a /run of its own: the manifest then goes where the game sees it.
+    let steam = stereoshim::manifests::steam::goes_through_steam_runtime(app);
+    let base = if steam { stereoshim::manifests::steam::manifest_base(&env) } else { private_fs::private_base(&env) };
+    let base = base.ok_or("none of XDG_RUNTIME_DIR, XDG_STATE_HOME, HOME is set")?;
     let dir = private_fs::private_dir(&base, Path::new(&format!("stereoshim/openxr-{}", std::process::id()))).map_err(|e| e.to_string())?;
     private_fs::write_private(&dir.join(install::MANIFEST_FILE), manifest::json(Kind::OpenXr, &library).as_bytes()).map_err(|e| format!("{}: {e}", dir.display()))?;
     let mut cmd = std::process::Command::new(program);
@@ -347,9 +351,29 @@ fn run_cmd(library: Option<PathBuf>, app: &[OsString]) -> Result<(), String> {
     for (k, v) in install::run_environment(&env, &dir) {
         cmd.env(k, v);
     }
+    if steam {
+        let plan = stereoshim::manifests::steam::container_plan(&env, &library, &dir);
+        plan.warnings.iter().for_each(|w| eprintln!("stereoshim: {w}"));
+        cmd.envs(plan.env);
+    }
+    // Where this run's log and stats lines will start, for the summary at exit.
+    use stereoshim::report::run_summary;
+    let log = stereoshim::core::log::default_path(&env);
+    let stats = run_stats_file().map(|p| (run_summary::length(&p), p));
+    let log_from = log.as_deref().map_or(0, run_summary::length);
     let status = cmd.status().map_err(|e| format!("{}: {e}", program.to_string_lossy()))?;
     let _ = std::fs::remove_dir_all(&dir);
+    if let Some(log) = log {
+        let stats = stats.as_ref().map(|(from, p)| (p.as_path(), *from));
+        run_summary::at_exit(&program.to_string_lossy(), &log, log_from, stats).iter().for_each(|l| eprintln!("{l}"));
+    }
     std::process::exit(status.code().unwrap_or(1));
+}
+
+/// `stats.file` as configured for every app (the app's name is not known before it runs).
+fn run_stats_file() -> Option<PathBuf> {
+    let (config, _) = stereoshim::core::config::load(stereoshim::registry::keys(), &[]);
+    Some(PathBuf::from(stereoshim::plugin::settings::Settings::from_config(&config).stats_file)).filter(|p| !p.as_os_str().is_empty())
 }
 
 /// Prints one manifest for a library (the one `install`/`run` would use unless `--library`), or

@@ -1,8 +1,10 @@
 //! `stereoshim doctor`: checks that the layer can work on this machine — the OpenXR loader and
 //! active runtime, stereoshim's manifests, the Vulkan half, the GPU's capabilities per feature, the
 //! effective config, known conflicts — and reports each as ok / warning / error with a one-line
-//! fix. `gather` reads the facts, `rules` (pure) judges them, this module orders and prints them.
+//! fix. `gather` reads the facts, `rules` (pure) judges them, this module orders and prints them;
+//! `container` adds the checks that matter inside Steam's game container.
 
+pub mod container;
 pub mod gather;
 pub mod rules;
 
@@ -43,6 +45,7 @@ pub fn run(opts: &Options) -> Report {
     findings.extend(rules::instance(&xr, &runtime));
     findings.extend(rules::extensions(&xr, &runtime));
     findings.extend(rules::manifests(&ours, env(crate::manifests::DISABLE_ENV).is_some()));
+    findings.extend(container::findings(&container::gather(std::path::Path::new("/"), &env)));
     findings.extend(rules::vulkan_half(&half, vk_layers, &env));
     findings.extend(rules::gpu(&vk, &config.config));
     findings.extend(rules::config(&config));

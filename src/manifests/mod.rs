@@ -14,6 +14,7 @@
 
 pub mod install;
 pub mod private_fs;
+pub mod steam;
 pub mod vulkan;
 
 use std::path::Path;

@@ -71,6 +71,78 @@ fn run_wraps_one_app() {
     out.assert_ok();
     assert_eq!(out.log_lines("the Vulkan half tracks this device").len(), 1, "{}", out.log);
     assert_same_captures("cli-run", &out, &reference);
+    // At exit, a short summary on stderr: loaded, nothing enabled, where the log is.
+    let log = out.capture.parent().unwrap().join("state/stereoshim/stereoshim.log");
+    assert!(out.stderr.contains("stereoshim: xr-scene ran 2 frames with the layer (pid "), "{}", out.stderr);
+    assert!(out.stderr.contains("no feature applied (none enabled"), "{}", out.stderr);
+    assert!(out.stderr.contains(&format!("details: log {}", log.display())), "{}", out.stderr);
+}
+
+/// The counter `key` of the log's last `vulkan device stats:` line.
+fn device_counter(log: &str, key: &str) -> u64 {
+    let line = log.lines().rev().find(|l| l.contains("vulkan device stats: ")).expect("a device stats line");
+    line.split_whitespace().find_map(|t| t.strip_prefix(&format!("{key}="))).and_then(|v| v.parse().ok()).unwrap_or_else(|| panic!("no {key} in {line}"))
+}
+
+/// `stereoshim run -- %command%` as a Steam launch option: Steam's command line starts with the
+/// Steam Linux Runtime's entry point (here a stand-in that records the environment the game gets
+/// and runs it). The manifest must not be under XDG_RUNTIME_DIR (the container has its own
+/// /run), and the library's and manifest's folders are listed for pressure-vessel to share. The
+/// summary at exit says what the mask and RDM did, with the log's own numbers.
+#[test]
+fn run_as_a_steam_launch_option() {
+    let runtime = common::output_dir("cli-steam-runtime").join("SteamLinuxRuntime_sniper");
+    std::fs::create_dir_all(&runtime).unwrap();
+    let entry = runtime.join("_v2-entry-point");
+    let script = "#!/bin/sh\nenv > \"$(dirname \"$0\")/env.txt\"\nwhile [ \"$#\" -gt 0 ] && [ \"$1\" != \"--\" ]; do shift; done\nshift\nexec \"$@\"\n";
+    std::fs::write(&entry, script).unwrap();
+    std::fs::set_permissions(&entry, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let mut run = Run::new("cli-steam").env("STEREOSHIM_MASK_ENABLED", "1").env("STEREOSHIM_FOVEATION_ENABLED", "1").env("STEREOSHIM_FOVEATION_METHOD", "rdm");
+    run.wrapper = vec![target_dir().join("stereoshim").into(), "run".into(), "--".into(), entry.clone().into(), "--verb=waitforexitandrun".into(), "--".into()];
+    let out = run.run();
+    out.assert_ok();
+    assert_eq!(out.log_lines("the Vulkan half tracks this device").len(), 1, "{}", out.log);
+
+    let dir = out.capture.parent().unwrap();
+    let env = std::fs::read_to_string(runtime.join("env.txt")).expect("the entry point ran");
+    let var = |k: &str| env.lines().find_map(|l| l.strip_prefix(&format!("{k}="))).unwrap_or_else(|| panic!("{k} not set:\n{env}")).to_string();
+    let manifest_dir = var("XR_API_LAYER_PATH");
+    assert!(manifest_dir.starts_with(dir.join("state").to_str().unwrap()), "manifest under XDG_STATE_HOME, not XDG_RUNTIME_DIR: {manifest_dir}");
+    let library_dir = std::fs::canonicalize(target_dir()).unwrap();
+    let shared: Vec<String> = var("PRESSURE_VESSEL_FILESYSTEMS_RO").split(':').map(str::to_string).collect();
+    assert!(shared.contains(&library_dir.display().to_string()) && shared.contains(&manifest_dir), "{shared:?}");
+    assert!(!std::path::Path::new(&manifest_dir).exists(), "removed after the run");
+
+    let masked = device_counter(&out.log, "masked_passes");
+    assert!(masked > 0, "{}", out.log);
+    let expected = format!("hidden-area mask: {masked} eye passes masked (eye passes found by: swapchain {masked})");
+    assert!(out.stderr.contains(&expected), "{expected:?} not in:\n{}", out.stderr);
+    assert!(out.stderr.contains(&format!("foveation (RDM): {} eye passes", device_counter(&out.log, "rdm_passes"))), "{}", out.stderr);
+    assert!(!out.stderr.contains("live.") && !out.stderr.contains("own."), "raw counters stay in the log:\n{}", out.stderr);
+}
+
+/// `install` tells a Steam user whether games in Steam's container see the installation.
+#[test]
+fn install_tells_steam_users_what_to_do() {
+    let home = common::output_dir("cli-install-steam");
+    let install = |home_var: &Path| {
+        let out = Command::new(target_dir().join("stereoshim"))
+            .args(["install", "--user"])
+            .env("HOME", home_var)
+            .env("XDG_DATA_HOME", home.join("data"))
+            .output()
+            .expect("run stereoshim");
+        assert!(out.status.success(), "{out:?}");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let text = install(&home);
+    assert!(text.contains("Steam: games in the Steam Linux Runtime container (native games and Proton) see this registration too"), "{text}");
+    assert!(text.contains("`stereoshim run -- %command%`"), "{text}");
+    // A data folder outside the home directory must be listed for pressure-vessel to share it.
+    let text = install(Path::new("/nonexistent-home"));
+    let data = home.join("data");
+    let expected = format!("PRESSURE_VESSEL_FILESYSTEMS_RO={}:{} %command%", data.join("stereoshim").display(), data.join("openxr/1/api_layers/implicit.d").display());
+    assert!(text.contains(&expected), "{expected:?} not in:\n{text}");
 }
 
 #[test]
