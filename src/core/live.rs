@@ -47,6 +47,12 @@ pub fn stream_file(folder: &Path, pid: u32) -> PathBuf {
     folder.join(format!("{pid}.jsonl"))
 }
 
+/// `<pid>.ab`: the outcomes of the last A/B `top` ran in this app, one per line (the overlay
+/// shows the first); left by `top` when it exits, removed by the layer when the session ends.
+pub fn ab_file(folder: &Path, pid: u32) -> PathBuf {
+    folder.join(format!("{pid}.ab"))
+}
+
 /// The pid of an announcement's file name (`1234.json`).
 pub fn announced_pid(file_name: &str) -> Option<u32> {
     let stem = file_name.strip_suffix(".json")?;

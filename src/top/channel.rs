@@ -78,6 +78,11 @@ impl Channel {
         let _ = std::fs::remove_file(live::heartbeat_file(&self.folder, self.pid));
     }
 
+    /// Writes the last A/B's outcomes for the app's overlay (`core::live::ab_file`).
+    pub fn write_ab(&self, lines: &[String]) -> std::io::Result<()> {
+        crate::manifests::private_fs::write_private(&live::ab_file(&self.folder, self.pid), (lines.join("\n") + "\n").as_bytes())
+    }
+
     pub fn alive(&self) -> bool {
         Path::new("/proc").join(self.pid.to_string()).exists()
     }

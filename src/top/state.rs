@@ -148,6 +148,13 @@ impl State {
                 None => "A/B done: the features are back as the config says".to_string(),
             };
             self.outcomes = ab.outcomes;
+            if !self.outcomes.is_empty() {
+                // The headset's overlay shows it too.
+                let lines: Vec<String> = self.outcomes.iter().map(Outcome::line).collect();
+                if let Err(e) = self.channel.write_ab(&lines) {
+                    self.message.push_str(&format!(" (the overlay cannot show it: {e})"));
+                }
+            }
             changed = true;
         }
         changed

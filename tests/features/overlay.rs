@@ -25,7 +25,7 @@ fn with_overlay(run: Run, name: &str) -> Run {
 /// a BGRA swapchain is reordered by the capture, so the RGBA rasterisation is what it shows).
 fn expected(lines: &[String]) -> Image {
     let (w, h) = rules::texture_size();
-    let data = rules::rasterise(lines, false).chunks(4).flat_map(|p| [p[0], p[1], p[2]]).map(u16::from).collect();
+    let data = rules::rasterise(lines, &[], false).chunks(4).flat_map(|p| [p[0], p[1], p[2]]).map(u16::from).collect();
     Image { width: w, height: h, channels: 3, bit_depth: 8, data }
 }
 
@@ -72,7 +72,7 @@ fn the_overlay_is_one_head_locked_quad_after_the_apps_unchanged_layers() {
     let mask_quads = quads("overlay-mask", &on, &off);
     let (w, h) = rules::texture_size();
     let want = rules::placement(rules::Position::Top, 1.0, 1.0);
-    let first = expected(&rules::lines(&[("mask", true)], None));
+    let first = expected(&rules::lines(&[("mask", true)], None, None));
     assert!(ink(&first) > 500, "the expected text has ink");
     for (frame, q) in &mask_quads {
         assert_eq!((q.image_rect.width, q.image_rect.height, q.eye_visibility), (w, h, 0), "frame {frame}");
@@ -95,7 +95,7 @@ fn the_overlay_is_one_head_locked_quad_after_the_apps_unchanged_layers() {
     plain_on.assert_ok();
     let (_, q) = quads("overlay-plain", &plain_on, &plain_off)[0];
     let shown = plain_on.image(&q.file);
-    image::assert_identical("overlay-text-nothing-on", &shown, &expected(&rules::lines(&[], None)));
+    image::assert_identical("overlay-text-nothing-on", &shown, &expected(&rules::lines(&[], None, None)));
     assert!(shown.count_different(&first) > 50, "the text does not change with the mask");
 }
 
@@ -123,7 +123,7 @@ fn the_text_shows_the_last_second_once_one_completed() {
         assert!((q.pose.position[1] - want.position.y).abs() < 1e-6 && q.pose.position[1] < -0.7 && q.pose.position[2] == -2.0, "{:?}", q.pose);
     }
     let (first, last) = (on.image(&second_quads[0].1.file), on.image(&second_quads[1].1.file));
-    image::assert_identical("overlay-second-f0", &first, &expected(&rules::lines(&[("mask", true)], None)));
+    image::assert_identical("overlay-second-f0", &first, &expected(&rules::lines(&[("mask", true)], None, None)));
     // The features line stays; the second line now has frame numbers, and two more lines appear.
     let (w, _) = rules::texture_size();
     let rows = |img: &Image, from: u32, to: u32| img.data[(from * w * 3) as usize..(to * w * 3) as usize].to_vec();
@@ -188,7 +188,7 @@ fn the_overlays_objects_go_with_each_session() {
     // overlay's buffer, memory, command pool and fence were destroyed with each session.
     assert_eq!(a, b, "the overlay's objects outlive their session");
     assert_eq!(on.log_lines("overlay: objects of session").len(), 3, "{}", on.log);
-    assert_eq!(on.log_lines("overlay: 392x48 swapchain").len(), 3, "one overlay per session: {}", on.log);
+    assert_eq!(on.log_lines("overlay: 392x92 swapchain").len(), 3, "one overlay per session: {}", on.log);
     assert_nothing_tracked(&on);
 }
 
@@ -199,7 +199,52 @@ fn the_overlays_objects_go_with_each_session() {
 fn the_overlays_objects_go_with_an_instance_destroyed_first() {
     let on = with_overlay(Run::new("overlay-teardown").with_layer().args(["--teardown", "instance"]), "overlay-teardown").run();
     on.assert_ok().assert_log_lacks(Half::Both, "internal failure");
-    assert_eq!(on.log_lines("overlay: 392x48 swapchain").len(), 1, "{}", on.log);
+    assert_eq!(on.log_lines("overlay: 392x92 swapchain").len(), 1, "{}", on.log);
     assert_eq!(on.log_lines("overlay: objects of session").len(), 1, "{}", on.log);
     assert_nothing_tracked(&on);
+}
+
+/// What `stereoshim top` shows, the overlay shows too: the frame-time graph under the text, and
+/// the last A/B's speed-up that `top` left for the app (`core::live::ab_file`), with the key
+/// that hides the panel.
+#[test]
+fn the_overlay_shows_the_frame_time_graph_and_the_last_ab() {
+    let ab = "mask: 1.31x (1.28-1.35 over 4 cycles), 9.10 -> 6.95 ms";
+    let base = Run::new("overlay-top-off")
+        .with_layer()
+        .env("STEREOSHIM_MASK_ENABLED", "1")
+        .env("MOCK_XR_PACE_HZ", "60")
+        .env("MOCK_XR_EXIT_AFTER", "150")
+        .env("MOCK_XR_CAPTURE_FRAMES", "0,149");
+    let mut written = false;
+    let on = with_overlay(base, "overlay-top").run_while(common::DEFAULT_CPU_BUDGET, |dir| {
+        let live = dir.join("run/stereoshim/live");
+        if written {
+            return;
+        }
+        let pid = std::fs::read_dir(&live).ok().and_then(|r| r.flatten().find_map(|e| stereoshim::core::live::announced_pid(e.file_name().to_str()?)));
+        if let Some(pid) = pid {
+            std::fs::write(stereoshim::core::live::ab_file(&live, pid), format!("{ab}\n")).unwrap();
+            written = true;
+        }
+    });
+    on.assert_ok();
+    assert!(written, "the app never announced itself");
+    let frame = on.frames().frames.last().unwrap();
+    let q = frame.layers.last().and_then(|l| l.quad.as_ref()).expect("the overlay's quad");
+    let shown = on.image(&q.file);
+    let (w, h) = rules::texture_size();
+    // The last two text lines: the A/B and the key, as the layer rasterises them.
+    let want = expected(&rules::lines(&[("mask", true)], None, Some(ab)));
+    let rows = |img: &Image, from: u32, to: u32| img.data[(from * w * 3) as usize..(to * w * 3) as usize].to_vec();
+    let (ab_top, ab_bottom) = (4 + 4 * 10, 4 + 6 * 10);
+    assert_eq!(rows(&shown, ab_top, ab_bottom), rows(&want, ab_top, ab_bottom), "the A/B line or the key line differs");
+    // The graph: bars of the frames' times across the panel's width, in the graph's colour.
+    let bars: Vec<u32> = (0..w)
+        .map(|x| (ab_bottom..h).filter(|&y| { let i = ((y * w + x) * 3) as usize; shown.data[i..i + 3] == [64, 200, 96] }).count() as u32)
+        .collect();
+    let columns = bars.iter().filter(|&&b| b > 0).count();
+    assert!(columns > 200, "the graph has {columns} columns of bars: {bars:?}");
+    assert!(bars.contains(&rules::GRAPH_HEIGHT), "the tallest bar fills the graph");
+    image::Image::save(&shown, &image::artifacts_dir("overlay").join("overlay-graph-and-ab.png"));
 }

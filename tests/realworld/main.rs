@@ -392,7 +392,7 @@ fn vulkan2_layer_overlay() {
     check_layer_loaded(&mut c, &o);
     check_validation(&mut c, &o);
     c.check(o.rendered() > 0, || format!("{}: no frame rendered", o.name));
-    let made = o.log.lines().filter(|l| l.contains("overlay: 392x48 swapchain")).count();
+    let made = o.log.lines().filter(|l| l.contains("overlay: 392x92 swapchain")).count();
     c.check(made == 1, || format!("{}: the overlay was made {made} times (want once):\n{}", o.name, o.log));
     for bad in ["overlay: cannot be shown", "overlay: updating its image failed", "the runtime refused the frame", "no room for the overlay"] {
         c.check(!o.log.contains(bad), || format!("{}: the layer logged {bad:?}:\n{}", o.name, o.log));

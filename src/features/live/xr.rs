@@ -40,7 +40,9 @@ impl Drop for LiveSession {
             let _ = std::fs::remove_file(f);
         }
         if let Some(folder) = &st.folder {
-            let _ = std::fs::remove_file(live::stream_file(folder, std::process::id()));
+            let pid = std::process::id();
+            let _ = std::fs::remove_file(live::stream_file(folder, pid));
+            let _ = std::fs::remove_file(live::ab_file(folder, pid));
         }
     }
 }

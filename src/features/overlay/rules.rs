@@ -2,7 +2,8 @@
 //! `stereoshim stats` prints too), how it is drawn (an 8×8 bitmap font, public-domain glyphs of
 //! the `font8x8` crate, into RGBA texels), where it sits in the VIEW space, which swapchain format
 //! it uses, and when its text is redrawn (once per completed second, so the overlay costs one
-//! small upload a second).
+//! small upload a second). Below the text, a graph of the last frames' times, as `stereoshim top`
+//! draws it, and the last A/B's speed-up that `top` measured.
 #![forbid(unsafe_code)]
 
 use crate::report::summary::{Frame, Second, Summary};
@@ -19,7 +20,11 @@ pub enum Position {
 
 /// Characters per line and lines of the panel.
 pub const COLUMNS: u32 = 48;
-pub const LINES: u32 = 4;
+pub const LINES: u32 = 6;
+/// The frame-time graph under the text: this many texels high, one frame per two texels of
+/// width (the newest at the right).
+pub const GRAPH_HEIGHT: u32 = 24;
+const BAR: u32 = 2;
 /// Glyph cell (the font's 8×8 plus two rows between lines) and the border, texels.
 const GLYPH: u32 = 8;
 const LINE_HEIGHT: u32 = 10;
@@ -27,12 +32,19 @@ const PAD: u32 = 4;
 
 /// The panel's texture size, texels (fixed: the swapchain is made once).
 pub const fn texture_size() -> (u32, u32) {
-    (COLUMNS * GLYPH + 2 * PAD, LINES * LINE_HEIGHT + 2 * PAD)
+    (COLUMNS * GLYPH + 2 * PAD, LINES * LINE_HEIGHT + GRAPH_HEIGHT + 2 * PAD)
+}
+
+/// How many frames the graph shows.
+pub const fn graph_frames() -> usize {
+    ((COLUMNS * GLYPH) / BAR) as usize
 }
 
 /// Premultiplied RGBA of the background (translucent black) and of the text (white).
 pub const BACKGROUND: [u8; 4] = [0, 0, 0, 176];
 pub const INK: [u8; 4] = [255, 255, 255, 255];
+/// The graph's bars (green, opaque: unlike the text's white).
+pub const BARS: [u8; 4] = [64, 200, 96, 255];
 
 /// The panel's half width at 1 m and scale 1 (tan 13°: about 26° wide), and the elevation of its
 /// centre for `top` / `bottom`, degrees.
@@ -85,7 +97,8 @@ pub fn short_count(n: u64) -> String {
 
 /// The panel's lines: the features on (registry ids, as `features::enabled` gives them), then the
 /// last complete second, or that the first is still being counted.
-pub fn lines(enabled: &[(&str, bool)], last: Option<&Second>) -> Vec<String> {
+/// Then the last A/B `stereoshim top` measured (`ab`), and the key that hides the panel.
+pub fn lines(enabled: &[(&str, bool)], last: Option<&Second>, ab: Option<&str>) -> Vec<String> {
     let on: Vec<&str> = enabled.iter().filter(|(_, on)| *on).map(|(id, _)| *id).collect();
     let mut v = vec![format!("stereoshim  on: {}", if on.is_empty() { "-".to_string() } else { on.join(" ") })];
     match last {
@@ -98,12 +111,22 @@ pub fn lines(enabled: &[(&str, bool)], last: Option<&Second>) -> Vec<String> {
             v.push(format!("vrs {} passes  far field {} px", short_count(s.vrs_passes), short_count(s.far_field_pixels_reused)));
         }
     }
+    while v.len() < LINES as usize - 2 {
+        v.push(String::new());
+    }
+    v.push(match ab {
+        Some(a) => format!("A/B {a}"),
+        None => "A/B: none yet (b in stereoshim top)".to_string(),
+    });
+    v.push("o in stereoshim top hides this panel".to_string());
     v
 }
 
 /// Draws `lines` (clipped to the panel) into texels of the panel's size, 4 bytes each, in RGBA
 /// or, with `bgra`, BGRA order. Characters outside ASCII are drawn as `?`.
-pub fn rasterise(lines: &[String], bgra: bool) -> Vec<u8> {
+/// `graph`: the frame times to draw under the text, oldest first (the last
+/// [`graph_frames`]), scaled so the tallest fills the graph.
+pub fn rasterise(lines: &[String], graph: &[f32], bgra: bool) -> Vec<u8> {
     let (w, h) = texture_size();
     let order = |c: [u8; 4]| if bgra { [c[2], c[1], c[0], c[3]] } else { c };
     let (bg, ink) = (order(BACKGROUND), order(INK));
@@ -119,6 +142,22 @@ pub fn rasterise(lines: &[String], bgra: bool) -> Vec<u8> {
                         let i = (((y0 + gy as u32) * w + x0 + gx) * 4) as usize;
                         texels[i..i + 4].copy_from_slice(&ink);
                     }
+                }
+            }
+        }
+    }
+    let bars = order(BARS);
+    let shown = &graph[graph.len().saturating_sub(graph_frames())..];
+    let max = shown.iter().copied().fold(0.0f32, f32::max);
+    if max > 0.0 {
+        let (x_end, y_bottom) = (PAD + COLUMNS * GLYPH, PAD + LINES * LINE_HEIGHT + GRAPH_HEIGHT);
+        for (i, v) in shown.iter().rev().enumerate() {
+            let tall = ((v / max) * GRAPH_HEIGHT as f32).round().clamp(0.0, GRAPH_HEIGHT as f32) as u32;
+            let x0 = x_end - (i as u32 + 1) * BAR;
+            for y in y_bottom - tall..y_bottom {
+                for x in x0..x0 + BAR {
+                    let t = ((y * w + x) * 4) as usize;
+                    texels[t..t + 4].copy_from_slice(&bars);
                 }
             }
         }
@@ -148,9 +187,9 @@ mod tests {
 
     #[test]
     fn texture_is_the_font_grid() {
-        assert_eq!(texture_size(), (392, 48));
-        let t = rasterise(&[], false);
-        assert_eq!(t.len(), 392 * 48 * 4);
+        assert_eq!(texture_size(), (392, 92));
+        let t = rasterise(&[], &[], false);
+        assert_eq!(t.len(), 392 * 92 * 4);
         assert!(t.chunks(4).all(|p| p == BACKGROUND));
     }
 
@@ -169,7 +208,7 @@ mod tests {
 
     #[test]
     fn glyphs_land_in_their_cells() {
-        let t = rasterise(&["I -".into(), "".into(), "".into(), "    l".into()], false);
+        let t = rasterise(&["I -".into(), "".into(), "".into(), "    l".into()], &[], false);
         // 'I' (0x1E, 0x0C ×5, 0x1E, 0): serifs in columns 1..=4, a bar in columns 2, 3.
         let i = cell(&t, 0, 0);
         assert!(i[8 + 2] && i[8 + 3] && !i[8] && !i[8 + 7], "{i:?}");
@@ -180,38 +219,59 @@ mod tests {
         assert_eq!(dash.iter().enumerate().filter(|(_, b)| **b).map(|(i, _)| i).collect::<Vec<_>>(), (24..30).collect::<Vec<_>>());
         assert!(cell(&t, 3, 4).iter().any(|b| *b), "line 4 column 5 drawn");
         // BGRA swaps the background's channels, not the layout.
-        let b = rasterise(&["I".into()], true);
+        let b = rasterise(&["I".into()], &[], true);
         assert_eq!(cell(&b, 0, 0), i);
     }
 
     #[test]
     fn long_lines_are_clipped_and_non_ascii_is_a_question_mark() {
         let long = "x".repeat(100);
-        let t = rasterise(&[long], false);
-        assert_eq!(t.len(), 392 * 48 * 4);
-        assert_eq!(rasterise(&["é".into()], false), rasterise(&["?".into()], false));
+        let t = rasterise(&[long], &[], false);
+        assert_eq!(t.len(), 392 * 92 * 4);
+        assert_eq!(rasterise(&["é".into()], &[], false), rasterise(&["?".into()], &[], false));
     }
 
     #[test]
     fn text_says_what_is_on_and_what_it_saved() {
         let on = [("mask", true), ("rdm", false), ("vrs", true), ("far_field", false)];
-        let first = lines(&on, None);
-        assert_eq!(first, vec!["stereoshim  on: mask vrs".to_string(), "last second: counting...".into()]);
-        assert_eq!(lines(&[("mask", false)], None)[0], "stereoshim  on: -");
+        let first = lines(&on, None, None);
+        assert_eq!(first[..2], ["stereoshim  on: mask vrs".to_string(), "last second: counting...".into()]);
+        assert_eq!(first.len(), LINES as usize);
+        assert_eq!(first[4], "A/B: none yet (b in stereoshim top)");
+        assert_eq!(first[5], "o in stereoshim top hides this panel");
+        assert_eq!(lines(&on, None, Some("mask: 1.31x (1.28-1.35 over 4 cycles)"))[4], "A/B mask: 1.31x (1.28-1.35 over 4 cycles)");
+        assert_eq!(lines(&[("mask", false)], None, None)[0], "stereoshim  on: -");
         let mut s = Second::default();
         (s.frames, s.pixels_masked, s.rdm_pixels_skipped, s.vrs_passes, s.gpu_busy_ms) = (72, 1_234_567, 45_600, 144, Some(1.5));
-        let l = lines(&on, Some(&s));
+        let l = lines(&on, Some(&s), None);
         assert_eq!(l[1], "72 fps  13.9 ms/frame  gpu 1.50 ms");
         assert_eq!(l[2], "masked 1.23M px  rdm skipped 45.6k px");
         assert_eq!(l[3], "vrs 144 passes  far field 0 px");
         assert!(l.iter().all(|x| x.len() <= COLUMNS as usize), "{l:?}");
     }
 
+    /// The graph: one bar per frame, two texels wide, newest at the right, the tallest filling it.
+    #[test]
+    fn the_graph_follows_the_frame_times() {
+        let (w, h) = texture_size();
+        let t = rasterise(&[], &[1.0, 2.0, 4.0], false);
+        let bar = |x: u32| (0..h).filter(|&y| t[((y * w + x) * 4) as usize..][..4] == BARS).count() as u32;
+        let right = PAD + COLUMNS * GLYPH;
+        assert_eq!((bar(right - 1), bar(right - 2)), (GRAPH_HEIGHT, GRAPH_HEIGHT), "newest, the tallest");
+        assert_eq!(bar(right - 3), GRAPH_HEIGHT / 2);
+        assert_eq!(bar(right - 5), GRAPH_HEIGHT / 4);
+        assert_eq!(bar(right - 7), 0, "nothing older");
+        // Only the last graph_frames() frames fit.
+        let many: Vec<f32> = (0..graph_frames() + 10).map(|i| if i < 10 { 100.0 } else { 1.0 }).collect();
+        let t2 = rasterise(&[], &many, false);
+        assert!(t2.chunks(4).filter(|p| *p == BARS).count() as u32 == graph_frames() as u32 * BAR * GRAPH_HEIGHT, "the older, taller frames scrolled out");
+    }
+
     #[test]
     fn placement_follows_the_settings() {
         let top = placement(Position::Top, 1.0, 1.0);
         assert!(top.position.y > 0.3 && top.position.z == -1.0 && top.position.x == 0.0);
-        assert!((top.width_m - 0.4618).abs() < 1e-3 && (top.height_m / top.width_m - 48.0 / 392.0).abs() < 1e-6);
+        assert!((top.width_m - 0.4618).abs() < 1e-3 && (top.height_m / top.width_m - 92.0 / 392.0).abs() < 1e-6);
         let bottom = placement(Position::Bottom, 2.0, 0.5);
         assert!(bottom.position.y < -0.7 && bottom.position.z == -2.0);
         // The size in metres is distance × scale (the angle depends on the scale only).

@@ -48,6 +48,9 @@ pub(crate) struct OverlaySession {
 struct Text {
     window: Window,
     last: Option<Second>,
+    /// The last frames' times (between their `xrEndFrame`s), ms, oldest first: the graph.
+    times: std::collections::VecDeque<f32>,
+    last_end: Option<f64>,
     enabled: Vec<(&'static str, bool)>,
     /// The text changed since the last upload.
     dirty: bool,
@@ -132,13 +135,13 @@ pub(crate) fn quad(s: &Session, settings: &Settings, app_layers: u32, enabled_no
             if t.enabled.is_empty() {
                 t.enabled = enabled_now();
             }
-            Some(rules::lines(&t.enabled, t.last.as_ref()))
+            Some((rules::lines(&t.enabled, t.last.as_ref(), last_ab().as_deref()), t.times.iter().copied().collect::<Vec<f32>>()))
         } else {
             None
         }
     };
-    if let Some(lines) = lines {
-        if let Err(e) = upload(s, &mut ov, &lines) {
+    if let Some((lines, graph)) = lines {
+        if let Err(e) = upload(s, &mut ov, &lines, &graph) {
             tracing::warn!("overlay: updating its image failed ({e}); the session goes on without it");
             o.off.store(true, Ordering::Relaxed);
             destroy_objects(s, *ov);
@@ -177,6 +180,12 @@ pub(crate) fn frame_ended(s: &Session, settings: &Settings, record: &crate::repo
     }
     let frame = crate::report::summary::parse_line(&record.to_json());
     let mut t = lock(&state(s).text);
+    if let Some(before) = t.last_end.replace(record.time) {
+        if t.times.len() == rules::graph_frames() {
+            t.times.pop_front();
+        }
+        t.times.push_back(((record.time - before) * 1e3).max(0.0) as f32);
+    }
     if t.enabled != enabled {
         t.enabled = enabled.to_vec();
         t.dirty = true;
@@ -187,6 +196,14 @@ pub(crate) fn frame_ended(s: &Session, settings: &Settings, record: &crate::repo
             t.dirty = true;
         }
     }
+}
+
+/// The first outcome of the last A/B `stereoshim top` ran in this app (`core::live::ab_file`),
+/// read when the text is redrawn (once a second at most).
+fn last_ab() -> Option<String> {
+    let base = crate::manifests::private_fs::private_base(&|k| std::env::var(k).ok())?;
+    let text = std::fs::read_to_string(crate::core::live::ab_file(&crate::core::live::folder(&base), std::process::id())).ok()?;
+    text.lines().next().map(|l| l.trim().to_string()).filter(|l| !l.is_empty())
 }
 
 /// The runtime refused a frame with the overlay's quad (`r`): no overlay for the rest of the
@@ -345,14 +362,14 @@ fn vulkan_objects(d: &DeviceState, family: u32, queue_index: u32, ov: &mut Overl
 
 /// Draws `lines` into the next swapchain image: acquire, wait, copy from the staging buffer on
 /// the session's queue, release.
-fn upload(s: &Session, ov: &mut Overlay, lines: &[String]) -> Result<(), String> {
+fn upload(s: &Session, ov: &mut Overlay, lines: &[String], graph: &[f32]) -> Result<(), String> {
     let next = &s.instance.next;
     let (acquire, wait, release) = match (next.acquire_swapchain_image, next.wait_swapchain_image, next.release_swapchain_image) {
         (Some(a), Some(w), Some(r)) => (a, w, r),
         _ => return Err("the runtime lacks swapchain image functions".into()),
     };
     let d = &ov.device;
-    let texels = rules::rasterise(lines, ov.bgra);
+    let texels = rules::rasterise(lines, graph, ov.bgra);
     // SAFETY: our fence; once it signalled, the previous copy no longer reads the buffer, which
     // is mapped, host-coherent and `texels.len()` bytes long (the panel's fixed size).
     unsafe {
