@@ -281,7 +281,7 @@ mod tests {
         let mut current = (true, true);
         let wanted = |run: &AbRun| {
             run.settings().map(|s| {
-                let get = |k: &str| s.iter().find(|(key, _)| *key == k).map_or(true, |(_, v)| *v);
+                let get = |k: &str| s.iter().find(|(key, _)| *key == k).is_none_or(|(_, v)| *v);
                 (get("mask.enabled"), get("foveation.enabled"))
             })
         };
@@ -349,7 +349,7 @@ mod tests {
         let mut run = AbRun::new(plan(&["mask.enabled"], false), false, 6, 1);
         let mut n = 0;
         while !run.finished() && n < 1000 {
-            let on = run.settings().map_or(false, |s| s[0].1);
+            let on = run.settings().is_some_and(|s| s[0].1);
             run.frame(&FrameView { frame: n, mask: on, gpu_ms: None, ..Default::default() });
             n += 1;
         }

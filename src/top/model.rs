@@ -53,7 +53,7 @@ impl FrameView {
     /// Reads a frame's line (None: not a frame line).
     pub fn parse(line: &str) -> Option<FrameView> {
         let v: Value = serde_json::from_str(line).ok()?;
-        Some(FrameView::from_value(&v)?)
+        FrameView::from_value(&v)
     }
 
     pub fn from_value(v: &Value) -> Option<FrameView> {
