@@ -97,7 +97,15 @@ fn run_as_a_steam_launch_option() {
     let script = "#!/bin/sh\nenv > \"$(dirname \"$0\")/env.txt\"\nwhile [ \"$#\" -gt 0 ] && [ \"$1\" != \"--\" ]; do shift; done\nshift\nexec \"$@\"\n";
     std::fs::write(&entry, script).unwrap();
     std::fs::set_permissions(&entry, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
-    let mut run = Run::new("cli-steam").env("STEREOSHIM_MASK_ENABLED", "1").env("STEREOSHIM_FOVEATION_ENABLED", "1").env("STEREOSHIM_FOVEATION_METHOD", "rdm");
+    // HOME holds the build (library) and the run folder (manifest), as a user's checkout under
+    // their home would: shared by the container wherever the suite's checkout lives (the suite
+    // runs from /run/stereoshim-suite, which the container never shares).
+    let home = std::fs::canonicalize(target_dir()).unwrap();
+    let mut run = Run::new("cli-steam")
+        .env("HOME", home.to_str().unwrap())
+        .env("STEREOSHIM_MASK_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_ENABLED", "1")
+        .env("STEREOSHIM_FOVEATION_METHOD", "rdm");
     run.wrapper = vec![target_dir().join("stereoshim").into(), "run".into(), "--".into(), entry.clone().into(), "--verb=waitforexitandrun".into(), "--".into()];
     let out = run.run();
     out.assert_ok();
@@ -138,11 +146,21 @@ fn install_tells_steam_users_what_to_do() {
     let text = install(&home);
     assert!(text.contains("Steam: games in the Steam Linux Runtime container (native games and Proton) see this registration too"), "{text}");
     assert!(text.contains("`stereoshim run -- %command%`"), "{text}");
-    // A data folder outside the home directory must be listed for pressure-vessel to share it.
+    // A data folder outside the home directory: listed for pressure-vessel to share it, or, where
+    // the container never shares it (the suite's checkout under /run), said so.
     let text = install(Path::new("/nonexistent-home"));
     let data = home.join("data");
-    let expected = format!("PRESSURE_VESSEL_FILESYSTEMS_RO={}:{} %command%", data.join("stereoshim").display(), data.join("openxr/1/api_layers/implicit.d").display());
-    assert!(text.contains(&expected), "{expected:?} not in:\n{text}");
+    let library = data.join("stereoshim/libstereoshim.so");
+    match stereoshim::manifests::steam::visibility(&library, None) {
+        stereoshim::manifests::steam::Visibility::Never(why) => {
+            let expected = format!("do not see {}: {why}", library.display());
+            assert!(text.contains(&expected), "{expected:?} not in:\n{text}");
+        }
+        _ => {
+            let expected = format!("PRESSURE_VESSEL_FILESYSTEMS_RO={}:{} %command%", data.join("stereoshim").display(), data.join("openxr/1/api_layers/implicit.d").display());
+            assert!(text.contains(&expected), "{expected:?} not in:\n{text}");
+        }
+    }
 }
 
 #[test]
