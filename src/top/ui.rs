@@ -11,15 +11,8 @@ use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Borders, Paragraph, Sparkline, Wrap};
 use ratatui::Frame;
 
-/// `n` with a thousands unit (k, M, G), as people read pixel counts.
-pub fn human(n: u64) -> String {
-    match n {
-        0..=9_999 => n.to_string(),
-        10_000..=9_999_999 => format!("{:.1}k", n as f64 / 1e3),
-        10_000_000..=9_999_999_999 => format!("{:.1}M", n as f64 / 1e6),
-        _ => format!("{:.1}G", n as f64 / 1e9),
-    }
-}
+// Counts with a thousands unit (k, M, G), as the overlay writes them.
+use crate::features::overlay::rules::short_count as human;
 
 fn on(b: bool) -> &'static str {
     if b {
@@ -131,17 +124,4 @@ pub fn draw(frame: &mut Frame, s: &State) {
 
     let body: Vec<Line> = lines[2..].iter().map(|l| Line::from(l.clone())).collect();
     frame.render_widget(Paragraph::new(body).wrap(Wrap { trim: true }), Rect { height: rest.height, ..rest });
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn human_numbers() {
-        assert_eq!(human(9_999), "9999");
-        assert_eq!(human(12_345), "12.3k");
-        assert_eq!(human(12_345_678), "12.3M");
-        assert_eq!(human(12_345_678_901), "12.3G");
-    }
 }

@@ -60,11 +60,8 @@ pub fn done_file(folder: &Path, pid: u32) -> PathBuf {
 
 /// The pid of an instance file's name (`1234.json`).
 pub fn instance_pid(file_name: &str) -> Option<u32> {
-    let stem = file_name.strip_suffix(".json")?;
-    if stem.is_empty() || !stem.bytes().all(|b| b.is_ascii_digit()) {
-        return None;
-    }
-    stem.parse().ok()
+    // The same naming as the live folder's announcements.
+    crate::core::live::announced_pid(file_name)
 }
 
 /// A trigger file's request number (0 when it has none: a plain `touch`).
