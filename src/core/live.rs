@@ -62,6 +62,25 @@ pub fn announced_pid(file_name: &str) -> Option<u32> {
     stem.parse().ok()
 }
 
+/// The announcements (`<pid>.json`, read as JSON) in `folder` whose process is alive, by pid:
+/// what `stereoshim top` and `stereoshim screenshot` list (each folder has its own files).
+pub fn announced(folder: &Path) -> Vec<(u32, serde_json::Value)> {
+    let Ok(entries) = std::fs::read_dir(folder) else { return Vec::new() };
+    let mut found: Vec<(u32, serde_json::Value)> = entries
+        .flatten()
+        .filter_map(|e| {
+            let pid = announced_pid(e.file_name().to_str()?)?;
+            if !Path::new("/proc").join(pid.to_string()).exists() {
+                return None;
+            }
+            let json = serde_json::from_str(&std::fs::read_to_string(e.path()).ok()?).ok()?;
+            Some((pid, json))
+        })
+        .collect();
+    found.sort_by_key(|(pid, _)| *pid);
+    found
+}
+
 /// Whether a heartbeat last touched at `touched` still counts at `now`. A heartbeat from the
 /// future (a clock step back) counts: `top` touches it again within half a second anyway.
 pub fn fresh(touched: Option<SystemTime>, now: SystemTime) -> bool {

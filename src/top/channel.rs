@@ -20,21 +20,13 @@ pub struct App {
 
 /// The apps announced in `folder` whose process is alive, by pid.
 pub fn running(folder: &Path) -> Vec<App> {
-    let Ok(entries) = std::fs::read_dir(folder) else { return Vec::new() };
-    let mut found: Vec<App> = entries
-        .flatten()
-        .filter_map(|e| {
-            let pid = live::announced_pid(e.file_name().to_str()?)?;
-            if !Path::new("/proc").join(pid.to_string()).exists() {
-                return None;
-            }
-            let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(e.path()).ok()?).ok()?;
+    live::announced(folder)
+        .into_iter()
+        .map(|(pid, json)| {
             let s = |k: &str| json[k].as_str().unwrap_or("").to_string();
-            Some(App { pid, app: s("app"), exe: s("exe"), config: json["config"].as_str().map(PathBuf::from) })
+            App { pid, app: s("app"), exe: s("exe"), config: json["config"].as_str().map(PathBuf::from) }
         })
-        .collect();
-    found.sort_by_key(|a| a.pid);
-    found
+        .collect()
 }
 
 /// The app to watch: the one with `pid`, else the one named `name` (app or executable), else the

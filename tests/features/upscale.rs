@@ -248,15 +248,6 @@ fn swapchains_destroyed_with_work_in_flight() {
         let on = upscaled(base, "upscale-in-flight", "easu_rcas").run();
         on.assert_ok();
         assert!(!on.log_lines("the runtime shows").is_empty(), "{label}: no swapchain was interposed");
-        if args.contains(&"--temporary-session") {
-            // The temporary session's device (its stats line comes first) gets nothing of the
-            // layer's: no image, no pass, no object.
-            let lines = on.log_lines("vulkan device stats:");
-            assert_eq!(lines.len(), 2, "{label}: one stats line per device:\n{}", on.log);
-            let own: u64 = lines[0].split_whitespace().filter(|w| w.starts_with("own.")).filter_map(|w| w.split('=').nth(1)?.parse::<u64>().ok()).sum();
-            assert_eq!(own, 0, "{label}: the layer made objects on the temporary device: {}", lines[0]);
-            assert!(!lines[0].contains(" upscale"), "{label}: {}", lines[0]);
-        }
         assert!(on.log_lines("waiting for the session's queue").is_empty(), "{label}: {}", on.log);
     }
 }

@@ -18,21 +18,7 @@ pub struct Instance {
 
 /// The instances announced in `folder` whose process is alive (sorted by pid).
 pub fn running(folder: &Path) -> Vec<Instance> {
-    let Ok(entries) = std::fs::read_dir(folder) else { return Vec::new() };
-    let mut found: Vec<Instance> = entries
-        .flatten()
-        .filter_map(|e| {
-            let pid = rules::instance_pid(e.file_name().to_str()?)?;
-            if !Path::new("/proc").join(pid.to_string()).exists() {
-                return None;
-            }
-            let text = std::fs::read_to_string(e.path()).ok()?;
-            let json: serde_json::Value = serde_json::from_str(&text).ok()?;
-            Some(Instance { pid, app: json["app"].as_str().unwrap_or("").to_string() })
-        })
-        .collect();
-    found.sort_by_key(|i| i.pid);
-    found
+    crate::core::live::announced(folder).into_iter().map(|(pid, json)| Instance { pid, app: json["app"].as_str().unwrap_or("").to_string() }).collect()
 }
 
 /// Asks the running instances (or the one with `pid`) for a screenshot; with `wait`, waits up to
